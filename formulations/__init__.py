@@ -1,0 +1,1 @@
+"""Solver-neutral programs built from track hypotheses, and their decoders."""

@@ -1,0 +1,130 @@
+"""Single-point track initiation: the state of a track born at one detection.
+
+The detection fixes the position (``measurement.position_from_measurement``: the
+detection itself for a position measurement, the polar-to-Cartesian conversion with
+covariance ``J R J^T`` for range-bearing).  The unmeasured components start at zero
+with the prior standard deviations of :class:`~mapassoc.settings.BirthModel`.
+
+The coordinated-turn state (speed, heading, turn rate) cannot be started from one
+position: a Gaussian over heading cannot express "any direction".  A coordinated-turn
+track therefore starts in a 2-D constant-velocity state ``(x, y, vx, vy)`` (the
+*initiation model*), and :func:`convert_initiated` turns it into
+``(x, y, speed, heading, turn_rate)`` after its second detection, when the velocity
+is observed (first-order conversion through the polar Jacobian; turn rate
+``N(0, turn_rate_std^2)``).  For every other model the initiation model is the motion
+model itself and the conversion is the identity.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapassoc.errors import InputError
+from mapassoc.measurement import MeasurementModel
+from mapassoc.motion import (
+    ConstantAcceleration,
+    ConstantVelocity,
+    CoordinatedTurn,
+    MotionModel,
+    RandomWalk,
+)
+from mapassoc.settings import BirthModel
+
+__all__ = ["initiation_model", "birth_state", "convert_initiated", "needs_conversion"]
+
+FloatArray = NDArray[np.float64]
+
+
+def initiation_model(motion: MotionModel) -> MotionModel:
+    """The motion model a track uses until its second detection."""
+    if isinstance(motion, CoordinatedTurn):
+        # Along-track acceleration noise of the turn model, spread on both axes.
+        return ConstantVelocity(ndim=2, noise_intensity=motion.speed_noise_intensity)
+    return motion
+
+
+def needs_conversion(motion: MotionModel) -> bool:
+    """Whether :func:`convert_initiated` changes the state space of ``motion``."""
+    return isinstance(motion, CoordinatedTurn)
+
+
+def birth_state(
+    motion: MotionModel, measurement: MeasurementModel, z: FloatArray, birth: BirthModel
+) -> tuple[FloatArray, FloatArray]:
+    """Mean and covariance, in :func:`initiation_model` space, of a track born at ``z``.
+
+    Parameters
+    ----------
+    motion : MotionModel
+    measurement : MeasurementModel
+        Model of the sensor that made the detection.
+    z : ndarray, shape (dz,)
+    birth : BirthModel
+
+    Returns
+    -------
+    x : ndarray, shape (n0,)
+    P : ndarray, shape (n0, n0)
+    """
+    model = initiation_model(motion)
+    pos, pos_cov = measurement.position_from_measurement(np.asarray(z, dtype=float))
+    idx = list(model.position_indices)
+    if pos.shape != (len(idx),):
+        raise InputError(
+            f"a {type(measurement).__name__} detection gives a {pos.shape[0]}-D position but "
+            f"the {type(model).__name__} model has {len(idx)} position components"
+        )
+    n = model.state_dim
+    x = np.zeros(n)
+    P = np.zeros((n, n))
+    x[idx] = pos
+    P[np.ix_(idx, idx)] = pos_cov
+    rest = [i for i in range(n) if i not in idx]
+    if isinstance(model, ConstantVelocity):
+        P[rest, rest] = birth.velocity_std**2
+    elif isinstance(model, ConstantAcceleration):
+        d = model.ndim
+        P[rest[:d], rest[:d]] = birth.velocity_std**2
+        P[rest[d:], rest[d:]] = birth.acceleration_std**2
+    elif isinstance(model, RandomWalk):
+        pass
+    else:
+        raise InputError(f"no birth prior is defined for motion model {type(model).__name__}")
+    return x, P
+
+
+def convert_initiated(
+    motion: MotionModel, x: FloatArray, P: FloatArray, birth: BirthModel
+) -> tuple[FloatArray, FloatArray]:
+    """Map an initiation-model state into ``motion``'s state space.
+
+    Parameters
+    ----------
+    motion : MotionModel
+    x : ndarray, shape (n0,)
+    P : ndarray, shape (n0, n0)
+    birth : BirthModel
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+    P : ndarray, shape (n, n)
+    """
+    if not isinstance(motion, CoordinatedTurn):
+        return x, P
+    px, py, vx, vy = x
+    speed = float(np.hypot(vx, vy))
+    if speed == 0.0:
+        raise InputError(
+            "cannot convert a zero-velocity initiation state to coordinated turn "
+            "(heading undefined)"
+        )
+    J = np.zeros((5, 4))
+    J[0, 0] = J[1, 1] = 1.0
+    J[2, 2], J[2, 3] = vx / speed, vy / speed
+    J[3, 2], J[3, 3] = -vy / speed**2, vx / speed**2
+    x_ct = np.array([px, py, speed, np.arctan2(vy, vx), 0.0])
+    P_ct = J @ P @ J.T
+    P_ct[4, 4] = birth.turn_rate_std**2
+    return x_ct, 0.5 * (P_ct + P_ct.T)

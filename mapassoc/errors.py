@@ -1,0 +1,77 @@
+"""Exceptions raised by mapassoc for bad input.
+
+Every error names what is wrong: the argument, file, row, column or configuration
+key, the offending value and what was expected.  Solver failures live in
+:mod:`mapassoc.solvers.results` (the solver package never imports domain code).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "MapassocError",
+    "InputError",
+    "ConfigError",
+    "DataFileError",
+    "NotPositiveDefiniteError",
+]
+
+
+class MapassocError(Exception):
+    """Base class of every error mapassoc raises on purpose."""
+
+
+class InputError(MapassocError, ValueError):
+    """A public function was called with an argument it cannot accept."""
+
+
+class ConfigError(MapassocError, ValueError):
+    """A configuration file or mapping has a missing, unknown or invalid key.
+
+    Parameters
+    ----------
+    key : str
+        Dotted path of the offending key, for example ``"sensors.radar.detection_probability"``.
+    message : str
+        What is wrong and what was expected.
+    source : str, optional
+        The file the configuration came from.
+    """
+
+    def __init__(self, key: str, message: str, *, source: str | None = None) -> None:
+        self.key = key
+        self.source = source
+        where = f"{source}: " if source else ""
+        super().__init__(f"{where}config key '{key}': {message}")
+
+
+class DataFileError(MapassocError, ValueError):
+    """A data file (detections, truth, tracks) has a malformed row or column.
+
+    Parameters
+    ----------
+    path : str
+        The file.
+    message : str
+        What is wrong and what was expected.
+    row : int, optional
+        1-based line number in the file (the header is line 1).
+    column : str, optional
+        Column name.
+    """
+
+    def __init__(
+        self, path: str, message: str, *, row: int | None = None, column: str | None = None
+    ) -> None:
+        self.path = path
+        self.row = row
+        self.column = column
+        where = str(path)
+        if row is not None:
+            where += f", line {row}"
+        if column is not None:
+            where += f", column '{column}'"
+        super().__init__(f"{where}: {message}")
+
+
+class NotPositiveDefiniteError(MapassocError, ValueError):
+    """A covariance matrix that must be symmetric positive-definite is not."""

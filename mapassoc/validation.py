@@ -1,0 +1,150 @@
+"""Argument checks shared by the public constructors and functions.
+
+Each check raises :class:`~mapassoc.errors.InputError` (or
+:class:`~mapassoc.errors.NotPositiveDefiniteError`) with a message naming the
+argument, the value received and what was expected.  Nothing is clamped.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from mapassoc.errors import InputError, NotPositiveDefiniteError
+
+__all__ = [
+    "check_probability",
+    "check_positive",
+    "check_nonnegative",
+    "check_finite_array",
+    "check_covariance",
+]
+
+
+def _as_float(name: str, value: object) -> float:
+    if isinstance(value, bool):
+        raise InputError(f"{name} must be a number, got the boolean {value!r}")
+    try:
+        out = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(out):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    return out
+
+
+def check_probability(
+    name: str, value: object, *, allow_zero: bool = True, allow_one: bool = True
+) -> float:
+    """Return ``value`` as a float after checking it is a probability.
+
+    Parameters
+    ----------
+    name : str
+        Argument name used in the error message.
+    value : object
+        The value to check.
+    allow_zero, allow_one : bool
+        Whether the closed ends of [0, 1] are accepted.
+    """
+    p = _as_float(name, value)
+    lo_ok = p >= 0.0 if allow_zero else p > 0.0
+    hi_ok = p <= 1.0 if allow_one else p < 1.0
+    if not (lo_ok and hi_ok):
+        lo = "[0" if allow_zero else "(0"
+        hi = "1]" if allow_one else "1)"
+        raise InputError(f"{name} must be a probability in {lo}, {hi}, got {value!r}")
+    return p
+
+
+def check_positive(name: str, value: object) -> float:
+    """Return ``value`` as a float after checking it is finite and > 0."""
+    v = _as_float(name, value)
+    if v <= 0.0:
+        raise InputError(f"{name} must be positive, got {value!r}")
+    return v
+
+
+def check_nonnegative(name: str, value: object) -> float:
+    """Return ``value`` as a float after checking it is finite and >= 0."""
+    v = _as_float(name, value)
+    if v < 0.0:
+        raise InputError(f"{name} must be non-negative, got {value!r}")
+    return v
+
+
+def check_finite_array(
+    name: str, value: ArrayLike, *, shape: tuple[int | None, ...] | None = None
+) -> NDArray[np.float64]:
+    """Return ``value`` as a float array after checking shape and finiteness.
+
+    Parameters
+    ----------
+    name : str
+        Argument name used in the error message.
+    value : array_like
+        The array.
+    shape : tuple of int or None, optional
+        Expected shape; ``None`` entries accept any length on that axis.
+    """
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a numeric array, got {value!r}") from None
+    if shape is not None:
+        ok = arr.ndim == len(shape) and all(
+            want is None or have == want for have, want in zip(arr.shape, shape, strict=True)
+        )
+        if not ok:
+            expected = "(" + ", ".join("any" if s is None else str(s) for s in shape) + ")"
+            raise InputError(f"{name} must have shape {expected}, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} must contain only finite values, got {arr.tolist()!r}")
+    return arr
+
+
+def check_covariance(
+    name: str, value: ArrayLike, *, dim: int | None = None, allow_semidefinite: bool = False
+) -> NDArray[np.float64]:
+    """Return ``value`` as a symmetric positive-(semi)definite matrix or raise.
+
+    Parameters
+    ----------
+    name : str
+        Argument name used in the error message.
+    value : array_like, shape (n, n)
+        The matrix.
+    dim : int, optional
+        Required size n.
+    allow_semidefinite : bool
+        Accept singular positive-semidefinite matrices (process noise may be singular).
+
+    Raises
+    ------
+    InputError
+        Wrong shape or non-finite entries.
+    NotPositiveDefiniteError
+        Not symmetric, or not positive-(semi)definite.
+    """
+    P = check_finite_array(name, value, shape=(dim, dim))
+    if P.shape[0] != P.shape[1]:
+        raise InputError(f"{name} must be square, got shape {P.shape}")
+    scale = max(1.0, float(np.max(np.abs(P)))) if P.size else 1.0
+    if not np.allclose(P, P.T, rtol=1e-9, atol=1e-12 * scale):
+        raise NotPositiveDefiniteError(f"{name} must be symmetric, got {P.tolist()!r}")
+    if allow_semidefinite:
+        eig = np.linalg.eigvalsh(P)
+        if eig.size and eig.min() < -1e-10 * scale:
+            raise NotPositiveDefiniteError(
+                f"{name} must be positive-semidefinite, got eigenvalues {eig.tolist()!r}"
+            )
+    else:
+        try:
+            np.linalg.cholesky(P)
+        except np.linalg.LinAlgError:
+            raise NotPositiveDefiniteError(
+                f"{name} must be positive-definite, got {P.tolist()!r}"
+            ) from None
+    return P

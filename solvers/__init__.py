@@ -1,0 +1,1 @@
+"""Solver backends for the programs of :mod:`mapassoc.formulations`."""
