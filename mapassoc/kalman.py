@@ -247,14 +247,16 @@ def gate_threshold(probability: float, dim: int) -> float:
     Parameters
     ----------
     probability : float
-        Gate probability P_G in (0, 1).
+        Gate probability P_G in (0, 1]; 1 gives an infinite threshold (no gate).
     dim : int
         Measurement dimension dz.
     """
-    if not (0.0 < probability < 1.0):
-        raise InputError(f"gate probability must be in (0, 1), got {probability!r}")
+    if not (0.0 < probability <= 1.0):
+        raise InputError(f"gate probability must be in (0, 1], got {probability!r}")
     if dim < 1:
         raise InputError(f"gate dimension must be >= 1, got {dim!r}")
+    if probability == 1.0:
+        return math.inf
     return float(chi2.ppf(probability, dim))
 
 

@@ -29,11 +29,13 @@ def _check_int(name: str, value: object, *, minimum: int) -> int:
 class BirthModel:
     """Where new tracks come from and how long tracks live.
 
-    A new track starts at a detection.  Births are Poisson with mean ``rate`` per
-    scan, uniform over the sensor's surveillance region; the unmeasured state
-    components start from zero mean with the standard deviations below
-    (single-point initiation).  A track survives from one scan to the next with
-    probability ``survival_probability``.
+    A new track starts at a detection.  First detections of new targets are Poisson
+    with mean ``rate`` per scan, uniform over the sensor's surveillance region, so
+    their density in a scan of a sensor with detection probability Pd and region
+    volume V is ``rate * Pd / V`` (a target is taken to be born at its first
+    detection).  The unmeasured state components start from zero mean with the
+    standard deviations below (single-point initiation).  A track alive at time t
+    is still alive at t + dt with probability ``survival_probability ** dt``.
 
     Parameters
     ----------
@@ -50,7 +52,7 @@ class BirthModel:
     turn_rate_std : float
         Prior standard deviation of the turn rate at birth (coordinated turn), > 0.
     survival_probability : float
-        Probability that a track alive at one scan is alive at the next, in (0, 1].
+        Probability that a track survives one unit of time, in (0, 1].
     """
 
     rate: float = 0.1
@@ -84,7 +86,8 @@ class EstimatorSettings:
     max_tracks : int
         Kmax: the window is solved for every K = 0..Kmax.
     gate_probability : float
-        Chi-square gate probability P_G in (0, 1).
+        Chi-square gate probability P_G in (0, 1]; 1 disables gating (every detection
+        of a scan may continue every track), which only small problems can afford.
     max_hypotheses_per_tree : int
         Cap on the leaves kept per track tree (best scores kept), >= 1.
     prune_log_ratio : float
@@ -134,9 +137,7 @@ class EstimatorSettings:
                 f"stride must be <= window_length ({self.window_length}), got {self.stride}"
             )
         _check_int("max_tracks", self.max_tracks, minimum=0)
-        check_probability(
-            "gate_probability", self.gate_probability, allow_zero=False, allow_one=False
-        )
+        check_probability("gate_probability", self.gate_probability, allow_zero=False)
         _check_int("max_hypotheses_per_tree", self.max_hypotheses_per_tree, minimum=1)
         if not (isinstance(self.prune_log_ratio, (int, float)) and self.prune_log_ratio >= 0):
             raise InputError(

@@ -1,0 +1,172 @@
+"""The window's track-set choice as a set-packing problem, and its integer program.
+
+A :class:`PackingProblem` is solver- and domain-neutral: hypotheses with scores, the
+*resources* each one uses (detections, and for a carried track its track tree), which
+resources must be used exactly once (carried tracks: a carried track continues,
+misses or ends, but never vanishes) and which hypotheses count toward K.
+
+For a given K the integer program is (Morefield 1977 set packing, plus the
+cardinality row of seed 002, eq. 14)::
+
+    maximise    sum_h score_h x_h
+    subject to  sum_{h uses r} x_h <= 1      every detection r
+                sum_{h uses g} x_h == 1      every carried track g
+                sum_{h counts} x_h == K
+                x binary
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from mapassoc.formulations.program import Program
+
+__all__ = ["PackingProblem", "set_packing_program", "decode_selection"]
+
+
+@dataclass(frozen=True, eq=False)
+class PackingProblem:
+    """Hypotheses competing for resources.
+
+    Parameters
+    ----------
+    scores : ndarray, shape (H,)
+        Log-score of each hypothesis (to maximise).
+    resource_indptr : ndarray of int, shape (H + 1,)
+    resource_indices : ndarray of int, shape (nnz,)
+        Resources used by hypothesis h: ``resource_indices[indptr[h]:indptr[h+1]]``.
+    exactly_one : ndarray of bool, shape (R,)
+        Resources that must be used exactly once; the others at most once.
+    counts : ndarray of bool, shape (H,)
+        Whether each hypothesis counts toward K.
+    """
+
+    scores: NDArray[np.float64]
+    resource_indptr: NDArray[np.int64]
+    resource_indices: NDArray[np.int64]
+    exactly_one: NDArray[np.bool_]
+    counts: NDArray[np.bool_]
+
+    def __post_init__(self) -> None:
+        scores = np.asarray(self.scores, dtype=float)
+        H = scores.shape[0]
+        indptr = np.asarray(self.resource_indptr, dtype=np.int64)
+        indices = np.asarray(self.resource_indices, dtype=np.int64)
+        exactly_one = np.asarray(self.exactly_one, dtype=bool)
+        counts = np.asarray(self.counts, dtype=bool)
+        if scores.ndim != 1 or not np.all(np.isfinite(scores)):
+            raise ValueError("scores must be a finite 1-D array")
+        if indptr.shape != (H + 1,) or indptr[0] != 0 or np.any(np.diff(indptr) < 0):
+            raise ValueError(f"resource_indptr must be a CSR pointer of length {H + 1}")
+        if indices.shape != (indptr[-1],):
+            raise ValueError("resource_indices must have resource_indptr[-1] entries")
+        R = exactly_one.shape[0]
+        if indices.size and (indices.min() < 0 or indices.max() >= R):
+            raise ValueError(f"resource indices must lie in 0..{R - 1}")
+        if counts.shape != (H,):
+            raise ValueError(f"counts must have shape ({H},)")
+        for h in range(H):
+            used = indices[indptr[h] : indptr[h + 1]]
+            if len(np.unique(used)) != len(used):
+                raise ValueError(f"hypothesis {h} lists a resource twice")
+        object.__setattr__(self, "scores", scores)
+        object.__setattr__(self, "resource_indptr", indptr)
+        object.__setattr__(self, "resource_indices", indices)
+        object.__setattr__(self, "exactly_one", exactly_one)
+        object.__setattr__(self, "counts", counts)
+
+    @property
+    def num_hypotheses(self) -> int:
+        return int(self.scores.shape[0])
+
+    @property
+    def num_resources(self) -> int:
+        return int(self.exactly_one.shape[0])
+
+    def resources_of(self, h: int) -> NDArray[np.int64]:
+        return self.resource_indices[self.resource_indptr[h] : self.resource_indptr[h + 1]]
+
+    def incidence(self) -> sp.csr_array:
+        """Resource-by-hypothesis 0/1 matrix, shape (R, H)."""
+        H = self.num_hypotheses
+        rows = self.resource_indices
+        cols = np.repeat(np.arange(H), np.diff(self.resource_indptr))
+        data = np.ones(len(rows))
+        return sp.csr_array((data, (rows, cols)), shape=(self.num_resources, H))
+
+    def subproblem(self, hypotheses: NDArray[np.int64]) -> PackingProblem:
+        """The problem restricted to ``hypotheses`` (resources renumbered compactly)."""
+        hyp = np.asarray(hypotheses, dtype=np.int64)
+        parts = [self.resources_of(int(h)) for h in hyp]
+        used = np.unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
+        remap = np.full(self.num_resources, -1, dtype=np.int64)
+        remap[used] = np.arange(len(used))
+        lengths = [len(p) for p in parts]
+        indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+        indices = remap[np.concatenate(parts)] if parts else np.zeros(0, np.int64)
+        return PackingProblem(
+            scores=self.scores[hyp],
+            resource_indptr=indptr,
+            resource_indices=indices.astype(np.int64),
+            exactly_one=self.exactly_one[used],
+            counts=self.counts[hyp],
+        )
+
+    def is_feasible(self, selection: NDArray[np.int64], k: int | None = None) -> bool:
+        """Whether the selected hypotheses respect every resource (and count k)."""
+        sel = np.asarray(selection, dtype=np.int64)
+        use = np.zeros(self.num_resources, dtype=np.int64)
+        for h in sel:
+            use[self.resources_of(int(h))] += 1
+        if np.any(use > 1) or np.any(use[self.exactly_one] != 1):
+            return False
+        return k is None or int(np.count_nonzero(self.counts[sel])) == k
+
+    def value(self, selection: NDArray[np.int64]) -> float:
+        return float(np.sum(self.scores[np.asarray(selection, dtype=np.int64)]))
+
+
+def set_packing_program(problem: PackingProblem, k: int) -> Program:
+    """The binary program choosing the best feasible hypothesis set with exactly ``k`` counted.
+
+    Parameters
+    ----------
+    problem : PackingProblem
+    k : int
+        Required number of counted hypotheses (tracks).
+
+    Returns
+    -------
+    Program
+        Maximisation of the total score; decode with :func:`decode_selection`.
+    """
+    if k < 0:
+        raise ValueError(f"k must be >= 0, got {k}")
+    A = problem.incidence()
+    used = np.asarray(A.sum(axis=1)).ravel() > 0
+    at_most = np.flatnonzero(used & ~problem.exactly_one)
+    exactly = np.flatnonzero(problem.exactly_one)
+    H = problem.num_hypotheses
+    card = sp.csr_array(problem.counts.astype(float)[None, :])
+    A_eq = sp.vstack([A[exactly], card], format="csr")
+    b_eq = np.concatenate([np.ones(len(exactly)), [float(k)]])
+    return Program(
+        objective=problem.scores,
+        A_ub=A[at_most],
+        b_ub=np.ones(len(at_most)),
+        A_eq=A_eq,
+        b_eq=b_eq,
+        lower=np.zeros(H),
+        upper=np.ones(H),
+        integrality=np.ones(H, dtype=bool),
+    )
+
+
+def decode_selection(x: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Indices of the selected hypotheses of a (near-)binary solution vector."""
+    x = np.asarray(x, dtype=float)
+    return np.flatnonzero(x > 0.5).astype(np.int64)

@@ -1,0 +1,743 @@
+"""Track hypotheses of one window: track trees grown scan by scan, Kalman-scored.
+
+A window is a run of consecutive scans.  Every track tree of the window is either
+
+* a **carried track**, committed by earlier windows, whose filtered state at its last
+  committed scan is the prior; its hypotheses include ending before the window; or
+* a **new track**, born at one detection of the window (single-point initiation,
+  :mod:`mapassoc.birth`).
+
+Each alive leaf grows at each scan into: the track ended (alive at the previous scan,
+dead at this one), the track missed, or the track continued by one gated detection.
+The score of a hypothesis (a root-to-leaf path) is its log-likelihood ratio against
+"all its detections are false alarms and the track does not exist"; it is a sum of
+the terms below (derivation: ``docs/model.md``; the sum over a track set plus a
+constant is ``log p(track set, K | Z)`` of seed 002, eqs. 8-14):
+
+====================================  ===============================================
+event at a scan of sensor s           term
+====================================  ===============================================
+birth at detection z                  ``log(rate) + log Pd_s - log lambda_bar_s``
+                                      (birth density ``rate Pd_s / V_s`` over clutter
+                                      density ``lambda_s = lambda_bar_s / V_s``)
+survival over dt                      ``dt log Ps``
+continued by detection z              ``log Pd_s + log N(nu; 0, S) - log lambda_s``
+                                      (seed 001 weight; seed 000 eq. 11)
+missed                                ``log(1 - Pd_s P_G)`` (P_G: gate probability)
+ended over dt                         ``log(1 - Ps^dt)``
+====================================  ===============================================
+
+Growth is bounded by a chi-square gate, by keeping at most ``max_hypotheses_per_tree``
+new nodes per tree and scan, and by dropping nodes whose score is more than
+``prune_log_ratio`` below the best of their tree (for a new tree the reference
+includes 0, the score of not selecting the tree).  A carried tree always keeps a leaf
+that uses no detection (ended before the window, or all misses), so pruning never
+makes a window infeasible.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapassoc.birth import birth_state, convert_initiated, initiation_model, needs_conversion
+from mapassoc.errors import InputError
+from mapassoc.kalman import gate_threshold, pairwise_gate_and_loglik, predict_motion, update
+from mapassoc.motion import MotionModel
+from mapassoc.scans import Scan
+from mapassoc.sensor import Sensor
+from mapassoc.settings import BirthModel
+
+__all__ = [
+    "CarriedTrack",
+    "WindowDetections",
+    "HypothesisNodes",
+    "WindowHypotheses",
+    "HypothesisGenerator",
+]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True, eq=False)
+class CarriedTrack:
+    """A track committed by earlier windows, entering the next window as a prior.
+
+    Parameters
+    ----------
+    track_id : int
+        Stable track identifier.
+    mean : ndarray, shape (n,)
+        Filtered state at ``time`` (in the initiation-model space while
+        ``initiated`` is False).
+    covariance : ndarray, shape (n, n)
+    time : float
+        Time of the last committed scan.
+    initiated : bool
+        Whether the state is in the motion model's own space (always True except for
+        a coordinated-turn track with a single detection so far).
+    num_detections : int
+        Detections the track has used so far.
+    """
+
+    track_id: int
+    mean: FloatArray
+    covariance: FloatArray
+    time: float
+    initiated: bool
+    num_detections: int
+
+
+@dataclass(frozen=True, eq=False)
+class WindowDetections:
+    """The detections of a window, indexed 0..D-1 in scan order.
+
+    Attributes
+    ----------
+    scan_position : ndarray of int, shape (D,)
+        Position of the detection's scan within the window.
+    index_in_scan : ndarray of int, shape (D,)
+    rows : ndarray of int, shape (D,)
+        Line numbers in the detections file.
+    """
+
+    scan_position: IntArray
+    index_in_scan: IntArray
+    rows: IntArray
+
+    @property
+    def count(self) -> int:
+        return int(self.rows.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class HypothesisNodes:
+    """Every kept node of a window's track trees (a node = a track's state at one scan).
+
+    States of different state spaces (coordinated turn before and after initiation)
+    share padded arrays; ``state_dims`` says how many leading entries are used.
+
+    Attributes
+    ----------
+    parent : ndarray of int, shape (V,)
+        Parent node, -1 for a root.
+    layer : ndarray of int, shape (V,)
+        Scan position in the window.
+    detection : ndarray of int, shape (V,)
+        Window detection used at this node, -1 for a miss or an end.
+    alive : ndarray of bool, shape (V,)
+        False for an "ended" node.
+    tree : ndarray of int, shape (V,)
+    initiated : ndarray of bool, shape (V,)
+    num_detections : ndarray of int, shape (V,)
+        Detections used along the path including this node (carried history included).
+    means : ndarray, shape (V, n_max)
+    covariances : ndarray, shape (V, n_max, n_max)
+    state_dims : ndarray of int, shape (V,)
+    """
+
+    parent: IntArray
+    layer: IntArray
+    detection: IntArray
+    alive: NDArray[np.bool_]
+    tree: IntArray
+    initiated: NDArray[np.bool_]
+    num_detections: IntArray
+    means: FloatArray
+    covariances: FloatArray
+    state_dims: IntArray
+
+    def path(self, leaf: int) -> list[int]:
+        """Node ids from the root to ``leaf``."""
+        out = []
+        node = int(leaf)
+        while node >= 0:
+            out.append(node)
+            node = int(self.parent[node])
+        return out[::-1]
+
+    def state(self, node: int) -> tuple[FloatArray, FloatArray]:
+        d = int(self.state_dims[node])
+        return self.means[node, :d].copy(), self.covariances[node, :d, :d].copy()
+
+
+@dataclass(frozen=True, eq=False)
+class WindowHypotheses:
+    """All hypotheses of one window, ready to be turned into a set-packing program.
+
+    Attributes
+    ----------
+    scans : tuple of Scan
+    detections : WindowDetections
+    tree_track_ids : ndarray of int, shape (T,)
+        Track id of each carried tree, -1 for a new tree.
+    scores : ndarray, shape (H,)
+        Log-likelihood ratio of each hypothesis.
+    tree : ndarray of int, shape (H,)
+    leaf : ndarray of int, shape (H,)
+        Node id of each hypothesis' last node.
+    counts_toward_k : ndarray of bool, shape (H,)
+        False only for "carried track ended before the window".
+    detection_indptr : ndarray of int, shape (H + 1,)
+    detection_indices : ndarray of int, shape (nnz,)
+        Window detections used by hypothesis h: ``indices[indptr[h]:indptr[h+1]]``.
+    nodes : HypothesisNodes
+    generated : int
+        Nodes created (before pruning).
+    pruned : int
+        Nodes dropped by the cap and the score ratio.
+    """
+
+    scans: tuple[Scan, ...]
+    detections: WindowDetections
+    tree_track_ids: IntArray
+    scores: FloatArray
+    tree: IntArray
+    leaf: IntArray
+    counts_toward_k: NDArray[np.bool_]
+    detection_indptr: IntArray
+    detection_indices: IntArray
+    nodes: HypothesisNodes
+    generated: int
+    pruned: int
+
+    @property
+    def count(self) -> int:
+        return int(self.scores.shape[0])
+
+    def detections_of(self, h: int) -> IntArray:
+        return self.detection_indices[self.detection_indptr[h] : self.detection_indptr[h + 1]]
+
+
+@dataclass
+class _Layer:
+    """Nodes created at one scan, before they are stored (mutable scratch)."""
+
+    parent: list[IntArray]
+    detection: list[IntArray]
+    alive: list[NDArray[np.bool_]]
+    tree: list[IntArray]
+    initiated: list[NDArray[np.bool_]]
+    num_detections: list[IntArray]
+    score: list[FloatArray]
+    protected: list[NDArray[np.bool_]]
+    means: list[FloatArray]
+    covs: list[FloatArray]
+
+    @classmethod
+    def empty(cls) -> _Layer:
+        return cls([], [], [], [], [], [], [], [], [], [])
+
+    def add(
+        self,
+        *,
+        parent: IntArray,
+        detection: IntArray,
+        alive: bool,
+        tree: IntArray,
+        initiated: NDArray[np.bool_],
+        num_detections: IntArray,
+        score: FloatArray,
+        protected: NDArray[np.bool_],
+        means: FloatArray,
+        covs: FloatArray,
+    ) -> None:
+        k = len(score)
+        if k == 0:
+            return
+        self.parent.append(np.asarray(parent, dtype=np.int64))
+        self.detection.append(np.asarray(detection, dtype=np.int64))
+        self.alive.append(np.full(k, alive))
+        self.tree.append(np.asarray(tree, dtype=np.int64))
+        self.initiated.append(np.asarray(initiated, dtype=bool))
+        self.num_detections.append(np.asarray(num_detections, dtype=np.int64))
+        self.score.append(np.asarray(score, dtype=float))
+        self.protected.append(np.asarray(protected, dtype=bool))
+        self.means.append(means)
+        self.covs.append(covs)
+
+
+def _pad(means: FloatArray, covs: FloatArray, n_max: int) -> tuple[FloatArray, FloatArray]:
+    k, d = means.shape
+    if d == n_max:
+        return means, covs
+    m = np.zeros((k, n_max))
+    c = np.zeros((k, n_max, n_max))
+    m[:, :d] = means
+    c[:, :d, :d] = covs
+    return m, c
+
+
+class HypothesisGenerator:
+    """Grows and scores the track trees of a window.
+
+    Parameters
+    ----------
+    motion : MotionModel
+    sensors : mapping of str to Sensor
+        Every sensor named by a scan.  Each needs ``false_alarms_per_scan > 0``: the
+        scores are ratios against "false alarm", which has no density without clutter.
+    birth : BirthModel
+    gate_probability : float
+        P_G in (0, 1]; 1 disables gating.
+    max_hypotheses_per_tree : int
+        Most new nodes kept per tree and scan.
+    prune_log_ratio : float
+        Nodes scoring more than this below their tree's best are dropped.
+    """
+
+    def __init__(
+        self,
+        *,
+        motion: MotionModel,
+        sensors: Mapping[str, Sensor],
+        birth: BirthModel,
+        gate_probability: float,
+        max_hypotheses_per_tree: int,
+        prune_log_ratio: float,
+    ) -> None:
+        self.motion = motion
+        self.sensors = dict(sensors)
+        for name, sensor in self.sensors.items():
+            if not sensor.false_alarms_per_scan > 0:
+                raise InputError(
+                    f"sensor '{name}' has false_alarms_per_scan = "
+                    f"{sensor.false_alarms_per_scan}; the estimator scores detections against "
+                    "the false-alarm density and needs a positive rate (use a small value such "
+                    "as 1e-6 for nearly clutter-free data)"
+                )
+        self.birth = birth
+        if not 0 < gate_probability <= 1:
+            raise InputError(f"gate_probability must be in (0, 1], got {gate_probability!r}")
+        self.gate_probability = float(gate_probability)
+        self.max_hypotheses_per_tree = int(max_hypotheses_per_tree)
+        self.prune_log_ratio = float(prune_log_ratio)
+        self._init_model = initiation_model(motion)
+        self._converts = needs_conversion(motion)
+        self._n_max = max(motion.state_dim, self._init_model.state_dim)
+        self._log_survival = math.log(birth.survival_probability)
+        self._log_birth_rate = math.log(birth.rate)
+
+    # -- scoring terms ---------------------------------------------------------------
+    def _log_end(self, dt: FloatArray) -> FloatArray:
+        """log(1 - Ps^dt); -inf where ending is impossible (dt = 0 or Ps = 1)."""
+        with np.errstate(divide="ignore"):
+            return np.log(-np.expm1(dt * self._log_survival))
+
+    def _log_miss(self, sensor: Sensor) -> float:
+        p = sensor.detection_probability * self.gate_probability
+        return math.log1p(-p) if p < 1.0 else -math.inf
+
+    # -- main entry ------------------------------------------------------------------
+    def generate(
+        self, scans: Sequence[Scan], carried: Sequence[CarriedTrack] = ()
+    ) -> WindowHypotheses:
+        """Build every kept hypothesis of the window.
+
+        Parameters
+        ----------
+        scans : sequence of Scan
+            The window's scans in time order (at least one).
+        carried : sequence of CarriedTrack
+            Tracks entering the window; each must end before the window's first scan
+            time or at it.
+
+        Returns
+        -------
+        WindowHypotheses
+        """
+        scans = tuple(scans)
+        if not scans:
+            raise InputError("a window needs at least one scan")
+        for scan in scans:
+            if scan.sensor not in self.sensors:
+                raise InputError(
+                    f"scan at time {scan.time} names sensor '{scan.sensor}', which is not "
+                    f"configured (known: {sorted(self.sensors)})"
+                )
+            dz = self.sensors[scan.sensor].measurement.measurement_dim
+            if scan.size and scan.detections.shape[1] != dz:
+                raise InputError(
+                    f"scan at time {scan.time} of sensor '{scan.sensor}' has detections of "
+                    f"dimension {scan.detections.shape[1]}, expected {dz}"
+                )
+        for track in carried:
+            if track.time > scans[0].time:
+                raise InputError(
+                    f"carried track {track.track_id} has time {track.time}, after the "
+                    f"window's first scan at {scans[0].time}"
+                )
+        det_counts = [s.size for s in scans]
+        offsets = np.concatenate([[0], np.cumsum(det_counts)]).astype(np.int64)
+        detections = WindowDetections(
+            scan_position=np.repeat(np.arange(len(scans)), det_counts).astype(np.int64),
+            index_in_scan=np.concatenate(
+                [np.arange(c, dtype=np.int64) for c in det_counts] or [np.zeros(0, np.int64)]
+            ),
+            rows=np.concatenate([s.rows for s in scans] or [np.zeros(0, np.int64)]),
+        )
+
+        tree_track_ids: list[int] = [t.track_id for t in carried]
+        # Stored nodes, appended layer by layer.
+        store: dict[str, list[np.ndarray]] = {
+            k: []
+            for k in (
+                "parent",
+                "layer",
+                "detection",
+                "alive",
+                "tree",
+                "initiated",
+                "num_detections",
+                "means",
+                "covs",
+                "dims",
+                "score",
+                "protected",
+            )
+        }
+        node_count = 0
+        generated = 0
+        pruned = 0
+
+        # Frontier: alive nodes to grow at the next scan.
+        frontier = self._carried_frontier(carried)
+        for j, scan in enumerate(scans):
+            sensor = self.sensors[scan.sensor]
+            layer = _Layer.empty()
+            self._grow(layer, frontier, scan, sensor, j, offsets[j])
+            num_trees_before = len(tree_track_ids)
+            self._births(layer, scan, sensor, offsets[j], num_trees_before)
+            tree_track_ids.extend([-1] * scan.size)
+            is_new_tree = np.array([tid < 0 for tid in tree_track_ids], dtype=bool)
+            if not layer.score:
+                frontier = None
+                continue
+            cat = {
+                name: np.concatenate(getattr(layer, name))
+                for name in (
+                    "parent",
+                    "detection",
+                    "alive",
+                    "tree",
+                    "initiated",
+                    "num_detections",
+                    "score",
+                    "protected",
+                )
+            }
+            dims = np.concatenate([np.full(len(m), m.shape[1]) for m in layer.means])
+            padded = [_pad(m, c, self._n_max) for m, c in zip(layer.means, layer.covs, strict=True)]
+            means = np.concatenate([p[0] for p in padded])
+            covs = np.concatenate([p[1] for p in padded])
+            generated += len(cat["score"])
+            keep = self._prune_mask(cat["tree"], cat["score"], cat["protected"], is_new_tree)
+            pruned += int(np.count_nonzero(~keep))
+            ids = node_count + np.arange(int(np.count_nonzero(keep)))
+            node_count += len(ids)
+            for name in (
+                "parent",
+                "detection",
+                "alive",
+                "tree",
+                "initiated",
+                "num_detections",
+                "score",
+                "protected",
+            ):
+                store[name].append(cat[name][keep])
+            store["layer"].append(np.full(len(ids), j, dtype=np.int64))
+            store["means"].append(means[keep])
+            store["covs"].append(covs[keep])
+            store["dims"].append(dims[keep])
+            alive = cat["alive"][keep]
+            frontier = {
+                "node": ids[alive],
+                "tree": cat["tree"][keep][alive],
+                "initiated": cat["initiated"][keep][alive],
+                "num_detections": cat["num_detections"][keep][alive],
+                "score": cat["score"][keep][alive],
+                "protected": cat["protected"][keep][alive],
+                "means": means[keep][alive],
+                "covs": covs[keep][alive],
+                "dims": dims[keep][alive],
+                "time": np.full(int(np.count_nonzero(alive)), scan.time),
+            }
+
+        def _cat(name: str, dtype: type, shape_tail: tuple[int, ...] = ()) -> np.ndarray:
+            parts = store[name]
+            if not parts:
+                return np.zeros((0,) + shape_tail, dtype=dtype)
+            return np.concatenate(parts).astype(dtype, copy=False)
+
+        nodes = HypothesisNodes(
+            parent=_cat("parent", np.int64),
+            layer=_cat("layer", np.int64),
+            detection=_cat("detection", np.int64),
+            alive=_cat("alive", bool),
+            tree=_cat("tree", np.int64),
+            initiated=_cat("initiated", bool),
+            num_detections=_cat("num_detections", np.int64),
+            means=_cat("means", float, (self._n_max,)),
+            covariances=_cat("covs", float, (self._n_max, self._n_max)),
+            state_dims=_cat("dims", np.int64),
+        )
+        scores_all = _cat("score", float)
+        last = len(scans) - 1
+        is_leaf = (~nodes.alive) | (nodes.layer == last)
+        leaves = np.flatnonzero(is_leaf)
+        # Deterministic order: by tree, then by node id.
+        leaves = leaves[np.lexsort((leaves, nodes.tree[leaves]))]
+        self._check_carried_have_leaves(nodes.tree[leaves], len(carried))
+        counts = nodes.alive[leaves] | (nodes.parent[leaves] >= 0)
+        indptr = [0]
+        indices: list[int] = []
+        for leaf in leaves:
+            used = [int(nodes.detection[v]) for v in nodes.path(int(leaf))]
+            used = [d for d in used if d >= 0]
+            indices.extend(used)
+            indptr.append(len(indices))
+        return WindowHypotheses(
+            scans=scans,
+            detections=detections,
+            tree_track_ids=np.asarray(tree_track_ids, dtype=np.int64),
+            scores=scores_all[leaves],
+            tree=nodes.tree[leaves],
+            leaf=leaves.astype(np.int64),
+            counts_toward_k=counts,
+            detection_indptr=np.asarray(indptr, dtype=np.int64),
+            detection_indices=np.asarray(indices, dtype=np.int64),
+            nodes=nodes,
+            generated=generated,
+            pruned=pruned,
+        )
+
+    # -- pieces ----------------------------------------------------------------------
+    def _carried_frontier(self, carried: Sequence[CarriedTrack]) -> dict[str, np.ndarray] | None:
+        if not carried:
+            return None
+        means, covs, dims = [], [], []
+        for t in carried:
+            d = self.motion.state_dim if t.initiated else self._init_model.state_dim
+            m = np.asarray(t.mean, dtype=float)
+            c = np.asarray(t.covariance, dtype=float)
+            if m.shape != (d,) or c.shape != (d, d):
+                raise InputError(
+                    f"carried track {t.track_id} state has shape {m.shape}, covariance "
+                    f"{c.shape}; expected ({d},) and ({d}, {d})"
+                )
+            pm, pc = _pad(m[None], c[None], self._n_max)
+            means.append(pm[0])
+            covs.append(pc[0])
+            dims.append(d)
+        k = len(carried)
+        return {
+            "node": np.full(k, -1, dtype=np.int64),
+            "tree": np.arange(k, dtype=np.int64),
+            "initiated": np.array([t.initiated for t in carried], dtype=bool),
+            "num_detections": np.array([t.num_detections for t in carried], dtype=np.int64),
+            "score": np.zeros(k),
+            "protected": np.ones(k, dtype=bool),
+            "means": np.array(means),
+            "covs": np.array(covs),
+            "dims": np.array(dims, dtype=np.int64),
+            "time": np.array([t.time for t in carried], dtype=float),
+        }
+
+    def _grow(
+        self,
+        layer: _Layer,
+        frontier: dict[str, np.ndarray] | None,
+        scan: Scan,
+        sensor: Sensor,
+        j: int,
+        det_offset: int,
+    ) -> None:
+        """Children of every frontier node at scan ``j``: end, miss, each gated detection."""
+        if frontier is None or len(frontier["score"]) == 0:
+            return
+        dt = scan.time - frontier["time"]
+        # Ended between the previous state and this scan.
+        log_end = self._log_end(dt)
+        can_end = np.isfinite(log_end)
+        # A carried track that can end keeps its "ended before the window" leaf protected;
+        # otherwise its all-miss path carries the protection.
+        protect_end = frontier["protected"] & can_end
+        protect_miss = frontier["protected"] & ~can_end
+        idx = np.flatnonzero(can_end)
+        layer.add(
+            parent=frontier["node"][idx],
+            detection=np.full(len(idx), -1),
+            alive=False,
+            tree=frontier["tree"][idx],
+            initiated=frontier["initiated"][idx],
+            num_detections=frontier["num_detections"][idx],
+            score=frontier["score"][idx] + log_end[idx],
+            protected=protect_end[idx],
+            means=frontier["means"][idx],
+            covs=frontier["covs"][idx],
+        )
+        log_miss = self._log_miss(sensor)
+        log_pd = math.log(sensor.detection_probability)
+        log_lambda = sensor.log_clutter_density
+        threshold = gate_threshold(self.gate_probability, sensor.measurement.measurement_dim)
+        measurement = sensor.measurement
+        R = measurement.noise_covariance
+        Z = scan.detections
+        for initiated in (False, True):
+            group = np.flatnonzero(frontier["initiated"] == initiated)
+            if len(group) == 0:
+                continue
+            model = self.motion if initiated else self._init_model
+            d = model.state_dim
+            x = frontier["means"][group, :d]
+            P = frontier["covs"][group, :d, :d]
+            gdt = dt[group]
+            # Predict, grouped by distinct dt (one value except at a window's start).
+            for value in np.unique(gdt):
+                sel = np.flatnonzero(gdt == value)
+                if value > 0:
+                    x[sel], P[sel], _ = predict_motion(model, x[sel], P[sel], float(value))
+            base = frontier["score"][group] + gdt * self._log_survival
+            # Missed at this scan.
+            if math.isfinite(log_miss):
+                mm, mc = _pad(x, P, self._n_max)
+                layer.add(
+                    parent=frontier["node"][group],
+                    detection=np.full(len(group), -1),
+                    alive=True,
+                    tree=frontier["tree"][group],
+                    initiated=np.full(len(group), initiated),
+                    num_detections=frontier["num_detections"][group],
+                    score=base + log_miss,
+                    protected=protect_miss[group],
+                    means=mm,
+                    covs=mc,
+                )
+            if scan.size == 0:
+                continue
+            # Gate and score every (node, detection) pair at once.
+            H = measurement.jacobian(x)
+            z_hat = measurement.predict(x)
+            S = H @ P @ np.swapaxes(H, -1, -2) + R
+            S = 0.5 * (S + np.swapaxes(S, -1, -2))
+            nu = measurement.residual(Z[None, :, :], z_hat[:, None, :])
+            d2, loglik = pairwise_gate_and_loglik(nu, S)
+            li, mi = np.nonzero(d2 <= threshold)
+            if len(li) == 0:
+                continue
+            xu, Pu = update(x[li], P[li], nu[li, mi], S[li], H[li], R)
+            ndet = frontier["num_detections"][group][li] + 1
+            init_flags = np.full(len(li), initiated)
+            if not initiated:
+                convert = ndet >= 2 if self._converts else np.ones(len(li), dtype=bool)
+                init_flags = convert
+                if self._converts and np.any(convert):
+                    # Second detection of a coordinated-turn track: into the turn state.
+                    conv_m, conv_c = [], []
+                    for k in np.flatnonzero(convert):
+                        cm, cc = convert_initiated(self.motion, xu[k], Pu[k], self.birth)
+                        conv_m.append(cm)
+                        conv_c.append(cc)
+                    keep_init = np.flatnonzero(~convert)
+                    conv_idx = np.flatnonzero(convert)
+                    pm, pc = _pad(np.array(conv_m), np.array(conv_c), self._n_max)
+                    km, kc = _pad(xu[keep_init], Pu[keep_init], self._n_max)
+                    order = np.concatenate([conv_idx, keep_init])
+                    means_all = np.concatenate([pm, km])
+                    covs_all = np.concatenate([pc, kc])
+                    inv = np.empty_like(order)
+                    inv[order] = np.arange(len(order))
+                    um, uc = means_all[inv], covs_all[inv]
+                else:
+                    um, uc = _pad(xu, Pu, self._n_max)
+            else:
+                um, uc = _pad(xu, Pu, self._n_max)
+            layer.add(
+                parent=frontier["node"][group][li],
+                detection=det_offset + mi,
+                alive=True,
+                tree=frontier["tree"][group][li],
+                initiated=init_flags,
+                num_detections=ndet,
+                score=base[li] + log_pd + loglik[li, mi] - log_lambda,
+                protected=np.zeros(len(li), dtype=bool),
+                means=um,
+                covs=uc,
+            )
+
+    def _births(
+        self, layer: _Layer, scan: Scan, sensor: Sensor, det_offset: int, first_tree: int
+    ) -> None:
+        """One new tree rooted at every detection of the scan."""
+        m = scan.size
+        if m == 0:
+            return
+        # Birth density rate*Pd/V against clutter density lambda_bar/V.
+        score = (
+            self._log_birth_rate
+            + math.log(sensor.detection_probability)
+            - math.log(sensor.false_alarms_per_scan)
+        )
+        states = [
+            birth_state(self.motion, sensor.measurement, z, self.birth) for z in scan.detections
+        ]
+        x = np.array([s[0] for s in states])
+        P = np.array([s[1] for s in states])
+        initiated = not self._converts
+        mm, mc = _pad(x, P, self._n_max)
+        layer.add(
+            parent=np.full(m, -1),
+            detection=det_offset + np.arange(m),
+            alive=True,
+            tree=first_tree + np.arange(m),
+            initiated=np.full(m, initiated),
+            num_detections=np.ones(m, dtype=np.int64),
+            score=np.full(m, score),
+            protected=np.zeros(m, dtype=bool),
+            means=mm,
+            covs=mc,
+        )
+
+    def _prune_mask(
+        self,
+        tree: IntArray,
+        score: FloatArray,
+        protected: NDArray[np.bool_],
+        is_new_tree: NDArray[np.bool_],
+    ) -> NDArray[np.bool_]:
+        """Keep per tree the best nodes within the score ratio, up to the cap."""
+        order = np.lexsort((np.arange(len(score)), -score, tree))
+        t_sorted = tree[order]
+        starts = np.flatnonzero(np.r_[True, t_sorted[1:] != t_sorted[:-1]])
+        group_id = np.cumsum(np.r_[False, t_sorted[1:] != t_sorted[:-1]])
+        rank = np.arange(len(order)) - starts[group_id]
+        best = score[order][starts][group_id]
+        # A new tree may also not be selected at all, which scores 0.
+        reference = np.where(is_new_tree[t_sorted], np.maximum(best, 0.0), best)
+        ok = (rank < self.max_hypotheses_per_tree) & (
+            score[order] >= reference - self.prune_log_ratio
+        )
+        keep = np.zeros(len(score), dtype=bool)
+        keep[order] = ok
+        return keep | protected
+
+    @staticmethod
+    def _check_carried_have_leaves(leaf_trees: IntArray, num_carried: int) -> None:
+        """Every carried tree must keep a leaf (pruning protects one; only the model can fail)."""
+        if num_carried == 0:
+            return
+        present = np.zeros(num_carried, dtype=bool)
+        present[leaf_trees[leaf_trees < num_carried]] = True
+        if not np.all(present):
+            missing = np.flatnonzero(~present)
+            raise InputError(
+                f"carried track tree(s) {missing.tolist()} have no possible hypothesis: "
+                "detection probability x gate probability is 1 (a miss is impossible) and the "
+                "track cannot end (survival_probability 1 or zero time step); lower one of them"
+            )
