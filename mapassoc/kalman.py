@@ -79,9 +79,9 @@ def cholesky(S: FloatArray, name: str = "covariance") -> FloatArray:
         try:
             np.linalg.cholesky(M)
         except np.linalg.LinAlgError:
-            index = np.unravel_index(i, S.shape[:-2]) if S.ndim > 2 else ()
+            index = [int(j) for j in np.unravel_index(i, S.shape[:-2])] if S.ndim > 2 else []
             raise NotPositiveDefiniteError(
-                f"{name}{list(index) if index else ''} is not positive-definite: {M.tolist()!r}"
+                f"{name}{index if index else ''} is not positive-definite: {M.tolist()!r}"
             ) from None
     raise NotPositiveDefiniteError(f"{name} is not positive-definite")  # pragma: no cover
 

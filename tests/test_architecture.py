@@ -1,0 +1,82 @@
+"""The one-way import directions of the architecture.
+
+* ``formulations/`` never imports a solver library or ``mapassoc.solvers``, nor domain code;
+* ``solvers/`` never imports domain code (only ``mapassoc.formulations.program``);
+* domain modules never import formulations or solvers: only the pipeline (and the
+  command line and benchmark, which drive it) wire the three together.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SOLVER_LIBRARIES = ("cvxpy", "clarabel", "highspy", "networkx", "scipy.optimize", "pyomo", "pulp")
+WIRING_MODULES = {"pipeline.py", "cli.py", "bench.py", "demo.py"}
+
+
+def imported_modules(path: Path) -> list[str]:
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    names: list[str] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.extend(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.append(node.module)
+            names.extend(f"{node.module}.{alias.name}" for alias in node.names)
+    return names
+
+
+def files(folder: str) -> list[Path]:
+    found = sorted((ROOT / folder).glob("*.py"))
+    assert found, f"no Python files under {folder}/"
+    return found
+
+
+def starts(name: str, prefix: str) -> bool:
+    return name == prefix or name.startswith(prefix + ".")
+
+
+@pytest.mark.parametrize("path", files("formulations"), ids=lambda p: p.name)
+def test_formulations_import_no_solver_and_no_domain(path: Path) -> None:
+    for name in imported_modules(path):
+        assert not any(starts(name, lib) for lib in SOLVER_LIBRARIES), f"{path.name}: {name}"
+        if starts(name, "mapassoc"):
+            assert starts(name, "mapassoc.formulations"), f"{path.name} imports {name}"
+
+
+@pytest.mark.parametrize("path", files("solvers"), ids=lambda p: p.name)
+def test_solvers_import_no_domain(path: Path) -> None:
+    for name in imported_modules(path):
+        if starts(name, "mapassoc"):
+            assert starts(name, "mapassoc.solvers") or starts(
+                name, "mapassoc.formulations.program"
+            ), f"{path.name} imports {name}"
+
+
+@pytest.mark.parametrize(
+    "path",
+    [p for p in files("mapassoc") if p.name not in WIRING_MODULES],
+    ids=lambda p: p.name,
+)
+def test_domain_imports_neither_formulations_nor_solvers(path: Path) -> None:
+    for name in imported_modules(path):
+        assert not starts(name, "mapassoc.formulations"), f"{path.name} imports {name}"
+        assert not starts(name, "mapassoc.solvers"), f"{path.name} imports {name}"
+        # scipy.optimize stays allowed here: GOSPA uses linear_sum_assignment.
+        optimisers = [lib for lib in SOLVER_LIBRARIES if lib != "scipy.optimize"]
+        assert not any(starts(name, lib) for lib in optimisers), f"{path.name} imports {name}"
+
+
+def test_no_generic_top_level_packages_are_shipped() -> None:
+    import tomllib
+
+    data = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    packages = data["tool"]["setuptools"]["packages"]
+    assert all(p == "mapassoc" or p.startswith("mapassoc.") for p in packages)
+    mapping = data["tool"]["setuptools"]["package-dir"]
+    assert mapping["mapassoc.formulations"] == "formulations"
+    assert mapping["mapassoc.solvers"] == "solvers"
