@@ -1,0 +1,675 @@
+"""TOML configuration: motion model, sensors, birth model and estimator settings.
+
+Schema (unknown keys anywhere are an error; every value is checked)::
+
+    [motion]
+    model = "constant_velocity"   # constant_velocity | constant_acceleration | random_walk
+                                  # | coordinated_turn
+    ndim = 2                      # 1, 2 or 3; linear models only (coordinated_turn is 2-D)
+    noise_intensity = 0.5         # linear models only
+    # coordinated_turn instead: speed_noise_intensity = ..., turn_rate_noise_intensity = ...
+
+    [[sensors]]                   # one table per sensor, at least one, distinct names
+    name = "radar"
+    measurement = "position"      # position | range_bearing
+    noise_std = 1.0               # position: a number, or one std per position component
+    # range_bearing instead: position = [x, y], range_std = ..., bearing_std = ... (radians);
+    # needs a motion model with a 2-D position (ndim = 2, or coordinated_turn)
+    detection_probability = 0.9   # Pd in (0, 1]
+    false_alarms_per_scan = 10.0  # expected false alarms per scan, >= 0
+    region = [[-100.0, 100.0], [-100.0, 100.0]]   # one [low, high] per measured component
+
+    [birth]        # optional; keys and defaults: the fields of mapassoc.settings.BirthModel
+    [estimator]    # optional; keys and defaults: the fields of mapassoc.settings.EstimatorSettings
+
+Key paths in errors are dotted, with 0-based indices for arrays: ``sensors[1].region[0]`` is
+the first row of the region of the second ``[[sensors]]`` table.  Integer settings must be
+TOML integers (``5``, not ``5.0``); numbers may be TOML integers or floats; booleans are
+never numbers.  ``prune_log_ratio = inf`` (a TOML float literal) disables that pruning.
+
+:func:`config_to_toml` writes the same schema (every key explicit, floats with ``repr`` so
+that reading back reproduces them exactly).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import re
+import tomllib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TypeVar
+
+import numpy as np
+
+from mapassoc.errors import ConfigError, InputError
+from mapassoc.measurement import LinearMeasurement, MeasurementModel, RangeBearing
+from mapassoc.motion import (
+    ConstantAcceleration,
+    ConstantVelocity,
+    CoordinatedTurn,
+    MotionModel,
+    RandomWalk,
+)
+from mapassoc.sensor import Region, Sensor
+from mapassoc.settings import BirthModel, EstimatorSettings
+from mapassoc.validation import check_nonnegative, check_positive, check_probability
+
+__all__ = [
+    "Config",
+    "MOTION_MODELS",
+    "MEASUREMENTS",
+    "load_config",
+    "parse_config",
+    "config_to_toml",
+    "write_config",
+]
+
+PathLike = str | os.PathLike[str]
+
+MOTION_MODELS = ("constant_velocity", "constant_acceleration", "random_walk", "coordinated_turn")
+MEASUREMENTS = ("position", "range_bearing")
+
+_LINEAR_MOTION = {
+    "constant_velocity": ConstantVelocity,
+    "constant_acceleration": ConstantAcceleration,
+    "random_walk": RandomWalk,
+}
+_SECTIONS = ("motion", "sensors", "birth", "estimator")
+_SENSOR_COMMON_KEYS = (
+    "name",
+    "measurement",
+    "detection_probability",
+    "false_alarms_per_scan",
+    "region",
+)
+_SENSOR_MEASUREMENT_KEYS = {
+    "position": ("noise_std",),
+    "range_bearing": ("position", "range_std", "bearing_std"),
+}
+_DOCUMENT_KEY = "<file>"
+"""Key reported for problems with the whole document (unreadable file, TOML syntax)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Config:
+    """Everything a run needs besides data.
+
+    Parameters
+    ----------
+    motion : MotionModel
+        Target motion model.
+    sensors : dict of str to Sensor
+        Sensors by name, in file order (the first sensor fixes the detections-file column
+        order).  At least one.
+    birth : BirthModel
+        Birth and survival model.
+    estimator : EstimatorSettings
+        Window estimator settings.
+    source : str, optional
+        The file the configuration came from, for messages.
+    """
+
+    motion: MotionModel
+    sensors: dict[str, Sensor]
+    birth: BirthModel
+    estimator: EstimatorSettings
+    source: str | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.motion, MotionModel):
+            raise InputError(f"motion must be a MotionModel, got {self.motion!r}")
+        if not isinstance(self.sensors, Mapping) or len(self.sensors) == 0:
+            raise InputError(
+                f"sensors must be a non-empty mapping name -> Sensor, got {self.sensors!r}"
+            )
+        for name, sensor in self.sensors.items():
+            if not isinstance(sensor, Sensor):
+                raise InputError(f"sensors[{name!r}] must be a Sensor, got {sensor!r}")
+            if sensor.name != name:
+                raise InputError(
+                    f"sensors key {name!r} differs from the sensor's name {sensor.name!r}"
+                )
+            _check_measurement_fits_motion(sensor.measurement, self.motion, name)
+        if not isinstance(self.birth, BirthModel):
+            raise InputError(f"birth must be a BirthModel, got {self.birth!r}")
+        if not isinstance(self.estimator, EstimatorSettings):
+            raise InputError(f"estimator must be an EstimatorSettings, got {self.estimator!r}")
+        if self.source is not None and not isinstance(self.source, str):
+            raise InputError(f"source must be a string or None, got {self.source!r}")
+        object.__setattr__(self, "sensors", dict(self.sensors))
+
+
+def _check_measurement_fits_motion(
+    measurement: MeasurementModel, motion: MotionModel, sensor_name: str
+) -> None:
+    if isinstance(measurement, LinearMeasurement):
+        if measurement.H.shape[1] != motion.state_dim:
+            raise InputError(
+                f"sensor {sensor_name!r}: measurement matrix H has {measurement.H.shape[1]} "
+                f"columns but the motion model {motion!r} has {motion.state_dim} states"
+            )
+    elif isinstance(measurement, RangeBearing):
+        if max(measurement.position_indices) >= motion.state_dim:
+            raise InputError(
+                f"sensor {sensor_name!r}: range-bearing position indices "
+                f"{measurement.position_indices} exceed the motion model's "
+                f"{motion.state_dim} states"
+            )
+
+
+# --------------------------------------------------------------------------- parsing
+
+
+class _Parser:
+    """Typed access to TOML values; every failure is a ConfigError naming the key."""
+
+    def __init__(self, *, source: str | None) -> None:
+        self.source = source
+
+    def fail(self, key: str, message: str) -> ConfigError:
+        return ConfigError(key, message, source=self.source)
+
+    def table(self, value: object, key: str) -> Mapping[str, object]:
+        if not isinstance(value, Mapping):
+            raise self.fail(key, f"must be a table, got {value!r}")
+        return value
+
+    def only_keys(
+        self, table: Mapping[str, object], prefix: str, allowed: tuple[str, ...], context: str
+    ) -> None:
+        for name, value in table.items():
+            if name not in allowed:
+                raise self.fail(
+                    f"{prefix}.{name}" if prefix else name,
+                    f"unknown key (value {value!r}); allowed keys {context}: {', '.join(allowed)}",
+                )
+
+    def required(self, table: Mapping[str, object], prefix: str, name: str) -> object:
+        if name not in table:
+            raise self.fail(f"{prefix}.{name}", "missing required key")
+        return table[name]
+
+    def number(self, value: object, key: str) -> float:
+        """A TOML integer or float (not a boolean, not a string), as float."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(key, f"must be a number, got {value!r}")
+        return float(value)
+
+    def integer(self, value: object, key: str) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(key, f"must be a TOML integer (such as 5, not 5.0), got {value!r}")
+        return value
+
+    def string(self, value: object, key: str) -> str:
+        if not isinstance(value, str):
+            raise self.fail(key, f"must be a string, got {value!r}")
+        return value
+
+    def choice(self, value: object, key: str, options: tuple[str, ...]) -> str:
+        text = self.string(value, key)
+        if text not in options:
+            raise self.fail(key, f"must be one of {', '.join(options)}; got {text!r}")
+        return text
+
+    def array(self, value: object, key: str) -> list[object]:
+        if not isinstance(value, list):
+            raise self.fail(key, f"must be an array, got {value!r}")
+        return value
+
+    def positive(self, value: object, key: str) -> float:
+        return self._range(check_positive, value, key)
+
+    def nonnegative(self, value: object, key: str) -> float:
+        return self._range(check_nonnegative, value, key)
+
+    def probability(self, value: object, key: str) -> float:
+        number = self.number(value, key)
+        try:
+            return check_probability(_leaf(key), number, allow_zero=False)
+        except InputError as exc:
+            raise self.fail(key, str(exc)) from None
+
+    def finite(self, value: object, key: str) -> float:
+        number = self.number(value, key)
+        if not math.isfinite(number):
+            raise self.fail(key, f"must be finite, got {value!r}")
+        return number
+
+    def _range(self, check: Callable[[str, object], float], value: object, key: str) -> float:
+        number = self.number(value, key)
+        try:
+            return check(_leaf(key), number)
+        except InputError as exc:
+            raise self.fail(key, str(exc)) from None
+
+
+def _leaf(key: str) -> str:
+    """Last component of a dotted key: ``"sensors[0].noise_std"`` -> ``"noise_std"``."""
+    return key.rsplit(".", 1)[-1]
+
+
+def _parse_motion(parser: _Parser, data: Mapping[str, object]) -> MotionModel:
+    if "motion" not in data:
+        raise parser.fail("motion", "missing required section [motion]")
+    table = parser.table(data["motion"], "motion")
+    model = parser.choice(parser.required(table, "motion", "model"), "motion.model", MOTION_MODELS)
+    if model == "coordinated_turn":
+        allowed = ("model", "speed_noise_intensity", "turn_rate_noise_intensity")
+        parser.only_keys(table, "motion", allowed, "for coordinated_turn (always 2-D)")
+        speed = parser.positive(
+            parser.required(table, "motion", "speed_noise_intensity"),
+            "motion.speed_noise_intensity",
+        )
+        turn = parser.positive(
+            parser.required(table, "motion", "turn_rate_noise_intensity"),
+            "motion.turn_rate_noise_intensity",
+        )
+        return CoordinatedTurn(speed_noise_intensity=speed, turn_rate_noise_intensity=turn)
+    parser.only_keys(table, "motion", ("model", "ndim", "noise_intensity"), f"for {model}")
+    ndim = parser.integer(parser.required(table, "motion", "ndim"), "motion.ndim")
+    if ndim not in (1, 2, 3):
+        raise parser.fail("motion.ndim", f"must be 1, 2 or 3 spatial dimensions, got {ndim!r}")
+    intensity = parser.positive(
+        parser.required(table, "motion", "noise_intensity"), "motion.noise_intensity"
+    )
+    return _LINEAR_MOTION[model](ndim=ndim, noise_intensity=intensity)
+
+
+def _parse_region(
+    parser: _Parser, value: object, key: str, component_names: tuple[str, ...]
+) -> Region:
+    rows = parser.array(value, key)
+    if len(rows) != len(component_names):
+        raise parser.fail(
+            key,
+            f"has {len(rows)} rows {rows!r}; expected one [low, high] per measured component "
+            f"({', '.join(component_names)}), {len(component_names)} rows",
+        )
+    lower: list[float] = []
+    upper: list[float] = []
+    for index, row in enumerate(rows):
+        row_key = f"{key}[{index}]"
+        pair = parser.array(row, row_key)
+        if len(pair) != 2:
+            raise parser.fail(row_key, f"must be a [low, high] pair, got {row!r}")
+        low = parser.finite(pair[0], f"{row_key}[0]")
+        high = parser.finite(pair[1], f"{row_key}[1]")
+        if not high > low:
+            raise parser.fail(
+                row_key,
+                f"empty interval {row!r} for component {component_names[index]!r}; "
+                "expected low < high",
+            )
+        lower.append(low)
+        upper.append(high)
+    return Region(lower=np.array(lower), upper=np.array(upper))
+
+
+def _parse_noise_std(parser: _Parser, value: object, key: str, count: int) -> list[float]:
+    if isinstance(value, list):
+        if len(value) != count:
+            raise parser.fail(
+                key,
+                f"has {len(value)} entries {value!r}; expected a number or one standard "
+                f"deviation per position component ({count})",
+            )
+        return [parser.positive(item, f"{key}[{i}]") for i, item in enumerate(value)]
+    return [parser.positive(value, key)] * count
+
+
+def _parse_sensor(parser: _Parser, item: object, index: int, motion: MotionModel) -> Sensor:
+    prefix = f"sensors[{index}]"
+    table = parser.table(item, prefix)
+    kind = parser.choice(
+        parser.required(table, prefix, "measurement"), f"{prefix}.measurement", MEASUREMENTS
+    )
+    allowed = _SENSOR_COMMON_KEYS + _SENSOR_MEASUREMENT_KEYS[kind]
+    parser.only_keys(table, prefix, allowed, f"for a {kind} sensor")
+    name = parser.string(parser.required(table, prefix, "name"), f"{prefix}.name")
+    if not name or name != name.strip() or "," in name:
+        raise parser.fail(
+            f"{prefix}.name",
+            f"must be a non-empty name without commas or surrounding spaces, got {name!r}",
+        )
+    position_indices = tuple(motion.position_indices)
+    measurement: MeasurementModel
+    if kind == "position":
+        std = _parse_noise_std(
+            parser,
+            parser.required(table, prefix, "noise_std"),
+            f"{prefix}.noise_std",
+            len(position_indices),
+        )
+        measurement = LinearMeasurement.position(motion, noise_std=np.array(std))
+    else:
+        if len(position_indices) != 2:
+            raise parser.fail(
+                f"{prefix}.measurement",
+                f"'range_bearing' needs a motion model with a 2-D position (ndim = 2 or "
+                f"coordinated_turn); the motion model {motion!r} has "
+                f"{len(position_indices)} position components",
+            )
+        position_key = f"{prefix}.position"
+        position = parser.array(parser.required(table, prefix, "position"), position_key)
+        if len(position) != 2:
+            raise parser.fail(position_key, f"must be [x, y], got {position!r}")
+        xy = [parser.finite(v, f"{position_key}[{i}]") for i, v in enumerate(position)]
+        measurement = RangeBearing(
+            sensor_position=np.array(xy),
+            range_std=parser.positive(
+                parser.required(table, prefix, "range_std"), f"{prefix}.range_std"
+            ),
+            bearing_std=parser.positive(
+                parser.required(table, prefix, "bearing_std"), f"{prefix}.bearing_std"
+            ),
+            position_indices=(position_indices[0], position_indices[1]),
+        )
+    detection_probability = parser.probability(
+        parser.required(table, prefix, "detection_probability"),
+        f"{prefix}.detection_probability",
+    )
+    false_alarms = parser.nonnegative(
+        parser.required(table, prefix, "false_alarms_per_scan"),
+        f"{prefix}.false_alarms_per_scan",
+    )
+    region = _parse_region(
+        parser,
+        parser.required(table, prefix, "region"),
+        f"{prefix}.region",
+        measurement.component_names,
+    )
+    try:
+        return Sensor(
+            name=name,
+            measurement=measurement,
+            detection_probability=detection_probability,
+            false_alarms_per_scan=false_alarms,
+            region=region,
+        )
+    except InputError as exc:
+        raise parser.fail(prefix, str(exc)) from None
+
+
+def _parse_sensors(
+    parser: _Parser, data: Mapping[str, object], motion: MotionModel
+) -> dict[str, Sensor]:
+    if "sensors" not in data:
+        raise parser.fail("sensors", "missing required [[sensors]] tables (at least one)")
+    items = parser.array(data["sensors"], "sensors")
+    if not items:
+        raise parser.fail("sensors", "must hold at least one [[sensors]] table, got []")
+    sensors: dict[str, Sensor] = {}
+    first_index: dict[str, int] = {}
+    for index, item in enumerate(items):
+        sensor = _parse_sensor(parser, item, index, motion)
+        if sensor.name in sensors:
+            raise parser.fail(
+                f"sensors[{index}].name",
+                f"duplicate sensor name {sensor.name!r} (also sensors[{first_index[sensor.name]}]"
+                ".name); expected distinct names",
+            )
+        sensors[sensor.name] = sensor
+        first_index[sensor.name] = index
+    return sensors
+
+
+def _field_kind(field: dataclasses.Field[object]) -> str:
+    """``"int"``, ``"float"``, ``"str"`` or ``"tuple[float, ...]"`` for a settings field."""
+    annotation = field.type
+    if isinstance(annotation, str):
+        return annotation
+    if isinstance(annotation, type):
+        return annotation.__name__
+    return str(annotation)
+
+
+_SETTINGS_FIELD_IN_MESSAGE = re.compile(r"^(?:birth )?([a-z_]+)(\[\d+\])?")
+
+
+def _settings_error_key(section: str, message: str, field_names: set[str]) -> str:
+    """Dotted key of the field a settings constructor complained about.
+
+    The constructors in :mod:`mapassoc.settings` start every message with the field name
+    (``"stride must be <= window_length ..."``, ``"birth rate must be positive ..."``);
+    when no field name leads the message, the section itself is named.
+    """
+    match = _SETTINGS_FIELD_IN_MESSAGE.match(message)
+    if match and match.group(1) in field_names:
+        return f"{section}.{match.group(1)}{match.group(2) or ''}"
+    return section
+
+
+_Settings = TypeVar("_Settings", BirthModel, EstimatorSettings)
+
+
+def _parse_settings(
+    parser: _Parser, data: Mapping[str, object], section: str, cls: type[_Settings]
+) -> _Settings:
+    fields = {field.name: field for field in dataclasses.fields(cls)}
+    if section not in data:
+        return cls()
+    table = parser.table(data[section], section)
+    parser.only_keys(table, section, tuple(fields), f"in [{section}]")
+    values: dict[str, object] = {}
+    for name, value in table.items():
+        key = f"{section}.{name}"
+        kind = _field_kind(fields[name])
+        if kind == "int":
+            values[name] = parser.integer(value, key)
+        elif kind == "float":
+            values[name] = parser.number(value, key)
+        elif kind == "str":
+            values[name] = parser.string(value, key)
+        elif kind == "tuple[float, ...]":
+            entries = parser.array(value, key)
+            values[name] = tuple(parser.finite(v, f"{key}[{i}]") for i, v in enumerate(entries))
+        else:
+            raise TypeError(f"{cls.__name__}.{name} has unsupported field type {kind!r}")
+    try:
+        return cls(**values)
+    except InputError as exc:
+        key = _settings_error_key(section, str(exc), set(fields))
+        raise parser.fail(key, str(exc)) from None
+
+
+def parse_config(data: Mapping[str, object], *, source: str | None = None) -> Config:
+    """Build a :class:`Config` from a parsed TOML document (schema in the module docstring).
+
+    Parameters
+    ----------
+    data : mapping
+        The document, as returned by :func:`tomllib.loads`.
+    source : str, optional
+        File name reported in errors and kept in ``Config.source``.
+
+    Raises
+    ------
+    ConfigError
+        A missing, unknown or invalid key; ``key`` is its dotted path.
+    """
+    parser = _Parser(source=source)
+    document = parser.table(data, _DOCUMENT_KEY)
+    parser.only_keys(document, "", _SECTIONS, "at the top level")
+    motion = _parse_motion(parser, document)
+    sensors = _parse_sensors(parser, document, motion)
+    birth = _parse_settings(parser, document, "birth", BirthModel)
+    estimator = _parse_settings(parser, document, "estimator", EstimatorSettings)
+    return Config(motion=motion, sensors=sensors, birth=birth, estimator=estimator, source=source)
+
+
+def load_config(path: PathLike) -> Config:
+    """Read and parse a TOML configuration file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Raises
+    ------
+    ConfigError
+        Unreadable file or TOML syntax error (key ``"<file>"``), or any schema error.
+    """
+    source = os.fspath(path)
+    try:
+        with open(source, "rb") as handle:
+            data = tomllib.load(handle)
+    except OSError as exc:
+        raise ConfigError(
+            _DOCUMENT_KEY, f"cannot read the file: {exc.strerror or exc}", source=source
+        ) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(_DOCUMENT_KEY, f"invalid TOML: {exc}", source=source) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(_DOCUMENT_KEY, f"not UTF-8 text ({exc.reason})", source=source) from None
+    return parse_config(data, source=source)
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def _toml_string(text: str) -> str:
+    """A TOML basic string: quotes, backslashes and control characters escaped."""
+    out = ['"']
+    for ch in text:
+        if ch in ('"', "\\"):
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")
+        else:
+            out.append(ch)
+    out.append('"')
+    return "".join(out)
+
+
+def _toml_float(value: float) -> str:
+    """``repr`` of the float: exact on reading back; ``inf``/``nan`` are TOML literals."""
+    return repr(float(value))
+
+
+def _toml_floats(values: object) -> str:
+    return "[" + ", ".join(_toml_float(v) for v in np.asarray(values, dtype=float).ravel()) + "]"
+
+
+def _motion_lines(motion: MotionModel) -> list[str]:
+    if isinstance(motion, CoordinatedTurn):
+        return [
+            'model = "coordinated_turn"',
+            f"speed_noise_intensity = {_toml_float(motion.speed_noise_intensity)}",
+            f"turn_rate_noise_intensity = {_toml_float(motion.turn_rate_noise_intensity)}",
+        ]
+    for name, cls in _LINEAR_MOTION.items():
+        if type(motion) is cls:
+            return [
+                f"model = {_toml_string(name)}",
+                f"ndim = {motion.ndim}",
+                f"noise_intensity = {_toml_float(motion.noise_intensity)}",
+            ]
+    raise ConfigError("motion", f"cannot write motion model {motion!r} as TOML")
+
+
+def _measurement_lines(measurement: MeasurementModel, motion: MotionModel, key: str) -> list[str]:
+    if isinstance(measurement, RangeBearing):
+        return [
+            'measurement = "range_bearing"',
+            f"position = {_toml_floats(measurement.sensor_position)}",
+            f"range_std = {_toml_float(math.sqrt(measurement.R[0, 0]))}",
+            f"bearing_std = {_toml_float(math.sqrt(measurement.R[1, 1]))}",
+        ]
+    if isinstance(measurement, LinearMeasurement):
+        variances = np.diag(measurement.R)
+        if np.all(variances > 0):
+            std = np.sqrt(variances)
+            rebuilt = LinearMeasurement.position(motion, noise_std=std)
+            if (
+                np.array_equal(rebuilt.H, measurement.H)
+                and np.array_equal(rebuilt.R, measurement.R)
+                and rebuilt.component_names == measurement.component_names
+            ):
+                written = _toml_float(std[0]) if np.all(std == std[0]) else _toml_floats(std)
+                return ['measurement = "position"', f"noise_std = {written}"]
+    raise ConfigError(
+        f"{key}.measurement",
+        f"cannot write {measurement!r} as TOML: only position measurements of the motion "
+        "model with independent noise, and range-bearing measurements, are in the schema",
+    )
+
+
+def config_to_toml(config: Config) -> str:
+    """The configuration as a TOML document that :func:`parse_config` reads back.
+
+    Every key is written explicitly; floats with ``repr``, so reading back reproduces them
+    exactly.
+
+    Parameters
+    ----------
+    config : Config
+
+    Returns
+    -------
+    str
+        The document.
+
+    Raises
+    ------
+    ConfigError
+        A motion or measurement model outside the schema (e.g. a general
+        :class:`~mapassoc.measurement.LinearMeasurement`).
+    """
+    if not isinstance(config, Config):
+        raise InputError(f"config must be a Config, got {config!r}")
+    lines = ["# mapassoc configuration", "", "[motion]", *_motion_lines(config.motion)]
+    for index, sensor in enumerate(config.sensors.values()):
+        key = f"sensors[{index}]"
+        lines += [
+            "",
+            "[[sensors]]",
+            f"name = {_toml_string(sensor.name)}",
+            *_measurement_lines(sensor.measurement, config.motion, key),
+            f"detection_probability = {_toml_float(sensor.detection_probability)}",
+            f"false_alarms_per_scan = {_toml_float(sensor.false_alarms_per_scan)}",
+            "region = ["
+            + ", ".join(
+                f"[{_toml_float(low)}, {_toml_float(high)}]"
+                for low, high in zip(sensor.region.lower, sensor.region.upper, strict=True)
+            )
+            + "]",
+        ]
+    for section, settings in (("birth", config.birth), ("estimator", config.estimator)):
+        lines += ["", f"[{section}]"]
+        for field in dataclasses.fields(settings):
+            value = getattr(settings, field.name)
+            kind = _field_kind(field)
+            if kind == "int":
+                text = str(int(value))
+            elif kind == "float":
+                text = _toml_float(value)
+            elif kind == "str":
+                text = _toml_string(value)
+            elif kind == "tuple[float, ...]":
+                text = _toml_floats(value) if len(value) else "[]"
+            else:
+                raise TypeError(f"{type(settings).__name__}.{field.name} has unsupported type")
+            lines.append(f"{field.name} = {text}")
+    return "\n".join(lines) + "\n"
+
+
+def write_config(path: PathLike, config: Config) -> None:
+    """Write :func:`config_to_toml` of ``config`` to ``path`` (UTF-8, overwritten).
+
+    Raises
+    ------
+    ConfigError
+        The model is outside the schema, or the file cannot be written (key ``"<file>"``).
+    """
+    text = config_to_toml(config)
+    target = os.fspath(path)
+    try:
+        with open(target, "w", encoding="utf-8", newline="\n") as handle:
+            handle.write(text)
+    except OSError as exc:
+        raise ConfigError(
+            _DOCUMENT_KEY, f"cannot write the file: {exc.strerror or exc}", source=target
+        ) from None

@@ -1,0 +1,1167 @@
+"""Data files: detections, truth, origins and tracks, as CSV.
+
+Common rules
+------------
+* UTF-8 text (a leading byte-order mark is ignored on reading), comma separated, read and
+  written with the standard :mod:`csv` module.
+* Line 1 is the header naming the columns; every further line is one record.  Records are
+  identified by their 1-based line number ("row"), so the first data line is row 2.  These
+  row numbers are how the detections file, the origins file and the tracks file refer to
+  one detection.
+* Every line has exactly as many cells as the header.  Blank lines are errors.  Spaces
+  around a cell are ignored.
+* Floats are decimal numbers (``1``, ``-0.5``, ``2.5e-3``); writers use ``repr``, the
+  shortest string that reads back to the same float, so write-then-read is exact (including
+  ``-0.0``).  NaN and infinities are refused.  Integers are plain decimal digits.
+* Every problem raises :class:`~mapassoc.errors.DataFileError` naming the file, the line,
+  the column, the offending value and what was expected.
+
+1. Detections file
+------------------
+Columns ``time``, ``sensor`` and the measurement components of the configured sensors
+(``sensor.measurement.component_names``: ``x,y[,z]`` for a position sensor,
+``range,bearing`` for a range-bearing sensor).  With several sensors the header holds the
+union of their component names in first-sensor order, for example
+``time,sensor,x,y,range,bearing``; each line fills the components of its own sensor and
+leaves the other cells empty.  The ``sensor`` column may be left out when exactly one
+sensor is configured.  Readers accept the columns in any order; writers always write
+``time,sensor,<union>``.
+
+One line per detection.  The lines with the same ``(sensor, time)`` form one scan.  A scan
+without detections is one line with ``time`` and ``sensor`` and every measurement cell
+empty (so that empty scans are not lost).  Times never decrease down the file (lines of
+different sensors may interleave at equal times), so a scan cannot reappear once a later
+scan of its sensor has started.  :func:`read_detections` returns the scans sorted by
+``(time, sensor name)``; ``Scan.rows`` holds the line numbers of the scan's detections.
+
+Example::
+
+    time,sensor,x,y,range,bearing
+    0.0,radar,1.5,-2.0,,
+    0.0,radar,30.25,7.0,,
+    0.0,esm,,,120.0,0.7853981633974483
+    1.0,radar,,,,
+
+2. Truth file
+-------------
+``target_id,time,<state names>``, state names from the motion model (``x,y,vx,vy`` for a
+2-D constant-velocity model); one line per target per time.  Target ids are integers
+>= 0; a (target, time) pair appears once.  Read into :class:`TruthTable`.
+
+3. Origins file
+---------------
+``row,target_id``: for each detection line ``row`` of the detections file, the id of the
+target that produced it, or an empty cell for a false alarm.  Read into :class:`Origins`
+(false alarms get target id -1).
+
+4. Tracks file
+--------------
+``track_id,time,sensor,<state names>,<var_ + state name, for each>,detection_row``: one line
+per track per scan (``time``, ``sensor``) at which the track is alive; ``var_*`` are the
+marginal variances (diagonal of the covariance); ``detection_row`` is the detections-file
+line the track used at that scan, empty when the track missed.  Read into
+:class:`TrackTable`.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import re
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from mapassoc.errors import DataFileError, InputError
+from mapassoc.scans import Scan, check_scan_order
+from mapassoc.sensor import Sensor
+
+__all__ = [
+    "TruthTable",
+    "Origins",
+    "TrackTable",
+    "read_detections",
+    "write_detections",
+    "number_rows",
+    "read_truth",
+    "write_truth",
+    "read_origins",
+    "write_origins",
+    "read_tracks",
+    "write_tracks",
+]
+
+PathLike = str | os.PathLike[str]
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+FIRST_DATA_LINE = 2
+"""Line number of the first record (line 1 is the header)."""
+
+_TRUTH_FIXED = ("target_id", "time")
+_ORIGINS_HEADER = ("row", "target_id")
+_TRACK_FIXED = ("track_id", "time", "sensor")
+_TRACK_ROW = "detection_row"
+_VAR_PREFIX = "var_"
+
+_FLOAT_PATTERN = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+_INT_PATTERN = re.compile(r"[+-]?\d+")
+_NON_FINITE_WORDS = ("nan", "inf", "infinity")
+
+
+# --------------------------------------------------------------------------- cells
+
+
+def _float_cell(path: str, line: int, column: str, cell: str) -> float:
+    """Parse one float cell or raise a DataFileError naming line, column and value."""
+    if cell == "":
+        raise DataFileError(path, "empty cell; expected a number", row=line, column=column)
+    if _FLOAT_PATTERN.fullmatch(cell):
+        value = float(cell)
+        if math.isfinite(value):
+            return value
+        raise DataFileError(
+            path,
+            f"value {cell!r} overflows to infinity; expected a finite number",
+            row=line,
+            column=column,
+        )
+    if cell.lower().lstrip("+-") in _NON_FINITE_WORDS:
+        raise DataFileError(
+            path,
+            f"value {cell!r} is not finite; expected a finite number",
+            row=line,
+            column=column,
+        )
+    raise DataFileError(
+        path,
+        f"value {cell!r} is not a number; expected a decimal number such as 1.5e-3",
+        row=line,
+        column=column,
+    )
+
+
+def _int_cell(path: str, line: int, column: str, cell: str, *, minimum: int) -> int:
+    """Parse one integer cell >= ``minimum`` or raise a DataFileError."""
+    if cell == "":
+        raise DataFileError(
+            path, f"empty cell; expected an integer >= {minimum}", row=line, column=column
+        )
+    if not _INT_PATTERN.fullmatch(cell):
+        raise DataFileError(
+            path,
+            f"value {cell!r} is not an integer; expected an integer >= {minimum}",
+            row=line,
+            column=column,
+        )
+    value = int(cell)
+    if value < minimum:
+        raise DataFileError(
+            path,
+            f"value {cell!r} is below the minimum; expected an integer >= {minimum}",
+            row=line,
+            column=column,
+        )
+    return value
+
+
+def _float_text(value: float) -> str:
+    """Shortest decimal string that reads back to exactly ``value``."""
+    return repr(float(value))
+
+
+# --------------------------------------------------------------------------- files
+
+
+def _lines(path: str) -> Iterator[tuple[int, list[str]]]:
+    """Yield ``(line number, stripped cells)`` for every CSV line of ``path``."""
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as handle:
+            reader = csv.reader(handle, strict=True)
+            last_line = 0
+            while True:
+                try:
+                    cells = next(reader)
+                except StopIteration:
+                    return
+                except csv.Error as exc:
+                    raise DataFileError(path, f"malformed CSV: {exc}", row=last_line + 1) from None
+                except UnicodeDecodeError as exc:
+                    raise DataFileError(
+                        path, f"not UTF-8 text ({exc.reason})", row=last_line + 1
+                    ) from None
+                line = last_line + 1
+                last_line = reader.line_num
+                yield line, [cell.strip() for cell in cells]
+    except OSError as exc:
+        raise DataFileError(path, f"cannot read the file: {exc.strerror or exc}") from None
+
+
+def _read_header(path: str, lines: Iterator[tuple[int, list[str]]], expected: str) -> list[str]:
+    """The header of a file: non-empty, distinct column names."""
+    try:
+        line, header = next(lines)
+    except StopIteration:
+        raise DataFileError(
+            path, f"file is empty; expected a header line {expected}", row=1
+        ) from None
+    if not header or all(name == "" for name in header):
+        raise DataFileError(path, f"header line is blank; expected {expected}", row=line)
+    if any(_FLOAT_PATTERN.fullmatch(name) for name in header):
+        raise DataFileError(
+            path,
+            f"line 1 holds data {','.join(header)}, not a header; expected {expected}",
+            row=line,
+        )
+    seen: set[str] = set()
+    for position, name in enumerate(header):
+        if name == "":
+            raise DataFileError(
+                path, f"header cell {position + 1} is empty; expected {expected}", row=line
+            )
+        if name in seen:
+            raise DataFileError(
+                path, f"column {name!r} appears twice in the header", row=line, column=name
+            )
+        seen.add(name)
+    return header
+
+
+def _check_width(path: str, line: int, cells: list[str], header: list[str]) -> None:
+    if len(cells) == len(header):
+        return
+    columns = ",".join(header)
+    if len(cells) < len(header):
+        missing = header[len(cells)]
+        what = "blank line" if not cells else f"{len(cells)} cells"
+        raise DataFileError(
+            path,
+            f"{what}, expected {len(header)} cells ({columns}); no cell for column {missing!r}",
+            row=line,
+            column=missing,
+        )
+    raise DataFileError(
+        path,
+        f"{len(cells)} cells, expected {len(header)} ({columns}); extra value "
+        f"{cells[len(header)]!r} after the last column {header[-1]!r}",
+        row=line,
+        column=header[-1],
+    )
+
+
+def _write_rows(path: str, header: Sequence[str], rows: Iterator[list[str]]) -> None:
+    try:
+        with open(path, "w", encoding="utf-8", newline="") as handle:
+            writer = csv.writer(handle, lineterminator="\n")
+            writer.writerow(list(header))
+            writer.writerows(rows)
+    except OSError as exc:
+        raise DataFileError(path, f"cannot write the file: {exc.strerror or exc}") from None
+
+
+# --------------------------------------------------------------------------- detections
+
+
+def _check_sensors(sensors: Mapping[str, Sensor]) -> list[Sensor]:
+    if not isinstance(sensors, Mapping) or len(sensors) == 0:
+        raise InputError(f"sensors must be a non-empty mapping name -> Sensor, got {sensors!r}")
+    for name, sensor in sensors.items():
+        if not isinstance(sensor, Sensor):
+            raise InputError(f"sensors[{name!r}] must be a Sensor, got {sensor!r}")
+        if sensor.name != name:
+            raise InputError(
+                f"sensors mapping key {name!r} differs from the sensor's name {sensor.name!r}"
+            )
+    return list(sensors.values())
+
+
+def _component_union(sensors: Sequence[Sensor]) -> list[str]:
+    """Measurement component names of all sensors, first-sensor order, no repeats."""
+    union: list[str] = []
+    for sensor in sensors:
+        for name in sensor.measurement.component_names:
+            if name in ("time", "sensor"):
+                raise InputError(
+                    f"sensor {sensor.name!r} has a measurement component named {name!r}, "
+                    "which is reserved for the detections file"
+                )
+            if name not in union:
+                union.append(name)
+    return union
+
+
+class _ScanBuilder:
+    """Detections of one (sensor, time) pair collected while reading."""
+
+    def __init__(self, *, time: float, sensor: str) -> None:
+        self.time = time
+        self.sensor = sensor
+        self.values: list[list[float]] = []
+        self.rows: list[int] = []
+        self.empty_line: int | None = None
+
+    def build(self, dim: int) -> Scan:
+        detections = np.array(self.values, dtype=float).reshape(len(self.values), dim)
+        return Scan(
+            time=self.time,
+            sensor=self.sensor,
+            detections=detections,
+            rows=np.array(self.rows, dtype=np.int64),
+        )
+
+
+def read_detections(path: PathLike, sensors: Mapping[str, Sensor]) -> list[Scan]:
+    """Read a detections file (format 1 of the module docstring).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    sensors : mapping of str to Sensor
+        Configured sensors by name (the order fixes the canonical column order).
+
+    Returns
+    -------
+    list of Scan
+        Sorted by ``(time, sensor name)``; ``detections`` of shape ``(m, dz)`` with the
+        columns in the sensor's ``component_names`` order, ``rows`` the line numbers.
+
+    Raises
+    ------
+    DataFileError
+        Any malformed header, line or cell (see the module docstring).
+    InputError
+        ``sensors`` is empty or inconsistent.
+    """
+    path = os.fspath(path)
+    sensor_list = _check_sensors(sensors)
+    union = _component_union(sensor_list)
+    canonical = "time,sensor," + ",".join(union)
+    lines = _lines(path)
+    header = _read_header(path, lines, canonical)
+    column_of = {name: index for index, name in enumerate(header)}
+    if "time" not in column_of:
+        raise DataFileError(
+            path,
+            f"no 'time' column in header {','.join(header)}; expected {canonical}",
+            row=1,
+            column="time",
+        )
+    has_sensor_column = "sensor" in column_of
+    if not has_sensor_column and len(sensor_list) > 1:
+        raise DataFileError(
+            path,
+            f"no 'sensor' column, but {len(sensor_list)} sensors are configured "
+            f"({', '.join(sensors)}); expected {canonical}",
+            row=1,
+            column="sensor",
+        )
+    for sensor in sensor_list:
+        for name in sensor.measurement.component_names:
+            if name not in column_of:
+                raise DataFileError(
+                    path,
+                    f"no column {name!r}, which sensor {sensor.name!r} measures; "
+                    f"expected {canonical}",
+                    row=1,
+                    column=name,
+                )
+    for name in header:
+        if name not in ("time", "sensor") and name not in union:
+            raise DataFileError(
+                path,
+                f"unknown column {name!r}; expected the columns {canonical}",
+                row=1,
+                column=name,
+            )
+
+    own_columns = {
+        sensor.name: [(name, column_of[name]) for name in sensor.measurement.component_names]
+        for sensor in sensor_list
+    }
+    other_columns = {
+        sensor.name: [
+            (name, column_of[name])
+            for name in union
+            if name not in sensor.measurement.component_names
+        ]
+        for sensor in sensor_list
+    }
+    time_column = column_of["time"]
+    sensor_column = column_of.get("sensor")
+    only_sensor = sensor_list[0].name
+
+    builders: dict[tuple[str, float], _ScanBuilder] = {}
+    previous_time = -math.inf
+    previous_line = 0
+    for line, cells in lines:
+        _check_width(path, line, cells, header)
+        time = _float_cell(path, line, "time", cells[time_column])
+        if time < previous_time:
+            raise DataFileError(
+                path,
+                f"time {cells[time_column]} goes backwards: line {previous_line} has time "
+                f"{previous_time!r}; times must not decrease down the file",
+                row=line,
+                column="time",
+            )
+        previous_time, previous_line = time, line
+        if sensor_column is None:
+            sensor_name = only_sensor
+        else:
+            sensor_name = cells[sensor_column]
+            if sensor_name not in sensors:
+                raise DataFileError(
+                    path,
+                    f"unknown sensor {sensor_name!r}; expected one of {list(sensors)}",
+                    row=line,
+                    column="sensor",
+                )
+        for name, index in other_columns[sensor_name]:
+            if cells[index] != "":
+                raise DataFileError(
+                    path,
+                    f"value {cells[index]!r} in a column sensor {sensor_name!r} does not "
+                    f"measure; expected an empty cell",
+                    row=line,
+                    column=name,
+                )
+        own = own_columns[sensor_name]
+        empty = [name for name, index in own if cells[index] == ""]
+        if 0 < len(empty) < len(own):
+            raise DataFileError(
+                path,
+                f"empty cell; sensor {sensor_name!r} needs all of "
+                f"{','.join(name for name, _ in own)} (a scan without detections leaves "
+                f"all of them empty)",
+                row=line,
+                column=empty[0],
+            )
+        key = (sensor_name, time)
+        builder = builders.get(key)
+        if builder is None:
+            builder = _ScanBuilder(time=time, sensor=sensor_name)
+            builders[key] = builder
+        if builder.empty_line is not None:
+            raise DataFileError(
+                path,
+                f"scan of sensor {sensor_name!r} at time {time!r} was declared empty at "
+                f"line {builder.empty_line}; expected no further lines for it",
+                row=line,
+                column="time",
+            )
+        if empty:
+            if builder.rows:
+                raise DataFileError(
+                    path,
+                    f"empty-scan line for sensor {sensor_name!r} at time {time!r}, which "
+                    f"already has detections (line {builder.rows[0]})",
+                    row=line,
+                    column=own[0][0],
+                )
+            builder.empty_line = line
+        else:
+            builder.values.append(
+                [_float_cell(path, line, name, cells[index]) for name, index in own]
+            )
+            builder.rows.append(line)
+
+    dims = {sensor.name: sensor.measurement.measurement_dim for sensor in sensor_list}
+    ordered = sorted(builders.values(), key=lambda b: (b.time, b.sensor))
+    scans = [builder.build(dims[builder.sensor]) for builder in ordered]
+    check_scan_order(scans)
+    return scans
+
+
+def _check_scans_for_writing(scans: Sequence[Scan], sensors: Mapping[str, Sensor]) -> None:
+    seen: set[tuple[str, float]] = set()
+    previous_time = -math.inf
+    for index, scan in enumerate(scans):
+        if not isinstance(scan, Scan):
+            raise InputError(f"scans[{index}] must be a Scan, got {scan!r}")
+        if scan.sensor not in sensors:
+            raise InputError(
+                f"scans[{index}] is from sensor {scan.sensor!r}; expected one of {list(sensors)}"
+            )
+        dim = sensors[scan.sensor].measurement.measurement_dim
+        if scan.detections.shape[1] != dim:
+            raise InputError(
+                f"scans[{index}] detections have shape {scan.detections.shape}; sensor "
+                f"{scan.sensor!r} measures {dim} components, expected shape ({scan.size}, {dim})"
+            )
+        if scan.time < previous_time:
+            raise InputError(
+                f"scans[{index}] time {scan.time!r} is before the previous scan's time "
+                f"{previous_time!r}; scans must be written in non-decreasing time"
+            )
+        previous_time = scan.time
+        key = (scan.sensor, scan.time)
+        if key in seen:
+            raise InputError(
+                f"scans[{index}] repeats sensor {scan.sensor!r} at time {scan.time!r}; "
+                "expected one scan per (sensor, time)"
+            )
+        seen.add(key)
+
+
+def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str, Sensor]) -> None:
+    """Write scans as a detections file (format 1 of the module docstring).
+
+    Scans are written in the given order, one line per detection and one line per empty
+    scan, always with the ``sensor`` column.  ``Scan.rows`` is not written: the line
+    numbers are implicit.  Call :func:`number_rows` first so that the scans' ``rows``
+    agree with the file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file (overwritten).
+    scans : sequence of Scan
+        In non-decreasing time, one scan per (sensor, time); ``detections`` of shape
+        ``(m, dz)`` with ``dz`` the sensor's measurement dimension.
+    sensors : mapping of str to Sensor
+        Configured sensors (fixes the column order: ``time,sensor,<component union>``).
+
+    Raises
+    ------
+    InputError
+        A scan of an unknown sensor, of the wrong dimension, out of time order or repeated.
+    DataFileError
+        The file cannot be written.
+    """
+    path = os.fspath(path)
+    sensor_list = _check_sensors(sensors)
+    union = _component_union(sensor_list)
+    _check_scans_for_writing(scans, sensors)
+    position_of = {name: index for index, name in enumerate(union)}
+
+    def rows() -> Iterator[list[str]]:
+        for scan in scans:
+            names = sensors[scan.sensor].measurement.component_names
+            prefix = [_float_text(scan.time), scan.sensor]
+            if scan.size == 0:
+                yield prefix + [""] * len(union)
+                continue
+            for detection in scan.detections:
+                cells = [""] * len(union)
+                for name, value in zip(names, detection, strict=True):
+                    cells[position_of[name]] = _float_text(value)
+                yield prefix + cells
+
+    _write_rows(path, ["time", "sensor", *union], rows())
+
+
+def number_rows(scans: Sequence[Scan]) -> list[Scan]:
+    """Copies of ``scans`` whose ``rows`` are the lines :func:`write_detections` gives them.
+
+    Detections are numbered from line 2 (after the header) in order; an empty scan uses
+    one line and gets no row.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+        In the order they will be written.
+
+    Returns
+    -------
+    list of Scan
+        Same times, sensors and detections; ``rows`` of shape ``(m,)``.
+    """
+    numbered: list[Scan] = []
+    next_line = FIRST_DATA_LINE
+    for index, scan in enumerate(scans):
+        if not isinstance(scan, Scan):
+            raise InputError(f"scans[{index}] must be a Scan, got {scan!r}")
+        rows = np.arange(next_line, next_line + scan.size, dtype=np.int64)
+        next_line += max(scan.size, 1)
+        numbered.append(
+            Scan(time=scan.time, sensor=scan.sensor, detections=scan.detections, rows=rows)
+        )
+    return numbered
+
+
+# --------------------------------------------------------------------------- tables
+
+
+def _check_state_names(names: object, reserved: Sequence[str]) -> tuple[str, ...]:
+    if isinstance(names, str) or not isinstance(names, Sequence):
+        raise InputError(f"state_names must be a tuple of column names, got {names!r}")
+    out = tuple(names)
+    if not out:
+        raise InputError("state_names must name at least one state component, got ()")
+    for name in out:
+        if (
+            not isinstance(name, str)
+            or not name
+            or name != name.strip()
+            or any(ch in name for ch in ',"\r\n')
+        ):
+            raise InputError(
+                f"state name {name!r} must be a non-empty string without commas, quotes, "
+                "line breaks or surrounding spaces"
+            )
+        if name in reserved:
+            raise InputError(f"state name {name!r} clashes with the fixed column {name!r}")
+    if len(set(out)) != len(out):
+        raise InputError(f"state_names must be distinct, got {out!r}")
+    return out
+
+
+def _int_array(name: str, value: ArrayLike, *, minimum: int, length: int | None) -> IntArray:
+    arr = np.asarray(value)
+    if arr.size == 0:
+        arr = arr.astype(np.int64)
+    if arr.ndim != 1 or not np.issubdtype(arr.dtype, np.integer):
+        raise InputError(
+            f"{name} must be a 1-D integer array, got dtype {arr.dtype} and shape {arr.shape}"
+        )
+    if length is not None and arr.shape[0] != length:
+        raise InputError(f"{name} must have shape ({length},), got {arr.shape}")
+    if arr.size and int(arr.min()) < minimum:
+        raise InputError(f"{name} must be >= {minimum}, got the value {int(arr.min())}")
+    out = arr.astype(np.int64)
+    out.setflags(write=False)
+    return out
+
+
+def _float_array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> FloatArray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a numeric array, got {value!r}") from None
+    if arr.size == 0 and arr.shape != shape:
+        arr = arr.reshape(shape)
+    if arr.shape != shape:
+        raise InputError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} must contain only finite values")
+    arr.setflags(write=False)
+    return arr
+
+
+def _positions(
+    state_names: tuple[str, ...], states: FloatArray, position_names: Sequence[str]
+) -> FloatArray:
+    indices = [state_names.index(name) for name in position_names if name in state_names]
+    if not indices:
+        raise InputError(
+            f"no position columns: none of {tuple(position_names)} is among the state "
+            f"names {state_names}"
+        )
+    return states[:, indices]
+
+
+def _duplicate(keys: Sequence[tuple[object, ...]]) -> tuple[object, ...] | None:
+    seen: set[tuple[object, ...]] = set()
+    for key in keys:
+        if key in seen:
+            return key
+        seen.add(key)
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class TruthTable:
+    """True target states (truth file, format 2).
+
+    Parameters
+    ----------
+    target_ids : ndarray of int64, shape (N,)
+        Target of each record, >= 0.
+    times : ndarray, shape (N,)
+        Time of each record.
+    states : ndarray, shape (N, n)
+        True state of the target at that time.
+    state_names : tuple of str, length n
+        Column names of the state components (e.g. ``("x", "y", "vx", "vy")``).
+
+    A (target_id, time) pair appears at most once.
+    """
+
+    target_ids: IntArray
+    times: FloatArray
+    states: FloatArray
+    state_names: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        names = _check_state_names(self.state_names, _TRUTH_FIXED)
+        ids = _int_array("target_ids", self.target_ids, minimum=0, length=None)
+        count = ids.shape[0]
+        times = _float_array("times", self.times, (count,))
+        states = _float_array("states", self.states, (count, len(names)))
+        repeated = _duplicate(list(zip(ids.tolist(), times.tolist(), strict=True)))
+        if repeated is not None:
+            raise InputError(f"(target_id, time) = {repeated} appears more than once")
+        object.__setattr__(self, "state_names", names)
+        object.__setattr__(self, "target_ids", ids)
+        object.__setattr__(self, "times", times)
+        object.__setattr__(self, "states", states)
+
+    @property
+    def size(self) -> int:
+        """Number of records N."""
+        return int(self.target_ids.shape[0])
+
+    def positions(self, position_names: Sequence[str] = ("x", "y", "z")) -> FloatArray:
+        """Position columns present among ``position_names``, shape ``(N, d)``.
+
+        Raises
+        ------
+        InputError
+            None of ``position_names`` is a state name.
+        """
+        return _positions(self.state_names, self.states, position_names)
+
+
+@dataclass(frozen=True, eq=False)
+class Origins:
+    """True origin of each detection (origins file, format 3).
+
+    Parameters
+    ----------
+    rows : ndarray of int64, shape (M,)
+        Detections-file line numbers (>= 2), distinct.
+    target_ids : ndarray of int64, shape (M,)
+        Target that produced the detection, or -1 for a false alarm.
+    """
+
+    rows: IntArray
+    target_ids: IntArray
+
+    def __post_init__(self) -> None:
+        rows = _int_array("rows", self.rows, minimum=FIRST_DATA_LINE, length=None)
+        ids = _int_array("target_ids", self.target_ids, minimum=-1, length=rows.shape[0])
+        repeated = _duplicate([(row,) for row in rows.tolist()])
+        if repeated is not None:
+            raise InputError(f"row {repeated[0]} appears more than once in origins")
+        object.__setattr__(self, "rows", rows)
+        object.__setattr__(self, "target_ids", ids)
+
+    @property
+    def size(self) -> int:
+        """Number of detections M."""
+        return int(self.rows.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class TrackTable:
+    """Estimated tracks (tracks file, format 4).
+
+    Parameters
+    ----------
+    track_ids : ndarray of int64, shape (N,)
+        Track of each record, >= 0.
+    times : ndarray, shape (N,)
+        Scan time.
+    sensors : tuple of str, length N
+        Sensor of the scan.
+    states : ndarray, shape (N, n)
+        Estimated state.
+    variances : ndarray, shape (N, n)
+        Marginal variances (covariance diagonal), >= 0.
+    detection_rows : ndarray of int64, shape (N,)
+        Detections-file line used at this scan (>= 2), or -1 for a miss.
+    state_names : tuple of str, length n
+        Column names of the state components.
+
+    A (track_id, time, sensor) triple appears at most once.
+    """
+
+    track_ids: IntArray
+    times: FloatArray
+    sensors: tuple[str, ...]
+    states: FloatArray
+    variances: FloatArray
+    detection_rows: IntArray
+    state_names: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        names = _check_state_names(self.state_names, (*_TRACK_FIXED, _TRACK_ROW))
+        ids = _int_array("track_ids", self.track_ids, minimum=0, length=None)
+        count = ids.shape[0]
+        times = _float_array("times", self.times, (count,))
+        if isinstance(self.sensors, str) or not isinstance(self.sensors, Sequence):
+            raise InputError(f"sensors must be a tuple of sensor names, got {self.sensors!r}")
+        sensors = tuple(self.sensors)
+        if len(sensors) != count:
+            raise InputError(f"sensors must have {count} entries, got {len(sensors)}")
+        for name in sensors:
+            if (
+                not isinstance(name, str)
+                or not name
+                or name != name.strip()
+                or any(ch in name for ch in ",\r\n")
+            ):
+                raise InputError(
+                    f"sensor name {name!r} must be a non-empty string without commas, line "
+                    "breaks or surrounding spaces"
+                )
+        states = _float_array("states", self.states, (count, len(names)))
+        variances = _float_array("variances", self.variances, (count, len(names)))
+        if np.any(variances < 0):
+            raise InputError(f"variances must be >= 0, got minimum {float(variances.min())!r}")
+        rows = _int_array("detection_rows", self.detection_rows, minimum=-1, length=count)
+        if np.any((rows >= 0) & (rows < FIRST_DATA_LINE)):
+            raise InputError(
+                f"detection_rows must be -1 (miss) or a line number >= {FIRST_DATA_LINE}, got "
+                f"{sorted(set(rows[(rows >= 0) & (rows < FIRST_DATA_LINE)].tolist()))}"
+            )
+        repeated = _duplicate(list(zip(ids.tolist(), times.tolist(), sensors, strict=True)))
+        if repeated is not None:
+            raise InputError(f"(track_id, time, sensor) = {repeated} appears more than once")
+        object.__setattr__(self, "state_names", names)
+        object.__setattr__(self, "track_ids", ids)
+        object.__setattr__(self, "times", times)
+        object.__setattr__(self, "sensors", sensors)
+        object.__setattr__(self, "states", states)
+        object.__setattr__(self, "variances", variances)
+        object.__setattr__(self, "detection_rows", rows)
+
+    @property
+    def size(self) -> int:
+        """Number of records N."""
+        return int(self.track_ids.shape[0])
+
+    def positions(self, position_names: Sequence[str] = ("x", "y", "z")) -> FloatArray:
+        """Position columns present among ``position_names``, shape ``(N, d)``.
+
+        Raises
+        ------
+        InputError
+            None of ``position_names`` is a state name.
+        """
+        return _positions(self.state_names, self.states, position_names)
+
+
+# --------------------------------------------------------------------------- truth
+
+
+def write_truth(path: PathLike, table: TruthTable) -> None:
+    """Write a truth file (format 2) in the table's record order.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file (overwritten).
+    table : TruthTable
+    """
+    path = os.fspath(path)
+    if not isinstance(table, TruthTable):
+        raise InputError(f"table must be a TruthTable, got {table!r}")
+
+    def rows() -> Iterator[list[str]]:
+        for target, time, state in zip(
+            table.target_ids.tolist(), table.times.tolist(), table.states, strict=True
+        ):
+            yield [str(target), _float_text(time), *(_float_text(v) for v in state)]
+
+    _write_rows(path, [*_TRUTH_FIXED, *table.state_names], rows())
+
+
+def read_truth(path: PathLike) -> TruthTable:
+    """Read a truth file (format 2); the state names are the columns after ``target_id,time``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    TruthTable
+        Records in file order.
+
+    Raises
+    ------
+    DataFileError
+        Malformed header, line or cell, or a repeated (target_id, time).
+    """
+    path = os.fspath(path)
+    expected = "target_id,time,<state names>"
+    lines = _lines(path)
+    header = _read_header(path, lines, expected)
+    for position, name in enumerate(_TRUTH_FIXED):
+        if position >= len(header) or header[position] != name:
+            found = header[position] if position < len(header) else None
+            raise DataFileError(
+                path,
+                f"column {position + 1} is {found!r}; expected {name!r} (header {expected})",
+                row=1,
+                column=name,
+            )
+    names = header[len(_TRUTH_FIXED) :]
+    if not names:
+        raise DataFileError(
+            path, f"no state columns after target_id,time; expected {expected}", row=1
+        )
+    ids: list[int] = []
+    times: list[float] = []
+    states: list[list[float]] = []
+    first_line: dict[tuple[int, float], int] = {}
+    for line, cells in lines:
+        _check_width(path, line, cells, header)
+        target = _int_cell(path, line, "target_id", cells[0], minimum=0)
+        time = _float_cell(path, line, "time", cells[1])
+        key = (target, time)
+        if key in first_line:
+            raise DataFileError(
+                path,
+                f"target {target} at time {time!r} already has a state at line "
+                f"{first_line[key]}; expected one line per (target_id, time)",
+                row=line,
+                column="time",
+            )
+        first_line[key] = line
+        ids.append(target)
+        times.append(time)
+        states.append(
+            [
+                _float_cell(path, line, name, cell)
+                for name, cell in zip(names, cells[2:], strict=True)
+            ]
+        )
+    return TruthTable(
+        target_ids=np.array(ids, dtype=np.int64),
+        times=np.array(times, dtype=float),
+        states=np.array(states, dtype=float).reshape(len(states), len(names)),
+        state_names=tuple(names),
+    )
+
+
+# --------------------------------------------------------------------------- origins
+
+
+def write_origins(path: PathLike, origins: Origins) -> None:
+    """Write an origins file (format 3); false alarms (id -1) get an empty cell.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file (overwritten).
+    origins : Origins
+    """
+    path = os.fspath(path)
+    if not isinstance(origins, Origins):
+        raise InputError(f"origins must be an Origins, got {origins!r}")
+
+    def rows() -> Iterator[list[str]]:
+        for row, target in zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True):
+            yield [str(row), "" if target < 0 else str(target)]
+
+    _write_rows(path, list(_ORIGINS_HEADER), rows())
+
+
+def read_origins(path: PathLike) -> Origins:
+    """Read an origins file (format 3).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    Origins
+        In file order; an empty ``target_id`` cell (false alarm) becomes -1.
+
+    Raises
+    ------
+    DataFileError
+        Malformed header, line or cell, or a repeated row.
+    """
+    path = os.fspath(path)
+    expected = ",".join(_ORIGINS_HEADER)
+    lines = _lines(path)
+    header = _read_header(path, lines, expected)
+    if tuple(header) != _ORIGINS_HEADER:
+        wrong = next(
+            (name for name, want in zip(header, _ORIGINS_HEADER, strict=False) if name != want),
+            header[-1],
+        )
+        raise DataFileError(
+            path, f"header is {','.join(header)}; expected {expected}", row=1, column=wrong
+        )
+    rows: list[int] = []
+    ids: list[int] = []
+    first_line: dict[int, int] = {}
+    for line, cells in lines:
+        _check_width(path, line, cells, header)
+        row = _int_cell(path, line, "row", cells[0], minimum=FIRST_DATA_LINE)
+        if row in first_line:
+            raise DataFileError(
+                path,
+                f"row {row} already has an origin at line {first_line[row]}; expected each "
+                "detection row once",
+                row=line,
+                column="row",
+            )
+        first_line[row] = line
+        rows.append(row)
+        ids.append(
+            -1 if cells[1] == "" else _int_cell(path, line, "target_id", cells[1], minimum=0)
+        )
+    return Origins(rows=np.array(rows, dtype=np.int64), target_ids=np.array(ids, dtype=np.int64))
+
+
+# --------------------------------------------------------------------------- tracks
+
+
+def _tracks_header(state_names: Sequence[str]) -> list[str]:
+    return [
+        *_TRACK_FIXED,
+        *state_names,
+        *(_VAR_PREFIX + name for name in state_names),
+        _TRACK_ROW,
+    ]
+
+
+def write_tracks(path: PathLike, table: TrackTable) -> None:
+    """Write a tracks file (format 4) in the table's record order; misses get an empty cell.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file (overwritten).
+    table : TrackTable
+    """
+    path = os.fspath(path)
+    if not isinstance(table, TrackTable):
+        raise InputError(f"table must be a TrackTable, got {table!r}")
+
+    def rows() -> Iterator[list[str]]:
+        for index in range(table.size):
+            row = int(table.detection_rows[index])
+            yield [
+                str(int(table.track_ids[index])),
+                _float_text(table.times[index]),
+                table.sensors[index],
+                *(_float_text(v) for v in table.states[index]),
+                *(_float_text(v) for v in table.variances[index]),
+                "" if row < 0 else str(row),
+            ]
+
+    _write_rows(path, _tracks_header(table.state_names), rows())
+
+
+def read_tracks(path: PathLike) -> TrackTable:
+    """Read a tracks file (format 4); state names come from the header.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    TrackTable
+        In file order; an empty ``detection_row`` (miss) becomes -1.
+
+    Raises
+    ------
+    DataFileError
+        Malformed header (the ``var_`` columns must follow the state columns in the same
+        order), line or cell, negative variance, or a repeated (track_id, time, sensor).
+    """
+    path = os.fspath(path)
+    expected = "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row"
+    lines = _lines(path)
+    header = _read_header(path, lines, expected)
+    for position, name in enumerate(_TRACK_FIXED):
+        if position >= len(header) or header[position] != name:
+            found = header[position] if position < len(header) else None
+            raise DataFileError(
+                path,
+                f"column {position + 1} is {found!r}; expected {name!r} (header {expected})",
+                row=1,
+                column=name,
+            )
+    if header[-1] != _TRACK_ROW:
+        raise DataFileError(
+            path,
+            f"last column is {header[-1]!r}; expected {_TRACK_ROW!r} (header {expected})",
+            row=1,
+            column=_TRACK_ROW,
+        )
+    middle = header[len(_TRACK_FIXED) : -1]
+    if not middle or len(middle) % 2:
+        raise DataFileError(
+            path,
+            f"{len(middle)} state and variance columns ({','.join(middle)}); expected n state "
+            f"columns followed by their n var_ columns (header {expected})",
+            row=1,
+            column=middle[-1] if middle else _TRACK_ROW,
+        )
+    count = len(middle) // 2
+    names = middle[:count]
+    for name, found in zip(names, middle[count:], strict=True):
+        if found != _VAR_PREFIX + name:
+            raise DataFileError(
+                path,
+                f"column {found!r} where {_VAR_PREFIX + name!r} was expected: the variance "
+                f"columns must follow the state columns {','.join(names)} in the same order",
+                row=1,
+                column=found,
+            )
+    var_names = middle[count:]
+    ids: list[int] = []
+    times: list[float] = []
+    sensors: list[str] = []
+    states: list[list[float]] = []
+    variances: list[list[float]] = []
+    detection_rows: list[int] = []
+    first_line: dict[tuple[int, float, str], int] = {}
+    for line, cells in lines:
+        _check_width(path, line, cells, header)
+        track = _int_cell(path, line, "track_id", cells[0], minimum=0)
+        time = _float_cell(path, line, "time", cells[1])
+        sensor = cells[2]
+        if sensor == "":
+            raise DataFileError(
+                path, "empty cell; expected a sensor name", row=line, column="sensor"
+            )
+        key = (track, time, sensor)
+        if key in first_line:
+            raise DataFileError(
+                path,
+                f"track {track} at time {time!r} of sensor {sensor!r} already appears at line "
+                f"{first_line[key]}; expected one line per track per scan",
+                row=line,
+                column="time",
+            )
+        first_line[key] = line
+        state_cells = cells[len(_TRACK_FIXED) : len(_TRACK_FIXED) + count]
+        var_cells = cells[len(_TRACK_FIXED) + count : -1]
+        state = [_float_cell(path, line, n, c) for n, c in zip(names, state_cells, strict=True)]
+        variance = []
+        for name, cell in zip(var_names, var_cells, strict=True):
+            value = _float_cell(path, line, name, cell)
+            if value < 0:
+                raise DataFileError(
+                    path,
+                    f"variance {cell!r} is negative; expected a value >= 0",
+                    row=line,
+                    column=name,
+                )
+            variance.append(value)
+        row_cell = cells[-1]
+        detection_row = (
+            -1
+            if row_cell == ""
+            else _int_cell(path, line, _TRACK_ROW, row_cell, minimum=FIRST_DATA_LINE)
+        )
+        ids.append(track)
+        times.append(time)
+        sensors.append(sensor)
+        states.append(state)
+        variances.append(variance)
+        detection_rows.append(detection_row)
+    size = len(ids)
+    return TrackTable(
+        track_ids=np.array(ids, dtype=np.int64),
+        times=np.array(times, dtype=float),
+        sensors=tuple(sensors),
+        states=np.array(states, dtype=float).reshape(size, count),
+        variances=np.array(variances, dtype=float).reshape(size, count),
+        detection_rows=np.array(detection_rows, dtype=np.int64),
+        state_names=tuple(names),
+    )
