@@ -194,7 +194,9 @@ class FlowProgram:
         for name, a in (("heads", heads), ("capacities", caps), ("costs", costs)):
             if a.shape != (E,):
                 raise ValueError(f"{name} must have shape ({E},), got {a.shape}")
-        if E and (min(tails.min(), heads.min()) < 0 or max(tails.max(), heads.max()) >= self.num_nodes):
+        if E and (
+            min(tails.min(), heads.min()) < 0 or max(tails.max(), heads.max()) >= self.num_nodes
+        ):
             raise ValueError("edge endpoints must be node indices in 0..num_nodes-1")
         if np.any(caps < 0) or not np.all(np.isfinite(costs)):
             raise ValueError("capacities must be >= 0 and costs finite")

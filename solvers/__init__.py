@@ -1,1 +1,55 @@
-"""Solver backends for the programs of :mod:`mapassoc.formulations`."""
+"""Solver backends for the programs of :mod:`mapassoc.formulations`.
+
+Backends (one module each) consume :class:`~mapassoc.formulations.program.Program` /
+:class:`~mapassoc.formulations.program.FlowProgram` and know nothing about tracks:
+
+* :class:`HighsSolver` (``"highs"``): HiGHS via ``scipy.optimize.milp``, exact MILP/LP.
+* :class:`CvxpySolver` (``"cvxpy-clarabel"``, ``"cvxpy-highs"``): cvxpy; Clarabel for LP
+  bounds and duals (interior point: midpoints on ties), HiGHS for MILPs.
+* :class:`EnumerationSolver` (``"enumeration"``): exact oracle for small binary programs,
+  with the partition function ``log Σ exp(value)`` and the feasible count.
+* :class:`NetworkxFlowSolver` (``"networkx-flow"``): min-cost flow for every K.
+* :func:`solve_k_best`: the m best distinct points of a binary program by no-good cuts.
+
+Infeasible, unbounded and limited solves are :class:`SolveStatus` values; only a broken
+or misused backend raises :class:`SolverError`.
+"""
+
+from mapassoc.solvers.cvxpy_backend import CvxpySolver, lagrangian_bound
+from mapassoc.solvers.enumeration import EnumerationSolver, enumerate_feasible
+from mapassoc.solvers.highs import HighsSolver
+from mapassoc.solvers.k_best import no_good_cut, solve_k_best
+from mapassoc.solvers.networkx_flow import NetworkxFlowSolver
+from mapassoc.solvers.registry import SOLVER_NAMES, available_solvers, get_solver
+from mapassoc.solvers.results import (
+    EnumerationResult,
+    FlowResult,
+    FlowSolver,
+    LPResult,
+    ProgramSolver,
+    SolverError,
+    SolveResult,
+    SolveStatus,
+)
+
+__all__ = [
+    "CvxpySolver",
+    "EnumerationResult",
+    "EnumerationSolver",
+    "FlowResult",
+    "FlowSolver",
+    "HighsSolver",
+    "LPResult",
+    "NetworkxFlowSolver",
+    "ProgramSolver",
+    "SOLVER_NAMES",
+    "SolveResult",
+    "SolveStatus",
+    "SolverError",
+    "available_solvers",
+    "enumerate_feasible",
+    "get_solver",
+    "lagrangian_bound",
+    "no_good_cut",
+    "solve_k_best",
+]

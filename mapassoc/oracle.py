@@ -1,0 +1,408 @@
+"""The oracle tracker: a Kalman smoother run on the true associations.
+
+Given the true origin of every detection (simulated data), each target's detections are
+filtered and smoothed as one track.  It is the reference an association method is compared
+against: its errors are estimation errors only, never association errors.
+
+For each target:
+
+1. The track starts at the target's first detection with the single-point initiation of
+   :func:`mapassoc.birth.birth_state` (the detection fixes the position; this is already the
+   posterior given that detection, so it is not updated with it again).
+2. Every later scan of *any* sensor up to the target's last detection is one step: a
+   prediction over ``dt`` through :func:`mapassoc.kalman.predict_motion` (skipped when
+   ``dt == 0``, two sensors scanning at the same time), then a Kalman/EKF update
+   (:func:`mapassoc.kalman.innovation`, :func:`mapassoc.kalman.update`) when the target was
+   detected in that scan; a scan without a detection of the target is a pure prediction.
+3. Rauch-Tung-Striebel smoothing (:func:`mapassoc.kalman.rts_smooth`).
+
+Coordinated turn.  A coordinated-turn track starts in the constant-velocity initiation
+model (:func:`mapassoc.birth.initiation_model`; a position measurement's H is re-indexed
+onto that state) and is converted by :func:`mapassoc.birth.convert_initiated` right after
+its first detection update at a time later than its first detection (normally its second
+detection).  Detections at the *same* time as the first one cannot reveal the velocity,
+whose mean is then still exactly zero and has no heading, so they do not trigger the
+conversion.  The whole track is smoothed: the turn-state part with
+:func:`~mapassoc.kalman.rts_smooth`; then, because the conversion is only a change of
+variables plus an independent turn-rate prior (it adds no information), the smoothed
+turn state at the conversion step is mapped back to the constant-velocity state by the
+inverse change of variables (which is what the RTS step through a linear change of
+variables reduces to), and the backward pass continues through the constant-velocity
+part.  Those early smoothed states are reported in the turn state through
+:func:`~mapassoc.birth.convert_initiated` (linearised at the smoothed velocity), with the
+smoothed turn rate (mean and variance) of the conversion step.  Reported turn states are
+canonical: speed >= 0 (an EKF can settle on the equivalent ``(-speed, heading + pi)``) and
+heading wrapped to (-pi, pi].  A coordinated-turn target detected at a single time has no
+velocity information: its rows report speed, heading and turn rate 0 with the variances
+``speed_std^2``, ``pi^2 / 3`` (a heading uniform on (-pi, pi]) and ``turn_rate_std^2`` of
+the birth model.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapassoc.birth import birth_state, convert_initiated, initiation_model, needs_conversion
+from mapassoc.config import Config
+from mapassoc.errors import InputError
+from mapassoc.io import Origins, TrackTable
+from mapassoc.kalman import innovation, predict_motion, rts_smooth, update
+from mapassoc.measurement import LinearMeasurement, MeasurementModel, wrap_angle
+from mapassoc.motion import MotionModel
+from mapassoc.scans import Scan, check_scan_order
+from mapassoc.settings import BirthModel
+
+__all__ = ["oracle_tracks"]
+
+FloatArray = NDArray[np.float64]
+
+# Variance of a heading uniform on (-pi, pi]: (2 pi)^2 / 12.
+_UNIFORM_HEADING_VARIANCE = math.pi**2 / 3.0
+
+
+class _Segment:
+    """Filtered and predicted moments of consecutive steps in one state space.
+
+    Parameters
+    ----------
+    x, P : ndarray, shapes (n,), (n, n)
+        Filtered moments of the segment's first step.
+    """
+
+    def __init__(self, *, x: FloatArray, P: FloatArray) -> None:
+        # Entry 0 of the predicted moments and transitions is unused by rts_smooth.
+        self.x_filtered = [x]
+        self.P_filtered = [P]
+        self.x_predicted = [x]
+        self.P_predicted = [P]
+        self.transitions = [np.eye(x.shape[0])]
+
+    def append(
+        self, *, x: FloatArray, P: FloatArray, x_pred: FloatArray, P_pred: FloatArray, F: FloatArray
+    ) -> None:
+        """Add a step: filtered ``x, P``, predicted ``x_pred, P_pred``, transition ``F``."""
+        self.x_filtered.append(x)
+        self.P_filtered.append(P)
+        self.x_predicted.append(x_pred)
+        self.P_predicted.append(P_pred)
+        self.transitions.append(F)
+
+    def smooth(
+        self, last_x: FloatArray | None = None, last_P: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """RTS-smooth the segment; ``last_x, last_P`` replace the final filtered moments
+        by already smoothed ones (the segment then continues a smoothed later segment)."""
+        xf = np.array(self.x_filtered)
+        Pf = np.array(self.P_filtered)
+        if last_x is not None and last_P is not None:
+            xf[-1], Pf[-1] = last_x, last_P
+        return rts_smooth(
+            xf,
+            Pf,
+            np.array(self.x_predicted),
+            np.array(self.P_predicted),
+            np.array(self.transitions),
+        )
+
+
+def _smooth_back_through_conversion(
+    x_ct_smoothed: FloatArray, P_ct_smoothed: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Smoothed initiation-model moments at the conversion step.
+
+    The conversion is a change of variables ``(vx, vy) -> (speed, heading)`` plus an
+    independent turn-rate prior: it adds no information about the constant-velocity
+    state.  For a linear change of variables ``x_ct = J x_cv + b`` the RTS gain of this
+    step is ``G = [J^-1, 0]`` and the smoothed moments are exactly the inverse map of the
+    smoothed turn-state moments (turn rate marginalised).  Here the inverse map
+    ``(x, y, speed, heading) -> (x, y, speed cos heading, speed sin heading)`` is applied
+    at the smoothed mean, with its Jacobian there for the covariance.  Linearising at the
+    smoothed mean, rather than at the filtered velocity of two detections, keeps the
+    early states as accurate as the rest of the track.
+
+    Parameters
+    ----------
+    x_ct_smoothed : ndarray, shape (5,)
+    P_ct_smoothed : ndarray, shape (5, 5)
+
+    Returns
+    -------
+    x_cv : ndarray, shape (4,)
+    P_cv : ndarray, shape (4, 4)
+    """
+    px, py, speed, heading = (float(v) for v in x_ct_smoothed[:4])
+    cos_h, sin_h = math.cos(heading), math.sin(heading)
+    x_cv = np.array([px, py, speed * cos_h, speed * sin_h])
+    J = np.zeros((4, 4))
+    J[0, 0] = J[1, 1] = 1.0
+    J[2, 2], J[2, 3] = cos_h, -speed * sin_h
+    J[3, 2], J[3, 3] = sin_h, speed * cos_h
+    P_cv = J @ P_ct_smoothed[:4, :4] @ J.T
+    return x_cv, 0.5 * (P_cv + P_cv.T)
+
+
+def _to_turn_space(
+    motion: MotionModel,
+    x_cv: FloatArray,
+    P_cv: FloatArray,
+    birth: BirthModel,
+    turn_rate: float,
+    turn_rate_variance: float,
+) -> tuple[FloatArray, FloatArray]:
+    """A smoothed initiation-model state expressed in the coordinated-turn space."""
+    x, P = convert_initiated(motion, x_cv, P_cv, birth)
+    x = np.array(x, copy=True)
+    P = np.array(P, copy=True)
+    x[4] = turn_rate
+    P[4, 4] = turn_rate_variance
+    return x, P
+
+
+def _canonical_turn_states(
+    states: FloatArray, covariances: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Coordinated-turn states with speed >= 0 and heading in (-pi, pi].
+
+    ``(speed, heading)`` and ``(-speed, heading + pi)`` are the same motion; an EKF whose
+    first heading estimate (from two noisy detections) is more than 90 degrees off can
+    settle on the negative-speed form.  The reflection ``speed -> -speed`` flips the signs
+    of the speed's covariances with the other components; the shift of the heading by pi
+    and its wrapping change no covariance.
+
+    Parameters
+    ----------
+    states : ndarray, shape (T, 5)
+    covariances : ndarray, shape (T, 5, 5)
+    """
+    states = np.array(states, dtype=float, copy=True)
+    covariances = np.array(covariances, dtype=float, copy=True)
+    reversed_ = states[:, 2] < 0.0
+    flip = np.ones(5)
+    flip[2] = -1.0
+    states[reversed_, 2] *= -1.0
+    states[reversed_, 3] += math.pi
+    covariances[reversed_] *= np.outer(flip, flip)
+    states[:, 3] = wrap_angle(states[:, 3])
+    return states, covariances
+
+
+def _undetermined_turn_state(
+    x_cv: FloatArray, P_cv: FloatArray, birth: BirthModel
+) -> tuple[FloatArray, FloatArray]:
+    """Coordinated-turn moments of a track detected at a single time (no velocity)."""
+    x = np.array([x_cv[0], x_cv[1], 0.0, 0.0, 0.0])
+    P = np.zeros((5, 5))
+    P[:2, :2] = P_cv[:2, :2]
+    P[2, 2] = birth.speed_std**2
+    P[3, 3] = _UNIFORM_HEADING_VARIANCE
+    P[4, 4] = birth.turn_rate_std**2
+    return x, P
+
+
+def _initiation_measurement(motion: MotionModel, measurement: MeasurementModel) -> MeasurementModel:
+    """The measurement model acting on :func:`~mapassoc.birth.initiation_model` states.
+
+    Identical to ``measurement`` unless the motion model converts (coordinated turn).  Then
+    a linear measurement's H, written for the turn state, is re-indexed onto the
+    constant-velocity initiation state: both spaces share the position components, and a
+    measurement of anything but position cannot act on the initiation state.  A
+    range-bearing measurement reads only the position components and is used as it is.
+    """
+    if not needs_conversion(motion) or not isinstance(measurement, LinearMeasurement):
+        return measurement
+    model = initiation_model(motion)
+    source = list(motion.position_indices)
+    others = [i for i in range(motion.state_dim) if i not in source]
+    if np.any(measurement.H[:, others] != 0.0):
+        raise InputError(
+            f"the linear measurement H={measurement.H.tolist()} reads state components other "
+            f"than the position {[motion.state_names[i] for i in source]}, so it cannot be "
+            f"applied to a {type(model).__name__} initiation state"
+        )
+    H = np.zeros((measurement.measurement_dim, model.state_dim))
+    H[:, list(model.position_indices)] = measurement.H[:, source]
+    return LinearMeasurement(
+        H=H,
+        R=measurement.R,
+        component_names=measurement.component_names,
+        position_indices=measurement.position_indices,
+    )
+
+
+def _track(
+    scans: Sequence[Scan],
+    detections: dict[int, int],
+    config: Config,
+) -> tuple[list[int], FloatArray, FloatArray, list[int]]:
+    """Smoothed moments of one target.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+    detections : dict of int to int
+        Scan index -> index of the target's detection in that scan.
+    config : Config
+
+    Returns
+    -------
+    scan_indices : list of int, length T
+    states : ndarray, shape (T, n)
+    covariances : ndarray, shape (T, n, n)
+    rows : list of int, length T (-1 for a miss)
+    """
+    motion = config.motion
+    birth = config.birth
+    converts = needs_conversion(motion)
+    model = initiation_model(motion)
+    first, last = min(detections), max(detections)
+    scan_indices = list(range(first, last + 1))
+    first_scan = scans[first]
+    z0 = first_scan.detections[detections[first]]
+    x, P = birth_state(motion, config.sensors[first_scan.sensor].measurement, z0, birth)
+    early = _Segment(x=x, P=P)
+    late: _Segment | None = None if converts else early
+
+    for k in scan_indices[1:]:
+        scan = scans[k]
+        dt = scan.time - scans[k - 1].time
+        current_model = motion if late is not None else model
+        if dt > 0.0:
+            x_pred, P_pred, F = predict_motion(current_model, x, P, dt)
+        else:
+            x_pred, P_pred, F = x, P, np.eye(x.shape[0])
+        if k in detections:
+            measurement = config.sensors[scan.sensor].measurement
+            if late is None:
+                measurement = _initiation_measurement(motion, measurement)
+            z = scan.detections[detections[k]]
+            nu, S, H = innovation(measurement, x_pred, P_pred, z)
+            x, P = update(x_pred, P_pred, nu, S, H, measurement.noise_covariance)
+        else:
+            x, P = x_pred, P_pred
+        segment = early if late is None else late
+        segment.append(x=x, P=P, x_pred=x_pred, P_pred=P_pred, F=F)
+        if late is None and k in detections and scan.time > first_scan.time:
+            x, P = convert_initiated(motion, x, P, birth)
+            late = _Segment(x=x, P=P)
+
+    rows = [int(scans[k].rows[detections[k]]) if k in detections else -1 for k in scan_indices]
+    if not converts:
+        states, covariances = early.smooth()
+        return scan_indices, states, covariances, rows
+    if late is None:
+        # Detected at a single time: the velocity, hence speed and heading, is unknown.
+        xs_cv, Ps_cv = early.smooth()
+        pairs = [_undetermined_turn_state(a, b, birth) for a, b in zip(xs_cv, Ps_cv, strict=True)]
+        return scan_indices, np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs]), rows
+    xs_ct, Ps_ct = late.smooth()
+    x_join, P_join = _smooth_back_through_conversion(xs_ct[0], Ps_ct[0])
+    xs_cv, Ps_cv = early.smooth(x_join, P_join)
+    early_states = [
+        _to_turn_space(motion, a, b, birth, float(xs_ct[0][4]), float(Ps_ct[0][4, 4]))
+        for a, b in zip(xs_cv[:-1], Ps_cv[:-1], strict=True)
+    ]
+    states = np.concatenate([np.array([s[0] for s in early_states]).reshape(-1, 5), xs_ct])
+    covariances = np.concatenate([np.array([s[1] for s in early_states]).reshape(-1, 5, 5), Ps_ct])
+    states, covariances = _canonical_turn_states(states, covariances)
+    return scan_indices, states, covariances, rows
+
+
+def oracle_tracks(scans: Sequence[Scan], origins: Origins, config: Config) -> TrackTable:
+    """Smoothed tracks of every target on its true detections.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+        Sorted by (time, sensor) (:func:`mapassoc.scans.check_scan_order`).
+    origins : Origins
+        Origin of every detection row of ``scans`` (``-1`` for a false alarm).
+    config : Config
+        Motion model, sensors (every scan's sensor must be configured) and birth model
+        (single-point initiation priors).
+
+    Returns
+    -------
+    TrackTable
+        One row per target per scan from its first to its last detection (scans of every
+        sensor count): ``track_id`` is the target id, ``states`` the smoothed mean in the
+        motion model's state space, ``variances`` the smoothed covariance diagonal,
+        ``detection_rows`` the row used or ``-1``.  Sorted by (time, track_id), then scan
+        order.
+
+    Raises
+    ------
+    InputError
+        Unsorted scans, an unknown sensor, a detection row without an origin or an origin
+        row without a detection, or a target with two detections in one scan.
+    """
+    scans = list(scans)
+    check_scan_order(scans)
+    if not isinstance(origins, Origins):
+        raise InputError(f"origins must be an Origins, got {origins!r}")
+    for scan in scans:
+        if scan.sensor not in config.sensors:
+            raise InputError(
+                f"scan at time {scan.time} is from sensor {scan.sensor!r}, which is not in the "
+                f"configuration (sensors: {list(config.sensors)})"
+            )
+    origin_of = dict(zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True))
+    scan_rows = {int(row) for scan in scans for row in scan.rows}
+    unknown = sorted(set(origin_of) - scan_rows)
+    if unknown:
+        raise InputError(
+            f"origins name rows {unknown[:5]} that are not detection rows of the scans"
+        )
+
+    per_target: dict[int, dict[int, int]] = {}
+    for scan_index, scan in enumerate(scans):
+        for detection_index, row in enumerate(scan.rows.tolist()):
+            if row not in origin_of:
+                raise InputError(
+                    f"detection row {row} (sensor {scan.sensor!r}, time {scan.time}) has no origin"
+                )
+            target = origin_of[row]
+            if target < 0:
+                continue
+            target_scans = per_target.setdefault(target, {})
+            if scan_index in target_scans:
+                other = int(scan.rows[target_scans[scan_index]])
+                raise InputError(
+                    f"target {target} has two detections (rows {other} and {row}) in the scan "
+                    f"of sensor {scan.sensor!r} at time {scan.time}; at most one is allowed"
+                )
+            target_scans[scan_index] = detection_index
+
+    n = config.motion.state_dim
+    ids: list[int] = []
+    times: list[float] = []
+    sensors: list[str] = []
+    order_keys: list[int] = []
+    states: list[FloatArray] = []
+    variances: list[FloatArray] = []
+    rows: list[int] = []
+    for target in sorted(per_target):
+        scan_indices, means, covariances, target_rows = _track(scans, per_target[target], config)
+        for k, mean, covariance, row in zip(
+            scan_indices, means, covariances, target_rows, strict=True
+        ):
+            ids.append(target)
+            times.append(scans[k].time)
+            sensors.append(scans[k].sensor)
+            order_keys.append(k)
+            states.append(mean)
+            variances.append(np.diagonal(covariance).copy())
+            rows.append(row)
+    order = np.lexsort((np.array(order_keys), np.array(ids), np.array(times)))
+    return TrackTable(
+        track_ids=np.array(ids, dtype=np.int64)[order],
+        times=np.array(times, dtype=float)[order],
+        sensors=tuple(sensors[i] for i in order),
+        states=np.array(states, dtype=float).reshape(len(ids), n)[order],
+        variances=np.array(variances, dtype=float).reshape(len(ids), n)[order],
+        detection_rows=np.array(rows, dtype=np.int64)[order],
+        state_names=tuple(config.motion.state_names),
+    )
