@@ -96,11 +96,23 @@ def _logaddexp(a: float, b: float) -> float:
     return b + math.log1p(math.exp(a - b))
 
 
+def _log_sum(terms: list[float]) -> float:
+    if len(terms) == 1:
+        return terms[0]
+    top = max(terms)
+    return top + math.log(math.fsum(math.exp(t - top) for t in terms))
+
+
 def _better(
     score: float, chosen: tuple[int, ...], best: float, best_set: tuple[int, ...] | None
 ) -> bool:
-    """Whether (score, chosen) beats the incumbent; equal scores go to the smaller tuple."""
-    return best_set is None or score > best or (score == best and chosen < best_set)
+    """Whether (score, chosen) beats the incumbent; equal scores go to the smaller sorted set.
+
+    Sets are kept unsorted inside the search; they are sorted only to break exact ties.
+    """
+    if best_set is None or score > best:
+        return True
+    return score == best and sorted(chosen) < sorted(best_set)
 
 
 def _zero_table() -> _Table:
@@ -110,7 +122,7 @@ def _zero_table() -> _Table:
 def _convolve(a: _Table, b: _Table, kmax: int) -> _Table:
     length = min(len(a[0]) + len(b[0]) - 1, kmax + 1)
     best = [_NEG_INF] * length
-    mass = [_NEG_INF] * length
+    terms: list[list[float]] = [[] for _ in range(length)]
     sets: list[tuple[int, ...] | None] = [None] * length
     for i, (ab, am, aset) in enumerate(zip(*a, strict=True)):
         if am == _NEG_INF:
@@ -121,33 +133,37 @@ def _convolve(a: _Table, b: _Table, kmax: int) -> _Table:
                 break
             if bm == _NEG_INF:
                 continue
-            mass[k] = _logaddexp(mass[k], am + bm)
+            terms[k].append(am + bm)
             score = ab + bb
             if sets[k] is None or score >= best[k]:
-                cand = tuple(sorted(aset + bset))  # type: ignore[operator]
+                cand = aset + bset  # type: ignore[operator]
                 if _better(score, cand, best[k], sets[k]):
                     best[k], sets[k] = score, cand
+    mass = [_log_sum(t) if t else _NEG_INF for t in terms]
     return best, mass, sets
 
 
-def _merge(a: _Table, b: _Table) -> _Table:
+def _merge(options: list[_Table]) -> _Table:
     """Alternatives: pointwise best and log-sum of masses."""
-    length = max(len(a[0]), len(b[0]))
+    if len(options) == 1:
+        return options[0]
+    length = max(len(t[0]) for t in options)
     best = [_NEG_INF] * length
-    mass = [_NEG_INF] * length
+    terms: list[list[float]] = [[] for _ in range(length)]
     sets: list[tuple[int, ...] | None] = [None] * length
-    for t in (a, b):
+    for t in options:
         for k, (tb, tm, ts) in enumerate(zip(*t, strict=True)):
             if tm == _NEG_INF:
                 continue
-            mass[k] = _logaddexp(mass[k], tm)
+            terms[k].append(tm)
             if _better(tb, ts, best[k], sets[k]):  # type: ignore[arg-type]
                 best[k], sets[k] = tb, ts
+    mass = [_log_sum(t) if t else _NEG_INF for t in terms]
     return best, mass, sets
 
 
-def _shift(t: _Table, count: int, score: float, h: int, kmax: int) -> _Table:
-    """Add hypothesis h (score, counting ``count`` toward k) to every set of ``t``."""
+def _shift(t: _Table, count: int, score: float, weight: float, h: int, kmax: int) -> _Table:
+    """Add hypothesis h (``count`` toward k) to every set of ``t``."""
     length = min(len(t[0]) + count, kmax + 1)
     best = [_NEG_INF] * length
     mass = [_NEG_INF] * length
@@ -157,8 +173,8 @@ def _shift(t: _Table, count: int, score: float, h: int, kmax: int) -> _Table:
         if kk >= length or tm == _NEG_INF:
             continue
         best[kk] = tb + score
-        mass[kk] = tm + score
-        sets[kk] = tuple(sorted(ts + (h,)))  # type: ignore[operator]
+        mass[kk] = tm + weight
+        sets[kk] = ts + (h,)  # type: ignore[operator]
     return best, mass, sets
 
 
@@ -169,7 +185,7 @@ def _to_public(t: _Table, kmax: int, exact: bool = True) -> CardinalityTable:
     n = min(len(t[0]), kmax + 1)
     best[:n] = t[0][:n]
     mass[:n] = t[1][:n]
-    sets[:n] = t[2][:n]
+    sets[:n] = [None if x is None else tuple(sorted(x)) for x in t[2][:n]]
     return CardinalityTable(best, mass, tuple(sets), exact)
 
 
@@ -193,22 +209,24 @@ def combine_tables(tables: list[CardinalityTable], kmax: int) -> CardinalityTabl
 
 
 def table_from_sets(
-    sets: list[tuple[tuple[int, ...], int, float]], kmax: int, *, exact: bool
+    sets: list[tuple[tuple[int, ...], int, float, float]], kmax: int, *, exact: bool
 ) -> CardinalityTable:
-    """Table from an explicit list of ``(hypotheses, k, score)`` feasible sets."""
-    acc: _Table = ([], [], [])
-    for hyps, k, score in sets:
+    """Table from explicit feasible sets ``(hypotheses, k, score, log_weight)``.
+
+    Each set must appear once; ``exact`` says whether they are all the feasible sets.
+    """
+    if not sets:
+        return _to_public(([_NEG_INF], [_NEG_INF], [None]), kmax, exact)
+    options: list[_Table] = []
+    for hyps, k, score, weight in sets:
         if k > kmax:
             continue
-        one: _Table = (
-            [_NEG_INF] * k + [score],
-            [_NEG_INF] * k + [score],
-            [None] * k + [tuple(sorted(hyps))],
+        options.append(
+            ([_NEG_INF] * k + [score], [_NEG_INF] * k + [weight], [None] * k + [tuple(hyps)])
         )
-        acc = _merge(acc, one) if acc[0] else one
-    if not acc[0]:
-        acc = ([_NEG_INF], [_NEG_INF], [None])
-    return _to_public(acc, kmax, exact)
+    if not options:
+        return _to_public(([_NEG_INF], [_NEG_INF], [None]), kmax, exact)
+    return _to_public(_merge(options), kmax, exact)
 
 
 def exact_cardinality_table(
@@ -235,6 +253,7 @@ def exact_cardinality_table(
     H = problem.num_hypotheses
     R = problem.num_resources
     scores = problem.scores.tolist()
+    weights = problem.log_weights.tolist()  # type: ignore[union-attr]
     counts = problem.counts.astype(int).tolist()
     members = [0] * R
     for h in range(H):
@@ -279,7 +298,7 @@ def exact_cardinality_table(
         new = mask & ~conflict[h]
         if empties_group(mask, new, h):
             return None
-        return _shift(solve(new), counts[h], scores[h], h, kmax)
+        return _shift(solve(new), counts[h], scores[h], weights[h], h, kmax)
 
     def branch(mask: int) -> _Table:
         options: list[_Table] = []
@@ -292,7 +311,8 @@ def exact_cardinality_table(
             if not hyp_resources[h0]:
                 # A hypothesis that uses nothing: take it or leave it.
                 rest = mask & ~low
-                return _merge(solve(rest), _shift(solve(rest), counts[h0], scores[h0], h0, kmax))
+                sub = solve(rest)
+                return _merge([sub, _shift(sub, counts[h0], scores[h0], weights[h0], h0, kmax)])
             r = max(hyp_resources[h0], key=lambda res: (members[res] & mask).bit_count())
             candidates = members[r] & mask
             unused = mask & ~members[r]
@@ -306,10 +326,7 @@ def exact_cardinality_table(
                 options.append(t)
         if not options:
             return [_NEG_INF], [_NEG_INF], [None]
-        out = options[0]
-        for t in options[1:]:
-            out = _merge(out, t)
-        return out
+        return _merge(options)
 
     def solve(mask: int) -> _Table:
         nonlocal visited

@@ -25,7 +25,13 @@ from numpy.typing import NDArray
 
 from mapassoc.formulations.program import Program
 
-__all__ = ["PackingProblem", "set_packing_program", "decode_selection"]
+__all__ = [
+    "PackingProblem",
+    "MergedProblem",
+    "merge_interchangeable",
+    "set_packing_program",
+    "decode_selection",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,6 +49,11 @@ class PackingProblem:
         Resources that must be used exactly once; the others at most once.
     counts : ndarray of bool, shape (H,)
         Whether each hypothesis counts toward K.
+    log_weights : ndarray, shape (H,), optional
+        Log-weight of each hypothesis in the *sums* over sets (log-mass); defaults to
+        ``scores``.  They differ after :func:`merge_interchangeable`, where one
+        hypothesis stands for several with the same resources: its score is their best
+        score and its log-weight the log-sum-exp of theirs.
     """
 
     scores: NDArray[np.float64]
@@ -50,6 +61,7 @@ class PackingProblem:
     resource_indices: NDArray[np.int64]
     exactly_one: NDArray[np.bool_]
     counts: NDArray[np.bool_]
+    log_weights: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         scores = np.asarray(self.scores, dtype=float)
@@ -69,6 +81,9 @@ class PackingProblem:
             raise ValueError(f"resource indices must lie in 0..{R - 1}")
         if counts.shape != (H,):
             raise ValueError(f"counts must have shape ({H},)")
+        log_weights = scores if self.log_weights is None else np.asarray(self.log_weights, float)
+        if log_weights.shape != (H,) or not np.all(np.isfinite(log_weights)):
+            raise ValueError(f"log_weights must be finite with shape ({H},)")
         for h in range(H):
             used = indices[indptr[h] : indptr[h + 1]]
             if len(np.unique(used)) != len(used):
@@ -78,6 +93,7 @@ class PackingProblem:
         object.__setattr__(self, "resource_indices", indices)
         object.__setattr__(self, "exactly_one", exactly_one)
         object.__setattr__(self, "counts", counts)
+        object.__setattr__(self, "log_weights", log_weights)
 
     @property
     def num_hypotheses(self) -> int:
@@ -114,6 +130,7 @@ class PackingProblem:
             resource_indices=indices.astype(np.int64),
             exactly_one=self.exactly_one[used],
             counts=self.counts[hyp],
+            log_weights=self.log_weights[hyp],  # type: ignore[index]
         )
 
     def is_feasible(self, selection: NDArray[np.int64], k: int | None = None) -> bool:
@@ -128,6 +145,64 @@ class PackingProblem:
 
     def value(self, selection: NDArray[np.int64]) -> float:
         return float(np.sum(self.scores[np.asarray(selection, dtype=np.int64)]))
+
+
+@dataclass(frozen=True, eq=False)
+class MergedProblem:
+    """A packing problem with interchangeable hypotheses merged.
+
+    Attributes
+    ----------
+    problem : PackingProblem
+        One hypothesis per class of interchangeable originals.
+    representative : ndarray of int, shape (H',)
+        For each merged hypothesis, the original with the best score (ties: the
+        smallest index).
+    members : tuple of ndarray of int
+        The originals each merged hypothesis stands for.
+    """
+
+    problem: PackingProblem
+    representative: NDArray[np.int64]
+    members: tuple[NDArray[np.int64], ...]
+
+
+def merge_interchangeable(problem: PackingProblem) -> MergedProblem:
+    """Merge hypotheses that use the same resources and count the same toward K.
+
+    Such hypotheses are interchangeable in every feasible set (they conflict with each
+    other and with exactly the same others), so one hypothesis with the best score
+    (for the maximum) and the log-sum-exp of the log-weights (for the sums over sets)
+    gives the same per-k best scores and the same per-k log-masses.  Exact.
+    """
+    H = problem.num_hypotheses
+    groups: dict[tuple[bool, tuple[int, ...]], list[int]] = {}
+    for h in range(H):
+        key = (bool(problem.counts[h]), tuple(sorted(problem.resources_of(h).tolist())))
+        groups.setdefault(key, []).append(h)
+    classes = sorted(groups.values(), key=lambda g: g[0])
+    scores = problem.scores
+    weights = problem.log_weights
+    reps = np.array([min(g, key=lambda h: (-scores[h], h)) for g in classes], dtype=np.int64)
+    merged_weights = np.array(
+        [np.logaddexp.reduce(weights[np.asarray(g)]) for g in classes]  # type: ignore[index]
+    )
+    lengths = [len(problem.resources_of(int(r))) for r in reps]
+    indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    indices = (
+        np.concatenate([problem.resources_of(int(r)) for r in reps])
+        if len(reps)
+        else np.zeros(0, dtype=np.int64)
+    )
+    merged = PackingProblem(
+        scores=scores[reps],
+        resource_indptr=indptr,
+        resource_indices=indices.astype(np.int64),
+        exactly_one=problem.exactly_one,
+        counts=problem.counts[reps],
+        log_weights=merged_weights,
+    )
+    return MergedProblem(merged, reps, tuple(np.asarray(g, dtype=np.int64) for g in classes))
 
 
 def set_packing_program(problem: PackingProblem, k: int) -> Program:

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.errors import InputError
-from mapassoc.measurement import MeasurementModel
+from mapassoc.measurement import LinearMeasurement, MeasurementModel
 from mapassoc.motion import (
     ConstantAcceleration,
     ConstantVelocity,
@@ -31,7 +31,13 @@ from mapassoc.motion import (
 )
 from mapassoc.settings import BirthModel
 
-__all__ = ["initiation_model", "birth_state", "convert_initiated", "needs_conversion"]
+__all__ = [
+    "initiation_model",
+    "initiation_measurement",
+    "birth_state",
+    "convert_initiated",
+    "needs_conversion",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -42,6 +48,36 @@ def initiation_model(motion: MotionModel) -> MotionModel:
         # Along-track acceleration noise of the turn model, spread on both axes.
         return ConstantVelocity(ndim=2, noise_intensity=motion.speed_noise_intensity)
     return motion
+
+
+def initiation_measurement(motion: MotionModel, measurement: MeasurementModel) -> MeasurementModel:
+    """The measurement model acting on :func:`~mapassoc.birth.initiation_model` states.
+
+    Identical to ``measurement`` unless the motion model converts (coordinated turn).  Then
+    a linear measurement's H, written for the turn state, is re-indexed onto the
+    constant-velocity initiation state: both spaces share the position components, and a
+    measurement of anything but position cannot act on the initiation state.  A
+    range-bearing measurement reads only the position components and is used as it is.
+    """
+    if not needs_conversion(motion) or not isinstance(measurement, LinearMeasurement):
+        return measurement
+    model = initiation_model(motion)
+    source = list(motion.position_indices)
+    others = [i for i in range(motion.state_dim) if i not in source]
+    if np.any(measurement.H[:, others] != 0.0):
+        raise InputError(
+            f"the linear measurement H={measurement.H.tolist()} reads state components other "
+            f"than the position {[motion.state_names[i] for i in source]}, so it cannot be "
+            f"applied to a {type(model).__name__} initiation state"
+        )
+    H = np.zeros((measurement.measurement_dim, model.state_dim))
+    H[:, list(model.position_indices)] = measurement.H[:, source]
+    return LinearMeasurement(
+        H=H,
+        R=measurement.R,
+        component_names=measurement.component_names,
+        position_indices=measurement.position_indices,
+    )
 
 
 def needs_conversion(motion: MotionModel) -> bool:

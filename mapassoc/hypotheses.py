@@ -44,7 +44,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.birth import birth_state, convert_initiated, initiation_model, needs_conversion
+from mapassoc.birth import (
+    birth_state,
+    convert_initiated,
+    initiation_measurement,
+    initiation_model,
+    needs_conversion,
+)
 from mapassoc.errors import InputError
 from mapassoc.kalman import gate_threshold, pairwise_gate_and_loglik, predict_motion, update
 from mapassoc.motion import MotionModel
@@ -83,6 +89,9 @@ class CarriedTrack:
         a coordinated-turn track with a single detection so far).
     num_detections : int
         Detections the track has used so far.
+    first_detection_time : float
+        Time of the track's first detection (a coordinated-turn track converts to the
+        turn state at its first detection later than this).
     """
 
     track_id: int
@@ -91,6 +100,7 @@ class CarriedTrack:
     time: float
     initiated: bool
     num_detections: int
+    first_detection_time: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,6 +146,8 @@ class HypothesisNodes:
     initiated : ndarray of bool, shape (V,)
     num_detections : ndarray of int, shape (V,)
         Detections used along the path including this node (carried history included).
+    first_time : ndarray, shape (V,)
+        Time of the track's first detection.
     means : ndarray, shape (V, n_max)
     covariances : ndarray, shape (V, n_max, n_max)
     state_dims : ndarray of int, shape (V,)
@@ -148,6 +160,7 @@ class HypothesisNodes:
     tree: IntArray
     initiated: NDArray[np.bool_]
     num_detections: IntArray
+    first_time: FloatArray
     means: FloatArray
     covariances: FloatArray
     state_dims: IntArray
@@ -224,6 +237,7 @@ class _Layer:
     tree: list[IntArray]
     initiated: list[NDArray[np.bool_]]
     num_detections: list[IntArray]
+    first_time: list[FloatArray]
     score: list[FloatArray]
     protected: list[NDArray[np.bool_]]
     means: list[FloatArray]
@@ -231,7 +245,7 @@ class _Layer:
 
     @classmethod
     def empty(cls) -> _Layer:
-        return cls([], [], [], [], [], [], [], [], [], [])
+        return cls([], [], [], [], [], [], [], [], [], [], [])
 
     def add(
         self,
@@ -242,6 +256,7 @@ class _Layer:
         tree: IntArray,
         initiated: NDArray[np.bool_],
         num_detections: IntArray,
+        first_time: FloatArray,
         score: FloatArray,
         protected: NDArray[np.bool_],
         means: FloatArray,
@@ -256,6 +271,7 @@ class _Layer:
         self.tree.append(np.asarray(tree, dtype=np.int64))
         self.initiated.append(np.asarray(initiated, dtype=bool))
         self.num_detections.append(np.asarray(num_detections, dtype=np.int64))
+        self.first_time.append(np.broadcast_to(np.asarray(first_time, dtype=float), (k,)).copy())
         self.score.append(np.asarray(score, dtype=float))
         self.protected.append(np.asarray(protected, dtype=bool))
         self.means.append(means)
@@ -394,6 +410,7 @@ class HypothesisGenerator:
                 "tree",
                 "initiated",
                 "num_detections",
+                "first_time",
                 "means",
                 "covs",
                 "dims",
@@ -427,11 +444,14 @@ class HypothesisGenerator:
                     "tree",
                     "initiated",
                     "num_detections",
+                    "first_time",
                     "score",
                     "protected",
                 )
             }
-            dims = np.concatenate([np.full(len(m), m.shape[1]) for m in layer.means])
+            dims = np.where(
+                cat["initiated"], self.motion.state_dim, self._init_model.state_dim
+            ).astype(np.int64)
             padded = [_pad(m, c, self._n_max) for m, c in zip(layer.means, layer.covs, strict=True)]
             means = np.concatenate([p[0] for p in padded])
             covs = np.concatenate([p[1] for p in padded])
@@ -447,6 +467,7 @@ class HypothesisGenerator:
                 "tree",
                 "initiated",
                 "num_detections",
+                "first_time",
                 "score",
                 "protected",
             ):
@@ -461,6 +482,7 @@ class HypothesisGenerator:
                 "tree": cat["tree"][keep][alive],
                 "initiated": cat["initiated"][keep][alive],
                 "num_detections": cat["num_detections"][keep][alive],
+                "first_time": cat["first_time"][keep][alive],
                 "score": cat["score"][keep][alive],
                 "protected": cat["protected"][keep][alive],
                 "means": means[keep][alive],
@@ -483,6 +505,7 @@ class HypothesisGenerator:
             tree=_cat("tree", np.int64),
             initiated=_cat("initiated", bool),
             num_detections=_cat("num_detections", np.int64),
+            first_time=_cat("first_time", float),
             means=_cat("means", float, (self._n_max,)),
             covariances=_cat("covs", float, (self._n_max, self._n_max)),
             state_dims=_cat("dims", np.int64),
@@ -541,6 +564,7 @@ class HypothesisGenerator:
             "tree": np.arange(k, dtype=np.int64),
             "initiated": np.array([t.initiated for t in carried], dtype=bool),
             "num_detections": np.array([t.num_detections for t in carried], dtype=np.int64),
+            "first_time": np.array([t.first_detection_time for t in carried], dtype=float),
             "score": np.zeros(k),
             "protected": np.ones(k, dtype=bool),
             "means": np.array(means),
@@ -577,6 +601,7 @@ class HypothesisGenerator:
             tree=frontier["tree"][idx],
             initiated=frontier["initiated"][idx],
             num_detections=frontier["num_detections"][idx],
+            first_time=frontier["first_time"][idx],
             score=frontier["score"][idx] + log_end[idx],
             protected=protect_end[idx],
             means=frontier["means"][idx],
@@ -586,14 +611,18 @@ class HypothesisGenerator:
         log_pd = math.log(sensor.detection_probability)
         log_lambda = sensor.log_clutter_density
         threshold = gate_threshold(self.gate_probability, sensor.measurement.measurement_dim)
-        measurement = sensor.measurement
-        R = measurement.noise_covariance
+        R = sensor.measurement.noise_covariance
         Z = scan.detections
         for initiated in (False, True):
             group = np.flatnonzero(frontier["initiated"] == initiated)
             if len(group) == 0:
                 continue
             model = self.motion if initiated else self._init_model
+            measurement = (
+                sensor.measurement
+                if initiated
+                else initiation_measurement(self.motion, sensor.measurement)
+            )
             d = model.state_dim
             x = frontier["means"][group, :d]
             P = frontier["covs"][group, :d, :d]
@@ -614,6 +643,7 @@ class HypothesisGenerator:
                     tree=frontier["tree"][group],
                     initiated=np.full(len(group), initiated),
                     num_detections=frontier["num_detections"][group],
+                    first_time=frontier["first_time"][group],
                     score=base + log_miss,
                     protected=protect_miss[group],
                     means=mm,
@@ -635,7 +665,10 @@ class HypothesisGenerator:
             ndet = frontier["num_detections"][group][li] + 1
             init_flags = np.full(len(li), initiated)
             if not initiated:
-                convert = ndet >= 2 if self._converts else np.ones(len(li), dtype=bool)
+                # A coordinated-turn track enters the turn state at its first detection
+                # later in time than its first one (the velocity is then observed).
+                later = scan.time > frontier["first_time"][group][li]
+                convert = later if self._converts else np.ones(len(li), dtype=bool)
                 init_flags = convert
                 if self._converts and np.any(convert):
                     # Second detection of a coordinated-turn track: into the turn state.
@@ -665,6 +698,7 @@ class HypothesisGenerator:
                 tree=frontier["tree"][group][li],
                 initiated=init_flags,
                 num_detections=ndet,
+                first_time=frontier["first_time"][group][li],
                 score=base[li] + log_pd + loglik[li, mi] - log_lambda,
                 protected=np.zeros(len(li), dtype=bool),
                 means=um,
@@ -698,6 +732,7 @@ class HypothesisGenerator:
             tree=first_tree + np.arange(m),
             initiated=np.full(m, initiated),
             num_detections=np.ones(m, dtype=np.int64),
+            first_time=np.full(m, scan.time),
             score=np.full(m, score),
             protected=np.zeros(m, dtype=bool),
             means=mm,

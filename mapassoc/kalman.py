@@ -90,7 +90,9 @@ def _symmetrize(P: FloatArray) -> FloatArray:
     return 0.5 * (P + np.swapaxes(P, -1, -2))
 
 
-def predict(x: FloatArray, P: FloatArray, F: FloatArray, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
+def predict(
+    x: FloatArray, P: FloatArray, F: FloatArray, Q: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     """Linear prediction ``x = F x``, ``P = F P F^T + Q``.
 
     Parameters
@@ -202,9 +204,7 @@ def log_gaussian(nu: FloatArray, S: FloatArray) -> FloatArray:
     return -0.5 * (d * _LOG_2PI + logdet + np.sum(y * y, axis=-1))
 
 
-def pairwise_gate_and_loglik(
-    nu: FloatArray, S: FloatArray
-) -> tuple[FloatArray, FloatArray]:
+def pairwise_gate_and_loglik(nu: FloatArray, S: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Squared Mahalanobis distances and log-likelihoods for every (track, detection) pair.
 
     One Cholesky factorisation and one triangular inverse per track, then a single

@@ -46,12 +46,18 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.birth import birth_state, convert_initiated, initiation_model, needs_conversion
+from mapassoc.birth import (
+    birth_state,
+    convert_initiated,
+    initiation_measurement,
+    initiation_model,
+    needs_conversion,
+)
 from mapassoc.config import Config
 from mapassoc.errors import InputError
 from mapassoc.io import Origins, TrackTable
 from mapassoc.kalman import innovation, predict_motion, rts_smooth, update
-from mapassoc.measurement import LinearMeasurement, MeasurementModel, wrap_angle
+from mapassoc.measurement import wrap_angle
 from mapassoc.motion import MotionModel
 from mapassoc.scans import Scan, check_scan_order
 from mapassoc.settings import BirthModel
@@ -203,36 +209,6 @@ def _undetermined_turn_state(
     return x, P
 
 
-def _initiation_measurement(motion: MotionModel, measurement: MeasurementModel) -> MeasurementModel:
-    """The measurement model acting on :func:`~mapassoc.birth.initiation_model` states.
-
-    Identical to ``measurement`` unless the motion model converts (coordinated turn).  Then
-    a linear measurement's H, written for the turn state, is re-indexed onto the
-    constant-velocity initiation state: both spaces share the position components, and a
-    measurement of anything but position cannot act on the initiation state.  A
-    range-bearing measurement reads only the position components and is used as it is.
-    """
-    if not needs_conversion(motion) or not isinstance(measurement, LinearMeasurement):
-        return measurement
-    model = initiation_model(motion)
-    source = list(motion.position_indices)
-    others = [i for i in range(motion.state_dim) if i not in source]
-    if np.any(measurement.H[:, others] != 0.0):
-        raise InputError(
-            f"the linear measurement H={measurement.H.tolist()} reads state components other "
-            f"than the position {[motion.state_names[i] for i in source]}, so it cannot be "
-            f"applied to a {type(model).__name__} initiation state"
-        )
-    H = np.zeros((measurement.measurement_dim, model.state_dim))
-    H[:, list(model.position_indices)] = measurement.H[:, source]
-    return LinearMeasurement(
-        H=H,
-        R=measurement.R,
-        component_names=measurement.component_names,
-        position_indices=measurement.position_indices,
-    )
-
-
 def _track(
     scans: Sequence[Scan],
     detections: dict[int, int],
@@ -277,7 +253,7 @@ def _track(
         if k in detections:
             measurement = config.sensors[scan.sensor].measurement
             if late is None:
-                measurement = _initiation_measurement(motion, measurement)
+                measurement = initiation_measurement(motion, measurement)
             z = scan.detections[detections[k]]
             nu, S, H = innovation(measurement, x_pred, P_pred, z)
             x, P = update(x_pred, P_pred, nu, S, H, measurement.noise_covariance)

@@ -45,6 +45,7 @@ from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.packing import (
     PackingProblem,
     decode_selection,
+    merge_interchangeable,
     set_packing_program,
 )
 from mapassoc.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
@@ -52,7 +53,7 @@ from mapassoc.io import Origins, TrackTable
 from mapassoc.oracle import oracle_tracks
 from mapassoc.posterior import KPosterior, k_posterior
 from mapassoc.scans import Scan, check_scan_order
-from mapassoc.solvers import SolveStatus, get_solver, solve_k_best
+from mapassoc.solvers import SolveResult, SolveStatus, get_solver, solve_k_best
 
 __all__ = [
     "ClusterReport",
@@ -323,15 +324,17 @@ class WindowEstimator:
         tables: list[CardinalityTable] = []
         reports: list[ClusterReport] = []
         for members in clusters:
-            sub = problem.subproblem(members)
+            # Interchangeable hypotheses (same detections, e.g. "ended" and "missed to
+            # the end") merge exactly: best score for the MAP, summed weight for the mass.
+            merged = merge_interchangeable(problem.subproblem(members))
             try:
                 table = exact_cardinality_table(
-                    sub, kmax, node_limit=self.settings.exact_node_limit
+                    merged.problem, kmax, node_limit=self.settings.exact_node_limit
                 )
             except NodeLimitExceeded:
-                table, report = self._solve_large_cluster(sub, kmax)
+                table, report = self._solve_large_cluster(merged.problem, kmax)
                 reports.append(report)
-            tables.append(table.remapped(members))
+            tables.append(table.remapped(members[merged.representative]))
         table = combine_tables(tables, kmax)
         posterior = k_posterior(table.best, table.log_mass, self.log_k_prior, exact=table.exact)
         t2 = time.perf_counter()
@@ -351,47 +354,76 @@ class WindowEstimator:
     ) -> tuple[CardinalityTable, ClusterReport]:
         """MAP per k by the integer program; marginal from the m best sets per k.
 
-        The captured share is bounded below with the number of feasible sets, at most
-        ``prod_r (1 + hypotheses using r)`` (each set picks at most one user per
-        resource), each unfound set weighing at most the m-th best.
+        The m best sets are searched only for the k whose best set could carry mass:
+        with at most ``N <= prod_r (1 + hypotheses using r)`` feasible sets (each set
+        picks at most one user per resource), a k whose best set is more than
+        ``log N + 40`` below the best over all k holds less than ``e^-40`` of the
+        cluster's mass, and only its best set is kept.  The captured share is bounded
+        below the same way: every set not found weighs at most the m-th best of its k.
         """
         m = self.settings.m_best
         usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
         log_num_sets = float(np.sum(np.log1p(usage)))
-        sets: list[tuple[tuple[int, ...], int, float]] = []
+        excess = problem.log_weights - problem.scores  # type: ignore[operator]
+        max_excess = float(np.sum(np.clip(excess, 0.0, None)))
+        time_limit = self.settings.time_limit
+        sets: list[tuple[tuple[int, ...], int, float, float]] = []
         worst = SolveStatus.OPTIMAL
         solves = 0
-        found_terms: list[float] = []
-        tail_terms: list[float] = []
+        seen: set[tuple[int, ...]] = set()
+
+        def found(result: SolveResult, k: int) -> tuple[float, float] | None:
+            nonlocal worst
+            if result.status not in (SolveStatus.OPTIMAL, SolveStatus.INFEASIBLE):
+                worst = result.status
+            if result.solution is None or result.status not in (
+                SolveStatus.OPTIMAL,
+                SolveStatus.TIME_LIMIT,
+            ):
+                return None
+            chosen = decode_selection(result.solution)
+            key = tuple(int(i) for i in chosen)
+            if key in seen:
+                return problem.value(chosen), float("nan")
+            seen.add(key)
+            if not problem.is_feasible(chosen, k):
+                raise RuntimeError(f"solver {result.solver!r} returned an infeasible set for k={k}")
+            score = problem.value(chosen)
+            weight = float(np.sum(problem.log_weights[chosen]))  # type: ignore[index]
+            sets.append((tuple(int(i) for i in chosen), k, score, weight))
+            return score, weight
+
         top_k = min(kmax, int(np.count_nonzero(problem.counts)))
+        best_per_k: dict[int, float] = {}
         for k in range(top_k + 1):
+            result = self.solver.solve(set_packing_program(problem, k), time_limit=time_limit)
+            solves += 1
+            got = found(result, k)
+            if got is not None:
+                best_per_k[k] = got[0]
+        tail_terms: list[float] = []
+        overall = max(best_per_k.values(), default=-math.inf)
+        for k, best in best_per_k.items():
+            if best + max_excess + log_num_sets < overall - 40.0:
+                tail_terms.append(log_num_sets + best + max_excess)
+                continue
             program = set_packing_program(problem, k)
-            results = solve_k_best(
-                program, m, solver=self.solver, time_limit=self.settings.time_limit
-            )
+            results = solve_k_best(program, m, solver=self.solver, time_limit=time_limit)
             solves += len(results)
-            values = []
+            scores_k = []
             for r in results:
-                if r.status in (SolveStatus.OPTIMAL, SolveStatus.TIME_LIMIT) and r.solution is not None:
-                    chosen = decode_selection(r.solution)
-                    if not problem.is_feasible(chosen, k):
-                        raise RuntimeError(
-                            f"solver '{r.solver}' returned an infeasible set for k={k}"
-                        )
-                    v = problem.value(chosen)
-                    sets.append((tuple(int(i) for i in chosen), k, v))
-                    values.append(v)
-                if r.status not in (SolveStatus.OPTIMAL, SolveStatus.INFEASIBLE):
-                    worst = r.status
-            found_terms.extend(values)
-            complete = len(values) < m and results and results[-1].status == SolveStatus.INFEASIBLE
-            if values and not complete:
-                tail_terms.append(log_num_sets + min(values))
+                got = found(r, k)
+                if got is not None:
+                    scores_k.append(got[0])
+            complete = len(results) < m and all(r.status == SolveStatus.OPTIMAL for r in results)
+            if not complete:
+                lowest = min(scores_k, default=best)
+                tail_terms.append(log_num_sets + lowest + max_excess)
+        found_terms = [w for *_, w in sets]
         table = table_from_sets(sets, kmax, exact=not tail_terms)
         if tail_terms:
-            found = float(np.logaddexp.reduce(found_terms))
-            total = float(np.logaddexp.reduce([found, *tail_terms]))
-            log_captured = found - total
+            captured = float(np.logaddexp.reduce(found_terms))
+            log_captured = captured - float(np.logaddexp.reduce([captured, *tail_terms]))
         else:
             log_captured = 0.0
         return table, ClusterReport(
@@ -447,7 +479,9 @@ class WindowEstimator:
             commit = stride if end < total else end - start
             solution = self.solve_window(scans[start:end], carried)
             post = solution.posterior
-            chosen_k = post.marginal_k if self.settings.k_estimate == "marginal" else post.joint_map_k
+            chosen_k = (
+                post.marginal_k if self.settings.k_estimate == "marginal" else post.joint_map_k
+            )
             selection = solution.selection(chosen_k)
             carried, next_id = self._commit(
                 solution.hypotheses, selection, start, commit, carried, records, next_id
@@ -555,6 +589,7 @@ class WindowEstimator:
                         time=scans[last_layer].time,
                         initiated=bool(nodes.initiated[carry_node]),
                         num_detections=int(nodes.num_detections[carry_node]),
+                        first_detection_time=float(nodes.first_time[carry_node]),
                     )
                 )
         new_carried.sort(key=lambda t: t.track_id)

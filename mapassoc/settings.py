@@ -119,14 +119,14 @@ class EstimatorSettings:
     max_tracks: int = 20
     gate_probability: float = 0.999
     max_hypotheses_per_tree: int = 64
-    prune_log_ratio: float = 12.0
+    prune_log_ratio: float = 9.0
     k_prior: str = "uniform"
     k_prior_mean: float = 5.0
     k_prior_weights: tuple[float, ...] = field(default_factory=tuple)
     k_estimate: str = "marginal"
     solver: str = "highs"
     time_limit: float = 30.0
-    exact_node_limit: int = 20000
+    exact_node_limit: int = 50000
     m_best: int = 20
 
     def __post_init__(self) -> None:

@@ -19,7 +19,6 @@ from mapassoc.kalman import (
     log_gaussian,
     pairwise_gate_and_loglik,
     predict_motion,
-    rts_smooth,
     update,
 )
 from mapassoc.measurement import LinearMeasurement, RangeBearing, wrap_angle
@@ -148,7 +147,9 @@ def test_smoother_equals_batch_least_squares() -> None:
     zs = [rng.normal(size=1) * 2 if k != 3 else None for k in range(T)]  # a miss at step 3
     x0 = np.array([0.0, 1.0])
     P0 = np.diag([2.0, 1.0])
-    steps = [FilterStep(t, meas if z is not None else None, z) for t, z in zip(times, zs, strict=True)]
+    steps = [
+        FilterStep(t, meas if z is not None else None, z) for t, z in zip(times, zs, strict=True)
+    ]
     result = filter_sequence(cv, x0, P0, steps)
     # Batch: information matrix over the stacked states x_0..x_{T-1}.
     n = 2
@@ -188,7 +189,9 @@ def test_smoother_equals_batch_least_squares() -> None:
     noise=st.floats(1e-4, 1e3),
     meas_std=st.floats(1e-3, 1e2),
 )
-def test_covariance_stays_symmetric_positive_definite(seed: int, noise: float, meas_std: float) -> None:
+def test_covariance_stays_symmetric_positive_definite(
+    seed: int, noise: float, meas_std: float
+) -> None:
     cv = ConstantVelocity(ndim=2, noise_intensity=noise)
     meas = LinearMeasurement.position(cv, noise_std=meas_std)
     rng = np.random.default_rng(seed)
