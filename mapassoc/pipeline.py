@@ -302,7 +302,10 @@ class WindowEstimator:
             max_hypotheses_per_tree=s.max_hypotheses_per_tree,
             prune_log_ratio=s.prune_log_ratio,
         )
-        self.solver = get_solver(s.solver)
+        try:
+            self.solver = get_solver(s.solver)
+        except ValueError as exc:
+            raise InputError(f"estimator solver: {exc}") from None
         if not self.solver.supports_integer:
             raise InputError(
                 f"solver '{s.solver}' cannot solve integer programs; choose one of the "
