@@ -1,0 +1,127 @@
+"""The command line: simulate -> run -> evaluate through ``main``, and its error reporting."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from mapassoc.cli import main
+from mapassoc.io import read_tracks
+
+
+@pytest.fixture(scope="module")
+def scenario_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("scenario")
+    assert main(["simulate", "turning", "--out", str(out), "--seed", "3"]) == 0
+    return out
+
+
+def test_simulate_writes_the_scenario_folder(scenario_dir: Path) -> None:
+    for name in ("detections.csv", "truth.csv", "origins.csv", "config.toml"):
+        assert (scenario_dir / name).stat().st_size > 0
+
+
+def test_run_then_evaluate(
+    scenario_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    code = main(
+        [
+            "run",
+            str(scenario_dir / "config.toml"),
+            str(scenario_dir / "detections.csv"),
+            "--out",
+            str(out),
+            "--no-progress",
+        ]
+    )
+    assert code == 0
+    tracks = read_tracks(out / "tracks.csv")
+    assert tracks.track_ids.size > 0
+    windows = [json.loads(line) for line in (out / "windows.jsonl").read_text().splitlines()]
+    assert windows, "no window lines"
+    for w in windows:
+        assert sum(w["p_k"]) == pytest.approx(1.0, abs=1e-9)
+        assert 0 <= w["marginal_k"] < len(w["p_k"]) and 0 <= w["joint_map_k"] < len(w["p_k"])
+        assert w["status"] in ("exact", "optimal", "time_limit", "work_limit", "failed")
+        assert w["hypotheses_generated"] >= w["hypotheses"] - w["carried_tracks"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["scans"] == windows[-1]["last_scan"] + 1
+    capsys.readouterr()
+    metrics = tmp_path / "metrics.json"
+    assert (
+        main(
+            [
+                "evaluate",
+                str(out / "tracks.csv"),
+                str(scenario_dir / "truth.csv"),
+                "--json",
+                str(metrics),
+            ]
+        )
+        == 0
+    )
+    printed = capsys.readouterr().out
+    assert "GOSPA" in printed or "gospa" in printed
+    data = json.loads(metrics.read_text())
+    # Three targets that the estimator tracks well: GOSPA well below the cut-off scale.
+    assert data["gospa"]["mean_total"] < 3.0
+
+
+def test_run_is_byte_identical_without_timings(scenario_dir: Path, tmp_path: Path) -> None:
+    outs = []
+    for name in ("a", "b"):
+        out = tmp_path / name
+        assert (
+            main(
+                [
+                    "run",
+                    str(scenario_dir / "config.toml"),
+                    str(scenario_dir / "detections.csv"),
+                    "--out",
+                    str(out),
+                    "--no-progress",
+                    "--no-timings",
+                ]
+            )
+            == 0
+        )
+        outs.append(out)
+    for name in ("tracks.csv", "windows.jsonl", "summary.json"):
+        assert (outs[0] / name).read_bytes() == (outs[1] / name).read_bytes(), name
+
+
+def test_bad_input_exits_2_with_a_message(
+    scenario_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "bad.toml"
+    text = (scenario_dir / "config.toml").read_text()
+    bad.write_text(text.replace("detection_probability = 0.9", "detection_probability = 1.5"))
+    assert "detection_probability = 1.5" in bad.read_text()
+    code = main(
+        ["run", str(bad), str(scenario_dir / "detections.csv"), "--out", str(tmp_path / "o")]
+    )
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "detection_probability" in err and "1.5" in err
+    code = main(["evaluate", str(tmp_path / "missing.csv"), str(scenario_dir / "truth.csv")])
+    assert code == 2
+    assert "missing.csv" in capsys.readouterr().err
+    assert main(["simulate", "no-such-scenario", "--out", str(tmp_path / "x")]) == 2
+    assert "no-such-scenario" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", ["simulate", "run", "evaluate", "demo", "bench", "scenarios"])
+def test_every_command_has_help(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main([command, "--help"])
+    assert exc.value.code == 0
+    assert command in capsys.readouterr().out
+
+
+def test_scenarios_lists_the_default(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["scenarios"]) == 0
+    out = capsys.readouterr().out
+    assert "crossing" in out and "(default)" in out
