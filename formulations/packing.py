@@ -205,30 +205,35 @@ def merge_interchangeable(problem: PackingProblem) -> MergedProblem:
     return MergedProblem(merged, reps, tuple(np.asarray(g, dtype=np.int64) for g in classes))
 
 
-def set_packing_program(problem: PackingProblem, k: int) -> Program:
+def set_packing_program(problem: PackingProblem, k: int | None) -> Program:
     """The binary program choosing the best feasible hypothesis set with exactly ``k`` counted.
 
     Parameters
     ----------
     problem : PackingProblem
-    k : int
-        Required number of counted hypotheses (tracks).
+    k : int or None
+        Required number of counted hypotheses (tracks); ``None`` leaves K free (no
+        cardinality row).
 
     Returns
     -------
     Program
         Maximisation of the total score; decode with :func:`decode_selection`.
     """
-    if k < 0:
+    if k is not None and k < 0:
         raise ValueError(f"k must be >= 0, got {k}")
     A = problem.incidence()
     used = np.asarray(A.sum(axis=1)).ravel() > 0
     at_most = np.flatnonzero(used & ~problem.exactly_one)
     exactly = np.flatnonzero(problem.exactly_one)
     H = problem.num_hypotheses
-    card = sp.csr_array(problem.counts.astype(float)[None, :])
-    A_eq = sp.vstack([A[exactly], card], format="csr")
-    b_eq = np.concatenate([np.ones(len(exactly)), [float(k)]])
+    if k is None:
+        A_eq = A[exactly]
+        b_eq = np.ones(len(exactly))
+    else:
+        card = sp.csr_array(problem.counts.astype(float)[None, :])
+        A_eq = sp.vstack([A[exactly], card], format="csr")
+        b_eq = np.concatenate([np.ones(len(exactly)), [float(k)]])
     return Program(
         objective=problem.scores,
         A_ub=A[at_most],

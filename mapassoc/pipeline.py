@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 
 from mapassoc.config import Config
 from mapassoc.errors import InputError
+from mapassoc.formulations.bounds import fixed_variable_bounds
 from mapassoc.formulations.cardinality import (
     CardinalityTable,
     NodeLimitExceeded,
@@ -43,6 +44,7 @@ from mapassoc.formulations.cardinality import (
 )
 from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.packing import (
+    MergedProblem,
     PackingProblem,
     decode_selection,
     merge_interchangeable,
@@ -53,7 +55,7 @@ from mapassoc.io import Origins, TrackTable
 from mapassoc.oracle import oracle_tracks
 from mapassoc.posterior import KPosterior, k_posterior
 from mapassoc.scans import Scan, check_scan_order
-from mapassoc.solvers import SolveResult, SolveStatus, get_solver, solve_k_best
+from mapassoc.solvers import HighsSolver, SolveResult, SolveStatus, get_solver, solve_k_best
 
 __all__ = [
     "ClusterReport",
@@ -63,6 +65,9 @@ __all__ = [
     "WindowEstimator",
     "packing_problem",
 ]
+
+BOUND_PRUNE_MIN_HYPOTHESES = 30
+"""Clusters with fewer merged hypotheses skip the LP-bound pruning (they are cheap anyway)."""
 
 ProgressCallback = Callable[[int, int], None]
 WindowCallback = Callable[["WindowReport"], None]
@@ -134,6 +139,8 @@ class WindowSolution:
     solver_clusters : tuple of ClusterReport
         Clusters too large for the exact search.
     generate_seconds, solve_seconds : float
+    bound_pruned : int
+        Merged hypotheses dropped by the LP bound (see ``WindowEstimator._bound_prune``).
     """
 
     hypotheses: WindowHypotheses
@@ -144,6 +151,7 @@ class WindowSolution:
     solver_clusters: tuple[ClusterReport, ...]
     generate_seconds: float
     solve_seconds: float
+    bound_pruned: int = 0
 
     @property
     def status(self) -> str:
@@ -190,6 +198,7 @@ class WindowReport:
     hypotheses: int
     generated: int
     pruned: int
+    bound_pruned: int
     clusters: int
     largest_cluster: int
     solver_clusters: int
@@ -217,6 +226,7 @@ class WindowReport:
             "hypotheses": self.hypotheses,
             "hypotheses_generated": self.generated,
             "hypotheses_pruned": self.pruned,
+            "hypotheses_pruned_by_bound": self.bound_pruned,
             "clusters": self.clusters,
             "largest_cluster": self.largest_cluster,
             "solver_clusters": self.solver_clusters,
@@ -311,6 +321,7 @@ class WindowEstimator:
                 f"solver '{s.solver}' cannot solve integer programs; choose one of the "
                 "integer-capable backends (for example 'highs')"
             )
+        self._lp_solver = HighsSolver()
         self.log_k_prior = np.asarray(s.log_k_prior())
 
     # -- one window ------------------------------------------------------------------
@@ -326,10 +337,20 @@ class WindowEstimator:
         clusters = cluster_hypotheses(problem)
         tables: list[CardinalityTable] = []
         reports: list[ClusterReport] = []
+        bound_pruned = 0
         for members in clusters:
             # Interchangeable hypotheses (same detections, e.g. "ended" and "missed to
             # the end") merge exactly: best score for the MAP, summed weight for the mass.
             merged = merge_interchangeable(problem.subproblem(members))
+            keep = self._bound_prune(merged.problem)
+            if keep is not None:
+                bound_pruned += int(np.count_nonzero(~keep))
+                kept = np.flatnonzero(keep)
+                merged = MergedProblem(
+                    merged.problem.subproblem(kept),
+                    merged.representative[kept],
+                    tuple(merged.members[i] for i in kept),
+                )
             try:
                 table = exact_cardinality_table(
                     merged.problem, kmax, node_limit=self.settings.exact_node_limit
@@ -350,7 +371,37 @@ class WindowEstimator:
             solver_clusters=tuple(reports),
             generate_seconds=t1 - t0,
             solve_seconds=t2 - t1,
+            bound_pruned=bound_pruned,
         )
+
+    def _bound_prune(self, problem: PackingProblem) -> NDArray[np.bool_] | None:
+        """Hypotheses that can be in a set within ``prune_log_ratio`` of the cluster's best.
+
+        One LP relaxation (K free) gives duals; every set containing hypothesis h scores at
+        most its fixed-variable Lagrangian bound (:mod:`mapassoc.formulations.bounds`).
+        Hypotheses whose bound is more than ``prune_log_ratio`` below the best integer set
+        are dropped across trees (duplicates of carried tracks, mostly).  The best set
+        itself always survives.  Returns ``None`` when nothing is pruned or the cluster is
+        too small to bother (fewer than :data:`BOUND_PRUNE_MIN_HYPOTHESES`).
+        """
+        ratio = self.settings.prune_log_ratio
+        if problem.num_hypotheses < BOUND_PRUNE_MIN_HYPOTHESES or not math.isfinite(ratio):
+            return None
+        program = set_packing_program(problem, None)
+        lp = self._lp_solver.solve_relaxation(program, time_limit=self.settings.time_limit)
+        if lp.status is not SolveStatus.OPTIMAL or lp.solution is None:
+            return None
+        x = lp.solution
+        if np.all(np.abs(x - np.round(x)) <= 1e-9):
+            incumbent = lp.objective  # the relaxation is integral: the integer optimum
+        else:
+            best = self.solver.solve(program, time_limit=self.settings.time_limit)
+            if best.solution is None:
+                return None
+            incumbent = best.objective
+        bounds = fixed_variable_bounds(program, lp.ineq_duals, lp.eq_duals)  # type: ignore[arg-type]
+        keep = bounds >= incumbent - ratio - 1e-9
+        return None if np.all(keep) else keep
 
     def _solve_large_cluster(
         self, problem: PackingProblem, kmax: int
@@ -511,6 +562,7 @@ class WindowEstimator:
                     hypotheses=solution.hypotheses.count,
                     generated=solution.hypotheses.generated,
                     pruned=solution.hypotheses.pruned,
+                    bound_pruned=solution.bound_pruned,
                     clusters=len(solution.cluster_sizes),
                     largest_cluster=max(solution.cluster_sizes, default=0),
                     solver_clusters=len(solution.solver_clusters),

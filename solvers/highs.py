@@ -24,7 +24,7 @@ import warnings
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import Bounds, LinearConstraint, OptimizeResult, milp
+from scipy.optimize import Bounds, LinearConstraint, OptimizeResult, linprog, milp
 
 from mapassoc.formulations.program import Program
 from mapassoc.solvers._common import (
@@ -34,7 +34,7 @@ from mapassoc.solvers._common import (
     integrality_violation,
     snap_integer_variables,
 )
-from mapassoc.solvers.results import SolveResult, SolveStatus, validate_time_limit
+from mapassoc.solvers.results import LPResult, SolveResult, SolveStatus, validate_time_limit
 
 __all__ = ["HighsSolver"]
 
@@ -129,7 +129,8 @@ class HighsSolver:
         with warnings.catch_warnings():
             # milp warns that it passes mip_abs_gap to HiGHS verbatim; that is the intent.
             warnings.filterwarnings(
-                "ignore", message=r"Unrecognized options detected: \{'mip_abs_gap'\}",
+                "ignore",
+                message=r"Unrecognized options detected: \{'mip_abs_gap'\}",
                 category=RuntimeWarning,
             )
             raw = milp(
@@ -142,16 +143,89 @@ class HighsSolver:
         seconds = time.perf_counter() - started
         return self._translate(program, raw, seconds)
 
+    def solve_relaxation(self, program: Program, *, time_limit: float | None = None) -> LPResult:
+        """Solve the LP relaxation with HiGHS simplex and return it with its duals.
+
+        Uses :func:`scipy.optimize.linprog` (``method="highs"``), which reports the
+        constraint marginals that ``milp`` does not.  ``ineq_duals`` and ``eq_duals`` are
+        ``d optimum / d b`` of the maximisation (so ``ineq_duals >= 0``), set only when
+        the solve is OPTIMAL.
+
+        Parameters
+        ----------
+        program : Program
+            Integrality, if any, is ignored (the relaxation is solved).
+        time_limit : float or None
+        """
+        if not isinstance(program, Program):
+            raise TypeError(f"program must be a Program, got {type(program).__name__}")
+        limit = validate_time_limit(time_limit)
+        started = time.perf_counter()
+        options: dict[str, float | bool] = {"presolve": self.presolve}
+        if limit is not None:
+            options["time_limit"] = limit
+        has_ub, has_eq = program.A_ub.shape[0] > 0, program.A_eq.shape[0] > 0
+        raw = linprog(
+            -program.objective,
+            A_ub=program.A_ub if has_ub else None,
+            b_ub=program.b_ub if has_ub else None,
+            A_eq=program.A_eq if has_eq else None,
+            b_eq=program.b_eq if has_eq else None,
+            bounds=np.column_stack([program.lower, program.upper]),
+            method="highs",
+            options=options,
+        )
+        seconds = time.perf_counter() - started
+        code = int(raw.status)
+        statuses = {
+            0: SolveStatus.OPTIMAL,
+            1: SolveStatus.WORK_LIMIT,
+            2: SolveStatus.INFEASIBLE,
+            3: SolveStatus.UNBOUNDED,
+        }
+        status = statuses.get(code, SolveStatus.FAILED)
+        if status is SolveStatus.WORK_LIMIT and "time limit" in str(raw.message).lower():
+            status = SolveStatus.TIME_LIMIT
+        if status is not SolveStatus.OPTIMAL:
+            return LPResult(
+                status=status,
+                objective=math.nan,
+                solution=None,
+                solve_seconds=seconds,
+                solver=self.name,
+                message=str(raw.message),
+                bound=math.nan,
+            )
+        value = -float(raw.fun) + program.constant
+        return LPResult(
+            status=status,
+            objective=value,
+            solution=np.asarray(raw.x, dtype=float),
+            solve_seconds=seconds,
+            solver=self.name,
+            message=str(raw.message),
+            bound=value,
+            ineq_duals=-np.asarray(raw.ineqlin.marginals) if has_ub else np.zeros(0),
+            eq_duals=-np.asarray(raw.eqlin.marginals) if has_eq else np.zeros(0),
+        )
+
     def _empty(self, program: Program, seconds: float) -> SolveResult:
         if empty_program_is_feasible(program, 1e-9):
             return SolveResult(
-                status=SolveStatus.OPTIMAL, objective=program.constant, solution=np.zeros(0),
-                solve_seconds=seconds, solver=self.name, bound=program.constant,
+                status=SolveStatus.OPTIMAL,
+                objective=program.constant,
+                solution=np.zeros(0),
+                solve_seconds=seconds,
+                solver=self.name,
+                bound=program.constant,
                 message="program has no variables; the empty point is feasible",
             )
         return SolveResult(
-            status=SolveStatus.INFEASIBLE, objective=math.nan, solution=None,
-            solve_seconds=seconds, solver=self.name,
+            status=SolveStatus.INFEASIBLE,
+            objective=math.nan,
+            solution=None,
+            solve_seconds=seconds,
+            solver=self.name,
             message="program has no variables and its right-hand sides exclude the empty point",
         )
 
@@ -178,7 +252,8 @@ class HighsSolver:
             status = SolveStatus.OPTIMAL
         elif code == _SCIPY_LIMIT:
             status = (
-                SolveStatus.TIME_LIMIT if "time limit" in message.lower()
+                SolveStatus.TIME_LIMIT
+                if "time limit" in message.lower()
                 else SolveStatus.WORK_LIMIT
             )
         elif code == _SCIPY_INFEASIBLE:
@@ -192,12 +267,15 @@ class HighsSolver:
         else:
             status, bound = SolveStatus.FAILED, math.nan
             if "unbounded or infeasible" in message.lower():
-                message += (
-                    " HiGHS cannot tell which because some variable bounds are infinite."
-                )
+                message += " HiGHS cannot tell which because some variable bounds are infinite."
         return SolveResult(
-            status=status, objective=objective, solution=point, solve_seconds=seconds,
-            solver=self.name, message=message, bound=bound,
+            status=status,
+            objective=objective,
+            solution=point,
+            solve_seconds=seconds,
+            solver=self.name,
+            message=message,
+            bound=bound,
         )
 
 
