@@ -35,11 +35,13 @@ from mapassoc.formulations.packing import PackingProblem
 
 __all__ = [
     "CardinalityTable",
+    "CombinedTable",
     "NodeLimitExceeded",
     "exact_cardinality_table",
     "convolve",
     "combine_tables",
     "table_from_sets",
+    "single_hypothesis_table",
 ]
 
 _NEG_INF = -math.inf
@@ -76,6 +78,10 @@ class CardinalityTable:
     @property
     def kmax(self) -> int:
         return int(self.best.shape[0]) - 1
+
+    def best_set(self, k: int) -> tuple[int, ...] | None:
+        """Hypotheses of a best set with k counted, ``None`` if infeasible."""
+        return self.best_sets[k] if 0 <= k <= self.kmax else None
 
     def remapped(self, indices: NDArray[np.int64]) -> CardinalityTable:
         """The same table with hypothesis ``i`` renamed ``indices[i]``."""
@@ -198,14 +204,102 @@ def convolve(a: CardinalityTable, b: CardinalityTable, kmax: int) -> Cardinality
     return _to_public(_convolve(_from_public(a), _from_public(b), kmax), kmax, a.exact and b.exact)
 
 
-def combine_tables(tables: list[CardinalityTable], kmax: int) -> CardinalityTable:
-    """Convolve the tables of independent clusters (hypothesis indices already global)."""
-    acc = _zero_table()
-    exact = True
-    for t in tables:
-        acc = _convolve(acc, _from_public(t), kmax)
-        exact = exact and t.exact
-    return _to_public(acc, kmax, exact)
+@dataclass(frozen=True, eq=False)
+class CombinedTable:
+    """The table of several independent clusters, with the best sets kept implicit.
+
+    ``best`` and ``log_mass`` are the max-plus and sum-product convolutions of the
+    cluster tables; the best set of a k is rebuilt on demand from back-pointers
+    (:meth:`best_set`), so combining hundreds of clusters for a large Kmax stays cheap.
+    When two ways of splitting k over the clusters score exactly the same, the earlier
+    cluster takes the fewer hypotheses.
+    """
+
+    best: NDArray[np.float64]
+    log_mass: NDArray[np.float64]
+    exact: bool
+    tables: tuple[CardinalityTable, ...]
+    pointers: tuple[NDArray[np.int64], ...]
+
+    @property
+    def kmax(self) -> int:
+        return int(self.best.shape[0]) - 1
+
+    def best_set(self, k: int) -> tuple[int, ...] | None:
+        """Hypotheses of a best set with k counted (sorted), ``None`` if infeasible."""
+        if not 0 <= k <= self.kmax or not np.isfinite(self.best[k]):
+            return None
+        chosen: list[int] = []
+        remaining = k
+        for table, pointer in zip(reversed(self.tables), reversed(self.pointers), strict=True):
+            share = int(pointer[remaining])
+            part = table.best_sets[share]
+            if part is None:  # pragma: no cover - pointers only name feasible entries
+                raise RuntimeError("inconsistent cluster back-pointer")
+            chosen.extend(part)
+            remaining -= share
+        return tuple(sorted(chosen))
+
+    @property
+    def best_sets(self) -> tuple[tuple[int, ...] | None, ...]:
+        return tuple(self.best_set(k) for k in range(self.kmax + 1))
+
+
+def combine_tables(tables: list[CardinalityTable], kmax: int) -> CombinedTable:
+    """Convolve the tables of independent clusters (hypothesis indices already global).
+
+    Vectorised over k; cost O(sum of table lengths x kmax).
+    """
+    best = np.full(kmax + 1, _NEG_INF)
+    mass = np.full(kmax + 1, _NEG_INF)
+    best[0] = mass[0] = 0.0
+    pointers: list[NDArray[np.int64]] = []
+    for table in tables:
+        finite = np.flatnonzero(np.isfinite(table.log_mass[: kmax + 1]))
+        length = int(finite[-1]) + 1 if finite.size else 0
+        new_best = np.full(kmax + 1, _NEG_INF)
+        pointer = np.full(kmax + 1, -1, dtype=np.int64)
+        terms = np.full((max(length, 1), kmax + 1), _NEG_INF)
+        for j in range(length):
+            if not np.isfinite(table.log_mass[j]):
+                continue
+            candidate = np.full(kmax + 1, _NEG_INF)
+            candidate[j:] = best[: kmax + 1 - j] + table.best[j]
+            better = candidate > new_best
+            new_best[better] = candidate[better]
+            pointer[better] = j
+            terms[j, j:] = mass[: kmax + 1 - j] + table.log_mass[j]
+        top = np.max(terms, axis=0)
+        safe = np.where(np.isfinite(top), top, 0.0)
+        with np.errstate(divide="ignore"):
+            mass = np.where(
+                np.isfinite(top), safe + np.log(np.sum(np.exp(terms - safe), axis=0)), _NEG_INF
+            )
+        best = new_best
+        pointers.append(pointer)
+    return CombinedTable(
+        best=best,
+        log_mass=mass,
+        exact=all(t.exact for t in tables),
+        tables=tuple(tables),
+        pointers=tuple(pointers),
+    )
+
+
+def single_hypothesis_table(
+    score: float, log_weight: float, counts: bool, required: bool, kmax: int
+) -> CardinalityTable:
+    """Table of a cluster with one hypothesis (index 0).
+
+    ``required``: the hypothesis holds an exactly-once resource, so it must be chosen.
+    """
+    k = int(counts)
+    options: list[_Table] = [
+        ([_NEG_INF] * k + [score], [_NEG_INF] * k + [log_weight], [None] * k + [(0,)])
+    ]
+    if not required:
+        options.append(_zero_table())
+    return _to_public(_merge(options), kmax)
 
 
 def table_from_sets(

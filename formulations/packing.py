@@ -84,10 +84,14 @@ class PackingProblem:
         log_weights = scores if self.log_weights is None else np.asarray(self.log_weights, float)
         if log_weights.shape != (H,) or not np.all(np.isfinite(log_weights)):
             raise ValueError(f"log_weights must be finite with shape ({H},)")
-        for h in range(H):
-            used = indices[indptr[h] : indptr[h + 1]]
-            if len(np.unique(used)) != len(used):
-                raise ValueError(f"hypothesis {h} lists a resource twice")
+        owner = np.repeat(np.arange(H), np.diff(indptr))
+        order = np.lexsort((indices, owner))
+        repeated = (owner[order][1:] == owner[order][:-1]) & (
+            indices[order][1:] == indices[order][:-1]
+        )
+        if np.any(repeated):
+            h = int(owner[order][1:][repeated][0])
+            raise ValueError(f"hypothesis {h} lists a resource twice")
         object.__setattr__(self, "scores", scores)
         object.__setattr__(self, "resource_indptr", indptr)
         object.__setattr__(self, "resource_indices", indices)

@@ -35,6 +35,7 @@ __all__ = [
     "initiation_model",
     "initiation_measurement",
     "birth_state",
+    "birth_states",
     "convert_initiated",
     "needs_conversion",
 ]
@@ -128,6 +129,32 @@ def birth_state(
     else:
         raise InputError(f"no birth prior is defined for motion model {type(model).__name__}")
     return x, P
+
+
+def birth_states(
+    motion: MotionModel, measurement: MeasurementModel, Z: FloatArray, birth: BirthModel
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`birth_state` for every row of ``Z`` (shape (m, dz)): means (m, n0), covs (m, n0, n0).
+
+    A linear position measurement gives every birth the same covariance, so the batch
+    is built without a loop; other measurements fall back to one call per detection.
+    """
+    Z = np.asarray(Z, dtype=float)
+    m = Z.shape[0]
+    if isinstance(measurement, LinearMeasurement) and measurement.position_indices is not None:
+        x0, P0 = birth_state(motion, measurement, Z[0], birth) if m else (None, None)
+        if m == 0:
+            n = initiation_model(motion).state_dim
+            return np.zeros((0, n)), np.zeros((0, n, n))
+        model = initiation_model(motion)
+        x = np.zeros((m, model.state_dim))
+        x[:, list(model.position_indices)] = Z
+        return x, np.broadcast_to(P0, (m,) + P0.shape).copy()
+    states = [birth_state(motion, measurement, z, birth) for z in Z]
+    n = initiation_model(motion).state_dim
+    if not states:
+        return np.zeros((0, n)), np.zeros((0, n, n))
+    return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
 
 def convert_initiated(

@@ -45,14 +45,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.birth import (
-    birth_state,
+    birth_states,
     convert_initiated,
     initiation_measurement,
     initiation_model,
     needs_conversion,
 )
 from mapassoc.errors import InputError
-from mapassoc.kalman import gate_threshold, pairwise_gate_and_loglik, predict_motion, update
+from mapassoc.kalman import (
+    gate_threshold,
+    gated_pairs_and_loglik,
+    pairwise_gate_and_loglik,
+    predict_motion,
+    update,
+)
 from mapassoc.motion import MotionModel
 from mapassoc.scans import Scan
 from mapassoc.sensor import Sensor
@@ -68,6 +74,9 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+
+_DENSE_GATING_PAIRS = 4096
+"""Above this many (node, detection) pairs per scan, linear gating goes through a k-d tree."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -656,12 +665,20 @@ class HypothesisGenerator:
             z_hat = measurement.predict(x)
             S = H @ P @ np.swapaxes(H, -1, -2) + R
             S = 0.5 * (S + np.swapaxes(S, -1, -2))
-            nu = measurement.residual(Z[None, :, :], z_hat[:, None, :])
-            d2, loglik = pairwise_gate_and_loglik(nu, S)
-            li, mi = np.nonzero(d2 <= threshold)
+            if (
+                measurement.is_linear
+                and math.isfinite(threshold)
+                and len(x) * scan.size > _DENSE_GATING_PAIRS
+            ):
+                li, mi, nu_pairs, _, pair_loglik = gated_pairs_and_loglik(z_hat, S, Z, threshold)
+            else:
+                nu = measurement.residual(Z[None, :, :], z_hat[:, None, :])
+                d2, loglik = pairwise_gate_and_loglik(nu, S)
+                li, mi = np.nonzero(d2 <= threshold)
+                nu_pairs, pair_loglik = nu[li, mi], loglik[li, mi]
             if len(li) == 0:
                 continue
-            xu, Pu = update(x[li], P[li], nu[li, mi], S[li], H[li], R)
+            xu, Pu = update(x[li], P[li], nu_pairs, S[li], H[li], R)
             ndet = frontier["num_detections"][group][li] + 1
             init_flags = np.full(len(li), initiated)
             if not initiated:
@@ -699,7 +716,7 @@ class HypothesisGenerator:
                 initiated=init_flags,
                 num_detections=ndet,
                 first_time=frontier["first_time"][group][li],
-                score=base[li] + log_pd + loglik[li, mi] - log_lambda,
+                score=base[li] + log_pd + pair_loglik - log_lambda,
                 protected=np.zeros(len(li), dtype=bool),
                 means=um,
                 covs=uc,
@@ -718,11 +735,7 @@ class HypothesisGenerator:
             + math.log(sensor.detection_probability)
             - math.log(sensor.false_alarms_per_scan)
         )
-        states = [
-            birth_state(self.motion, sensor.measurement, z, self.birth) for z in scan.detections
-        ]
-        x = np.array([s[0] for s in states])
-        P = np.array([s[1] for s in states])
+        x, P = birth_states(self.motion, sensor.measurement, scan.detections, self.birth)
         initiated = not self._converts
         mm, mc = _pad(x, P, self._n_max)
         layer.add(

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
 from mapassoc.errors import InputError, NotPositiveDefiniteError
@@ -39,6 +40,7 @@ __all__ = [
     "update",
     "log_gaussian",
     "pairwise_gate_and_loglik",
+    "gated_pairs_and_loglik",
     "gate_threshold",
     "rts_smooth",
     "FilterStep",
@@ -47,6 +49,7 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 _LOG_2PI = math.log(2.0 * math.pi)
 
 
@@ -239,6 +242,57 @@ def pairwise_gate_and_loglik(nu: FloatArray, S: FloatArray) -> tuple[FloatArray,
     logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
     loglik = -0.5 * (d * _LOG_2PI + logdet[:, None] + d2)
     return d2, loglik
+
+
+def gated_pairs_and_loglik(
+    z_hat: FloatArray, S: FloatArray, Z: FloatArray, threshold: float
+) -> tuple[IntArray, IntArray, FloatArray, FloatArray, FloatArray]:
+    """Gated (track, detection) pairs of a linear measurement, found through a k-d tree.
+
+    A pair can pass the gate ``nu^T S^-1 nu <= threshold`` only if
+    ``|nu| <= sqrt(threshold * lambda_max(S))``, so a radius query per track returns a
+    superset of the gated pairs; only those are scored.  Cost grows with the number of
+    nearby pairs, not with tracks x detections.  For residuals that are plain
+    differences ``z - z_hat`` only (no angle wrapping).
+
+    Parameters
+    ----------
+    z_hat : ndarray, shape (T, d)
+        Predicted measurements.
+    S : ndarray, shape (T, d, d)
+    Z : ndarray, shape (M, d)
+    threshold : float
+        Finite chi-square gate.
+
+    Returns
+    -------
+    track, detection : ndarray of int, shape (P,)
+        The gated pairs, sorted by track then detection.
+    nu : ndarray, shape (P, d)
+    d2, loglik : ndarray, shape (P,)
+    """
+    if not math.isfinite(threshold):
+        raise InputError("gated_pairs_and_loglik needs a finite gate threshold")
+    T, d = z_hat.shape
+    L = cholesky(S, "innovation covariance S")
+    radius = np.sqrt(threshold * np.linalg.eigvalsh(S)[:, -1])
+    tree = cKDTree(Z)
+    hits = tree.query_ball_point(z_hat, radius)
+    counts = np.fromiter((len(h) for h in hits), dtype=np.int64, count=T)
+    track = np.repeat(np.arange(T, dtype=np.int64), counts)
+    detection = (
+        np.concatenate([np.sort(np.asarray(h, dtype=np.int64)) for h in hits])
+        if counts.sum()
+        else np.zeros(0, dtype=np.int64)
+    )
+    nu = Z[detection] - z_hat[track]
+    Linv = np.linalg.inv(L)
+    y = np.einsum("pij,pj->pi", Linv[track], nu)
+    d2 = np.einsum("pi,pi->p", y, y)
+    logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
+    loglik = -0.5 * (d * _LOG_2PI + logdet[track] + d2)
+    keep = d2 <= threshold
+    return track[keep], detection[keep], nu[keep], d2[keep], loglik[keep]
 
 
 def gate_threshold(probability: float, dim: int) -> float:

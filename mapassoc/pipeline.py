@@ -37,9 +37,11 @@ from mapassoc.errors import InputError
 from mapassoc.formulations.bounds import fixed_variable_bounds
 from mapassoc.formulations.cardinality import (
     CardinalityTable,
+    CombinedTable,
     NodeLimitExceeded,
     combine_tables,
     exact_cardinality_table,
+    single_hypothesis_table,
     table_from_sets,
 )
 from mapassoc.formulations.clusters import cluster_hypotheses
@@ -132,7 +134,7 @@ class WindowSolution:
     ----------
     hypotheses : WindowHypotheses
     problem : PackingProblem
-    table : CardinalityTable
+    table : CombinedTable
         Per-K best score, best set and log-mass of the whole window.
     posterior : KPosterior
     cluster_sizes : tuple of int
@@ -145,7 +147,7 @@ class WindowSolution:
 
     hypotheses: WindowHypotheses
     problem: PackingProblem
-    table: CardinalityTable
+    table: CombinedTable
     posterior: KPosterior
     cluster_sizes: tuple[int, ...]
     solver_clusters: tuple[ClusterReport, ...]
@@ -171,10 +173,10 @@ class WindowSolution:
 
     def selection(self, k: int) -> NDArray[np.int64]:
         """Hypotheses of the best track set with k tracks."""
-        sets = self.table.best_sets
-        if k < 0 or k >= len(sets) or sets[k] is None:
+        chosen = self.table.best_set(k)
+        if chosen is None:
             raise InputError(f"no feasible track set with K = {k} in this window")
-        return np.asarray(sets[k], dtype=np.int64)
+        return np.asarray(chosen, dtype=np.int64)
 
 
 @dataclass(frozen=True)
@@ -338,7 +340,25 @@ class WindowEstimator:
         tables: list[CardinalityTable] = []
         reports: list[ClusterReport] = []
         bound_pruned = 0
+        required = problem.exactly_one[problem.resource_indices]
+        has_required = np.zeros(problem.num_hypotheses, dtype=bool)
+        np.logical_or.at(
+            has_required,
+            np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr)),
+            required,
+        )
         for members in clusters:
+            if len(members) == 1:
+                h = int(members[0])
+                single = single_hypothesis_table(
+                    float(problem.scores[h]),
+                    float(problem.log_weights[h]),  # type: ignore[index]
+                    bool(problem.counts[h]),
+                    bool(has_required[h]),
+                    kmax,
+                )
+                tables.append(single.remapped(members))
+                continue
             # Interchangeable hypotheses (same detections, e.g. "ended" and "missed to
             # the end") merge exactly: best score for the MAP, summed weight for the mass.
             merged = merge_interchangeable(problem.subproblem(members))
