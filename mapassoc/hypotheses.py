@@ -19,7 +19,9 @@ event at a scan of sensor s           term
 ====================================  ===============================================
 birth at detection z                  ``log(rate) + log Pd_s - log lambda_bar_s``
                                       (birth density ``rate Pd_s / V_s`` over clutter
-                                      density ``lambda_s = lambda_bar_s / V_s``)
+                                      density ``lambda_s = lambda_bar_s / V_s``;
+                                      ``rate + initial_count`` in a sensor's first
+                                      scan, for the initial population)
 survival over dt                      ``dt log Ps``
 continued by detection z              ``log Pd_s + log N(nu; 0, S) - log lambda_s``
                                       (seed 001 weight; seed 000 eq. 11)
@@ -346,7 +348,6 @@ class HypothesisGenerator:
         self._converts = needs_conversion(motion)
         self._n_max = max(motion.state_dim, self._init_model.state_dim)
         self._log_survival = math.log(birth.survival_probability)
-        self._log_birth_rate = math.log(birth.rate)
 
     # -- scoring terms ---------------------------------------------------------------
     def _log_end(self, dt: FloatArray) -> FloatArray:
@@ -360,7 +361,11 @@ class HypothesisGenerator:
 
     # -- main entry ------------------------------------------------------------------
     def generate(
-        self, scans: Sequence[Scan], carried: Sequence[CarriedTrack] = ()
+        self,
+        scans: Sequence[Scan],
+        carried: Sequence[CarriedTrack] = (),
+        *,
+        first_scans: Sequence[bool] | None = None,
     ) -> WindowHypotheses:
         """Build every kept hypothesis of the window.
 
@@ -371,6 +376,9 @@ class HypothesisGenerator:
         carried : sequence of CarriedTrack
             Tracks entering the window; each must end before the window's first scan
             time or at it.
+        first_scans : sequence of bool, optional
+            For each scan, whether it is its sensor's first scan of the data: births
+            there use ``rate + initial_count`` (the initial population).  Default: none.
 
         Returns
         -------
@@ -379,6 +387,11 @@ class HypothesisGenerator:
         scans = tuple(scans)
         if not scans:
             raise InputError("a window needs at least one scan")
+        first = [False] * len(scans) if first_scans is None else [bool(f) for f in first_scans]
+        if len(first) != len(scans):
+            raise InputError(
+                f"first_scans must have one flag per scan ({len(scans)}), got {len(first)}"
+            )
         for scan in scans:
             if scan.sensor not in self.sensors:
                 raise InputError(
@@ -438,7 +451,7 @@ class HypothesisGenerator:
             layer = _Layer.empty()
             self._grow(layer, frontier, scan, sensor, j, offsets[j])
             num_trees_before = len(tree_track_ids)
-            self._births(layer, scan, sensor, offsets[j], num_trees_before)
+            self._births(layer, scan, sensor, offsets[j], num_trees_before, first[j])
             tree_track_ids.extend([-1] * scan.size)
             is_new_tree = np.array([tid < 0 for tid in tree_track_ids], dtype=bool)
             if not layer.score:
@@ -723,15 +736,23 @@ class HypothesisGenerator:
             )
 
     def _births(
-        self, layer: _Layer, scan: Scan, sensor: Sensor, det_offset: int, first_tree: int
+        self,
+        layer: _Layer,
+        scan: Scan,
+        sensor: Sensor,
+        det_offset: int,
+        first_tree: int,
+        first_scan: bool,
     ) -> None:
         """One new tree rooted at every detection of the scan."""
         m = scan.size
         if m == 0:
             return
-        # Birth density rate*Pd/V against clutter density lambda_bar/V.
+        # Birth density rate*Pd/V against clutter density lambda_bar/V; a sensor's first
+        # scan also holds the first detections of the initial population.
+        rate = self.birth.rate + (self.birth.initial_count if first_scan else 0.0)
         score = (
-            self._log_birth_rate
+            math.log(rate)
             + math.log(sensor.detection_probability)
             - math.log(sensor.false_alarms_per_scan)
         )

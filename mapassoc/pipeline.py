@@ -328,12 +328,20 @@ class WindowEstimator:
 
     # -- one window ------------------------------------------------------------------
     def solve_window(
-        self, scans: Sequence[Scan], carried: Sequence[CarriedTrack] = ()
+        self,
+        scans: Sequence[Scan],
+        carried: Sequence[CarriedTrack] = (),
+        *,
+        first_scans: Sequence[bool] | None = None,
     ) -> WindowSolution:
-        """Hypotheses, per-K tables and posterior over K of one window."""
+        """Hypotheses, per-K tables and posterior over K of one window.
+
+        ``first_scans`` flags the scans that are their sensor's first scan of the data
+        (births there include the initial population, ``BirthModel.initial_count``).
+        """
         kmax = self.settings.max_tracks
         t0 = time.perf_counter()
-        hyps = self.generator.generate(scans, carried)
+        hyps = self.generator.generate(scans, carried, first_scans=first_scans)
         t1 = time.perf_counter()
         problem = packing_problem(hyps)
         clusters = cluster_hypotheses(problem)
@@ -539,6 +547,11 @@ class WindowEstimator:
                     f"configuration does not define (known: {sorted(self.config.sensors)})"
                 )
         t_start = time.perf_counter()
+        seen_sensors: set[str] = set()
+        first_of_sensor = []
+        for scan in scans:
+            first_of_sensor.append(scan.sensor not in seen_sensors)
+            seen_sensors.add(scan.sensor)
         N = self.settings.window_length
         stride = self.settings.stride
         records: dict[int, _TrackRecord] = {}
@@ -551,7 +564,9 @@ class WindowEstimator:
         while start < total:
             end = min(start + N, total)
             commit = stride if end < total else end - start
-            solution = self.solve_window(scans[start:end], carried)
+            solution = self.solve_window(
+                scans[start:end], carried, first_scans=first_of_sensor[start:end]
+            )
             post = solution.posterior
             chosen_k = (
                 post.marginal_k if self.settings.k_estimate == "marginal" else post.joint_map_k

@@ -101,8 +101,8 @@ def _speed(motion: MotionModel, state: FloatArray) -> float:
 def birth_model_for(motion: MotionModel, targets: Sequence[TargetSpec], plan: Plan) -> BirthModel:
     """A birth model consistent with the simulated targets.
 
-    * ``rate``: targets alive at some scan of the plan per scan of the plan, at least 0.01
-      (every target is a birth for the tracker: tracks start at detections).
+    * ``initial_count``: targets alive at the first scan (the initial population);
+    * ``rate``: targets born after the first scan, per scan of the plan, at least 0.01.
     * ``velocity_std`` and ``speed_std``: 1.5 times the largest initial speed, at least 1,
       so that the birth prior covers every true velocity component, including the drift
       of the speeds under process noise, within one standard deviation.
@@ -125,7 +125,8 @@ def birth_model_for(motion: MotionModel, targets: Sequence[TargetSpec], plan: Pl
     seen = [t for t in targets if t.birth_time <= last and t.death_time >= first]
     if not seen:
         raise InputError("no target is alive during the scan plan")
-    births = len(seen)
+    present = sum(1 for t in seen if t.birth_time <= first)
+    births = len(seen) - present
     deaths = sum(1 for t in seen if t.death_time < last)
     alive_time = sum(min(t.death_time, last) - max(t.birth_time, first) for t in seen)
     hazard = max(deaths, 1) / max(alive_time, 1.0)
@@ -137,6 +138,7 @@ def birth_model_for(motion: MotionModel, targets: Sequence[TargetSpec], plan: Pl
     )
     return BirthModel(
         rate=max(0.01, births / len(plan)),
+        initial_count=float(present),
         velocity_std=max(1.0, 1.5 * top_speed),
         speed_std=max(1.0, 1.5 * top_speed),
         turn_rate_std=max(0.02, 2.0 * top_turn),

@@ -37,10 +37,17 @@ class BirthModel:
     standard deviations below (single-point initiation).  A track alive at time t
     is still alive at t + dt with probability ``survival_probability ** dt``.
 
+    The targets already present when the recording starts are not births at a rate:
+    ``initial_count`` (the expected number of targets present at the start, Poisson)
+    adds to ``rate`` for detections in each sensor's first scan.
+
     Parameters
     ----------
     rate : float
         Expected number of new targets per scan, > 0.
+    initial_count : float
+        Expected number of targets present at the start of the data, >= 0 (their first
+        detections are expected in each sensor's first scan).
     velocity_std : float
         Prior standard deviation of each velocity component at birth (Cartesian
         models), > 0.
@@ -56,6 +63,7 @@ class BirthModel:
     """
 
     rate: float = 0.1
+    initial_count: float = 0.0
     velocity_std: float = 10.0
     acceleration_std: float = 1.0
     speed_std: float = 10.0
@@ -64,6 +72,7 @@ class BirthModel:
 
     def __post_init__(self) -> None:
         check_positive("birth rate", self.rate)
+        check_nonnegative("birth initial_count", self.initial_count)
         check_positive("birth velocity_std", self.velocity_std)
         check_positive("birth acceleration_std", self.acceleration_std)
         check_positive("birth speed_std", self.speed_std)
