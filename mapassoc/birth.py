@@ -140,20 +140,16 @@ def birth_states(
     is built without a loop; other measurements fall back to one call per detection.
     """
     Z = np.asarray(Z, dtype=float)
-    m = Z.shape[0]
-    if isinstance(measurement, LinearMeasurement) and measurement.position_indices is not None:
-        x0, P0 = birth_state(motion, measurement, Z[0], birth) if m else (None, None)
-        if m == 0:
-            n = initiation_model(motion).state_dim
-            return np.zeros((0, n)), np.zeros((0, n, n))
-        model = initiation_model(motion)
-        x = np.zeros((m, model.state_dim))
-        x[:, list(model.position_indices)] = Z
-        return x, np.broadcast_to(P0, (m,) + P0.shape).copy()
-    states = [birth_state(motion, measurement, z, birth) for z in Z]
-    n = initiation_model(motion).state_dim
-    if not states:
+    model = initiation_model(motion)
+    n = model.state_dim
+    if Z.shape[0] == 0:
         return np.zeros((0, n)), np.zeros((0, n, n))
+    if isinstance(measurement, LinearMeasurement) and measurement.position_indices is not None:
+        _, P0 = birth_state(motion, measurement, Z[0], birth)  # the same for every row
+        x = np.zeros((Z.shape[0], n))
+        x[:, list(model.position_indices)] = Z
+        return x, np.broadcast_to(P0, (Z.shape[0], n, n)).copy()
+    states = [birth_state(motion, measurement, z, birth) for z in Z]
     return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
 

@@ -158,7 +158,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from mapassoc.bench import run_benchmark
 
     run_benchmark(
-        scenarios=args.scenarios, seed=args.seed, json_path=Path(args.json) if args.json else None
+        scenarios=args.scenarios,
+        seed=args.seed,
+        window_length=args.window_length,
+        json_path=Path(args.json) if args.json else None,
     )
     return 0
 
@@ -243,6 +246,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="scenarios to run (default: crossing dense dense50)",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument(
+        "--window-length",
+        type=int,
+        default=5,
+        help="scans per window for every scenario (default 5, the window of the speed goals)",
+    )
     p.add_argument("--json", help="also write the results to this JSON file")
     p.set_defaults(func=_cmd_bench)
     return parser

@@ -77,6 +77,19 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
+_LAYER_FIELDS = (
+    "parent",
+    "detection",
+    "alive",
+    "tree",
+    "initiated",
+    "num_detections",
+    "first_time",
+    "score",
+    "protected",
+)
+"""Per-node fields of a layer that are concatenated, pruned and stored together."""
+
 _DENSE_GATING_PAIRS = 4096
 """Above this many (node, detection) pairs per scan, linear gating goes through a k-d tree."""
 
@@ -457,20 +470,7 @@ class HypothesisGenerator:
             if not layer.score:
                 frontier = None
                 continue
-            cat = {
-                name: np.concatenate(getattr(layer, name))
-                for name in (
-                    "parent",
-                    "detection",
-                    "alive",
-                    "tree",
-                    "initiated",
-                    "num_detections",
-                    "first_time",
-                    "score",
-                    "protected",
-                )
-            }
+            cat = {name: np.concatenate(getattr(layer, name)) for name in _LAYER_FIELDS}
             dims = np.where(
                 cat["initiated"], self.motion.state_dim, self._init_model.state_dim
             ).astype(np.int64)
@@ -482,17 +482,7 @@ class HypothesisGenerator:
             pruned += int(np.count_nonzero(~keep))
             ids = node_count + np.arange(int(np.count_nonzero(keep)))
             node_count += len(ids)
-            for name in (
-                "parent",
-                "detection",
-                "alive",
-                "tree",
-                "initiated",
-                "num_detections",
-                "first_time",
-                "score",
-                "protected",
-            ):
+            for name in _LAYER_FIELDS:
                 store[name].append(cat[name][keep])
             store["layer"].append(np.full(len(ids), j, dtype=np.int64))
             store["means"].append(means[keep])
