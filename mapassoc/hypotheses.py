@@ -525,15 +525,30 @@ class HypothesisGenerator:
         scores_all = _cat("score", float)
         last = len(scans) - 1
         is_leaf = (~nodes.alive) | (nodes.layer == last)
-        leaves = np.flatnonzero(is_leaf)
-        # Deterministic order: by tree, then by node id.
-        leaves = leaves[np.lexsort((leaves, nodes.tree[leaves]))]
-        self._check_carried_have_leaves(nodes.tree[leaves], len(carried))
+        leaf_nodes = np.flatnonzero(is_leaf)
+        self._check_carried_have_leaves(nodes.tree[leaf_nodes], len(carried))
+        # Canonical order, independent of the order of detections within a scan (so
+        # that ties between equal-scoring sets are broken the same way whatever the file
+        # order): carried trees by track id, then new trees by their birth detection's
+        # row; within a tree by the rows along the path (-1 for a miss), alive last.
+        paths = {int(v): nodes.path(int(v)) for v in leaf_nodes}
+        row_of = detections.rows
+
+        def canonical(leaf: int) -> tuple:
+            path = paths[leaf]
+            rows = tuple(
+                int(row_of[d]) if d >= 0 else -1 for d in nodes.detection[path].tolist()
+            )
+            tree = int(nodes.tree[leaf])
+            owner = (0, tree_track_ids[tree]) if tree < len(carried) else (1, rows[0])
+            return owner, int(nodes.layer[path[0]]), rows, bool(nodes.alive[leaf])
+
+        leaves = np.array(sorted(leaf_nodes.tolist(), key=canonical), dtype=np.int64)
         counts = nodes.alive[leaves] | (nodes.parent[leaves] >= 0)
         indptr = [0]
         indices: list[int] = []
         for leaf in leaves:
-            used = [int(nodes.detection[v]) for v in nodes.path(int(leaf))]
+            used = [int(nodes.detection[v]) for v in paths[int(leaf)]]
             used = [d for d in used if d >= 0]
             indices.extend(used)
             indptr.append(len(indices))

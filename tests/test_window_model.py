@@ -587,7 +587,7 @@ def best_value_by_rows(solution: WindowSolution, k: int) -> dict[TrackSetRows, f
     return out
 
 
-@pytest.mark.parametrize("seed", range(25))
+@pytest.mark.parametrize("seed", range(100))
 def test_detection_order_within_scans_does_not_matter(seed: int) -> None:
     case = random_window(seed)
     rng = np.random.default_rng(500 + seed)
@@ -611,9 +611,11 @@ def test_detection_order_within_scans_does_not_matter(seed: int) -> None:
             assert chosen_rows(a, k) == chosen_rows(b, k) == optimal[0], k
         else:
             # Exact ties (for example births at the last scan, which all score
-            # log rate + log Pd - log lambda_bar) are broken by hypothesis index, which
-            # follows the detection order; the chosen set must still be optimal.
-            assert chosen_rows(a, k) in optimal and chosen_rows(b, k) in optimal, k
+            # log rate + log Pd - log lambda_bar) are broken by hypothesis index, and
+            # hypotheses are numbered canonically (by detection rows, not file order):
+            # both orders choose the same optimal set.
+            assert chosen_rows(a, k) in optimal, k
+            assert chosen_rows(a, k) == chosen_rows(b, k), k
 
 
 def test_two_clear_tracks_are_found_in_any_detection_order() -> None:
