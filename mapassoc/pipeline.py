@@ -409,7 +409,7 @@ class WindowEstimator:
         most its fixed-variable Lagrangian bound (:mod:`mapassoc.formulations.bounds`).
         Hypotheses whose bound is more than ``prune_log_ratio`` below the best integer set
         are dropped across trees (duplicates of carried tracks, mostly).  The best set
-        itself always survives.  Returns ``None`` when nothing is pruned or the cluster is
+        itself always survives, and so does every hypothesis that uses no detection.  Returns ``None`` when nothing is pruned or the cluster is
         too small to bother (fewer than :data:`BOUND_PRUNE_MIN_HYPOTHESES`).
         """
         ratio = self.settings.prune_log_ratio
@@ -429,6 +429,13 @@ class WindowEstimator:
             incumbent = best.objective
         bounds = fixed_variable_bounds(program, lp.ineq_duals, lp.eq_duals)  # type: ignore[arg-type]
         keep = bounds >= incumbent - ratio - 1e-9
+        # A hypothesis that uses no detection (a carried track ended, or missed
+        # throughout) is never dropped: with it every K down to 0 stays feasible, so a
+        # K reported infeasible really has no track set.
+        uses_detection = np.zeros(problem.num_hypotheses, dtype=bool)
+        owner = np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr))
+        uses_detection[owner[~problem.exactly_one[problem.resource_indices]]] = True
+        keep |= ~uses_detection
         return None if np.all(keep) else keep
 
     def _solve_large_cluster(

@@ -84,3 +84,11 @@ def test_posterior_over_k_tracks_the_true_count_on_crossing() -> None:
         assert sum(w.probabilities) == pytest.approx(1.0, abs=1e-12)
     # The marginal K equals the number of targets present in the window almost always.
     assert hits / len(result.windows) >= 0.85
+
+
+def test_pruning_never_makes_a_k_infeasible_that_carried_tracks_can_reach() -> None:
+    """With c carried tracks (each can end or miss), every K = 0..c keeps a feasible set."""
+    _, info = gospa_ratio("crossing", 0)
+    for w in info["result"].windows:
+        feasible = [b is not None for b in w.best_objective]
+        assert all(feasible[: w.carried_tracks + 1]), (w.index, w.best_objective)
