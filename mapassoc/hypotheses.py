@@ -536,9 +536,7 @@ class HypothesisGenerator:
 
         def canonical(leaf: int) -> tuple:
             path = paths[leaf]
-            rows = tuple(
-                int(row_of[d]) if d >= 0 else -1 for d in nodes.detection[path].tolist()
-            )
+            rows = tuple(int(row_of[d]) if d >= 0 else -1 for d in nodes.detection[path].tolist())
             tree = int(nodes.tree[leaf])
             owner = (0, tree_track_ids[tree]) if tree < len(carried) else (1, rows[0])
             return owner, int(nodes.layer[path[0]]), rows, bool(nodes.alive[leaf])
@@ -698,34 +696,15 @@ class HypothesisGenerator:
                 continue
             xu, Pu = update(x[li], P[li], nu_pairs, S[li], H[li], R)
             ndet = frontier["num_detections"][group][li] + 1
+            um, uc = _pad(xu, Pu, self._n_max)
             init_flags = np.full(len(li), initiated)
             if not initiated:
-                # A coordinated-turn track enters the turn state at its first detection
-                # later in time than its first one (the velocity is then observed).
-                later = scan.time > frontier["first_time"][group][li]
-                convert = later if self._converts else np.ones(len(li), dtype=bool)
-                init_flags = convert
-                if self._converts and np.any(convert):
-                    # Second detection of a coordinated-turn track: into the turn state.
-                    conv_m, conv_c = [], []
-                    for k in np.flatnonzero(convert):
-                        cm, cc = convert_initiated(self.motion, xu[k], Pu[k], self.birth)
-                        conv_m.append(cm)
-                        conv_c.append(cc)
-                    keep_init = np.flatnonzero(~convert)
-                    conv_idx = np.flatnonzero(convert)
-                    pm, pc = _pad(np.array(conv_m), np.array(conv_c), self._n_max)
-                    km, kc = _pad(xu[keep_init], Pu[keep_init], self._n_max)
-                    order = np.concatenate([conv_idx, keep_init])
-                    means_all = np.concatenate([pm, km])
-                    covs_all = np.concatenate([pc, kc])
-                    inv = np.empty_like(order)
-                    inv[order] = np.arange(len(order))
-                    um, uc = means_all[inv], covs_all[inv]
-                else:
-                    um, uc = _pad(xu, Pu, self._n_max)
-            else:
-                um, uc = _pad(xu, Pu, self._n_max)
+                # Only coordinated-turn tracks are ever uninitiated.  One enters the turn
+                # state at its first detection later in time than its first one (the
+                # velocity is then observed); the padded rows take the converted state.
+                init_flags = scan.time > frontier["first_time"][group][li]
+                for k in np.flatnonzero(init_flags):
+                    um[k], uc[k] = convert_initiated(self.motion, xu[k], Pu[k], self.birth)
             layer.add(
                 parent=frontier["node"][group][li],
                 detection=det_offset + mi,

@@ -409,8 +409,9 @@ class WindowEstimator:
         most its fixed-variable Lagrangian bound (:mod:`mapassoc.formulations.bounds`).
         Hypotheses whose bound is more than ``prune_log_ratio`` below the best integer set
         are dropped across trees (duplicates of carried tracks, mostly).  The best set
-        itself always survives, and so does every hypothesis that uses no detection.  Returns ``None`` when nothing is pruned or the cluster is
-        too small to bother (fewer than :data:`BOUND_PRUNE_MIN_HYPOTHESES`).
+        itself always survives, and so does every hypothesis that uses no detection.
+        Returns ``None`` when nothing is pruned or the cluster is too small to bother
+        (fewer than :data:`BOUND_PRUNE_MIN_HYPOTHESES`).
         """
         ratio = self.settings.prune_log_ratio
         if problem.num_hypotheses < BOUND_PRUNE_MIN_HYPOTHESES or not math.isfinite(ratio):
@@ -461,7 +462,8 @@ class WindowEstimator:
         solves = 0
         seen: set[tuple[int, ...]] = set()
 
-        def found(result: SolveResult, k: int) -> tuple[float, float] | None:
+        def found(result: SolveResult, k: int) -> float | None:
+            """Record the set of a solve (once) and return its score."""
             nonlocal worst
             if result.status not in (SolveStatus.OPTIMAL, SolveStatus.INFEASIBLE):
                 worst = result.status
@@ -473,23 +475,23 @@ class WindowEstimator:
             chosen = decode_selection(result.solution)
             key = tuple(int(i) for i in chosen)
             if key in seen:
-                return problem.value(chosen), float("nan")
+                return problem.value(chosen)
             seen.add(key)
             if not problem.is_feasible(chosen, k):
                 raise RuntimeError(f"solver {result.solver!r} returned an infeasible set for k={k}")
             score = problem.value(chosen)
             weight = float(np.sum(problem.log_weights[chosen]))  # type: ignore[index]
-            sets.append((tuple(int(i) for i in chosen), k, score, weight))
-            return score, weight
+            sets.append((key, k, score, weight))
+            return score
 
         top_k = min(kmax, int(np.count_nonzero(problem.counts)))
         best_per_k: dict[int, float] = {}
         for k in range(top_k + 1):
             result = self.solver.solve(set_packing_program(problem, k), time_limit=time_limit)
             solves += 1
-            got = found(result, k)
-            if got is not None:
-                best_per_k[k] = got[0]
+            score = found(result, k)
+            if score is not None:
+                best_per_k[k] = score
         tail_terms: list[float] = []
         overall = max(best_per_k.values(), default=-math.inf)
         for k, best in best_per_k.items():
@@ -501,9 +503,9 @@ class WindowEstimator:
             solves += len(results)
             scores_k = []
             for r in results:
-                got = found(r, k)
-                if got is not None:
-                    scores_k.append(got[0])
+                score = found(r, k)
+                if score is not None:
+                    scores_k.append(score)
             complete = len(results) < m and all(r.status == SolveStatus.OPTIMAL for r in results)
             if not complete:
                 lowest = min(scores_k, default=best)
