@@ -17,9 +17,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.formulations.packing import PackingProblem
 from mapassoc.formulations.program import Program
 
-__all__ = ["fixed_variable_bounds"]
+__all__ = ["fixed_variable_bounds", "exclusive_groups", "log_mass_upper_bounds"]
 
 
 def fixed_variable_bounds(
@@ -53,3 +54,99 @@ def fixed_variable_bounds(
     d = program.objective - program.A_ub.T @ y - program.A_eq.T @ w
     total = float(y @ program.b_ub + w @ program.b_eq + np.sum(np.maximum(d, 0.0)))
     return total - np.maximum(d, 0.0) + d + program.constant
+
+
+def exclusive_groups(problem: PackingProblem) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+    """Split the hypotheses into groups of which a feasible set holds at most one each.
+
+    Hypothesis h joins the group of one of its resources (two users of a resource never
+    share a set): its exactly-once resource if it has one, else its resource with the
+    most users (lowest index on ties).  A hypothesis with no resource is a group alone.
+
+    Returns
+    -------
+    group_of : ndarray of int, shape (H,)
+        Group index of each hypothesis, 0..G-1.
+    closed : ndarray of bool, shape (G,)
+        Groups of which every feasible set holds *exactly* one: an exactly-once resource
+        all of whose users are in the group.
+    """
+    H = problem.num_hypotheses
+    R = problem.num_resources
+    usage = np.bincount(problem.resource_indices, minlength=R)
+    key = np.empty(H, dtype=np.int64)
+    for h in range(H):
+        resources = problem.resources_of(h)
+        if resources.size == 0:
+            key[h] = R + h
+            continue
+        required = resources[problem.exactly_one[resources]]
+        if required.size:
+            key[h] = int(required.min())
+        else:
+            top = usage[resources].max()
+            key[h] = int(resources[usage[resources] == top].min())
+    labels, group_of = np.unique(key, return_inverse=True)
+    members = np.bincount(group_of, minlength=labels.size)
+    closed = np.zeros(labels.size, dtype=bool)
+    is_resource = labels < R
+    closed[is_resource] = problem.exactly_one[labels[is_resource]] & (
+        members[is_resource] == usage[labels[is_resource]]
+    )
+    return group_of.astype(np.int64), closed
+
+
+def log_mass_upper_bounds(
+    problem: PackingProblem,
+    resource_multipliers: NDArray[np.float64],
+    count_multiplier: float,
+    ks: NDArray[np.int64],
+) -> NDArray[np.float64]:
+    """Upper bounds on the log-mass of the feasible sets with k counted, for each k in ks.
+
+    For multipliers ``y_r`` (``>= 0`` on at-most-once resources, any sign on
+    exactly-once ones) and ``mu``, every feasible set S with k counted satisfies
+    ``sum_h∈S w_h <= sum_r y_r + mu k + sum_h∈S a_h`` with the reduced log-weights
+    ``a_h = w_h - sum_{r used by h} y_r - mu [h counts]`` (the Lagrangian terms
+    ``y_r (1 - use_r(S))`` and ``mu (k - count(S))`` are >= 0 and 0).  A feasible set
+    holds at most one hypothesis of each group of :func:`exclusive_groups` (exactly
+    one of a closed group), so summing ``exp`` over the feasible sets is at most the
+    product over groups of ``[not closed] + sum_h∈g exp(a_h)``:
+
+        log_mass[k] <= sum_r y_r + mu k + sum_g log([not closed_g] + sum_h∈g e^(a_h))
+
+    Valid for any such multipliers; LP duals make it tight where the mass is
+    concentrated on few sets.  Negative multipliers of at-most-once resources (solver
+    round-off) are replaced by 0, which keeps the bound valid.
+
+    Parameters
+    ----------
+    problem : PackingProblem
+    resource_multipliers : ndarray, shape (R,)
+    count_multiplier : float
+    ks : ndarray of int, shape (m,)
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        ``-inf`` where a closed group is empty (no feasible set).
+    """
+    y = np.asarray(resource_multipliers, dtype=float)
+    if y.shape != (problem.num_resources,) or not np.all(np.isfinite(y)):
+        raise ValueError(
+            f"resource_multipliers must be finite with shape ({problem.num_resources},), "
+            f"got {y.shape}"
+        )
+    y = np.where(problem.exactly_one, y, np.maximum(y, 0.0))
+    mu = float(count_multiplier)
+    H = problem.num_hypotheses
+    owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
+    charged = np.bincount(owner, weights=y[problem.resource_indices], minlength=H)
+    reduced = problem.log_weights - charged - mu * problem.counts  # type: ignore[operator]
+    group_of, closed = exclusive_groups(problem)
+    order = np.argsort(group_of, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(group_of[order]) != 0]) if H else np.zeros(0, int)
+    group_lse = np.logaddexp.reduceat(reduced[order], starts) if H else np.zeros(0)
+    factors = np.where(closed, group_lse, np.logaddexp(0.0, group_lse))
+    constant = float(np.sum(y) + np.sum(factors))
+    return constant + mu * np.asarray(ks, dtype=float)

@@ -12,15 +12,13 @@ each K and ``log_mass`` the marginal over track sets (seed 002: the track sets s
 out).  Independent clusters combine by :func:`convolve`: max-plus for ``best``,
 sum-product (log-sum-exp) for ``log_mass``.
 
-:func:`exact_cardinality_table` computes a table exactly: it branches on a resource
-(a carried track must pick exactly one hypothesis; a detection is unused or used by
-exactly one hypothesis), splits what remains into independent components, and
-memoises sub-results by the set of remaining hypotheses.  On the sparse conflict
-graphs of tracking windows this visits far fewer nodes than plain enumeration; a node
-limit hands larger clusters to an integer-program solver.
+:func:`exact_cardinality_table` computes a table exactly with the frontier search of
+:mod:`mapassoc.formulations.frontier`; a work limit (and a deadline) hands larger
+clusters to the bounded path of the pipeline.
 
-Ties in ``best`` are broken toward the lexicographically smallest sorted tuple of
-hypothesis indices, so the result does not depend on the search order.
+Ties in ``best`` are broken toward the set with fewer hypotheses, then the
+lexicographically smallest sorted tuple of hypothesis indices, so the result does not
+depend on the search order.
 """
 
 from __future__ import annotations
@@ -31,12 +29,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.formulations.frontier import SearchLimitExceeded, frontier_search, tie_precedes
 from mapassoc.formulations.packing import PackingProblem
 
 __all__ = [
     "CardinalityTable",
     "CombinedTable",
-    "NodeLimitExceeded",
+    "SearchLimitExceeded",
     "exact_cardinality_table",
     "convolve",
     "combine_tables",
@@ -50,34 +49,61 @@ _NEG_INF = -math.inf
 _Table = tuple[list[float], list[float], list[tuple[int, ...] | None]]
 
 
-class NodeLimitExceeded(RuntimeError):
-    """The exact search needed more nodes than allowed."""
-
-
 @dataclass(frozen=True, eq=False)
 class CardinalityTable:
     """Best score, one best set and total log-mass for every k = 0..kmax.
 
+    A cluster's table may be shorter than the window's Kmax (the pipeline asks for no
+    more k than the cluster has counted hypotheses): entries past its end are
+    infeasible, which keeps a large Kmax cheap.
+
     Attributes
     ----------
     best : ndarray, shape (kmax + 1,)
-        ``-inf`` where no feasible set has k counted hypotheses.
+        ``-inf`` where no feasible set has k counted hypotheses (or none was found).
     log_mass : ndarray, shape (kmax + 1,)
     best_sets : tuple of (tuple of int or None)
-        A set attaining ``best[k]`` (hypothesis indices, sorted), ``None`` if infeasible.
+        A set attaining ``best[k]`` (hypothesis indices, sorted), ``None`` if none.
     exact : bool
         Whether ``log_mass`` sums every feasible set (False: a lower bound from the
         sets found).
+    best_upper : ndarray, shape (kmax + 1,), optional
+        Proven upper bound on the best score per k; defaults to ``best`` (every entry
+        proven optimal).  ``best[k] == best_upper[k]`` says k's best set is optimal.
+    log_mass_upper : ndarray, shape (kmax + 1,), optional
+        Proven upper bound on the log-mass per k; defaults to ``log_mass`` (exact).
     """
 
     best: NDArray[np.float64]
     log_mass: NDArray[np.float64]
     best_sets: tuple[tuple[int, ...] | None, ...]
     exact: bool = True
+    best_upper: NDArray[np.float64] | None = None
+    log_mass_upper: NDArray[np.float64] | None = None
+
+    def __post_init__(self) -> None:
+        n = self.best.shape[0]
+        if self.log_mass.shape != (n,) or len(self.best_sets) != n:
+            raise ValueError(
+                f"best, log_mass and best_sets must have one length, got {n}, "
+                f"{self.log_mass.shape[0]} and {len(self.best_sets)}"
+            )
+        if self.best_upper is None:
+            object.__setattr__(self, "best_upper", self.best)
+        if self.log_mass_upper is None:
+            object.__setattr__(self, "log_mass_upper", self.log_mass)
+        for name in ("best_upper", "log_mass_upper"):
+            if getattr(self, name).shape != (n,):
+                raise ValueError(f"{name} must have shape ({n},)")
 
     @property
     def kmax(self) -> int:
         return int(self.best.shape[0]) - 1
+
+    @property
+    def bounded(self) -> bool:
+        """Whether some entry is only bounded (not proven optimal, or mass not exact)."""
+        return not self.exact or bool(np.any(self.best_upper > self.best))  # type: ignore[operator]
 
     def best_set(self, k: int) -> tuple[int, ...] | None:
         """Hypotheses of a best set with k counted, ``None`` if infeasible."""
@@ -89,7 +115,9 @@ class CardinalityTable:
         sets = tuple(
             None if s is None else tuple(sorted(int(idx[i]) for i in s)) for s in self.best_sets
         )
-        return CardinalityTable(self.best, self.log_mass, sets, self.exact)
+        return CardinalityTable(
+            self.best, self.log_mass, sets, self.exact, self.best_upper, self.log_mass_upper
+        )
 
 
 def _logaddexp(a: float, b: float) -> float:
@@ -112,13 +140,10 @@ def _log_sum(terms: list[float]) -> float:
 def _better(
     score: float, chosen: tuple[int, ...], best: float, best_set: tuple[int, ...] | None
 ) -> bool:
-    """Whether (score, chosen) beats the incumbent; equal scores go to the smaller sorted set.
-
-    Sets are kept unsorted inside the search; they are sorted only to break exact ties.
-    """
+    """Whether (score, chosen) beats the incumbent; equal scores go by the tie order."""
     if best_set is None or score > best:
         return True
-    return score == best and sorted(chosen) < sorted(best_set)
+    return score == best and tie_precedes(chosen, best_set)
 
 
 def _zero_table() -> _Table:
@@ -168,22 +193,6 @@ def _merge(options: list[_Table]) -> _Table:
     return best, mass, sets
 
 
-def _shift(t: _Table, count: int, score: float, weight: float, h: int, kmax: int) -> _Table:
-    """Add hypothesis h (``count`` toward k) to every set of ``t``."""
-    length = min(len(t[0]) + count, kmax + 1)
-    best = [_NEG_INF] * length
-    mass = [_NEG_INF] * length
-    sets: list[tuple[int, ...] | None] = [None] * length
-    for k, (tb, tm, ts) in enumerate(zip(*t, strict=True)):
-        kk = k + count
-        if kk >= length or tm == _NEG_INF:
-            continue
-        best[kk] = tb + score
-        mass[kk] = tm + weight
-        sets[kk] = ts + (h,)  # type: ignore[operator]
-    return best, mass, sets
-
-
 def _to_public(t: _Table, kmax: int, exact: bool = True) -> CardinalityTable:
     best = np.full(kmax + 1, _NEG_INF)
     mass = np.full(kmax + 1, _NEG_INF)
@@ -209,7 +218,9 @@ class CombinedTable:
     """The table of several independent clusters, with the best sets kept implicit.
 
     ``best`` and ``log_mass`` are the max-plus and sum-product convolutions of the
-    cluster tables; the best set of a k is rebuilt on demand from back-pointers
+    cluster tables, ``best_upper`` and ``log_mass_upper`` those of their upper bounds
+    (a max-plus or sum-product convolution is monotone in every entry, so bounds
+    combine into bounds); the best set of a k is rebuilt on demand from back-pointers
     (:meth:`best_set`), so combining hundreds of clusters for a large Kmax stays cheap.
     When two ways of splitting k over the clusters score exactly the same, the earlier
     cluster takes the fewer hypotheses.
@@ -220,10 +231,17 @@ class CombinedTable:
     exact: bool
     tables: tuple[CardinalityTable, ...]
     pointers: tuple[NDArray[np.int64], ...]
+    best_upper: NDArray[np.float64]
+    log_mass_upper: NDArray[np.float64]
 
     @property
     def kmax(self) -> int:
         return int(self.best.shape[0]) - 1
+
+    @property
+    def bounded(self) -> bool:
+        """Whether some cluster's table is only bounded (see :attr:`CardinalityTable.bounded`)."""
+        return any(t.bounded for t in self.tables)
 
     def best_set(self, k: int) -> tuple[int, ...] | None:
         """Hypotheses of a best set with k counted (sorted), ``None`` if infeasible."""
@@ -245,44 +263,78 @@ class CombinedTable:
         return tuple(self.best_set(k) for k in range(self.kmax + 1))
 
 
+def _sum_product(
+    acc: NDArray[np.float64], entries: NDArray[np.float64], size: int
+) -> NDArray[np.float64]:
+    """Log-space convolution of ``acc`` with ``entries``, truncated to ``size`` terms."""
+    terms = np.full((max(entries.shape[0], 1), size), _NEG_INF)
+    for j in range(min(entries.shape[0], size)):
+        if np.isfinite(entries[j]):
+            terms[j, j:] = acc[: size - j] + entries[j]
+    top = np.max(terms, axis=0)
+    safe = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.where(
+            np.isfinite(top), safe + np.log(np.sum(np.exp(terms - safe), axis=0)), _NEG_INF
+        )
+
+
+def _max_plus(
+    acc: NDArray[np.float64], entries: NDArray[np.float64], size: int
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Max-plus convolution with the share of the second operand at each k (-1: none)."""
+    out = np.full(size, _NEG_INF)
+    pointer = np.full(size, -1, dtype=np.int64)
+    for j in range(min(entries.shape[0], size)):
+        if not np.isfinite(entries[j]):
+            continue
+        candidate = np.full(size, _NEG_INF)
+        candidate[j:] = acc[: size - j] + entries[j]
+        better = candidate > out
+        out[better] = candidate[better]
+        pointer[better] = j
+    return out, pointer
+
+
 def combine_tables(tables: list[CardinalityTable], kmax: int) -> CombinedTable:
     """Convolve the tables of independent clusters (hypothesis indices already global).
 
-    Vectorised over k; cost O(sum of table lengths x kmax).
+    Vectorised over k.  The work stops at the largest k any set can reach (the sum of
+    the tables' lengths), so a huge ``kmax`` costs no more than the feasible one; the
+    arrays returned have ``kmax + 1`` entries, ``-inf`` past that k.
     """
-    best = np.full(kmax + 1, _NEG_INF)
-    mass = np.full(kmax + 1, _NEG_INF)
+    reach = sum(t.kmax for t in tables)
+    size = min(kmax, reach) + 1
+    best = np.full(size, _NEG_INF)
+    mass = np.full(size, _NEG_INF)
     best[0] = mass[0] = 0.0
+    best_upper = best.copy()
+    mass_upper = mass.copy()
     pointers: list[NDArray[np.int64]] = []
     for table in tables:
-        finite = np.flatnonzero(np.isfinite(table.log_mass[: kmax + 1]))
-        length = int(finite[-1]) + 1 if finite.size else 0
-        new_best = np.full(kmax + 1, _NEG_INF)
-        pointer = np.full(kmax + 1, -1, dtype=np.int64)
-        terms = np.full((max(length, 1), kmax + 1), _NEG_INF)
-        for j in range(length):
-            if not np.isfinite(table.log_mass[j]):
-                continue
-            candidate = np.full(kmax + 1, _NEG_INF)
-            candidate[j:] = best[: kmax + 1 - j] + table.best[j]
-            better = candidate > new_best
-            new_best[better] = candidate[better]
-            pointer[better] = j
-            terms[j, j:] = mass[: kmax + 1 - j] + table.log_mass[j]
-        top = np.max(terms, axis=0)
-        safe = np.where(np.isfinite(top), top, 0.0)
-        with np.errstate(divide="ignore"):
-            mass = np.where(
-                np.isfinite(top), safe + np.log(np.sum(np.exp(terms - safe), axis=0)), _NEG_INF
-            )
-        best = new_best
+        best, pointer = _max_plus(best, table.best, size)
+        mass = _sum_product(mass, table.log_mass, size)
+        if table.bounded:
+            best_upper, _ = _max_plus(best_upper, table.best_upper, size)  # type: ignore[arg-type]
+            mass_upper = _sum_product(mass_upper, table.log_mass_upper, size)  # type: ignore[arg-type]
+        else:
+            best_upper, _ = _max_plus(best_upper, table.best, size)
+            mass_upper = _sum_product(mass_upper, table.log_mass, size)
         pointers.append(pointer)
+
+    def padded(a: NDArray[np.float64]) -> NDArray[np.float64]:
+        out = np.full(kmax + 1, _NEG_INF)
+        out[:size] = a
+        return out
+
     return CombinedTable(
-        best=best,
-        log_mass=mass,
+        best=padded(best),
+        log_mass=padded(mass),
         exact=all(t.exact for t in tables),
         tables=tuple(tables),
         pointers=tuple(pointers),
+        best_upper=padded(best_upper),
+        log_mass_upper=padded(mass_upper),
     )
 
 
@@ -324,16 +376,25 @@ def table_from_sets(
 
 
 def exact_cardinality_table(
-    problem: PackingProblem, kmax: int, *, node_limit: int = 20000
+    problem: PackingProblem,
+    kmax: int,
+    *,
+    work_limit: int = 1_000_000,
+    deadline: float | None = None,
 ) -> CardinalityTable:
     """Exact best score, best set and log-mass for every k = 0..kmax.
+
+    The frontier search of :mod:`mapassoc.formulations.frontier` (a dynamic program
+    over a bandwidth-reducing resource order; iterative, so any size runs).
 
     Parameters
     ----------
     problem : PackingProblem
     kmax : int
-    node_limit : int
-        Most search nodes (distinct sub-problems) to visit.
+    work_limit : int
+        Most transitions of the search (deterministic).
+    deadline : float, optional
+        ``time.perf_counter()`` value past which the search stops.
 
     Returns
     -------
@@ -341,105 +402,13 @@ def exact_cardinality_table(
 
     Raises
     ------
-    NodeLimitExceeded
-        When the search would visit more than ``node_limit`` nodes.
+    SearchLimitExceeded
+        Past ``work_limit`` or ``deadline``.
     """
-    H = problem.num_hypotheses
-    R = problem.num_resources
-    scores = problem.scores.tolist()
-    weights = problem.log_weights.tolist()  # type: ignore[union-attr]
-    counts = problem.counts.astype(int).tolist()
-    members = [0] * R
-    for h in range(H):
-        for r in problem.resources_of(h).tolist():
-            members[r] |= 1 << h
-    conflict = [1 << h for h in range(H)]
-    for h in range(H):
-        for r in problem.resources_of(h).tolist():
-            conflict[h] |= members[r]
-    hyp_resources = [problem.resources_of(h).tolist() for h in range(H)]
-    groups = [members[r] for r in range(R) if problem.exactly_one[r]]
-    if any(g == 0 for g in groups):
-        return _to_public(([_NEG_INF], [_NEG_INF], [None]), kmax)
-    memo: dict[int, _Table] = {}
-    visited = 0
-
-    def empties_group(old: int, new: int, chosen: int) -> bool:
-        """Whether going from ``old`` to ``new`` drops every member of an unsatisfied group."""
-        for g in groups:
-            if g & old and not g & new and not (chosen >= 0 and (g >> chosen) & 1):
-                return True
-        return False
-
-    def components(mask: int) -> list[int]:
-        comps = []
-        remaining = mask
-        while remaining:
-            low = remaining & -remaining
-            comp = low
-            frontier = low
-            while frontier:
-                bit = frontier & -frontier
-                frontier ^= bit
-                grow = conflict[bit.bit_length() - 1] & mask & ~comp
-                comp |= grow
-                frontier |= grow
-            comps.append(comp)
-            remaining &= ~comp
-        return comps
-
-    def choose(mask: int, h: int) -> _Table | None:
-        new = mask & ~conflict[h]
-        if empties_group(mask, new, h):
-            return None
-        return _shift(solve(new), counts[h], scores[h], weights[h], h, kmax)
-
-    def branch(mask: int) -> _Table:
-        options: list[_Table] = []
-        active = next((g & mask for g in groups if g & mask), 0)
-        if active:
-            candidates = active
-        else:
-            low = mask & -mask
-            h0 = low.bit_length() - 1
-            if not hyp_resources[h0]:
-                # A hypothesis that uses nothing: take it or leave it.
-                rest = mask & ~low
-                sub = solve(rest)
-                return _merge([sub, _shift(sub, counts[h0], scores[h0], weights[h0], h0, kmax)])
-            r = max(hyp_resources[h0], key=lambda res: (members[res] & mask).bit_count())
-            candidates = members[r] & mask
-            unused = mask & ~members[r]
-            if not empties_group(mask, unused, -1):
-                options.append(solve(unused))
-        while candidates:
-            bit = candidates & -candidates
-            candidates ^= bit
-            t = choose(mask, bit.bit_length() - 1)
-            if t is not None:
-                options.append(t)
-        if not options:
-            return [_NEG_INF], [_NEG_INF], [None]
-        return _merge(options)
-
-    def solve(mask: int) -> _Table:
-        nonlocal visited
-        if mask == 0:
-            return _zero_table()
-        hit = memo.get(mask)
-        if hit is not None:
-            return hit
-        visited += 1
-        if visited > node_limit:
-            raise NodeLimitExceeded(f"exact search exceeded {node_limit} nodes")
-        comps = components(mask)
-        if len(comps) > 1:
-            out = _zero_table()
-            for c in comps:
-                out = _convolve(out, solve(c), kmax)
-        else:
-            out = branch(mask)
-        memo[mask] = out
-        return out
-
-    return _to_public(solve((1 << H) - 1), kmax)
+    found = frontier_search(problem, kmax, work_limit=work_limit, deadline=deadline)
+    n = found.best.shape[0]
+    best = np.full(kmax + 1, _NEG_INF)
+    mass = np.full(kmax + 1, _NEG_INF)
+    best[:n], mass[:n] = found.best, found.log_mass
+    sets = found.best_sets + (None,) * (kmax + 1 - n)
+    return CardinalityTable(best, mass, sets, found.exact)

@@ -32,32 +32,27 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.cluster_solving import CLUSTER_STATUSES, ClusterReport, ClusterSolver
 from mapassoc.config import Config
 from mapassoc.errors import InputError
-from mapassoc.formulations.bounds import fixed_variable_bounds
 from mapassoc.formulations.cardinality import (
     CardinalityTable,
     CombinedTable,
-    NodeLimitExceeded,
     combine_tables,
-    exact_cardinality_table,
     single_hypothesis_table,
-    table_from_sets,
 )
 from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.packing import (
     MergedProblem,
     PackingProblem,
-    decode_selection,
     merge_interchangeable,
-    set_packing_program,
 )
 from mapassoc.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
 from mapassoc.io import Origins, TrackTable
 from mapassoc.oracle import oracle_tracks
 from mapassoc.posterior import KPosterior, k_posterior
 from mapassoc.scans import Scan, check_scan_order
-from mapassoc.solvers import HighsSolver, SolveResult, SolveStatus, get_solver, solve_k_best
+from mapassoc.solvers import HighsSolver, get_solver
 
 __all__ = [
     "ClusterReport",
@@ -68,8 +63,15 @@ __all__ = [
     "packing_problem",
 ]
 
-BOUND_PRUNE_MIN_HYPOTHESES = 30
-"""Clusters with fewer merged hypotheses skip the LP-bound pruning (they are cheap anyway)."""
+WINDOW_STATUSES = ("exact", "capped", *CLUSTER_STATUSES[1:])
+"""Window statuses from best to worst: ``exact`` (nothing cut but the documented
+score-ratio, gate and LP-bound pruning), ``capped`` (the per-tree cap also cut nodes),
+``bounded`` (a cluster got certified bounds instead of exact tables), ``time_limit``
+(the window's time limit bit)."""
+
+P_K_FLOOR = 1e-300
+"""Trailing p(K | Z) below this are left out of ``windows.jsonl`` (``p_k_length`` says
+how many entries the full vector has)."""
 
 ProgressCallback = Callable[[int, int], None]
 WindowCallback = Callable[["WindowReport"], None]
@@ -104,28 +106,6 @@ def packing_problem(hypotheses: WindowHypotheses) -> PackingProblem:
     )
 
 
-@dataclass(frozen=True)
-class ClusterReport:
-    """How one large cluster was solved (clusters solved exactly are only counted).
-
-    Attributes
-    ----------
-    size : int
-        Hypotheses in the cluster.
-    status : str
-        Worst solver status over its solves.
-    solves : int
-        Integer programs solved.
-    log_captured : float
-        Lower bound on log(mass of the sets found / mass of all sets).
-    """
-
-    size: int
-    status: str
-    solves: int
-    log_captured: float
-
-
 @dataclass(frozen=True, eq=False)
 class WindowSolution:
     """Everything computed for one window (for notebooks and tests).
@@ -135,14 +115,17 @@ class WindowSolution:
     hypotheses : WindowHypotheses
     problem : PackingProblem
     table : CombinedTable
-        Per-K best score, best set and log-mass of the whole window.
+        Per-K best score, best set and log-mass of the whole window, with proven upper
+        bounds where a cluster was only bounded.
     posterior : KPosterior
     cluster_sizes : tuple of int
-    solver_clusters : tuple of ClusterReport
-        Clusters too large for the exact search.
+    bounded_clusters : tuple of ClusterReport
+        Clusters too large for the exact search (they got certified bounds).
     generate_seconds, solve_seconds : float
     bound_pruned : int
-        Merged hypotheses dropped by the LP bound (see ``WindowEstimator._bound_prune``).
+        Merged hypotheses dropped by the LP bound (``ClusterSolver.bound_prune``).
+    timed_out : bool
+        Whether the window ran past ``time_limit``.
     """
 
     hypotheses: WindowHypotheses
@@ -150,26 +133,28 @@ class WindowSolution:
     table: CombinedTable
     posterior: KPosterior
     cluster_sizes: tuple[int, ...]
-    solver_clusters: tuple[ClusterReport, ...]
+    bounded_clusters: tuple[ClusterReport, ...]
     generate_seconds: float
     solve_seconds: float
     bound_pruned: int = 0
+    timed_out: bool = False
 
     @property
     def status(self) -> str:
-        """``"exact"``, or the worst solver status over the large clusters."""
-        if not self.solver_clusters:
-            return "exact"
-        statuses = {c.status for c in self.solver_clusters}
-        for s in ("failed", "time_limit", "work_limit"):
-            if s in statuses:
-                return s
-        return "optimal"
+        """The worst of :data:`WINDOW_STATUSES` that applies."""
+        worst = 0
+        if self.hypotheses.capped:
+            worst = WINDOW_STATUSES.index("capped")
+        for report in self.bounded_clusters:
+            worst = max(worst, WINDOW_STATUSES.index(report.status))
+        if self.timed_out:
+            worst = WINDOW_STATUSES.index("time_limit")
+        return WINDOW_STATUSES[worst]
 
     @property
     def captured_mass(self) -> float:
         """Lower bound on the share of the window's posterior mass that was summed."""
-        return math.exp(sum(c.log_captured for c in self.solver_clusters))
+        return math.exp(sum(c.log_captured for c in self.bounded_clusters))
 
     def selection(self, k: int) -> NDArray[np.int64]:
         """Hypotheses of the best track set with k tracks."""
@@ -179,9 +164,22 @@ class WindowSolution:
         return np.asarray(chosen, dtype=np.int64)
 
 
+def _compact(values: NDArray[np.float64], floor: float) -> list[float]:
+    """``values`` without its trailing entries below ``floor`` (at least one kept)."""
+    above = np.flatnonzero(values >= floor)
+    end = int(above[-1]) + 1 if above.size else 1
+    return [float(v) for v in values[:end]]
+
+
 @dataclass(frozen=True)
 class WindowReport:
-    """One line of ``windows.jsonl``."""
+    """One line of ``windows.jsonl``.
+
+    ``probabilities`` (p(K | Z)) and its proven bounds are full vectors K = 0..Kmax in
+    Python; the JSON line leaves out their trailing entries below
+    :data:`P_K_FLOOR` and states the full length as ``p_k_length``, so a huge Kmax costs
+    nothing.  ``best_objective`` likewise ends at the last feasible K.
+    """
 
     index: int
     first_scan: int
@@ -189,27 +187,34 @@ class WindowReport:
     start_time: float
     end_time: float
     committed_scans: int
-    probabilities: tuple[float, ...]
-    best_objective: tuple[float | None, ...]
+    probabilities: NDArray[np.float64]
+    probabilities_lower: NDArray[np.float64]
+    probabilities_upper: NDArray[np.float64]
+    best_objective: NDArray[np.float64]
     joint_map_k: int
     marginal_k: int
     chosen_k: int
     marginal_exact: bool
+    marginal_certain: bool
+    joint_certain: bool
     captured_mass: float
     status: str
     hypotheses: int
     generated: int
     pruned: int
+    capped: int
     bound_pruned: int
     clusters: int
     largest_cluster: int
-    solver_clusters: int
+    bounded_clusters: int
     carried_tracks: int
     piles_up_at_kmax: bool
     generate_seconds: float
     solve_seconds: float
 
     def to_json(self, *, timings: bool = True) -> dict[str, object]:
+        feasible = np.flatnonzero(np.isfinite(self.best_objective))
+        end = int(feasible[-1]) + 1 if feasible.size else 0
         out: dict[str, object] = {
             "window": self.index,
             "first_scan": self.first_scan,
@@ -217,24 +222,33 @@ class WindowReport:
             "start_time": self.start_time,
             "end_time": self.end_time,
             "committed_scans": self.committed_scans,
-            "p_k": list(self.probabilities),
+            "p_k_length": int(self.probabilities.shape[0]),
+            "p_k": _compact(self.probabilities, P_K_FLOOR),
             "joint_map_k": self.joint_map_k,
             "marginal_k": self.marginal_k,
             "chosen_k": self.chosen_k,
-            "best_objective": list(self.best_objective),
+            "best_objective": [
+                float(b) if math.isfinite(b) else None for b in self.best_objective[:end]
+            ],
             "status": self.status,
             "marginal_exact": self.marginal_exact,
+            "marginal_certain": self.marginal_certain,
+            "joint_certain": self.joint_certain,
             "captured_mass": self.captured_mass,
             "hypotheses": self.hypotheses,
             "hypotheses_generated": self.generated,
             "hypotheses_pruned": self.pruned,
+            "hypotheses_capped": self.capped,
             "hypotheses_pruned_by_bound": self.bound_pruned,
             "clusters": self.clusters,
             "largest_cluster": self.largest_cluster,
-            "solver_clusters": self.solver_clusters,
+            "bounded_clusters": self.bounded_clusters,
             "carried_tracks": self.carried_tracks,
             "piles_up_at_kmax": self.piles_up_at_kmax,
         }
+        if not self.marginal_exact:
+            out["p_k_lower"] = _compact(self.probabilities_lower, P_K_FLOOR)
+            out["p_k_upper"] = _compact(self.probabilities_upper, P_K_FLOOR)
         if timings:
             out["generate_seconds"] = self.generate_seconds
             out["solve_seconds"] = self.solve_seconds
@@ -281,6 +295,11 @@ class EstimateResult:
             "tracks": len(self.track_rows),
             "detections_in_tracks": int(sum(len(r) for r in self.track_rows.values())),
             "windows_exact": int(sum(1 for r in w if r.status == "exact")),
+            "window_statuses": {
+                status: int(sum(1 for r in w if r.status == status)) for status in WINDOW_STATUSES
+            },
+            "windows_marginal_certain": int(sum(1 for r in w if r.marginal_certain)),
+            "hypotheses_capped": int(sum(r.capped for r in w)),
             "windows_marginal_exact": int(sum(1 for r in w if r.marginal_exact)),
             "windows_piling_up_at_kmax": int(sum(1 for r in w if r.piles_up_at_kmax)),
             "mean_hypotheses_per_window": float(np.mean([r.hypotheses for r in w])) if w else 0.0,
@@ -323,7 +342,13 @@ class WindowEstimator:
                 f"solver '{s.solver}' cannot solve integer programs; choose one of the "
                 "integer-capable backends (for example 'highs')"
             )
-        self._lp_solver = HighsSolver()
+        self.cluster_solver = ClusterSolver(
+            solver=self.solver,
+            lp_solver=HighsSolver(),
+            exact_work_limit=s.exact_work_limit,
+            beam_width=s.beam_width,
+            prune_log_ratio=s.prune_log_ratio,
+        )
         self.log_k_prior = np.asarray(s.log_k_prior())
 
     # -- one window ------------------------------------------------------------------
@@ -341,6 +366,7 @@ class WindowEstimator:
         """
         kmax = self.settings.max_tracks
         t0 = time.perf_counter()
+        deadline = t0 + self.settings.time_limit
         hyps = self.generator.generate(scans, carried, first_scans=first_scans)
         t1 = time.perf_counter()
         problem = packing_problem(hyps)
@@ -363,14 +389,14 @@ class WindowEstimator:
                     float(problem.log_weights[h]),  # type: ignore[index]
                     bool(problem.counts[h]),
                     bool(has_required[h]),
-                    kmax,
+                    min(kmax, 1),
                 )
                 tables.append(single.remapped(members))
                 continue
             # Interchangeable hypotheses (same detections, e.g. "ended" and "missed to
             # the end") merge exactly: best score for the MAP, summed weight for the mass.
             merged = merge_interchangeable(problem.subproblem(members))
-            keep = self._bound_prune(merged.problem)
+            keep = self.cluster_solver.bound_prune(merged.problem, deadline)
             if keep is not None:
                 bound_pruned += int(np.count_nonzero(~keep))
                 kept = np.flatnonzero(keep)
@@ -379,16 +405,19 @@ class WindowEstimator:
                     merged.representative[kept],
                     tuple(merged.members[i] for i in kept),
                 )
-            try:
-                table = exact_cardinality_table(
-                    merged.problem, kmax, node_limit=self.settings.exact_node_limit
-                )
-            except NodeLimitExceeded:
-                table, report = self._solve_large_cluster(merged.problem, kmax)
+            table, report = self.cluster_solver.solve(merged.problem, kmax, deadline)
+            if report.status != "exact":
                 reports.append(report)
             tables.append(table.remapped(members[merged.representative]))
         table = combine_tables(tables, kmax)
-        posterior = k_posterior(table.best, table.log_mass, self.log_k_prior, exact=table.exact)
+        posterior = k_posterior(
+            table.best,
+            table.log_mass,
+            self.log_k_prior,
+            exact=table.exact,
+            best_upper=table.best_upper,
+            log_mass_upper=table.log_mass_upper,
+        )
         t2 = time.perf_counter()
         return WindowSolution(
             hypotheses=hyps,
@@ -396,132 +425,11 @@ class WindowEstimator:
             table=table,
             posterior=posterior,
             cluster_sizes=tuple(len(c) for c in clusters),
-            solver_clusters=tuple(reports),
+            bounded_clusters=tuple(reports),
             generate_seconds=t1 - t0,
             solve_seconds=t2 - t1,
             bound_pruned=bound_pruned,
-        )
-
-    def _bound_prune(self, problem: PackingProblem) -> NDArray[np.bool_] | None:
-        """Hypotheses that can be in a set within ``prune_log_ratio`` of the cluster's best.
-
-        One LP relaxation (K free) gives duals; every set containing hypothesis h scores at
-        most its fixed-variable Lagrangian bound (:mod:`mapassoc.formulations.bounds`).
-        Hypotheses whose bound is more than ``prune_log_ratio`` below the best integer set
-        are dropped across trees (duplicates of carried tracks, mostly).  The best set
-        itself always survives, and so does every hypothesis that uses no detection.
-        Returns ``None`` when nothing is pruned or the cluster is too small to bother
-        (fewer than :data:`BOUND_PRUNE_MIN_HYPOTHESES`).
-        """
-        ratio = self.settings.prune_log_ratio
-        if problem.num_hypotheses < BOUND_PRUNE_MIN_HYPOTHESES or not math.isfinite(ratio):
-            return None
-        program = set_packing_program(problem, None)
-        lp = self._lp_solver.solve_relaxation(program, time_limit=self.settings.time_limit)
-        if lp.status is not SolveStatus.OPTIMAL or lp.solution is None:
-            return None
-        x = lp.solution
-        if np.all(np.abs(x - np.round(x)) <= 1e-9):
-            incumbent = lp.objective  # the relaxation is integral: the integer optimum
-        else:
-            best = self.solver.solve(program, time_limit=self.settings.time_limit)
-            if best.solution is None:
-                return None
-            incumbent = best.objective
-        bounds = fixed_variable_bounds(program, lp.ineq_duals, lp.eq_duals)  # type: ignore[arg-type]
-        keep = bounds >= incumbent - ratio - 1e-9
-        # A hypothesis that uses no detection (a carried track ended, or missed
-        # throughout) is never dropped: with it every K down to 0 stays feasible, so a
-        # K reported infeasible really has no track set.
-        uses_detection = np.zeros(problem.num_hypotheses, dtype=bool)
-        owner = np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr))
-        uses_detection[owner[~problem.exactly_one[problem.resource_indices]]] = True
-        keep |= ~uses_detection
-        return None if np.all(keep) else keep
-
-    def _solve_large_cluster(
-        self, problem: PackingProblem, kmax: int
-    ) -> tuple[CardinalityTable, ClusterReport]:
-        """MAP per k by the integer program; marginal from the m best sets per k.
-
-        The m best sets are searched only for the k whose best set could carry mass:
-        with at most ``N <= prod_r (1 + hypotheses using r)`` feasible sets (each set
-        picks at most one user per resource), a k whose best set is more than
-        ``log N + 40`` below the best over all k holds less than ``e^-40`` of the
-        cluster's mass, and only its best set is kept.  The captured share is bounded
-        below the same way: every set not found weighs at most the m-th best of its k.
-        """
-        m = self.settings.m_best
-        usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
-        log_num_sets = float(np.sum(np.log1p(usage)))
-        excess = problem.log_weights - problem.scores  # type: ignore[operator]
-        max_excess = float(np.sum(np.clip(excess, 0.0, None)))
-        time_limit = self.settings.time_limit
-        sets: list[tuple[tuple[int, ...], int, float, float]] = []
-        worst = SolveStatus.OPTIMAL
-        solves = 0
-        seen: set[tuple[int, ...]] = set()
-
-        def found(result: SolveResult, k: int) -> float | None:
-            """Record the set of a solve (once) and return its score."""
-            nonlocal worst
-            if result.status not in (SolveStatus.OPTIMAL, SolveStatus.INFEASIBLE):
-                worst = result.status
-            if result.solution is None or result.status not in (
-                SolveStatus.OPTIMAL,
-                SolveStatus.TIME_LIMIT,
-            ):
-                return None
-            chosen = decode_selection(result.solution)
-            key = tuple(int(i) for i in chosen)
-            if key in seen:
-                return problem.value(chosen)
-            seen.add(key)
-            if not problem.is_feasible(chosen, k):
-                raise RuntimeError(f"solver {result.solver!r} returned an infeasible set for k={k}")
-            score = problem.value(chosen)
-            weight = float(np.sum(problem.log_weights[chosen]))  # type: ignore[index]
-            sets.append((key, k, score, weight))
-            return score
-
-        top_k = min(kmax, int(np.count_nonzero(problem.counts)))
-        best_per_k: dict[int, float] = {}
-        for k in range(top_k + 1):
-            result = self.solver.solve(set_packing_program(problem, k), time_limit=time_limit)
-            solves += 1
-            score = found(result, k)
-            if score is not None:
-                best_per_k[k] = score
-        tail_terms: list[float] = []
-        overall = max(best_per_k.values(), default=-math.inf)
-        for k, best in best_per_k.items():
-            if best + max_excess + log_num_sets < overall - 40.0:
-                tail_terms.append(log_num_sets + best + max_excess)
-                continue
-            program = set_packing_program(problem, k)
-            results = solve_k_best(program, m, solver=self.solver, time_limit=time_limit)
-            solves += len(results)
-            scores_k = []
-            for r in results:
-                score = found(r, k)
-                if score is not None:
-                    scores_k.append(score)
-            complete = len(results) < m and all(r.status == SolveStatus.OPTIMAL for r in results)
-            if not complete:
-                lowest = min(scores_k, default=best)
-                tail_terms.append(log_num_sets + lowest + max_excess)
-        found_terms = [w for *_, w in sets]
-        table = table_from_sets(sets, kmax, exact=not tail_terms)
-        if tail_terms:
-            captured = float(np.logaddexp.reduce(found_terms))
-            log_captured = captured - float(np.logaddexp.reduce([captured, *tail_terms]))
-        else:
-            log_captured = 0.0
-        return table, ClusterReport(
-            size=problem.num_hypotheses,
-            status=worst.value,
-            solves=solves,
-            log_captured=log_captured,
+            timed_out=t2 > deadline,
         )
 
     # -- whole run -------------------------------------------------------------------
@@ -593,23 +501,26 @@ class WindowEstimator:
                     start_time=scans[start].time,
                     end_time=scans[end - 1].time,
                     committed_scans=commit,
-                    probabilities=tuple(float(p) for p in post.probabilities),
-                    best_objective=tuple(
-                        float(b) if math.isfinite(b) else None for b in post.best_log_score
-                    ),
+                    probabilities=post.probabilities,
+                    probabilities_lower=post.probabilities_lower,  # type: ignore[arg-type]
+                    probabilities_upper=post.probabilities_upper,  # type: ignore[arg-type]
+                    best_objective=post.best_log_score,
                     joint_map_k=post.joint_map_k,
                     marginal_k=post.marginal_k,
                     chosen_k=chosen_k,
                     marginal_exact=post.exact,
+                    marginal_certain=post.marginal_certain,
+                    joint_certain=post.joint_certain,
                     captured_mass=solution.captured_mass,
                     status=solution.status,
                     hypotheses=solution.hypotheses.count,
                     generated=solution.hypotheses.generated,
                     pruned=solution.hypotheses.pruned,
+                    capped=solution.hypotheses.capped,
                     bound_pruned=solution.bound_pruned,
                     clusters=len(solution.cluster_sizes),
                     largest_cluster=max(solution.cluster_sizes, default=0),
-                    solver_clusters=len(solution.solver_clusters),
+                    bounded_clusters=len(solution.bounded_clusters),
                     carried_tracks=int(np.count_nonzero(solution.hypotheses.tree_track_ids >= 0)),
                     piles_up_at_kmax=post.piles_up_at_kmax,
                     generate_seconds=solution.generate_seconds,

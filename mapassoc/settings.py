@@ -100,8 +100,11 @@ class EstimatorSettings:
     max_hypotheses_per_tree : int
         Cap on the leaves kept per track tree (best scores kept), >= 1.
     prune_log_ratio : float
-        Leaves scoring more than this below the best leaf of their tree are pruned (>= 0;
-        ``inf`` disables).
+        Nodes scoring more than this below the best node of their tree are pruned; a new
+        tree's node is also pruned when even the most its path can still gain over the
+        window leaves it more than this below 0 (not selecting the tree); clusters drop
+        hypotheses whose LP bound is this far below the cluster's best set (>= 0;
+        ``inf`` disables all three).
     k_prior : {"uniform", "poisson", "weights"}
         Prior p(K) on 0..Kmax (seed 002 uses uniform).
     k_prior_mean : float
@@ -112,15 +115,19 @@ class EstimatorSettings:
         Which K the committed track set uses: ``argmax p(K | Z)`` (marginal, default) or
         the K of the joint MAP (K, track set) (seed 002, eq. 14).
     solver : str
-        Backend for clusters too large to enumerate (a name from
-        ``mapassoc.solvers.available_solvers()``).
+        Integer-program backend for clusters too large for the exact search (a name
+        from ``mapassoc.solvers.available_solvers()``).
     time_limit : float
-        Seconds per integer-program solve.
-    exact_node_limit : int
-        Search nodes the exact per-cluster enumeration may visit before the cluster is
-        handed to the integer-program solver.
-    m_best : int
-        Track sets per K collected for the marginal of a cluster too large to enumerate.
+        Wall-clock seconds per window (hypothesis generation, solves and bounds
+        together; a window past it reports ``status = "time_limit"`` with its best
+        certified answer).  The outer guard: the work limits below bind first on
+        ordinary windows, so results do not depend on the machine's speed.
+    exact_work_limit : int
+        Transitions the exact per-cluster frontier search may take before the cluster
+        gets certified bounds instead (deterministic; about a microsecond each).
+    beam_width : int
+        Frontiers kept by the beam search that gives a cluster too large for the exact
+        search its lower bounds on the mass per K.
     """
 
     window_length: int = 5
@@ -134,9 +141,9 @@ class EstimatorSettings:
     k_prior_weights: tuple[float, ...] = field(default_factory=tuple)
     k_estimate: str = "marginal"
     solver: str = "highs"
-    time_limit: float = 30.0
-    exact_node_limit: int = 50000
-    m_best: int = 20
+    time_limit: float = 2.0
+    exact_work_limit: int = 1_000_000
+    beam_width: int = 2000
 
     def __post_init__(self) -> None:
         _check_int("window_length", self.window_length, minimum=1)
@@ -172,8 +179,8 @@ class EstimatorSettings:
         if not isinstance(self.solver, str) or not self.solver:
             raise InputError(f"solver must be a backend name, got {self.solver!r}")
         check_positive("time_limit", self.time_limit)
-        _check_int("exact_node_limit", self.exact_node_limit, minimum=1)
-        _check_int("m_best", self.m_best, minimum=1)
+        _check_int("exact_work_limit", self.exact_work_limit, minimum=1)
+        _check_int("beam_width", self.beam_width, minimum=1)
 
     def log_k_prior(self) -> list[float]:
         """log p(K) for K = 0..Kmax, normalised (``-inf`` where p(K) = 0)."""

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mapassoc.formulations.cardinality import (
-    NodeLimitExceeded,
+    SearchLimitExceeded,
     combine_tables,
     exact_cardinality_table,
 )
@@ -119,8 +119,8 @@ def test_infeasible_k_gets_minus_infinity_and_group_forces_choice() -> None:
     assert table.best_sets[1] == (1,)
 
 
-def test_node_limit_raises() -> None:
+def test_work_limit_raises() -> None:
     rng = np.random.default_rng(5)
     problem = random_problem(rng, 40, D=12, G=0)
-    with pytest.raises(NodeLimitExceeded):
-        exact_cardinality_table(problem, 10, node_limit=5)
+    with pytest.raises(SearchLimitExceeded):
+        exact_cardinality_table(problem, 10, work_limit=5)

@@ -1,21 +1,32 @@
-"""Paths for clusters too large to enumerate exactly: the solver fallback, LP-bound pruning."""
+"""Clusters too large for the exact search: certified bounds, the beam, the time limit.
+
+Every approximation path is checked against the exact frontier search (itself checked
+against brute force in ``test_cardinality``): a claimed bound must hold, and a best
+score reported as optimal (``best == best_upper``) must be the exact one.
+"""
 
 from __future__ import annotations
 
+import itertools
 import math
+import time
 from dataclasses import replace
 
 import numpy as np
 import pytest
-from test_cardinality import random_problem
+from test_cardinality import brute_force, random_problem
 from test_window_model import make_config, random_window
 
-from mapassoc.formulations.bounds import fixed_variable_bounds
+from mapassoc.cluster_solving import ClusterSolver
+from mapassoc.formulations.bounds import fixed_variable_bounds, log_mass_upper_bounds
 from mapassoc.formulations.cardinality import exact_cardinality_table
+from mapassoc.formulations.frontier import frontier_search
 from mapassoc.formulations.packing import set_packing_program
 from mapassoc.motion import ConstantVelocity
 from mapassoc.pipeline import WindowEstimator
 from mapassoc.solvers import HighsSolver, SolveStatus, enumerate_feasible
+
+TOLERANCE = 1e-9
 
 
 def with_settings(estimator: WindowEstimator, **changes: object) -> WindowEstimator:
@@ -23,65 +34,137 @@ def with_settings(estimator: WindowEstimator, **changes: object) -> WindowEstima
     return WindowEstimator(config=replace(config, estimator=replace(config.estimator, **changes)))
 
 
-def test_solver_fallback_with_enough_sets_is_exact() -> None:
-    """Forced to the integer-program path, with m large enough to list every set.
-
-    Listing a set costs one MILP solve, so the check runs on the first 15 random windows
-    with at most 150 feasible sets (of the packing program with K free).
-    """
-    checked = 0
-    seed = 0
-    while checked < 15:
-        case = random_window(seed)
-        seed += 1
-        exact = case.estimator.solve_window(case.scans, case.carried)
-        program = set_packing_program(exact.problem, None)
-        if sum(1 for _ in zip(range(151), enumerate_feasible(program), strict=False)) > 150:
-            continue
-        checked += 1
-        forced = with_settings(case.estimator, exact_node_limit=1, m_best=10_000)
-        fallback = forced.solve_window(case.scans, case.carried)
-        multi = [s for s in exact.cluster_sizes if s > 1]
-        # Clusters of interchangeable hypotheses merge to one and never need the solver.
-        assert len(fallback.solver_clusters) <= len(multi)
-        assert np.array_equal(np.isneginf(fallback.table.best), np.isneginf(exact.table.best))
-        finite = np.isfinite(exact.table.best)
-        np.testing.assert_allclose(fallback.table.best[finite], exact.table.best[finite], atol=1e-9)
-        np.testing.assert_allclose(
-            fallback.table.log_mass[finite], exact.table.log_mass[finite], atol=1e-9
-        )
-        assert fallback.posterior.exact and fallback.captured_mass == 1.0
-        assert fallback.status in ("exact", "optimal")
-    assert seed < 200, "too few small random windows"
+def cluster_solver(beam_width: int = 4) -> ClusterSolver:
+    return ClusterSolver(
+        solver=HighsSolver(),
+        lp_solver=HighsSolver(),
+        exact_work_limit=1,
+        beam_width=beam_width,
+        prune_log_ratio=math.inf,
+    )
 
 
-def test_fallback_is_exercised_by_the_random_windows() -> None:
-    used = 0
-    for seed in range(30):
-        case = random_window(seed)
-        forced = with_settings(case.estimator, exact_node_limit=1, m_best=2)
-        used += bool(forced.solve_window(case.scans, case.carried).solver_clusters)
-    assert used >= 15
+def assert_bounds_hold(table, exact_best, exact_mass) -> None:  # type: ignore[no-untyped-def]
+    n = table.best.shape[0]
+    best, mass = exact_best[:n], exact_mass[:n]
+    assert np.all(np.isneginf(exact_best[n:])), "a feasible k past the table's end"
+    assert np.all(table.best <= best + TOLERANCE)
+    assert np.all(best <= table.best_upper + TOLERANCE)
+    assert np.all(table.log_mass <= mass + TOLERANCE)
+    assert np.all(mass <= table.log_mass_upper + TOLERANCE)
+    certified = table.best >= table.best_upper
+    np.testing.assert_allclose(table.best[certified], best[certified], atol=TOLERANCE)
+    for k in range(n):
+        chosen = table.best_sets[k]
+        if chosen is not None:
+            assert math.isfinite(table.best[k])
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_bounded_path_bounds_hold_against_brute_force(seed: int) -> None:
+    rng = np.random.default_rng(700 + seed)
+    problem = random_problem(rng, int(rng.integers(6, 14)), D=int(rng.integers(3, 7)), G=2)
+    kmax = int(rng.integers(1, 8))
+    best, mass = brute_force(problem, kmax)
+    table, report = cluster_solver().solve(problem, kmax, deadline=math.inf)
+    assert report.status in ("bounded", "exact")
+    assert_bounds_hold(table, best, mass)
+    assert report.log_captured <= TOLERANCE
+    # Far from the deadline, every k within the margin of the best set is optimal.
+    top = float(np.max(table.best))
+    near = table.best_upper >= top - 30.0
+    assert np.all(table.best[near] >= table.best_upper[near])
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_time_limited_cluster_still_gives_valid_bounds(seed: int) -> None:
+    """A deadline already past: no LP runs, a narrow beam and the LP-free mass bound."""
+    rng = np.random.default_rng(900 + seed)
+    problem = random_problem(rng, int(rng.integers(6, 14)), D=int(rng.integers(3, 7)), G=2)
+    best, mass = brute_force(problem, 6)
+    table, report = cluster_solver().solve(problem, 6, deadline=time.perf_counter() - 1.0)
+    assert report.status == "time_limit"
+    assert report.solves == 0
+    assert_bounds_hold(table, best, mass)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_beam_sums_distinct_feasible_sets(seed: int) -> None:
+    rng = np.random.default_rng(1100 + seed)
+    problem = random_problem(rng, int(rng.integers(6, 14)), D=int(rng.integers(3, 7)), G=2)
+    best, mass = brute_force(problem, 8)
+    for width in (1, 3, 10**6):
+        beam = frontier_search(problem, 8, max_frontiers=width)
+        n = beam.best.shape[0]
+        assert np.all(beam.log_mass <= mass[:n] + TOLERANCE)
+        assert np.all(beam.best <= best[:n] + TOLERANCE)
+        for k, chosen in enumerate(beam.best_sets):
+            if chosen is not None:
+                assert problem.is_feasible(np.array(chosen, dtype=np.int64), k)
+                value = problem.value(np.array(chosen, dtype=np.int64))
+                assert value == pytest.approx(beam.best[k])
+        if beam.exact:
+            np.testing.assert_allclose(beam.log_mass, mass[:n], atol=TOLERANCE)
 
 
 @pytest.mark.parametrize("seed", range(30))
-def test_solver_fallback_with_few_sets_bounds_the_mass(seed: int) -> None:
-    """With m = 2 the MAP per K is still exact; the mass is a lower bound, flagged as such."""
+def test_mass_upper_bound_holds_for_any_multipliers(seed: int) -> None:
+    rng = np.random.default_rng(1300 + seed)
+    problem = random_problem(rng, int(rng.integers(3, 12)), D=int(rng.integers(2, 6)), G=2)
+    _, mass = brute_force(problem, problem.num_hypotheses)
+    ks = np.arange(mass.shape[0])
+    for _ in range(5):
+        y = rng.normal(0.0, 2.0, size=problem.num_resources)
+        mu = float(rng.normal(0.0, 2.0))
+        bound = log_mass_upper_bounds(problem, y, mu, ks)
+        assert np.all(mass <= bound + TOLERANCE)
+
+
+def test_mass_upper_bound_is_exact_for_one_exclusive_group() -> None:
+    """Three hypotheses sharing one detection: sets are {} or one of them, no slack."""
+    from mapassoc.formulations.packing import PackingProblem
+
+    scores = np.array([0.3, -1.0, 2.0])
+    problem = PackingProblem(
+        scores, np.array([0, 1, 2, 3]), np.zeros(3, dtype=np.int64), np.zeros(1, bool),
+        np.ones(3, bool),
+    )
+    bound = log_mass_upper_bounds(problem, np.zeros(1), 0.0, np.array([0]))
+    assert bound[0] == pytest.approx(math.log(1 + np.exp(scores).sum()))
+
+
+@pytest.mark.parametrize("seed", range(25))
+def test_forced_bounded_windows_bound_the_exact_posterior(seed: int) -> None:
+    """Whole windows with every multi-hypothesis cluster forced onto the bounded path."""
     case = random_window(seed)
     exact = case.estimator.solve_window(case.scans, case.carried)
-    fallback = with_settings(case.estimator, exact_node_limit=1, m_best=2).solve_window(
-        case.scans, case.carried
-    )
-    finite = np.isfinite(exact.table.best)
-    np.testing.assert_allclose(fallback.table.best[finite], exact.table.best[finite], atol=1e-9)
-    assert np.all(fallback.table.log_mass[finite] <= exact.table.log_mass[finite] + 1e-9)
-    assert 0.0 <= fallback.captured_mass <= 1.0
-    if not fallback.posterior.exact:
-        assert fallback.captured_mass < 1.0
-    else:
-        np.testing.assert_allclose(
-            fallback.table.log_mass[finite], exact.table.log_mass[finite], atol=1e-9
-        )
+    forced = with_settings(case.estimator, exact_work_limit=1, beam_width=2)
+    bounded = forced.solve_window(case.scans, case.carried)
+    assert bounded.status in ("exact", "capped", "bounded")
+    table, post = bounded.table, bounded.posterior
+    assert np.all(table.best <= exact.table.best + TOLERANCE)
+    assert np.all(exact.table.best <= table.best_upper + TOLERANCE)
+    assert np.all(table.log_mass <= exact.table.log_mass + TOLERANCE)
+    assert np.all(exact.table.log_mass <= table.log_mass_upper + TOLERANCE)
+    p = exact.posterior.probabilities
+    assert np.all(post.probabilities_lower <= p + 1e-9)
+    assert np.all(p <= post.probabilities_upper + 1e-9)
+    if post.marginal_certain:
+        assert post.marginal_k == exact.posterior.marginal_k
+    if post.joint_certain:
+        assert post.joint_map_k == exact.posterior.joint_map_k
+    assert 0.0 < bounded.captured_mass <= 1.0
+    if bounded.bounded_clusters and not post.exact:
+        assert bounded.status == "bounded"
+
+
+def test_bounded_path_is_exercised_by_the_random_windows() -> None:
+    used = 0
+    for seed in range(25):
+        case = random_window(seed)
+        forced = with_settings(case.estimator, exact_work_limit=1, beam_width=2)
+        used += bool(forced.solve_window(case.scans, case.carried).bounded_clusters)
+    assert used >= 10
 
 
 @pytest.mark.parametrize("seed", range(40))
@@ -114,12 +197,12 @@ def test_bound_pruning_keeps_the_best_set(seed: int) -> None:
         max_tracks=12,
     )
     estimator = WindowEstimator(config=config)
-    keep = estimator._bound_prune(problem)
-    full = exact_cardinality_table(problem, 12, node_limit=10**6)
+    keep = estimator.cluster_solver.bound_prune(problem, deadline=math.inf)
+    full = exact_cardinality_table(problem, 12, work_limit=10**7)
     if keep is None:
         return
     kept = problem.subproblem(np.flatnonzero(keep))
-    pruned = exact_cardinality_table(kept, 12, node_limit=10**6)
+    pruned = exact_cardinality_table(kept, 12, work_limit=10**7)
     assert np.max(pruned.best) == pytest.approx(np.max(full.best), abs=1e-9)
     assert np.all(pruned.best <= full.best + 1e-9)
     # Every dropped hypothesis is in no set within the ratio of the best.
@@ -130,3 +213,18 @@ def test_bound_pruning_keeps_the_best_set(seed: int) -> None:
         result = HighsSolver().solve(forced)
         assert result.status is SolveStatus.INFEASIBLE or result.objective < best_all - 2.0 + 1e-9
     assert math.isfinite(best_all)
+
+
+def test_frontier_search_has_no_recursion_limit() -> None:
+    """A chain of 5,000 hypotheses, each sharing a detection with the next."""
+    from mapassoc.formulations.packing import PackingProblem
+
+    n = 5000
+    pairs = [[i, i + 1] for i in range(n)]
+    problem = PackingProblem(
+        np.full(n, 0.5), np.arange(0, 2 * n + 1, 2), np.array(list(itertools.chain(*pairs))),
+        np.zeros(n + 1, bool), np.ones(n, bool),
+    )
+    table = exact_cardinality_table(problem, 3)
+    # Best with k chosen: any k non-adjacent links, score 0.5 k.
+    np.testing.assert_allclose(table.best, [0.0, 0.5, 1.0, 1.5])

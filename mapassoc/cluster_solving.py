@@ -1,0 +1,372 @@
+"""Per-cluster tables within a budget: exact where it fits, certified bounds where not.
+
+Part of the pipeline layer (it wires :mod:`mapassoc.formulations` to
+:mod:`mapassoc.solvers`).  For one cluster of a window (a packing problem whose
+interchangeable hypotheses are merged) :class:`ClusterSolver` returns the per-k table
+of best scores, best sets and log-masses, and says how it got it:
+
+``exact``
+    The frontier search (:mod:`mapassoc.formulations.frontier`) finished within
+    ``exact_work_limit`` transitions: every entry is exact.
+``bounded``
+    The exact search would take more work.  A beam frontier search (``beam_width``
+    frontiers) sums a subset of the feasible sets: lower bounds on every log-mass and a
+    feasible set for every k it reaches.  LP relaxations with the cardinality row,
+    walked outward from the best k, bound the best score of every k from above (the LP
+    value is concave in k, so the supporting line of the last LP bounds every k beyond
+    it); where the beam's set does not meet its LP bound and the k can matter (LP
+    bound within ``map_margin`` of the best set found), the integer program is solved.
+    The LP duals also bound every log-mass from above
+    (:func:`~mapassoc.formulations.bounds.log_mass_upper_bounds`).  So every k gets a
+    best score that is proven optimal, or a proven upper bound that is reported, and
+    the mass gets an interval ``[log_mass, log_mass_upper]``.
+``time_limit``
+    The window's deadline passed: whatever was certified by then is kept, the rest is
+    a narrow beam's lower bound and a dual upper bound.  Never a silent wrong answer.
+
+Work limits are deterministic (transitions, frontiers); the wall-clock deadline is the
+outer guard, so a result depends on the machine's speed only when the status says
+``time_limit``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapassoc.formulations.bounds import fixed_variable_bounds, log_mass_upper_bounds
+from mapassoc.formulations.cardinality import (
+    CardinalityTable,
+    SearchLimitExceeded,
+    exact_cardinality_table,
+)
+from mapassoc.formulations.frontier import frontier_search
+from mapassoc.formulations.packing import PackingProblem, decode_selection, set_packing_program
+from mapassoc.solvers import HighsSolver, LPResult, ProgramSolver, SolveStatus
+
+__all__ = ["ClusterReport", "ClusterSolver", "CLUSTER_STATUSES"]
+
+CLUSTER_STATUSES = ("exact", "bounded", "time_limit")
+"""From best to worst; a window reports the worst of its clusters."""
+
+BOUND_PRUNE_MIN_HYPOTHESES = 30
+"""Clusters with fewer merged hypotheses skip the LP-bound pruning (they are cheap anyway)."""
+
+_EMERGENCY_BEAM = 16
+"""Beam width once the deadline has passed: a feasible set per k at little cost."""
+
+_NEGLIGIBLE_LOG_MASS = 50.0
+"""A k whose mass bound is this far below the mass found holds < e^-50 of it."""
+
+_MU_GRID = np.linspace(-30.0, 30.0, 121)
+"""Cardinality multipliers tried for the mass bound of k values no LP reached."""
+
+
+@dataclass(frozen=True)
+class ClusterReport:
+    """How one cluster was solved.
+
+    Attributes
+    ----------
+    size : int
+        Merged hypotheses in the cluster (after bound pruning).
+    status : {"exact", "bounded", "time_limit"}
+    work : int
+        Transitions of the frontier searches.
+    solves : int
+        Linear and integer programs solved.
+    log_captured : float
+        Lower bound on log(mass summed / mass of all sets): 0 when exact.
+    seconds : float
+    """
+
+    size: int
+    status: str
+    work: int
+    solves: int
+    log_captured: float
+    seconds: float
+
+
+def _remaining(deadline: float) -> float | None:
+    """Seconds left before ``deadline`` for a solver's time limit (``None``: no limit)."""
+    return None if math.isinf(deadline) else max(deadline - time.perf_counter(), 1e-3)
+
+
+def _log_sum(values: NDArray[np.float64]) -> float:
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return -math.inf
+    return float(np.logaddexp.reduce(finite))
+
+
+class ClusterSolver:
+    """Solves the clusters of a window: exact frontier search, else certified bounds.
+
+    Parameters
+    ----------
+    solver : ProgramSolver
+        Exact integer-program backend.
+    lp_solver : HighsSolver
+        Backend of the LP relaxations (it must return duals).
+    exact_work_limit : int
+        Transitions the exact frontier search may take per cluster.
+    beam_width : int
+        Frontiers the beam search keeps when the exact search does not fit.
+    prune_log_ratio : float
+        Hypotheses whose LP bound is this far below the cluster's best set are dropped
+        before the search (documented pruning; ``inf`` disables).
+    map_margin : float
+        A k whose LP bound is this far below the best set found is not solved as an
+        integer program; its best score is reported as bounded.
+    """
+
+    def __init__(
+        self,
+        *,
+        solver: ProgramSolver,
+        lp_solver: HighsSolver,
+        exact_work_limit: int,
+        beam_width: int,
+        prune_log_ratio: float,
+        map_margin: float = 30.0,
+    ) -> None:
+        self.solver = solver
+        self.lp_solver = lp_solver
+        self.exact_work_limit = int(exact_work_limit)
+        self.beam_width = int(beam_width)
+        self.prune_log_ratio = float(prune_log_ratio)
+        self.map_margin = float(map_margin)
+
+    # -- pruning -----------------------------------------------------------------------
+    def bound_prune(self, problem: PackingProblem, deadline: float) -> NDArray[np.bool_] | None:
+        """Hypotheses that can be in a set within ``prune_log_ratio`` of the cluster's best.
+
+        One LP relaxation (K free) gives duals; every set containing hypothesis h scores at
+        most its fixed-variable Lagrangian bound (:mod:`mapassoc.formulations.bounds`).
+        Hypotheses whose bound is more than ``prune_log_ratio`` below the best integer set
+        are dropped across trees (duplicates of carried tracks, mostly).  The best set
+        itself always survives, and so does every hypothesis that uses no detection.
+        Returns ``None`` when nothing is pruned, the cluster is too small to bother
+        (fewer than :data:`BOUND_PRUNE_MIN_HYPOTHESES`) or the deadline has passed.
+        """
+        ratio = self.prune_log_ratio
+        if problem.num_hypotheses < BOUND_PRUNE_MIN_HYPOTHESES or not math.isfinite(ratio):
+            return None
+        if time.perf_counter() >= deadline:
+            return None
+        program = set_packing_program(problem, None)
+        lp = self.lp_solver.solve_relaxation(program, time_limit=_remaining(deadline))
+        if lp.status is not SolveStatus.OPTIMAL or lp.solution is None:
+            return None
+        x = lp.solution
+        if np.all(np.abs(x - np.round(x)) <= 1e-9):
+            incumbent = lp.objective  # the relaxation is integral: the integer optimum
+        else:
+            if time.perf_counter() >= deadline:
+                return None
+            best = self.solver.solve(program, time_limit=_remaining(deadline))
+            if best.solution is None:
+                return None
+            incumbent = best.objective
+        bounds = fixed_variable_bounds(program, lp.ineq_duals, lp.eq_duals)  # type: ignore[arg-type]
+        keep = bounds >= incumbent - ratio - 1e-9
+        # A hypothesis that uses no detection (a carried track ended, or missed
+        # throughout) is never dropped: with it every K down to 0 stays feasible, so a
+        # K reported infeasible really has no track set.
+        uses_detection = np.zeros(problem.num_hypotheses, dtype=bool)
+        owner = np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr))
+        uses_detection[owner[~problem.exactly_one[problem.resource_indices]]] = True
+        keep |= ~uses_detection
+        return None if np.all(keep) else keep
+
+    # -- tables ------------------------------------------------------------------------
+    def solve(
+        self, problem: PackingProblem, kmax: int, deadline: float
+    ) -> tuple[CardinalityTable, ClusterReport]:
+        """The per-k table of one cluster and how it was obtained.
+
+        The table covers k = 0..min(kmax, counted hypotheses): no set reaches further.
+        """
+        started = time.perf_counter()
+        kmax = min(kmax, int(np.count_nonzero(problem.counts)))
+        try:
+            table = exact_cardinality_table(
+                problem, kmax, work_limit=self.exact_work_limit, deadline=deadline
+            )
+        except SearchLimitExceeded as stop:
+            return self._bounded(problem, kmax, deadline, stop.work, started)
+        return table, ClusterReport(
+            size=problem.num_hypotheses,
+            status="exact",
+            work=0,
+            solves=0,
+            log_captured=0.0,
+            seconds=time.perf_counter() - started,
+        )
+
+    def _bounded(
+        self, problem: PackingProblem, kmax: int, deadline: float, spent: int, started: float
+    ) -> tuple[CardinalityTable, ClusterReport]:
+        limited = time.perf_counter() >= deadline
+        top = min(kmax, int(np.count_nonzero(problem.counts)))
+        size = top + 1
+        # Lower bounds: a beam frontier search (feasible sets, each summed once).
+        beam = None
+        if not limited:
+            try:
+                beam = frontier_search(
+                    problem, top, max_frontiers=self.beam_width, deadline=deadline
+                )
+            except SearchLimitExceeded as stop:
+                spent += stop.work
+                limited = True
+        if beam is None:
+            beam = frontier_search(problem, top, max_frontiers=_EMERGENCY_BEAM)
+        spent += beam.work
+        if beam.exact:  # the beam never had to drop a frontier: it was the exact search
+            table = CardinalityTable(beam.best, beam.log_mass, beam.best_sets, True)
+            return table, ClusterReport(
+                size=problem.num_hypotheses,
+                status="time_limit" if limited else "exact",
+                work=spent,
+                solves=0,
+                log_captured=0.0,
+                seconds=time.perf_counter() - started,
+            )
+        best = beam.best.copy()
+        sets = list(beam.best_sets)
+        log_mass = beam.log_mass.copy()
+        ks = np.arange(size)
+        # Upper bounds valid without any LP: zero resource multipliers, a grid of mu.
+        zeros = np.zeros(problem.num_resources)
+        mass_upper = np.min(
+            [log_mass_upper_bounds(problem, zeros, mu, ks) for mu in _MU_GRID], axis=0
+        )
+        best_upper = mass_upper.copy()  # best(k) <= log-mass(k): log-weights >= scores
+        solves = 0
+        found_best = float(np.max(best))
+        start_k = int(np.argmax(best))
+        for step, k in ((-1, start_k), (1, start_k + 1)):
+            line: tuple[int, float, float, NDArray[np.float64]] | None = None
+            while 0 <= k <= top:
+                if time.perf_counter() >= deadline:
+                    limited = True
+                    break
+                lp = self.lp_solver.solve_relaxation(
+                    set_packing_program(problem, k), time_limit=_remaining(deadline)
+                )
+                solves += 1
+                if lp.status is SolveStatus.INFEASIBLE:
+                    best_upper[k] = mass_upper[k] = -math.inf
+                    best[k], log_mass[k], sets[k] = -math.inf, -math.inf, None
+                    k += step
+                    continue
+                if lp.status is not SolveStatus.OPTIMAL:
+                    limited = True
+                    break
+                multipliers, mu = self._resource_multipliers(problem, lp)
+                best_upper[k] = min(best_upper[k], lp.objective)
+                if best[k] >= best_upper[k] - 1e-9 * (1.0 + abs(best_upper[k])):
+                    best_upper[k] = best[k]  # the beam's set meets the LP bound: optimal
+                at_k = log_mass_upper_bounds(problem, multipliers, mu, np.array([k]))
+                mass_upper[k] = min(mass_upper[k], float(at_k[0]))
+                line = (k, lp.objective, mu, multipliers)
+                if best[k] < best_upper[k] - 1e-9 and best_upper[k] >= found_best - self.map_margin:
+                    status = self._solve_integer(problem, k, deadline, best, sets)
+                    solves += 1
+                    if status is SolveStatus.OPTIMAL:
+                        best_upper[k] = best[k]
+                    elif status is not SolveStatus.INFEASIBLE:
+                        limited = True
+                    found_best = max(found_best, float(best[k]))
+                # Every further k is bounded by the supporting line of the concave LP value.
+                ahead = np.arange(k + step, -1 if step < 0 else size, step)
+                if ahead.size == 0:
+                    break
+                line_best = lp.objective + mu * (ahead - k)
+                line_mass = log_mass_upper_bounds(problem, multipliers, mu, ahead)
+                if np.all(line_best < found_best - self.map_margin) and np.all(
+                    line_mass < _log_sum(log_mass) - _NEGLIGIBLE_LOG_MASS
+                ):
+                    best_upper[ahead] = np.minimum(best_upper[ahead], line_best)
+                    mass_upper[ahead] = np.minimum(mass_upper[ahead], line_mass)
+                    break
+                k += step
+            if line is not None:
+                # Bounds from the last LP in this direction hold for every k beyond it.
+                k_last, value, mu, multipliers = line
+                ahead = np.arange(k_last + step, -1 if step < 0 else size, step)
+                if ahead.size:
+                    best_upper[ahead] = np.minimum(best_upper[ahead], value + mu * (ahead - k_last))
+                    mass_upper[ahead] = np.minimum(
+                        mass_upper[ahead], log_mass_upper_bounds(problem, multipliers, mu, ahead)
+                    )
+        # A bound below what was found can only be round-off of the LP and the
+        # product; bounds must never claim less than a set that exists.
+        slack = 1e-7 * (1.0 + np.abs(best))
+        if np.any(np.isfinite(best) & (best_upper < best - slack)):
+            raise RuntimeError("an LP upper bound fell below a feasible set's score")
+        best_upper = np.maximum(best_upper, best)
+        mass_upper = np.maximum(mass_upper, log_mass)
+        table = CardinalityTable(
+            best, log_mass, tuple(sets), False, best_upper, mass_upper
+        )
+        found, bound = _log_sum(log_mass), _log_sum(mass_upper)
+        return table, ClusterReport(
+            size=problem.num_hypotheses,
+            status="time_limit" if limited else "bounded",
+            work=spent,
+            solves=solves,
+            log_captured=found - bound if math.isfinite(bound) else 0.0,
+            seconds=time.perf_counter() - started,
+        )
+
+    def _solve_integer(
+        self,
+        problem: PackingProblem,
+        k: int,
+        deadline: float,
+        best: NDArray[np.float64],
+        sets: list[tuple[int, ...] | None],
+    ) -> SolveStatus:
+        """Solve the integer program of k; keep its set if it beats the beam's."""
+        if time.perf_counter() >= deadline:
+            return SolveStatus.TIME_LIMIT
+        result = self.solver.solve(set_packing_program(problem, k), time_limit=_remaining(deadline))
+        if result.solution is not None and result.status in (
+            SolveStatus.OPTIMAL,
+            SolveStatus.TIME_LIMIT,
+            SolveStatus.WORK_LIMIT,
+        ):
+            chosen = decode_selection(result.solution)
+            if not problem.is_feasible(chosen, k):
+                raise RuntimeError(
+                    f"solver {result.solver!r} returned an infeasible set for k={k}"
+                )
+            score = problem.value(chosen)
+            if score > best[k] or sets[k] is None:
+                best[k], sets[k] = score, tuple(int(h) for h in chosen)
+        return result.status
+
+    @staticmethod
+    def _resource_multipliers(
+        problem: PackingProblem, lp: LPResult
+    ) -> tuple[NDArray[np.float64], float]:
+        """LP duals as one multiplier per resource and one for the cardinality row.
+
+        Rows of :func:`set_packing_program`: at-most-once resources in use, then
+        exactly-once resources, then the cardinality row.  Unused resources get 0.
+        """
+        usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
+        at_most = np.flatnonzero((usage > 0) & ~problem.exactly_one)
+        exactly = np.flatnonzero(problem.exactly_one)
+        y = np.zeros(problem.num_resources)
+        y[at_most] = lp.ineq_duals  # type: ignore[assignment]
+        eq = np.asarray(lp.eq_duals)
+        y[exactly] = eq[: exactly.size]
+        return y, float(eq[exactly.size])
