@@ -29,12 +29,32 @@ missed                                ``log(1 - Pd_s P_G)`` (P_G: gate probabili
 ended over dt                         ``log(1 - Ps^dt)``
 ====================================  ===============================================
 
-Growth is bounded by a chi-square gate, by keeping at most ``max_hypotheses_per_tree``
-new nodes per tree and scan, and by dropping nodes whose score is more than
-``prune_log_ratio`` below the best of their tree (for a new tree the reference
-includes 0, the score of not selecting the tree).  A carried tree always keeps a leaf
-that uses no detection (ended before the window, or all misses), so pruning never
-makes a window infeasible.
+Growth is bounded by a chi-square gate and by pruning, which compares like with like.
+At each scan a node is dropped
+
+* against its **siblings**, the nodes of the same tree at the same scan (they compete
+  for the same detections: at most one hypothesis of a tree is selected), when its
+  score is more than ``prune_log_ratio`` below the best of them;
+* for a **new tree**, by a **bound on what it can add to a window's best set**: when
+  even an optimistic bound of its final score, its score plus the most its path can
+  still gain over the window's remaining scans
+  (:meth:`HypothesisGenerator.remaining_gain_bounds`), is below ``-prune_log_ratio``.
+  Every hypothesis grown from it then scores below ``-prune_log_ratio``, and removing
+  it from any track set keeps the set feasible (with one track fewer) and raises its
+  score by more than ``prune_log_ratio``: every set containing it is that far below
+  the window's best set over all K.  At the window's last scan the remaining gain is
+  0, so this is a comparison with 0, the score of not selecting the tree.  An earlier
+  node is not compared with 0 directly: a birth among many false alarms scores far
+  below 0 at its first detection (``log(rate Pd / lambda_bar)``, whatever the region's
+  size) and each later detection adds up to
+  ``log Pd - log lambda - 0.5 log det(2 pi R)``;
+* by the cap: at most ``max_hypotheses_per_tree`` nodes per tree and scan survive,
+  the best-scoring ones among those that pass the two tests above.  Nodes cut only by
+  the cap are counted in :attr:`WindowHypotheses.capped`, so that a caller can report
+  that the window's hypotheses are not all those within the ratio.
+
+A carried tree always keeps a leaf that uses no detection (ended before the window, or
+all misses), so pruning never makes a window infeasible.
 """
 
 from __future__ import annotations
@@ -227,7 +247,13 @@ class WindowHypotheses:
     generated : int
         Nodes created (before pruning).
     pruned : int
-        Nodes dropped by the cap and the score ratio.
+        Nodes dropped, by the score-ratio tests and by the cap together.
+    capped : int
+        Of the ``pruned`` nodes, those dropped only by the per-tree cap
+        (``max_hypotheses_per_tree``): they passed the score-ratio tests.  Nonzero means
+        the cap, not the ratio, decided which hypotheses the window has, so the window's
+        tables are not exact over the hypotheses within ``prune_log_ratio``.  (Every
+        node below a capped node is never generated and is not counted.)
     """
 
     scans: tuple[Scan, ...]
@@ -242,6 +268,7 @@ class WindowHypotheses:
     nodes: HypothesisNodes
     generated: int
     pruned: int
+    capped: int = 0
 
     @property
     def count(self) -> int:
@@ -328,7 +355,9 @@ class HypothesisGenerator:
     max_hypotheses_per_tree : int
         Most new nodes kept per tree and scan.
     prune_log_ratio : float
-        Nodes scoring more than this below their tree's best are dropped.
+        Nodes scoring more than this below the best node of their tree at the same scan
+        are dropped, and so are nodes of new trees whose optimistic final score (score
+        plus :meth:`remaining_gain_bounds`) is below minus this (module docstring).
     """
 
     def __init__(
@@ -371,6 +400,100 @@ class HypothesisGenerator:
     def _log_miss(self, sensor: Sensor) -> float:
         p = sensor.detection_probability * self.gate_probability
         return math.log1p(-p) if p < 1.0 else -math.inf
+
+    # -- bounds for pruning ----------------------------------------------------------
+    def continuation_gain_bound(self, sensor: Sensor) -> float:
+        """Upper bound ``b_s`` of the term a continuation by a detection of ``sensor`` adds.
+
+        The term is ``dt log Ps + log Pd_s + log N(nu; 0, S) - log lambda_s`` (module
+        table; ``docs/model.md`` section 2, ``score_tau``), and
+
+            b_s = log Pd_s - log lambda_s - 0.5 log det(2 pi R_s)
+
+        bounds it for every state of the track, every detection and every time step
+        (proof in :meth:`remaining_gain_bounds`).  ``R_s`` is the sensor's measurement
+        noise covariance, for linear and range-bearing measurements alike.
+
+        Parameters
+        ----------
+        sensor : Sensor
+
+        Returns
+        -------
+        float
+            ``b_s``; it may be negative (then a continuation always lowers the score).
+
+        Raises
+        ------
+        InputError
+            When ``R_s`` is not positive-definite.
+        """
+        R = np.asarray(sensor.measurement.noise_covariance, dtype=float)
+        sign, logdet = np.linalg.slogdet(2.0 * math.pi * R)
+        if sign <= 0 or not math.isfinite(logdet):
+            raise InputError(
+                f"sensor '{sensor.name}' measurement noise covariance R={R.tolist()} must be "
+                "positive-definite (det R > 0) to bound the innovation likelihood"
+            )
+        return math.log(sensor.detection_probability) - sensor.log_clutter_density - 0.5 * logdet
+
+    def remaining_gain_bounds(self, scans: Sequence[Scan]) -> FloatArray:
+        """``G_j``, the most a path alive at scan ``j`` can still gain by the window's end.
+
+        With ``b_k`` the :meth:`continuation_gain_bound` of scan ``k``'s sensor and ``N``
+        scans in the window,
+
+            G_j = sum_{k = j+1}^{N-1} max(0, b_k),    G_{N-1} = 0.
+
+        **Why this is an upper bound.**  Let ``v`` be an alive node at scan ``j`` with
+        score ``s_v``.  A hypothesis grown from ``v`` adds one term at each later scan
+        ``k`` it reaches (module table; ``docs/model.md`` section 3), until the window's
+        end or its "ended" node:
+
+        * ended over dt: ``log(1 - Ps^dt) <= 0``;
+        * missed: ``dt log Ps + log(1 - Pd_k P_G) <= 0`` (``dt >= 0``, ``Ps <= 1``);
+        * continued by a detection: ``dt log Ps + log Pd_k + log N(nu; 0, S) - log
+          lambda_k``.  The Gaussian density (seed 000, eq. 3) is
+          ``log N(nu; 0, S) = -0.5 log det(2 pi S) - 0.5 nu^T S^-1 nu
+          <= -0.5 log det(2 pi S)``.  The innovation covariance is
+          ``S = H P H^T + R`` (seed 000, section 4.3; for the EKF H is the Jacobian of
+          the range-bearing model, the same form), and ``H P H^T`` is positive
+          semidefinite, so ``det S = det R det(I + R^-1/2 H P H^T R^-1/2) >= det R``
+          (the second factor is a product of eigenvalues >= 1).  With ``dt log Ps <= 0``
+          the term is at most ``b_k``.
+
+        Each term is thus at most ``max(0, b_k)``, and a path gains at most one term per
+        later scan, so every hypothesis grown from ``v`` scores at most ``s_v + G_j``,
+        whatever the track's covariance, the gate and the detections.  A node that has
+        ended gains nothing more: its bound is its score.
+
+        Parameters
+        ----------
+        scans : sequence of Scan
+            The window's scans in time order.
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            ``G_j`` for every scan position ``j``; non-increasing, last entry 0.
+
+        Raises
+        ------
+        InputError
+            When a scan names a sensor the generator does not know.
+        """
+        per_scan = np.zeros(len(scans))
+        for k, scan in enumerate(scans):
+            sensor = self.sensors.get(scan.sensor)
+            if sensor is None:
+                raise InputError(
+                    f"scan at time {scan.time} names sensor '{scan.sensor}', which is not "
+                    f"configured (known: {sorted(self.sensors)})"
+                )
+            per_scan[k] = max(0.0, self.continuation_gain_bound(sensor))
+        # G_j = sum over k > j: reversed cumulative sum, shifted by one scan.
+        from_here = np.cumsum(per_scan[::-1])[::-1]
+        return np.concatenate([from_here[1:], [0.0]])
 
     # -- main entry ------------------------------------------------------------------
     def generate(
@@ -456,6 +579,8 @@ class HypothesisGenerator:
         node_count = 0
         generated = 0
         pruned = 0
+        capped = 0
+        remaining_gain = self.remaining_gain_bounds(scans)
 
         # Frontier: alive nodes to grow at the next scan.
         frontier = self._carried_frontier(carried)
@@ -478,8 +603,13 @@ class HypothesisGenerator:
             means = np.concatenate([p[0] for p in padded])
             covs = np.concatenate([p[1] for p in padded])
             generated += len(cat["score"])
-            keep = self._prune_mask(cat["tree"], cat["score"], cat["protected"], is_new_tree)
+            # An ended node gains nothing more; an alive one at most G_j.
+            gain = np.where(cat["alive"], remaining_gain[j], 0.0)
+            keep, cut_by_cap = self._prune_mask(
+                cat["tree"], cat["score"], cat["protected"], is_new_tree, gain
+            )
             pruned += int(np.count_nonzero(~keep))
+            capped += cut_by_cap
             ids = node_count + np.arange(int(np.count_nonzero(keep)))
             node_count += len(ids)
             for name in _LAYER_FIELDS:
@@ -563,6 +693,7 @@ class HypothesisGenerator:
             nodes=nodes,
             generated=generated,
             pruned=pruned,
+            capped=capped,
         )
 
     # -- pieces ----------------------------------------------------------------------
@@ -763,22 +894,62 @@ class HypothesisGenerator:
         score: FloatArray,
         protected: NDArray[np.bool_],
         is_new_tree: NDArray[np.bool_],
-    ) -> NDArray[np.bool_]:
-        """Keep per tree the best nodes within the score ratio, up to the cap."""
+        gain: FloatArray,
+    ) -> tuple[NDArray[np.bool_], int]:
+        """Which nodes of one scan's layer are kept, and how many the cap alone cut.
+
+        A node passes the score-ratio tests when
+
+        * ``score >= best - prune_log_ratio``, ``best`` the highest score of its tree in
+          this layer (siblings, which compete for the same detections); and, for a node
+          of a new tree,
+        * ``score + gain >= -prune_log_ratio``: ``gain`` bounds what its path can still
+          add (:meth:`remaining_gain_bounds`), so a node failing this has only
+          descendants scoring below ``-prune_log_ratio``.  A new tree's hypothesis has no
+          "exactly one" constraint, so removing such a hypothesis from a track set keeps
+          the set feasible and raises its score by more than ``prune_log_ratio``: it is
+          dropped by a bound on what it can add to a window's best set.
+
+        Of the nodes that pass, the ``max_hypotheses_per_tree`` best-scoring of each tree
+        are kept (ties by position); protected nodes are always kept.
+
+        Parameters
+        ----------
+        tree : ndarray of int, shape (L,)
+        score : ndarray, shape (L,)
+        protected : ndarray of bool, shape (L,)
+        is_new_tree : ndarray of bool, shape (T,)
+            Per tree of the window so far.
+        gain : ndarray, shape (L,)
+            Upper bound of what each node's path can still gain (0 for an ended node).
+
+        Returns
+        -------
+        keep : ndarray of bool, shape (L,)
+        capped : int
+            Unprotected nodes that passed the score-ratio tests but not the cap.
+        """
+        ratio = self.prune_log_ratio
         order = np.lexsort((np.arange(len(score)), -score, tree))
         t_sorted = tree[order]
-        starts = np.flatnonzero(np.r_[True, t_sorted[1:] != t_sorted[:-1]])
-        group_id = np.cumsum(np.r_[False, t_sorted[1:] != t_sorted[:-1]])
-        rank = np.arange(len(order)) - starts[group_id]
-        best = score[order][starts][group_id]
-        # A new tree may also not be selected at all, which scores 0.
-        reference = np.where(is_new_tree[t_sorted], np.maximum(best, 0.0), best)
-        ok = (rank < self.max_hypotheses_per_tree) & (
-            score[order] >= reference - self.prune_log_ratio
-        )
+        s_sorted = score[order]
+        new_group = np.r_[True, t_sorted[1:] != t_sorted[:-1]]
+        starts = np.flatnonzero(new_group)
+        group_id = np.cumsum(new_group) - 1
+        best = s_sorted[starts][group_id]
+        passes = s_sorted >= best - ratio
+        passes &= ~is_new_tree[t_sorted] | (s_sorted + gain[order] >= -ratio)
+        # Rank among the nodes of the tree that pass (a node dropped by the bound takes
+        # no place under the cap).
+        passed_before = np.cumsum(passes) - passes
+        rank = passed_before - passed_before[starts][group_id]
+        ok = passes & (rank < self.max_hypotheses_per_tree)
         keep = np.zeros(len(score), dtype=bool)
         keep[order] = ok
-        return keep | protected
+        cut_by_cap = np.zeros(len(score), dtype=bool)
+        cut_by_cap[order] = passes & ~ok
+        cut_by_cap &= ~protected
+        return keep | protected, int(np.count_nonzero(cut_by_cap))
 
     @staticmethod
     def _check_carried_have_leaves(leaf_trees: IntArray, num_carried: int) -> None:
