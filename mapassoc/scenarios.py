@@ -2,17 +2,26 @@
 
 Each scenario fixes a geometry (targets, sensors, scan times) and takes the seed of the
 random realisation (process noise, detections, false alarms): ``build_scenario(name, seed)``.
-The geometry does not depend on the seed; the layouts of ``"dense"`` and ``"dense50"`` are
-drawn once from a fixed layout seed.
+The geometry does not depend on the seed; the random layouts (``"dense"``, ``"dense50"``,
+``"dense_pd08"``, the ``"scale*"`` family and ``"burst"``) are drawn once from fixed layout
+seeds.
+
+The hard families stress one difficulty each: ``"parallel"`` (a close formation, targets
+2.5 noise standard deviations apart), ``"dense_pd08"`` (missed detections in heavy
+clutter), ``"scale20"`` / ``"scale50"`` / ``"scale100"`` (size at a fixed density) and
+``"burst"`` (one scan flooded by 2,000 extra false alarms).  :func:`generic_config` gives
+the configuration the benchmark runs them with, the same recipe for every family.
 
 Every scenario's configuration matches its simulation: the same motion model and noise,
 the simulated sensors, a :class:`~mapassoc.settings.BirthModel` derived from the targets
 (:func:`birth_model_for`) and default :class:`~mapassoc.settings.EstimatorSettings` except
-``max_tracks`` (:func:`max_tracks_for`).
+``max_tracks`` (:func:`max_tracks_for`).  The one exception is ``"burst"``, whose
+configuration keeps the normal false-alarm rate: the burst is what it should survive.
 
-Speeds are 1-3 length units per unit time with position noise of standard deviation 1 and
-scans one time unit apart, so every target is trackable on its own; the difficulty comes
-from crossings, false alarms and missed detections.
+Speeds are 1-3 length units per unit time (about 1 in the hard families) with position
+noise of standard deviation 1 (think 10 m) and scans one time unit apart, so every target
+is trackable on its own; the difficulty comes from crossings, close formations, false
+alarms and missed detections.
 """
 
 from __future__ import annotations
@@ -25,8 +34,10 @@ from numpy.typing import NDArray
 
 from mapassoc.config import Config
 from mapassoc.errors import InputError
+from mapassoc.io import Origins, TruthTable, number_rows
 from mapassoc.measurement import LinearMeasurement, RangeBearing
 from mapassoc.motion import ConstantVelocity, CoordinatedTurn, MotionModel
+from mapassoc.scans import Scan
 from mapassoc.sensor import Region, Sensor
 from mapassoc.settings import BirthModel, EstimatorSettings
 from mapassoc.simulate import Scenario, TargetSpec, scan_plan_regular, simulate
@@ -39,6 +50,17 @@ __all__ = [
     "describe_scenario",
     "birth_model_for",
     "max_tracks_for",
+    "generic_config",
+    "top_initial_speed",
+    "add_false_alarms",
+    "truncate_scenario",
+    "PARALLEL_SPACING",
+    "SCALE_AREA_PER_TARGET",
+    "SCALE_FALSE_ALARMS_PER_AREA",
+    "BURST_SCAN",
+    "BURST_FALSE_ALARMS",
+    "GENERIC_BIRTH_RATE",
+    "GENERIC_INITIAL_COUNT",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -53,8 +75,32 @@ _CV_NOISE = 0.002
 # Coordinated-turn noise: along-track acceleration and turn-rate derivative intensities.
 _CT_SPEED_NOISE = 0.001
 _CT_TURN_NOISE = 1e-6
-# Fixed seed of the random layouts of "dense" and "dense50" (geometry, not noise).
+# Fixed seed of the random layouts of "dense" and "dense50" (geometry, not noise); the
+# other random layouts use fixed offsets from it.
 _LAYOUT_SEED = 20240601
+# Acceleration noise intensity of the "parallel" formation: neighbours' across-track
+# distance drifts by sqrt(2 q t^3 / 3) ~ 0.9 units over 40 scans, so they stay abreast.
+_FORMATION_NOISE = 2e-5
+# Acceleration noise intensity of "dense_pd08", the "scale*" family and "burst", whose
+# targets move at about 1 unit per scan: each velocity component wanders by about
+# sqrt(q t) ~ 0.14 over 40 scans, so speeds stay near 1 (with 0.002 they would wander by
+# 0.28, a quarter of the speed).
+_SLOW_CV_NOISE = 5e-4
+
+#: Across-track distance of neighbouring targets in ``"parallel"`` (noise std units).
+PARALLEL_SPACING = 2.5
+#: Region area per target of the ``"scale*"`` family (units^2; 1,000 = 0.1 km^2 at 10 m).
+SCALE_AREA_PER_TARGET = 1_000.0
+#: False alarms per scan per ``SCALE_AREA_PER_TARGET`` of region in the ``"scale*"`` family.
+SCALE_FALSE_ALARMS_PER_AREA = 2.0
+#: Index of the scan of ``"burst"`` that gets the extra false alarms (the middle of 40).
+BURST_SCAN = 20
+#: Extra false alarms in that scan.
+BURST_FALSE_ALARMS = 2000
+#: Birth rate (new targets per scan) of :func:`generic_config`.
+GENERIC_BIRTH_RATE = 0.05
+#: Expected targets present at the start in :func:`generic_config`.
+GENERIC_INITIAL_COUNT = 5.0
 
 
 # --------------------------------------------------------------------------- helpers
@@ -170,12 +216,17 @@ def _scenario(
 
 
 def _position_sensor(
-    motion: MotionModel, half_width: float, false_alarms: float, *, name: str = "pos"
+    motion: MotionModel,
+    half_width: float,
+    false_alarms: float,
+    *,
+    name: str = "pos",
+    detection_probability: float = 0.9,
 ) -> Sensor:
     return Sensor(
         name=name,
         measurement=LinearMeasurement.position(motion, noise_std=1.0),
-        detection_probability=0.9,
+        detection_probability=detection_probability,
         false_alarms_per_scan=false_alarms,
         region=Region.from_bounds([[-half_width, half_width], [-half_width, half_width]]),
     )
@@ -202,13 +253,18 @@ def _inside(point: FloatArray, limit: float) -> bool:
 
 
 def _random_layout(
-    rng: np.random.Generator, half_width: float, n_pairs: int, n_singles: int, n_scans: int
+    rng: np.random.Generator,
+    half_width: float,
+    n_pairs: int,
+    n_singles: int,
+    n_scans: int,
+    speeds: tuple[float, float] = (1.0, 3.0),
 ) -> list[TargetSpec]:
     """Crossing pairs plus independent targets, all inside 90% of the region over their life.
 
     A pair's two noise-free paths meet at the same point at the same time (a crossing in
     time, not only in space), with headings 30 to 150 degrees apart.  Speeds are uniform in
-    [1, 3] per unit time, headings uniform.
+    ``speeds`` (default [1, 3]) per unit time, headings uniform.
     """
     limit = 0.9 * half_width
     targets: list[TargetSpec] = []
@@ -228,7 +284,7 @@ def _random_layout(
         )
         pair = []
         for h in headings:
-            speed = rng.uniform(1.0, 3.0)
+            speed = rng.uniform(*speeds)
             birth, death = _random_life(rng, n_scans, meet_time)
             velocity = (speed * math.cos(h), speed * math.sin(h))
             pair.append(_through((meet[0], meet[1]), meet_time, velocity, birth, death))
@@ -239,7 +295,7 @@ def _random_layout(
         birth, death = _random_life(rng, n_scans, None)
         middle_time = 0.5 * (birth + death)
         middle = rng.uniform(-0.7 * half_width, 0.7 * half_width, size=2)
-        speed = rng.uniform(1.0, 3.0)
+        speed = rng.uniform(*speeds)
         h = rng.uniform(-math.pi, math.pi)
         velocity = (speed * math.cos(h), speed * math.sin(h))
         spec = _through((middle[0], middle[1]), middle_time, velocity, birth, death)
@@ -333,6 +389,350 @@ def two_sensors(seed: int) -> Scenario:
     return _scenario("two_sensors", motion, [position, radar], _crossing_targets(), plan, seed)
 
 
+# --------------------------------------------------------------------------- hard families
+#
+# Length unit: the position noise standard deviation (think 10 m); time unit: one scan.
+# Geometries are fixed (deterministic or drawn from fixed layout seeds); the ``seed``
+# argument drives process noise, detections and false alarms as in the scenarios above.
+
+
+def _square_half_width(area: float) -> float:
+    """Half the side of a square region of the given area."""
+    return 0.5 * math.sqrt(area)
+
+
+def _parallel_targets() -> list[TargetSpec]:
+    """5 targets abreast, ``PARALLEL_SPACING`` apart across track, all moving +x at speed 1."""
+    offsets = (np.arange(5) - 2.0) * PARALLEL_SPACING
+    return [
+        TargetSpec(
+            initial_state=np.array([-20.0, float(y), 1.0, 0.0]),
+            birth_time=0.0,
+            death_time=math.inf,
+        )
+        for y in offsets
+    ]
+
+
+def parallel(seed: int) -> Scenario:
+    """5 CV targets abreast 2.5 apart at speed 1, 20 false alarms/scan over 15,000, 40 scans.
+
+    The formation flies nearly straight: the acceleration noise intensity is
+    ``2e-5`` (instead of the ``0.002`` of the other Cartesian scenarios), so the
+    across-track distance between two neighbours drifts by about 0.9 units (standard
+    deviation) over the 40 scans and the formation keeps its order.
+    """
+    motion = ConstantVelocity(ndim=2, noise_intensity=_FORMATION_NOISE)
+    plan = scan_plan_regular(["pos"], 0.0, 1.0, 40)
+    sensor = _position_sensor(motion, _square_half_width(15_000.0), 20.0)
+    return _scenario("parallel", motion, [sensor], _parallel_targets(), plan, seed)
+
+
+def dense_pd08(seed: int) -> Scenario:
+    """10 CV targets (2 crossing pairs), Pd 0.8, 50 false alarms/scan over 100 x 100.
+
+    Speeds uniform in [0.8, 1.2] per scan, births and deaths, 40 scans.
+    """
+    motion = ConstantVelocity(ndim=2, noise_intensity=_SLOW_CV_NOISE)
+    n_scans = 40
+    half_width = _square_half_width(10_000.0)
+    layout = np.random.default_rng(_LAYOUT_SEED + 108)
+    targets = _random_layout(
+        layout, half_width, n_pairs=2, n_singles=6, n_scans=n_scans, speeds=(0.8, 1.2)
+    )
+    plan = scan_plan_regular(["pos"], 0.0, 1.0, n_scans)
+    sensor = _position_sensor(motion, half_width, 50.0, detection_probability=0.8)
+    return _scenario("dense_pd08", motion, [sensor], targets, plan, seed)
+
+
+def _scale(targets_count: int, seed: int) -> Scenario:
+    """``targets_count`` CV targets at the fixed density of the ``scale*`` family.
+
+    One target per ``SCALE_AREA_PER_TARGET`` units^2 and ``SCALE_FALSE_ALARMS_PER_AREA``
+    false alarms per that area per scan, Pd 0.9, speed 1, uniform headings, births in the
+    first third and some deaths (:func:`_random_life`), 30 scans.
+    """
+    name = f"scale{targets_count}"
+    motion = ConstantVelocity(ndim=2, noise_intensity=_SLOW_CV_NOISE)
+    n_scans = 30
+    area = targets_count * SCALE_AREA_PER_TARGET
+    half_width = _square_half_width(area)
+    layout = np.random.default_rng(_LAYOUT_SEED + 1000 + targets_count)
+    targets = _random_layout(
+        layout, half_width, n_pairs=0, n_singles=targets_count, n_scans=n_scans, speeds=(1.0, 1.0)
+    )
+    plan = scan_plan_regular(["pos"], 0.0, 1.0, n_scans)
+    false_alarms = SCALE_FALSE_ALARMS_PER_AREA * targets_count
+    sensor = _position_sensor(motion, half_width, false_alarms)
+    return _scenario(name, motion, [sensor], targets, plan, seed)
+
+
+def scale20(seed: int) -> Scenario:
+    """20 CV targets over 20,000 units^2, 40 false alarms/scan, 30 scans (``scale`` family)."""
+    return _scale(20, seed)
+
+
+def scale50(seed: int) -> Scenario:
+    """50 CV targets over 50,000 units^2, 100 false alarms/scan, 30 scans (``scale`` family)."""
+    return _scale(50, seed)
+
+
+def scale100(seed: int) -> Scenario:
+    """100 CV targets over 100,000 units^2, 200 false alarms/scan, 30 scans (``scale`` family)."""
+    return _scale(100, seed)
+
+
+def burst(seed: int, extra_false_alarms: int = BURST_FALSE_ALARMS) -> Scenario:
+    """10 CV targets, 20 false alarms/scan, and one scan with a burst of extra false alarms.
+
+    The geometry: 2 crossing pairs and 6 independent targets at speed 1-2 in a 200 x 200
+    region, Pd 0.9, 40 scans.  Scan ``BURST_SCAN`` (the middle one) gets
+    ``extra_false_alarms`` more false alarms uniform over the region
+    (:func:`add_false_alarms`, drawn from ``seed``); the configuration keeps 20 false
+    alarms per scan, as an estimator configured for the normal clutter would.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the realisation.
+    extra_false_alarms : int
+        Size of the burst (default ``BURST_FALSE_ALARMS`` = 2000; 0 gives the scenario
+        without the burst, every other draw unchanged).
+    """
+    motion = ConstantVelocity(ndim=2, noise_intensity=_SLOW_CV_NOISE)
+    n_scans = 40
+    half_width = 100.0
+    layout = np.random.default_rng(_LAYOUT_SEED + 2000)
+    targets = _random_layout(
+        layout, half_width, n_pairs=2, n_singles=6, n_scans=n_scans, speeds=(1.0, 2.0)
+    )
+    plan = scan_plan_regular(["pos"], 0.0, 1.0, n_scans)
+    sensor = _position_sensor(motion, half_width, 20.0)
+    base = _scenario("burst", motion, [sensor], targets, plan, seed)
+    return add_false_alarms(base, BURST_SCAN, extra_false_alarms, seed=seed)
+
+
+# --------------------------------------------------------------------------- transformations
+
+
+def _check_count(name: str, value: object, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _origin_of_rows(origins: Origins, rows: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Target id (or -1) of each detection row, looked up in ``origins``."""
+    order = np.argsort(origins.rows, kind="stable")
+    sorted_rows = origins.rows[order]
+    where = np.searchsorted(sorted_rows, rows)
+    found = where < sorted_rows.shape[0]
+    found[found] = sorted_rows[where[found]] == rows[found]
+    if not np.all(found):
+        missing = rows[~found].tolist()
+        raise InputError(f"scenario origins have no entry for detection rows {missing[:5]!r}")
+    return origins.target_ids[order][where].astype(np.int64)
+
+
+def add_false_alarms(scenario: Scenario, scan_index: int, count: int, *, seed: int) -> Scenario:
+    """A copy of ``scenario`` with ``count`` extra false alarms in one scan.
+
+    The extra false alarms are uniform over the region of the scan's sensor and shuffled
+    into the scan with its detections; every scan's rows are renumbered as the
+    detections file numbers them (:func:`~mapassoc.io.number_rows`) and the origins
+    follow their detections (the new ones are ``-1``).  The truth and the configuration
+    are unchanged.  ``count == 0`` returns the scenario as is.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    scan_index : int
+        Index of the scan in ``scenario.scans`` (0-based).
+    count : int
+        Number of false alarms to add, >= 0.
+    seed : int
+        Non-negative seed of the positions and the shuffle
+        (``numpy.random.default_rng(seed)``).
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    InputError
+        ``scan_index`` out of range, a negative ``count`` or a bad ``seed``.
+    """
+    if not isinstance(scenario, Scenario):
+        raise InputError(f"scenario must be a Scenario, got {scenario!r}")
+    n_scans = len(scenario.scans)
+    index = _check_count("scan_index", scan_index, 0)
+    if index >= n_scans:
+        raise InputError(
+            f"scan_index must be < the number of scans ({n_scans}) of scenario "
+            f"{scenario.name!r}, got {scan_index!r}"
+        )
+    extra = _check_count("count", count, 0)
+    rng = np.random.default_rng(_check_count("seed", seed, 0))
+    if extra == 0:
+        return scenario
+    target = scenario.scans[index]
+    region = scenario.config.sensors[target.sensor].region
+    clutter = region.sample(rng, extra).reshape(extra, -1)
+    detections = np.concatenate([target.detections, clutter])
+    origin = np.concatenate(
+        [_origin_of_rows(scenario.origins, target.rows), -np.ones(extra, np.int64)]
+    )
+    order = rng.permutation(detections.shape[0])
+    raw = list(scenario.scans)
+    raw[index] = Scan(
+        time=target.time,
+        sensor=target.sensor,
+        detections=detections[order],
+        rows=np.arange(detections.shape[0], dtype=np.int64),
+    )
+    per_scan = [_origin_of_rows(scenario.origins, scan.rows) for scan in scenario.scans]
+    per_scan[index] = origin[order]
+    scans = number_rows(raw)
+    rows = np.concatenate([scan.rows for scan in scans])
+    ids = np.concatenate(per_scan)
+    by_row = np.argsort(rows, kind="stable")
+    return Scenario(
+        name=scenario.name,
+        config=scenario.config,
+        scans=scans,
+        truth=scenario.truth,
+        origins=Origins(rows=rows[by_row], target_ids=ids[by_row]),
+    )
+
+
+def truncate_scenario(scenario: Scenario, n_scans: int) -> Scenario:
+    """The first ``n_scans`` scans of a scenario, with their truth and origins.
+
+    Truth records after the last kept scan time are dropped, and so are the origins of
+    the dropped detections; rows keep their numbers (the kept scans are the start of the
+    detections file).  ``n_scans`` at least the number of scans returns the scenario as is.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    n_scans : int
+        Scans to keep, >= 1.
+
+    Raises
+    ------
+    InputError
+        ``n_scans`` not an integer >= 1.
+    """
+    if not isinstance(scenario, Scenario):
+        raise InputError(f"scenario must be a Scenario, got {scenario!r}")
+    keep = _check_count("n_scans", n_scans, 1)
+    if keep >= len(scenario.scans):
+        return scenario
+    scans = list(scenario.scans[:keep])
+    last_time = scans[-1].time
+    truth = scenario.truth
+    alive = truth.times <= last_time
+    kept_rows = np.concatenate([scan.rows for scan in scans])
+    in_kept = np.isin(scenario.origins.rows, kept_rows)
+    return Scenario(
+        name=scenario.name,
+        config=scenario.config,
+        scans=scans,
+        truth=TruthTable(
+            target_ids=truth.target_ids[alive],
+            times=truth.times[alive],
+            states=truth.states[alive],
+            state_names=truth.state_names,
+        ),
+        origins=Origins(
+            rows=scenario.origins.rows[in_kept], target_ids=scenario.origins.target_ids[in_kept]
+        ),
+    )
+
+
+# --------------------------------------------------------------------------- generic configuration
+
+
+def top_initial_speed(scenario: Scenario) -> float:
+    """Largest speed of any target at its first truth record.
+
+    The first record is the target's initial state when it is born at a scan time (as in
+    every built-in scenario).
+
+    Raises
+    ------
+    InputError
+        The scenario has no target.
+    """
+    truth = scenario.truth
+    if truth.size == 0:
+        raise InputError(f"scenario {scenario.name!r} has no target (empty truth)")
+    order = np.lexsort((truth.times, truth.target_ids))
+    ids = truth.target_ids[order]
+    first = order[np.concatenate([[True], ids[1:] != ids[:-1]])]
+    motion = scenario.config.motion
+    return max(_speed(motion, truth.states[i]) for i in first)
+
+
+def generic_config(
+    scenario: Scenario,
+    *,
+    window_length: int | None = None,
+    time_limit: float | None = None,
+) -> Config:
+    """The one configuration the benchmark uses for every family, not tuned per family.
+
+    Keeps the scenario's motion model and sensors (what a user knows about the platform
+    and the radar) and replaces what would otherwise be fitted to the simulated truth:
+
+    * ``BirthModel(rate=0.05, initial_count=5.0, velocity_std=v)`` with ``v`` the top
+      initial target speed (:func:`top_initial_speed`), every other field default;
+    * ``EstimatorSettings(max_tracks=2 * m)`` with ``m`` the most detections in any scan
+      of ``scenario`` (so a truncated scenario gets its own ``m``), every other setting
+      default except ``window_length`` and ``time_limit`` when given.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    window_length : int, optional
+        Scans per window (default: the :class:`~mapassoc.settings.EstimatorSettings`
+        default).
+    time_limit : float, optional
+        Seconds per solve (default: the settings default).
+
+    Returns
+    -------
+    Config
+
+    Raises
+    ------
+    InputError
+        The scenario has no target or no scan, or a bad ``window_length`` or
+        ``time_limit``.
+    """
+    if not isinstance(scenario, Scenario):
+        raise InputError(f"scenario must be a Scenario, got {scenario!r}")
+    if not scenario.scans:
+        raise InputError(f"scenario {scenario.name!r} has no scan")
+    most = max(scan.size for scan in scenario.scans)
+    overrides: dict[str, object] = {}
+    if window_length is not None:
+        overrides["window_length"] = window_length
+    if time_limit is not None:
+        overrides["time_limit"] = time_limit
+    return Config(
+        motion=scenario.config.motion,
+        sensors=dict(scenario.config.sensors),
+        birth=BirthModel(
+            rate=GENERIC_BIRTH_RATE,
+            initial_count=GENERIC_INITIAL_COUNT,
+            velocity_std=top_initial_speed(scenario),
+        ),
+        estimator=EstimatorSettings(max_tracks=2 * most, **overrides),  # type: ignore[arg-type]
+    )
+
+
 # --------------------------------------------------------------------------- registry
 
 SCENARIOS: dict[str, Callable[[int], Scenario]] = {
@@ -341,6 +741,12 @@ SCENARIOS: dict[str, Callable[[int], Scenario]] = {
     "dense50": dense50,
     "turning": turning,
     "two_sensors": two_sensors,
+    "parallel": parallel,
+    "dense_pd08": dense_pd08,
+    "scale20": scale20,
+    "scale50": scale50,
+    "scale100": scale100,
+    "burst": burst,
 }
 
 _DESCRIPTIONS: dict[str, str] = {
@@ -363,6 +769,30 @@ _DESCRIPTIONS: dict[str, str] = {
     "two_sensors": (
         "the 4 crossing targets seen by a position sensor and a range-bearing radar below "
         "the region, scans interleaved by half an interval; Pd 0.9, 10 false alarms/scan each"
+    ),
+    "parallel": (
+        "5 constant-velocity targets abreast, 2.5 apart, speed 1, nearly straight; Pd 0.9, "
+        "20 false alarms/scan over 15,000 units^2, 40 scans"
+    ),
+    "dense_pd08": (
+        "10 constant-velocity targets (2 crossing pairs) at speed ~1 in a 100x100 region, "
+        "births and deaths; Pd 0.8, 50 false alarms/scan, 40 scans"
+    ),
+    "scale20": (
+        "20 constant-velocity targets at speed 1, random headings, births and deaths, one "
+        "per 1,000 units^2; Pd 0.9, 40 false alarms/scan (2 per 1,000 units^2), 30 scans"
+    ),
+    "scale50": (
+        "50 targets at the density of 'scale20' (50,000 units^2); Pd 0.9, 100 false "
+        "alarms/scan, 30 scans"
+    ),
+    "scale100": (
+        "100 targets at the density of 'scale20' (100,000 units^2); Pd 0.9, 200 false "
+        "alarms/scan, 30 scans"
+    ),
+    "burst": (
+        "10 constant-velocity targets (2 crossing pairs) in a 200x200 region; Pd 0.9, 20 "
+        "false alarms/scan and 2,000 extra in scan 20 of 40"
     ),
 }
 
