@@ -74,18 +74,19 @@ def exclusive_groups(problem: PackingProblem) -> tuple[NDArray[np.int64], NDArra
     H = problem.num_hypotheses
     R = problem.num_resources
     usage = np.bincount(problem.resource_indices, minlength=R)
-    key = np.empty(H, dtype=np.int64)
-    for h in range(H):
-        resources = problem.resources_of(h)
-        if resources.size == 0:
-            key[h] = R + h
-            continue
-        required = resources[problem.exactly_one[resources]]
-        if required.size:
-            key[h] = int(required.min())
-        else:
-            top = usage[resources].max()
-            key[h] = int(resources[usage[resources] == top].min())
+    owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
+    resources = problem.resource_indices
+    # Exactly-once resource (the lowest if several), else the most used (lowest on ties).
+    required = np.full(H, R, dtype=np.int64)
+    is_required = problem.exactly_one[resources]
+    np.minimum.at(required, owner[is_required], resources[is_required])
+    rank = usage[resources] * (R + 1) + (R - resources)
+    top = np.full(H, -1, dtype=np.int64)
+    np.maximum.at(top, owner, rank)
+    most_used = np.where(top >= 0, R - top % (R + 1), 0)
+    key = np.where(
+        required < R, required, np.where(top >= 0, most_used, R + np.arange(H))
+    ).astype(np.int64)
     labels, group_of = np.unique(key, return_inverse=True)
     members = np.bincount(group_of, minlength=labels.size)
     closed = np.zeros(labels.size, dtype=bool)
@@ -101,6 +102,7 @@ def log_mass_upper_bounds(
     resource_multipliers: NDArray[np.float64],
     count_multiplier: float,
     ks: NDArray[np.int64],
+    groups: tuple[NDArray[np.int64], NDArray[np.bool_]] | None = None,
 ) -> NDArray[np.float64]:
     """Upper bounds on the log-mass of the feasible sets with k counted, for each k in ks.
 
@@ -125,11 +127,12 @@ def log_mass_upper_bounds(
     resource_multipliers : ndarray, shape (R,)
     count_multiplier : float
     ks : ndarray of int, shape (m,)
+    groups : tuple, optional
+        :func:`exclusive_groups` of the problem, when the caller has it already.
 
     Returns
     -------
     ndarray, shape (m,)
-        ``-inf`` where a closed group is empty (no feasible set).
     """
     y = np.asarray(resource_multipliers, dtype=float)
     if y.shape != (problem.num_resources,) or not np.all(np.isfinite(y)):
@@ -143,7 +146,7 @@ def log_mass_upper_bounds(
     owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
     charged = np.bincount(owner, weights=y[problem.resource_indices], minlength=H)
     reduced = problem.log_weights - charged - mu * problem.counts  # type: ignore[operator]
-    group_of, closed = exclusive_groups(problem)
+    group_of, closed = exclusive_groups(problem) if groups is None else groups
     order = np.argsort(group_of, kind="stable")
     starts = np.flatnonzero(np.r_[True, np.diff(group_of[order]) != 0]) if H else np.zeros(0, int)
     group_lse = np.logaddexp.reduceat(reduced[order], starts) if H else np.zeros(0)

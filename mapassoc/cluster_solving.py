@@ -38,7 +38,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.formulations.bounds import fixed_variable_bounds, log_mass_upper_bounds
+from mapassoc.formulations.bounds import (
+    exclusive_groups,
+    fixed_variable_bounds,
+    log_mass_upper_bounds,
+)
 from mapassoc.formulations.cardinality import (
     CardinalityTable,
     SearchLimitExceeded,
@@ -242,11 +246,14 @@ class ClusterSolver:
         sets = list(beam.best_sets)
         log_mass = beam.log_mass.copy()
         ks = np.arange(size)
+        groups = exclusive_groups(problem)
+
+        def mass_bound(y: NDArray[np.float64], mu: float, at: NDArray[np.int64]) -> NDArray:
+            return log_mass_upper_bounds(problem, y, mu, at, groups)
+
         # Upper bounds valid without any LP: zero resource multipliers, a grid of mu.
         zeros = np.zeros(problem.num_resources)
-        mass_upper = np.min(
-            [log_mass_upper_bounds(problem, zeros, mu, ks) for mu in _MU_GRID], axis=0
-        )
+        mass_upper = np.min([mass_bound(zeros, mu, ks) for mu in _MU_GRID], axis=0)
         best_upper = mass_upper.copy()  # best(k) <= log-mass(k): log-weights >= scores
         solves = 0
         found_best = float(np.max(best))
@@ -273,7 +280,7 @@ class ClusterSolver:
                 best_upper[k] = min(best_upper[k], lp.objective)
                 if best[k] >= best_upper[k] - 1e-9 * (1.0 + abs(best_upper[k])):
                     best_upper[k] = best[k]  # the beam's set meets the LP bound: optimal
-                at_k = log_mass_upper_bounds(problem, multipliers, mu, np.array([k]))
+                at_k = mass_bound(multipliers, mu, np.array([k]))
                 mass_upper[k] = min(mass_upper[k], float(at_k[0]))
                 line = (k, lp.objective, mu, multipliers)
                 if best[k] < best_upper[k] - 1e-9 and best_upper[k] >= found_best - self.map_margin:
@@ -289,7 +296,7 @@ class ClusterSolver:
                 if ahead.size == 0:
                     break
                 line_best = lp.objective + mu * (ahead - k)
-                line_mass = log_mass_upper_bounds(problem, multipliers, mu, ahead)
+                line_mass = mass_bound(multipliers, mu, ahead)
                 if np.all(line_best < found_best - self.map_margin) and np.all(
                     line_mass < _log_sum(log_mass) - _NEGLIGIBLE_LOG_MASS
                 ):
@@ -304,7 +311,7 @@ class ClusterSolver:
                 if ahead.size:
                     best_upper[ahead] = np.minimum(best_upper[ahead], value + mu * (ahead - k_last))
                     mass_upper[ahead] = np.minimum(
-                        mass_upper[ahead], log_mass_upper_bounds(problem, multipliers, mu, ahead)
+                        mass_upper[ahead], mass_bound(multipliers, mu, ahead)
                     )
         # A bound below what was found can only be round-off of the LP and the
         # product; bounds must never claim less than a set that exists.
