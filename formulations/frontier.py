@@ -191,6 +191,7 @@ def frontier_search(
     work_limit: int | None = None,
     deadline: float | None = None,
     max_frontiers: int | None = None,
+    entry_margin: float | None = None,
 ) -> FrontierResult:
     """Best score, best set and log-mass for every k = 0..kmax by the frontier search.
 
@@ -211,6 +212,11 @@ def frontier_search(
         Beam width: after each resource keep only this many frontiers, those whose
         partial sets hold the most mass.  Makes the result a lower bound (``exact`` is
         then False if anything was dropped).
+    entry_margin : float, optional
+        With the beam: after each resource, drop a frontier's k-entries whose mass is
+        more than this many nats below its heaviest entry (they hold a negligible share
+        of what the frontier carries; dropping them keeps every mass a lower bound and
+        bounds the entries per frontier).
 
     Returns
     -------
@@ -296,6 +302,13 @@ def frontier_search(
                     spend(len(shifted))
                     _carry(new, shared, (cover | mask) ^ bit, shifted)
         states = new
+        if entry_margin is not None:
+            for key, entries in states.items():
+                heaviest = max(m for _, _, m in entries.values())
+                light = [k for k, (_, _, m) in entries.items() if m < heaviest - entry_margin]
+                if light:
+                    states[key] = {k: e for k, e in entries.items() if k not in light}
+                    exact = False
         if max_frontiers is not None and len(states) > max_frontiers:
             ranked = sorted(
                 states.items(),

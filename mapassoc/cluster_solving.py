@@ -60,8 +60,14 @@ CLUSTER_STATUSES = ("exact", "bounded", "time_limit")
 BOUND_PRUNE_MIN_HYPOTHESES = 30
 """Clusters with fewer merged hypotheses skip the LP-bound pruning (they are cheap anyway)."""
 
-_EMERGENCY_BEAM = 16
-"""Beam width once the deadline has passed: a feasible set per k at little cost."""
+_EMERGENCY_BEAM = 2
+"""Beam width once the deadline has passed: feasible sets at little cost."""
+
+_EMERGENCY_ENTRY_MARGIN = 10.0
+"""Entry margin of that beam: only the k near each frontier's heaviest are followed."""
+
+_BEAM_ENTRY_MARGIN = 40.0
+"""The beam drops a frontier's k-entries this many nats below its heaviest one."""
 
 _NEGLIGIBLE_LOG_MASS = 50.0
 """A k whose mass bound is this far below the mass found holds < e^-50 of it."""
@@ -224,13 +230,22 @@ class ClusterSolver:
         if not limited:
             try:
                 beam = frontier_search(
-                    problem, top, max_frontiers=self.beam_width, deadline=deadline
+                    problem,
+                    top,
+                    max_frontiers=self.beam_width,
+                    deadline=deadline,
+                    entry_margin=_BEAM_ENTRY_MARGIN,
                 )
             except SearchLimitExceeded as stop:
                 spent += stop.work
                 limited = True
         if beam is None:
-            beam = frontier_search(problem, top, max_frontiers=_EMERGENCY_BEAM)
+            beam = frontier_search(
+                problem,
+                top,
+                max_frontiers=_EMERGENCY_BEAM,
+                entry_margin=_EMERGENCY_ENTRY_MARGIN,
+            )
         spent += beam.work
         if beam.exact:  # the beam never had to drop a frontier: it was the exact search
             table = CardinalityTable(beam.best, beam.log_mass, beam.best_sets, True)

@@ -142,8 +142,8 @@ class EstimatorSettings:
     k_estimate: str = "marginal"
     solver: str = "highs"
     time_limit: float = 2.0
-    exact_work_limit: int = 1_000_000
-    beam_width: int = 2000
+    exact_work_limit: int = 500_000
+    beam_width: int = 500
 
     def __post_init__(self) -> None:
         _check_int("window_length", self.window_length, minimum=1)
