@@ -1,0 +1,56 @@
+"""Scans far larger than a window usually sees: nothing may hit a recursion or size limit."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from test_window_model import SENSOR, make_config
+
+from mapassoc.motion import ConstantVelocity
+from mapassoc.pipeline import WindowEstimator
+from mapassoc.scans import Scan
+
+
+def test_a_scan_of_thousands_of_detections_followed_by_another_runs() -> None:
+    """One scan of 3,000 detections, then another (20,000 once raised a RecursionError;
+    that size now runs but takes about 90 s on this machine, spent combining 20,000
+    clusters, so the suite uses 3,000).
+
+    The detections lie on a grid with gaps much wider than the gate, plus a few
+    near-coincident pairs, so most hypotheses are alone and some clusters interact;
+    Kmax is huge and must cost nothing beyond the feasible number of tracks.
+    """
+    rng = np.random.default_rng(0)
+    side = 55
+    grid = np.stack(np.meshgrid(np.arange(side), np.arange(side)), axis=-1).reshape(-1, 2)
+    first = (grid[:3_000] * 100.0 + rng.normal(0.0, 1.0, size=(3_000, 2))).astype(float)
+    second = first + rng.normal(0.0, 1.0, size=first.shape) + np.array([1.0, 0.0])
+    config = make_config(
+        motion=ConstantVelocity(ndim=2, noise_intensity=0.01),
+        noise_std=1.0,
+        detection_probability=0.9,
+        false_alarms_per_scan=100.0,
+        region=[[-100.0, 5_600.0], [-100.0, 5_600.0]],
+        rate=0.5,
+        max_tracks=10**6,
+        window_length=2,
+        gate_probability=0.999,
+        prune_log_ratio=9.0,
+        max_hypotheses_per_tree=64,
+    )
+    scans = [
+        Scan(0.0, SENSOR, first, np.arange(2, 3_002)),
+        Scan(1.0, SENSOR, second, np.arange(3_002, 6_002)),
+    ]
+    # Combining thousands of clusters is not interruptible yet: give it the time.
+    config = replace(config, estimator=replace(config.estimator, time_limit=120.0))
+    estimator = WindowEstimator(config=config)
+    window = estimator.solve_window(scans)
+    assert window.posterior.probabilities.shape == (10**6 + 1,)
+    assert abs(window.posterior.probabilities.sum() - 1.0) < 1e-9
+    assert window.status in ("exact", "capped")
+    # Each grid point is a pair of detections one scan apart: most become tracks.
+    assert window.posterior.marginal_k > 2_000
+    chosen = window.selection(window.posterior.marginal_k)
+    assert window.problem.is_feasible(chosen, window.posterior.marginal_k)
