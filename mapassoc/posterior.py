@@ -172,16 +172,6 @@ def k_posterior(
     joint_scores = log_prior + best
     joint_map_k = _argmax_first(joint_scores)
     marginal_k = _argmax_first(probabilities)
-    if best_upper is best and mass_upper is log_mass:
-        return KPosterior(
-            log_prior=log_prior,
-            best_log_score=best,
-            log_mass=log_mass,
-            probabilities=probabilities,
-            joint_map_k=joint_map_k,
-            marginal_k=marginal_k,
-            exact=exact,
-        )
     joint_upper = log_prior + mass_upper
     p_lower, p_upper = _probability_bounds(joint, joint_upper)
     return KPosterior(
