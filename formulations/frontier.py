@@ -57,6 +57,9 @@ _NEG_INF = -math.inf
 _DEADLINE_CHECK_EVERY = 4096
 """Transitions between two reads of the clock."""
 
+_SMALL_CLUSTER_RESOURCES = 12
+"""Up to this many resources the canonical order is used as it is (no RCM)."""
+
 # One k-entry of a frontier: (best score, a best set as a tuple, log-mass).
 _Entry = tuple[float, tuple[int, ...], float]
 
@@ -131,6 +134,8 @@ def resource_order(problem: PackingProblem) -> NDArray[np.int64]:
         for r in problem.resources_of(h).tolist():
             users[r].append(h)
     canonical = np.array(sorted(range(R), key=lambda r: users[r]), dtype=np.int64)
+    if R <= _SMALL_CLUSTER_RESOURCES:
+        return canonical  # any order is cheap; the sparse machinery is not
     incidence = problem.incidence()[canonical]
     co_use = sp.csr_matrix(incidence @ incidence.T)
     rcm = np.asarray(reverse_cuthill_mckee(co_use, symmetric_mode=True), dtype=np.int64)

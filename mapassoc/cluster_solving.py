@@ -57,8 +57,9 @@ __all__ = ["ClusterReport", "ClusterSolver", "CLUSTER_STATUSES"]
 CLUSTER_STATUSES = ("exact", "bounded", "time_limit")
 """From best to worst; a window reports the worst of its clusters."""
 
-BOUND_PRUNE_MIN_HYPOTHESES = 30
-"""Clusters with fewer merged hypotheses skip the LP-bound pruning (they are cheap anyway)."""
+BOUND_PRUNE_MIN_HYPOTHESES = 100
+"""Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of
+such a cluster costs about as much as the LP (a few milliseconds)."""
 
 _EMERGENCY_BEAM = 2
 """Beam width once the deadline has passed: feasible sets at little cost."""
@@ -133,6 +134,9 @@ class ClusterSolver:
     map_margin : float
         A k whose LP bound is this far below the best set found is not solved as an
         integer program; its best score is reported as bounded.
+    bound_prune_min_hypotheses : int
+        Smaller clusters skip the LP-bound pruning (default
+        :data:`BOUND_PRUNE_MIN_HYPOTHESES`).
     """
 
     def __init__(
@@ -144,6 +148,7 @@ class ClusterSolver:
         beam_width: int,
         prune_log_ratio: float,
         map_margin: float = 30.0,
+        bound_prune_min_hypotheses: int = BOUND_PRUNE_MIN_HYPOTHESES,
     ) -> None:
         self.solver = solver
         self.lp_solver = lp_solver
@@ -151,6 +156,7 @@ class ClusterSolver:
         self.beam_width = int(beam_width)
         self.prune_log_ratio = float(prune_log_ratio)
         self.map_margin = float(map_margin)
+        self.bound_prune_min_hypotheses = int(bound_prune_min_hypotheses)
 
     # -- pruning -----------------------------------------------------------------------
     def bound_prune(self, problem: PackingProblem, deadline: float) -> NDArray[np.bool_] | None:
@@ -162,10 +168,10 @@ class ClusterSolver:
         are dropped across trees (duplicates of carried tracks, mostly).  The best set
         itself always survives, and so does every hypothesis that uses no detection.
         Returns ``None`` when nothing is pruned, the cluster is too small to bother
-        (fewer than :data:`BOUND_PRUNE_MIN_HYPOTHESES`) or the deadline has passed.
+        (fewer than ``bound_prune_min_hypotheses``) or the deadline has passed.
         """
         ratio = self.prune_log_ratio
-        if problem.num_hypotheses < BOUND_PRUNE_MIN_HYPOTHESES or not math.isfinite(ratio):
+        if problem.num_hypotheses < self.bound_prune_min_hypotheses or not math.isfinite(ratio):
             return None
         if time.perf_counter() >= deadline:
             return None

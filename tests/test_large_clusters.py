@@ -196,13 +196,19 @@ def test_bound_pruning_keeps_the_best_set(seed: int) -> None:
         prune_log_ratio=2.0,
         max_tracks=12,
     )
-    estimator = WindowEstimator(config=config)
-    keep = estimator.cluster_solver.bound_prune(problem, deadline=math.inf)
-    full = exact_cardinality_table(problem, 12, work_limit=10**7)
-    if keep is None:
-        return
+    solver = ClusterSolver(
+        solver=HighsSolver(),
+        lp_solver=HighsSolver(),
+        exact_work_limit=10**8,
+        beam_width=1,
+        prune_log_ratio=config.estimator.prune_log_ratio,
+        bound_prune_min_hypotheses=30,
+    )
+    keep = solver.bound_prune(problem, deadline=math.inf)
+    assert keep is not None, "nothing pruned: the test would check nothing"
+    full = exact_cardinality_table(problem, 12, work_limit=10**8)
     kept = problem.subproblem(np.flatnonzero(keep))
-    pruned = exact_cardinality_table(kept, 12, work_limit=10**7)
+    pruned = exact_cardinality_table(kept, 12, work_limit=10**8)
     assert np.max(pruned.best) == pytest.approx(np.max(full.best), abs=1e-9)
     assert np.all(pruned.best <= full.best + 1e-9)
     # Every dropped hypothesis is in no set within the ratio of the best.
