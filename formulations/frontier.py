@@ -61,7 +61,18 @@ _SMALL_CLUSTER_RESOURCES = 12
 """Up to this many resources the canonical order is used as it is (no RCM)."""
 
 # One k-entry of a frontier: (best score, a best set as a tuple, log-mass).
-_Entry = tuple[float, tuple[int, ...], float]
+# A set is a chain (h, rest) ending in (), so that adding a hypothesis costs O(1);
+# it is unrolled only to break an exact tie and at the end.
+_Chain = tuple
+_Entry = tuple[float, _Chain, float]
+
+
+def _unrolled(chain: _Chain) -> tuple[int, ...]:
+    out = []
+    while chain:
+        h, chain = chain
+        out.append(h)
+    return tuple(out)
 
 
 class SearchLimitExceeded(RuntimeError):
@@ -183,7 +194,7 @@ def _carry(
             target[k] = (b, s, m)
             continue
         ob, os_, om = old
-        if b > ob or (b == ob and tie_precedes(s, os_)):
+        if b > ob or (b == ob and tie_precedes(_unrolled(s), _unrolled(os_))):
             target[k] = (b, s, _log_add(m, om))
         else:
             target[k] = (ob, os_, _log_add(m, om))
@@ -299,7 +310,7 @@ def frontier_search(
                     continue
                 c, score, weight = counts[h], scores[h], weights[h]
                 shifted = {
-                    k + c: (b + score, s + (h,), m + weight)
+                    k + c: (b + score, (h, s), m + weight)
                     for k, (b, s, m) in entries.items()
                     if k + c <= kmax
                 }
@@ -327,7 +338,7 @@ def frontier_search(
     for h in free:
         c, score, weight = counts[h], scores[h], weights[h]
         taken = {
-            k + c: (b + score, s + (h,), m + weight)
+            k + c: (b + score, (h, s), m + weight)
             for k, (b, s, m) in final.items()
             if k + c <= kmax
         }
@@ -340,7 +351,7 @@ def frontier_search(
     mass = np.full(kmax + 1, _NEG_INF)
     sets: list[tuple[int, ...] | None] = [None] * (kmax + 1)
     for k, (b, s, m) in final.items():
-        best[k], mass[k], sets[k] = b, m, tuple(sorted(s))
+        best[k], mass[k], sets[k] = b, m, tuple(sorted(_unrolled(s)))
     return FrontierResult(
         best=best,
         best_sets=tuple(sets),

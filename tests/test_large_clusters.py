@@ -234,3 +234,25 @@ def test_frontier_search_has_no_recursion_limit() -> None:
     table = exact_cardinality_table(problem, 3)
     # Best with k chosen: any k non-adjacent links, score 0.5 k.
     np.testing.assert_allclose(table.best, [0.0, 0.5, 1.0, 1.5])
+
+
+@pytest.mark.parametrize("seed", range(15))
+def test_window_past_its_time_limit_says_so_and_keeps_valid_bounds(seed: int) -> None:
+    """A time limit of a nanosecond has passed before any cluster is solved (the
+    generation alone takes longer), so the outcome does not depend on the machine."""
+    case = random_window(seed)
+    exact = case.estimator.solve_window(case.scans, case.carried)
+    limited = with_settings(case.estimator, time_limit=1e-9).solve_window(
+        case.scans, case.carried
+    )
+    assert limited.status == "time_limit" and limited.timed_out
+    table = limited.table
+    assert np.all(table.best <= exact.table.best + TOLERANCE)
+    assert np.all(exact.table.best <= table.best_upper + TOLERANCE)
+    assert np.all(table.log_mass <= exact.table.log_mass + TOLERANCE)
+    assert np.all(exact.table.log_mass <= table.log_mass_upper + TOLERANCE)
+    p = exact.posterior.probabilities
+    assert np.all(limited.posterior.probabilities_lower <= p + 1e-9)
+    assert np.all(p <= limited.posterior.probabilities_upper + 1e-9)
+    # The chosen K always has a feasible set to commit.
+    assert limited.table.best_set(limited.posterior.marginal_k) is not None
