@@ -230,7 +230,7 @@ class CombinedTable:
     log_mass: NDArray[np.float64]
     exact: bool
     tables: tuple[CardinalityTable, ...]
-    pointers: tuple[NDArray[np.int64], ...]
+    pointers: tuple[NDArray[np.integer], ...]
     best_upper: NDArray[np.float64]
     log_mass_upper: NDArray[np.float64]
 
@@ -308,19 +308,29 @@ def combine_tables(tables: list[CardinalityTable], kmax: int) -> CombinedTable:
     best = np.full(size, _NEG_INF)
     mass = np.full(size, _NEG_INF)
     best[0] = mass[0] = 0.0
-    best_upper = best.copy()
-    mass_upper = mass.copy()
+    # The bounds equal the values until the first bounded table (None: "the same").
+    best_upper: NDArray[np.float64] | None = None
+    mass_upper: NDArray[np.float64] | None = None
     pointers: list[NDArray[np.int64]] = []
+    done = 0  # largest k the tables combined so far can reach
     for table in tables:
-        best, pointer = _max_plus(best, table.best, size)
-        mass = _sum_product(mass, table.log_mass, size)
-        if table.bounded:
-            best_upper, _ = _max_plus(best_upper, table.best_upper, size)  # type: ignore[arg-type]
-            mass_upper = _sum_product(mass_upper, table.log_mass_upper, size)  # type: ignore[arg-type]
-        else:
-            best_upper, _ = _max_plus(best_upper, table.best, size)
-            mass_upper = _sum_product(mass_upper, table.log_mass, size)
-        pointers.append(pointer)
+        done = min(done + table.kmax, size - 1)
+        # Entries past `done` are -inf before and after: convolve the reachable part.
+        new_best, pointer = _max_plus(best, table.best, done + 1)
+        new_mass = _sum_product(mass, table.log_mass, done + 1)
+        if table.bounded and best_upper is None:
+            best_upper, mass_upper = best.copy(), mass.copy()
+        if best_upper is not None and mass_upper is not None:
+            best_upper[: done + 1] = _max_plus(best_upper, table.best_upper, done + 1)[0]  # type: ignore[arg-type]
+            mass_upper[: done + 1] = _sum_product(mass_upper, table.log_mass_upper, done + 1)  # type: ignore[arg-type]
+        best[: done + 1] = new_best
+        mass[: done + 1] = new_mass
+        # A cluster's share is at most its own kmax: a small integer type keeps
+        # thousands of clusters' back-pointers small (each covers k = 0..done only).
+        small = np.int16 if table.kmax < np.iinfo(np.int16).max else np.int64
+        pointers.append(pointer.astype(small))
+    if best_upper is None or mass_upper is None:
+        best_upper, mass_upper = best, mass
 
     def padded(a: NDArray[np.float64]) -> NDArray[np.float64]:
         out = np.full(kmax + 1, _NEG_INF)
