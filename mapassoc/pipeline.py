@@ -1,7 +1,8 @@
 """The MAP window track-set estimator, end to end.
 
-This is the only module that wires the domain (:mod:`mapassoc.hypotheses`), the
-formulations (:mod:`mapassoc.formulations`) and the solvers (:mod:`mapassoc.solvers`).
+With its per-cluster strategy (:mod:`mapassoc.cluster_solving`) this is the only
+module that wires the domain (:mod:`mapassoc.hypotheses`), the formulations
+(:mod:`mapassoc.formulations`) and the solvers (:mod:`mapassoc.solvers`).
 
 For each window of ``window_length`` consecutive scans:
 
@@ -10,9 +11,10 @@ For each window of ``window_length`` consecutive scans:
 2. turn the choice of a track set into a packing problem (detections used at most
    once, carried tracks exactly once) and split it into independent clusters;
 3. per cluster, compute the best score and the log-mass of all track sets for every
-   k: exactly (:func:`~mapassoc.formulations.cardinality.exact_cardinality_table`) when
-   the search fits ``exact_node_limit``, otherwise with the integer-program solver (the
-   MAP per k) and its ``m_best`` best sets per k (the marginal);
+   k: exactly (the frontier search of :mod:`mapassoc.formulations.frontier`) when it
+   fits ``exact_work_limit``, otherwise certified bounds (a beam search, LP relaxations
+   per k, the integer program where a k can matter; :class:`ClusterSolver`), all
+   within the window's ``time_limit``;
 4. combine the clusters (max-plus and sum-product convolution), apply p(K) and get
    p(K | Z), the joint MAP K and the marginal K (:mod:`mapassoc.posterior`);
 5. take the best track set of the chosen K, commit its oldest ``stride`` scans and carry
