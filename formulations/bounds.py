@@ -20,7 +20,12 @@ from numpy.typing import NDArray
 from mapassoc.formulations.packing import PackingProblem
 from mapassoc.formulations.program import Program
 
-__all__ = ["fixed_variable_bounds", "exclusive_groups", "log_mass_upper_bounds"]
+__all__ = [
+    "fixed_variable_bounds",
+    "exclusive_groups",
+    "log_mass_upper_bounds",
+    "relaxed_problem",
+]
 
 
 def fixed_variable_bounds(
@@ -153,3 +158,63 @@ def log_mass_upper_bounds(
     factors = np.where(closed, group_lse, np.logaddexp(0.0, group_lse))
     constant = float(np.sum(y) + np.sum(factors))
     return constant + mu * np.asarray(ks, dtype=float)
+
+
+def relaxed_problem(
+    problem: PackingProblem, relaxed: NDArray[np.bool_], multipliers: NDArray[np.float64]
+) -> tuple[PackingProblem, float]:
+    """The problem without some resources' constraints, priced by Lagrange multipliers.
+
+    For multipliers ``y_r >= 0`` of the relaxed at-most-once resources, every feasible
+    set S of ``problem`` is feasible for the relaxed problem and, since
+    ``y_r (1 - use_r(S)) >= 0``,
+
+        sum_h∈S w_h <= sum_r relaxed y_r + sum_h∈S (w_h - sum_{r relaxed, used by h} y_r)
+
+    (likewise for the scores).  So the relaxed problem's per-k best scores and
+    log-masses plus the returned constant bound the original's from above, for every k.
+    Relaxing the resources that make the frontier search wide keeps the search cheap
+    while most constraints stay exact: a Lagrangian relaxation whose subproblem is
+    solved exactly (the analogue of mini-bucket elimination for this search).
+
+    Parameters
+    ----------
+    problem : PackingProblem
+    relaxed : ndarray of bool, shape (R,)
+        Resources whose constraint is dropped; exactly-once resources may not be relaxed.
+    multipliers : ndarray, shape (R,)
+        ``y_r`` (only the relaxed entries are used; negative ones are replaced by 0).
+
+    Returns
+    -------
+    PackingProblem
+        Same hypotheses (and indices), without the relaxed resources, scores and
+        log-weights reduced by the multipliers of the relaxed resources they use.
+    float
+        ``sum of y_r`` over the relaxed resources.
+    """
+    relaxed = np.asarray(relaxed, dtype=bool)
+    R = problem.num_resources
+    if relaxed.shape != (R,):
+        raise ValueError(f"relaxed must have shape ({R},), got {relaxed.shape}")
+    if np.any(relaxed & problem.exactly_one):
+        raise ValueError("exactly-once resources cannot be relaxed")
+    y = np.where(relaxed, np.maximum(np.asarray(multipliers, dtype=float), 0.0), 0.0)
+    if y.shape != (R,) or not np.all(np.isfinite(y)):
+        raise ValueError(f"multipliers must be finite with shape ({R},)")
+    H = problem.num_hypotheses
+    owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
+    charge = np.bincount(owner, weights=y[problem.resource_indices], minlength=H)
+    kept_entry = ~relaxed[problem.resource_indices]
+    remap = np.full(R, -1, dtype=np.int64)
+    remap[~relaxed] = np.arange(int(np.count_nonzero(~relaxed)))
+    lengths = np.bincount(owner[kept_entry], minlength=H)
+    out = PackingProblem(
+        scores=problem.scores - charge,
+        resource_indptr=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+        resource_indices=remap[problem.resource_indices[kept_entry]],
+        exactly_one=problem.exactly_one[~relaxed],
+        counts=problem.counts,
+        log_weights=problem.log_weights - charge,  # type: ignore[operator]
+    )
+    return out, float(np.sum(y))

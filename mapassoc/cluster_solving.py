@@ -42,6 +42,7 @@ from mapassoc.formulations.bounds import (
     exclusive_groups,
     fixed_variable_bounds,
     log_mass_upper_bounds,
+    relaxed_problem,
 )
 from mapassoc.formulations.cardinality import (
     CardinalityTable,
@@ -277,6 +278,16 @@ class ClusterSolver:
         mass_upper = np.min([mass_bound(zeros, mu, ks) for mu in _MU_GRID], axis=0)
         best_upper = mass_upper.copy()  # best(k) <= log-mass(k): log-weights >= scores
         solves = 0
+        if not limited:
+            relaxed = self._relaxed_bounds(problem, top, deadline)
+            solves += 1
+            if relaxed is None:
+                limited = time.perf_counter() >= deadline
+            else:
+                relaxed_best, relaxed_mass, work = relaxed
+                spent += work
+                best_upper = np.minimum(best_upper, relaxed_best)
+                mass_upper = np.minimum(mass_upper, relaxed_mass)
         found_best = float(np.max(best))
         start_k = int(np.argmax(best))
         for step, k in ((-1, start_k), (1, start_k + 1)):
@@ -381,6 +392,51 @@ class ClusterSolver:
                 best[k], sets[k] = score, tuple(int(h) for h in chosen)
         return result.status
 
+    def _relaxed_bounds(
+        self, problem: PackingProblem, top: int, deadline: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], int] | None:
+        """Upper bounds per k from a Lagrangian relaxation solved by the frontier search.
+
+        The at-most-once resources with the most users are relaxed, priced by the duals
+        of the LP relaxation with K free
+        (:func:`~mapassoc.formulations.bounds.relaxed_problem`): a sixteenth of them
+        first, twice as many each time the search of the relaxed problem exceeds half
+        of ``exact_work_limit``.  Returns (best upper bounds, log-mass upper bounds,
+        work), or ``None`` if no relaxation fitted or the deadline passed.
+        """
+        lp = self.lp_solver.solve_relaxation(
+            set_packing_program(problem, None), time_limit=_remaining(deadline)
+        )
+        if lp.status is not SolveStatus.OPTIMAL:
+            return None
+        multipliers, _ = self._resource_multipliers(problem, lp)
+        usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
+        shared = np.flatnonzero((usage > 1) & ~problem.exactly_one)
+        candidates = shared[np.lexsort((shared, -usage[shared]))]
+        count = max(1, candidates.size // 16)
+        work = 0
+        while candidates.size:
+            mask = np.zeros(problem.num_resources, dtype=bool)
+            mask[candidates[:count]] = True
+            relaxed, constant = relaxed_problem(problem, mask, multipliers)
+            try:
+                found = frontier_search(
+                    relaxed, top, work_limit=max(1, self.exact_work_limit // 2), deadline=deadline
+                )
+            except SearchLimitExceeded as stop:
+                work += stop.work
+                if stop.reason == "deadline" or count >= candidates.size:
+                    return None
+                count = min(2 * count, candidates.size)
+                continue
+            size = top + 1
+            best = np.full(size, -math.inf)
+            mass = np.full(size, -math.inf)
+            n = found.best.shape[0]
+            best[:n], mass[:n] = found.best + constant, found.log_mass + constant
+            return best, mass, work + found.work
+        return None
+
     @staticmethod
     def _resource_multipliers(
         problem: PackingProblem, lp: LPResult
@@ -388,7 +444,8 @@ class ClusterSolver:
         """LP duals as one multiplier per resource and one for the cardinality row.
 
         Rows of :func:`set_packing_program`: at-most-once resources in use, then
-        exactly-once resources, then the cardinality row.  Unused resources get 0.
+        exactly-once resources, then the cardinality row (absent with K free: 0).
+        Unused resources get 0.
         """
         usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
         at_most = np.flatnonzero((usage > 0) & ~problem.exactly_one)
@@ -397,4 +454,4 @@ class ClusterSolver:
         y[at_most] = lp.ineq_duals  # type: ignore[assignment]
         eq = np.asarray(lp.eq_duals)
         y[exactly] = eq[: exactly.size]
-        return y, float(eq[exactly.size])
+        return y, float(eq[exactly.size]) if eq.size > exactly.size else 0.0

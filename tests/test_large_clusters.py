@@ -256,3 +256,24 @@ def test_window_past_its_time_limit_says_so_and_keeps_valid_bounds(seed: int) ->
     assert np.all(p <= limited.posterior.probabilities_upper + 1e-9)
     # The chosen K always has a feasible set to commit.
     assert limited.table.best_set(limited.posterior.marginal_k) is not None
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_relaxed_problem_bounds_every_k(seed: int) -> None:
+    """Dropping some constraints and pricing them by any multipliers >= 0 bounds both the
+    best score and the log-mass of every k from above."""
+    from mapassoc.formulations.bounds import relaxed_problem
+
+    rng = np.random.default_rng(1500 + seed)
+    problem = random_problem(rng, int(rng.integers(4, 12)), D=int(rng.integers(2, 6)), G=2)
+    kmax = problem.num_hypotheses
+    best, mass = brute_force(problem, kmax)
+    for _ in range(4):
+        relax = (rng.random(problem.num_resources) < 0.5) & ~problem.exactly_one
+        y = np.abs(rng.normal(0.0, 2.0, size=problem.num_resources))
+        relaxed, constant = relaxed_problem(problem, relax, y)
+        table = exact_cardinality_table(relaxed, kmax)
+        assert np.all(best <= table.best + constant + TOLERANCE)
+        assert np.all(mass <= table.log_mass + constant + TOLERANCE)
+    with pytest.raises(ValueError, match="exactly-once"):
+        relaxed_problem(problem, problem.exactly_one.copy(), np.zeros(problem.num_resources))
