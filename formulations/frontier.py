@@ -61,18 +61,26 @@ _SMALL_CLUSTER_RESOURCES = 12
 """Up to this many resources the canonical order is used as it is (no RCM)."""
 
 # One k-entry of a frontier: (best score, a best set as a tuple, log-mass).
-# A set is a chain (h, rest) ending in (), so that adding a hypothesis costs O(1);
-# it is unrolled only to break an exact tie and at the end.
-_Chain = tuple
-_Entry = tuple[float, _Chain, float]
+# A set is an integer whose bit H-1-h says that hypothesis h is in it: adding one is an
+# OR, and the tie order is an integer comparison (the highest differing bit is the
+# smallest differing index).
+_Entry = tuple[float, int, float]
 
 
-def _unrolled(chain: _Chain) -> tuple[int, ...]:
+def _members(code: int, H: int) -> tuple[int, ...]:
+    """Sorted hypothesis indices of a set code."""
     out = []
-    while chain:
-        h, chain = chain
-        out.append(h)
+    while code:
+        top = code.bit_length() - 1
+        out.append(H - 1 - top)
+        code ^= 1 << top
     return tuple(out)
+
+
+def _code_precedes(a: int, b: int) -> bool:
+    """:func:`tie_precedes` on set codes: fewer members, then the larger code."""
+    na, nb = a.bit_count(), b.bit_count()
+    return na < nb if na != nb else a > b
 
 
 class SearchLimitExceeded(RuntimeError):
@@ -194,7 +202,7 @@ def _carry(
             target[k] = (b, s, m)
             continue
         ob, os_, om = old
-        if b > ob or (b == ob and tie_precedes(_unrolled(s), _unrolled(os_))):
+        if b > ob or (b == ob and _code_precedes(s, os_)):
             target[k] = (b, s, _log_add(m, om))
         else:
             target[k] = (ob, os_, _log_add(m, om))
@@ -258,6 +266,7 @@ def frontier_search(
     weights = problem.log_weights.tolist()  # type: ignore[union-attr]
     counts = problem.counts.astype(np.int64).tolist()
     exactly_one = problem.exactly_one[order].tolist()
+    codes = [1 << (H - 1 - h) for h in range(H)]
     starting: list[list[tuple[int, int]]] = [[] for _ in range(order.size)]
     free: list[int] = []  # hypotheses that use no resource: take or leave each
     for h in range(H):
@@ -292,7 +301,7 @@ def frontier_search(
                 )
 
     # frontier (bit mask of later resources already covered) -> {k: entry}
-    states: dict[int, dict[int, _Entry]] = {0: {0: (0.0, (), 0.0)}}
+    states: dict[int, dict[int, _Entry]] = {0: {0: (0.0, 0, 0.0)}}
     for step in range(order.size):
         bit = 1 << step
         new: dict[int, dict[int, _Entry]] = {}
@@ -308,9 +317,9 @@ def frontier_search(
             for h, mask in starting[step]:
                 if mask & cover:
                     continue
-                c, score, weight = counts[h], scores[h], weights[h]
+                c, score, weight, member = counts[h], scores[h], weights[h], codes[h]
                 shifted = {
-                    k + c: (b + score, (h, s), m + weight)
+                    k + c: (b + score, s | member, m + weight)
                     for k, (b, s, m) in entries.items()
                     if k + c <= kmax
                 }
@@ -336,9 +345,9 @@ def frontier_search(
 
     final = states.get(0, {})
     for h in free:
-        c, score, weight = counts[h], scores[h], weights[h]
+        c, score, weight, member = counts[h], scores[h], weights[h], codes[h]
         taken = {
-            k + c: (b + score, (h, s), m + weight)
+            k + c: (b + score, s | member, m + weight)
             for k, (b, s, m) in final.items()
             if k + c <= kmax
         }
@@ -351,7 +360,7 @@ def frontier_search(
     mass = np.full(kmax + 1, _NEG_INF)
     sets: list[tuple[int, ...] | None] = [None] * (kmax + 1)
     for k, (b, s, m) in final.items():
-        best[k], mass[k], sets[k] = b, m, tuple(sorted(_unrolled(s)))
+        best[k], mass[k], sets[k] = b, m, _members(s, H)
     return FrontierResult(
         best=best,
         best_sets=tuple(sets),
