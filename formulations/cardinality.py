@@ -24,7 +24,9 @@ depend on the search order.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,7 +36,10 @@ from mapassoc.formulations.packing import PackingProblem
 
 __all__ = [
     "CardinalityTable",
+    "ClusterTable",
     "CombinedTable",
+    "IndependentTable",
+    "independent_table",
     "SearchLimitExceeded",
     "exact_cardinality_table",
     "convolve",
@@ -213,6 +218,99 @@ def convolve(a: CardinalityTable, b: CardinalityTable, kmax: int) -> Cardinality
     return _to_public(_convolve(_from_public(a), _from_public(b), kmax), kmax, a.exact and b.exact)
 
 
+class ClusterTable(Protocol):
+    """What :func:`combine_tables` needs of a cluster's table."""
+
+    @property
+    def best(self) -> NDArray[np.float64]: ...
+    @property
+    def log_mass(self) -> NDArray[np.float64]: ...
+    @property
+    def best_upper(self) -> NDArray[np.float64] | None: ...
+    @property
+    def log_mass_upper(self) -> NDArray[np.float64] | None: ...
+    @property
+    def exact(self) -> bool: ...
+    @property
+    def bounded(self) -> bool: ...
+    @property
+    def kmax(self) -> int: ...
+    def best_set(self, k: int) -> tuple[int, ...] | None: ...
+
+
+@dataclass(frozen=True, eq=False)
+class IndependentTable:
+    """The table of hypotheses that conflict with nothing, each taken or not.
+
+    Such hypotheses (a detection that could start a track and interacts with no other
+    hypothesis) are thousands in a scan of heavy clutter.  Combined as one table they
+    cost one vector operation each instead of one convolution each: the best set of k
+    holds the k best scores (prefix sums of the sorted scores), and the mass of k is
+    the k-th elementary symmetric polynomial of their weights (a recursion over the
+    hypotheses).  Exact; best sets are built on demand.
+
+    Attributes
+    ----------
+    best, log_mass : ndarray, shape (n + 1,)
+    ranked : ndarray of int, shape (n,)
+        Hypothesis indices by decreasing score (equal scores: smaller index first, the
+        tie order of :func:`~mapassoc.formulations.frontier.tie_precedes`).
+    """
+
+    best: NDArray[np.float64]
+    log_mass: NDArray[np.float64]
+    ranked: NDArray[np.int64]
+    exact: bool = True
+    bounded: bool = False
+
+    @property
+    def best_upper(self) -> NDArray[np.float64]:
+        return self.best
+
+    @property
+    def log_mass_upper(self) -> NDArray[np.float64]:
+        return self.log_mass
+
+    @property
+    def kmax(self) -> int:
+        return int(self.best.shape[0]) - 1
+
+    def best_set(self, k: int) -> tuple[int, ...] | None:
+        if not 0 <= k <= self.kmax:
+            return None
+        return tuple(sorted(int(h) for h in self.ranked[:k]))
+
+
+def independent_table(
+    scores: NDArray[np.float64], log_weights: NDArray[np.float64], indices: NDArray[np.int64]
+) -> IndependentTable:
+    """:class:`IndependentTable` of hypotheses ``indices`` (each counts toward k).
+
+    Parameters
+    ----------
+    scores, log_weights : ndarray, shape (n,)
+    indices : ndarray of int, shape (n,)
+        The hypotheses' indices (in the window's numbering).
+    """
+    scores = np.asarray(scores, dtype=float)
+    log_weights = np.asarray(log_weights, dtype=float)
+    indices = np.asarray(indices, dtype=np.int64)
+    n = scores.shape[0]
+    if log_weights.shape != (n,) or indices.shape != (n,):
+        raise ValueError(
+            f"scores, log_weights and indices must have one shape, got {scores.shape}, "
+            f"{log_weights.shape} and {indices.shape}"
+        )
+    order = np.lexsort((indices, -scores))
+    best = np.concatenate([[0.0], np.cumsum(scores[order])])
+    mass = np.full(n + 1, _NEG_INF)
+    mass[0] = 0.0
+    for i, w in enumerate(log_weights.tolist()):
+        # e_k(first i+1) = e_k(first i) + w_i e_(k-1)(first i), in log space.
+        mass[1 : i + 2] = np.logaddexp(mass[1 : i + 2], mass[: i + 1] + w)
+    return IndependentTable(best=best, log_mass=mass, ranked=indices[order])
+
+
 @dataclass(frozen=True, eq=False)
 class CombinedTable:
     """The table of several independent clusters, with the best sets kept implicit.
@@ -229,7 +327,7 @@ class CombinedTable:
     best: NDArray[np.float64]
     log_mass: NDArray[np.float64]
     exact: bool
-    tables: tuple[CardinalityTable, ...]
+    tables: tuple[ClusterTable, ...]
     pointers: tuple[NDArray[np.integer], ...]
     best_upper: NDArray[np.float64]
     log_mass_upper: NDArray[np.float64]
@@ -251,7 +349,7 @@ class CombinedTable:
         remaining = k
         for table, pointer in zip(reversed(self.tables), reversed(self.pointers), strict=True):
             share = int(pointer[remaining])
-            part = table.best_sets[share]
+            part = table.best_set(share)
             if part is None:  # pragma: no cover - pointers only name feasible entries
                 raise RuntimeError("inconsistent cluster back-pointer")
             chosen.extend(part)
@@ -266,17 +364,16 @@ class CombinedTable:
 def _sum_product(
     acc: NDArray[np.float64], entries: NDArray[np.float64], size: int
 ) -> NDArray[np.float64]:
-    """Log-space convolution of ``acc`` with ``entries``, truncated to ``size`` terms."""
-    terms = np.full((max(entries.shape[0], 1), size), _NEG_INF)
+    """Log-space convolution of ``acc`` with ``entries``, truncated to ``size`` terms.
+
+    One ``logaddexp`` pass per entry: a cluster's table is short and the accumulated
+    one long, so this is linear in the long one.
+    """
+    out = np.full(size, _NEG_INF)
     for j in range(min(entries.shape[0], size)):
         if np.isfinite(entries[j]):
-            terms[j, j:] = acc[: size - j] + entries[j]
-    top = np.max(terms, axis=0)
-    safe = np.where(np.isfinite(top), top, 0.0)
-    with np.errstate(divide="ignore"):
-        return np.where(
-            np.isfinite(top), safe + np.log(np.sum(np.exp(terms - safe), axis=0)), _NEG_INF
-        )
+            np.logaddexp(out[j:], acc[: size - j] + entries[j], out=out[j:])
+    return out
 
 
 def _max_plus(
@@ -296,7 +393,7 @@ def _max_plus(
     return out, pointer
 
 
-def combine_tables(tables: list[CardinalityTable], kmax: int) -> CombinedTable:
+def combine_tables(tables: Sequence[ClusterTable], kmax: int) -> CombinedTable:
     """Convolve the tables of independent clusters (hypothesis indices already global).
 
     Vectorised over k.  The work stops at the largest k any set can reach (the sum of

@@ -38,9 +38,10 @@ from mapassoc.cluster_solving import CLUSTER_STATUSES, ClusterReport, ClusterSol
 from mapassoc.config import Config
 from mapassoc.errors import InputError
 from mapassoc.formulations.cardinality import (
-    CardinalityTable,
+    ClusterTable,
     CombinedTable,
     combine_tables,
+    independent_table,
     single_hypothesis_table,
 )
 from mapassoc.formulations.clusters import cluster_hypotheses
@@ -373,7 +374,7 @@ class WindowEstimator:
         t1 = time.perf_counter()
         problem = packing_problem(hyps)
         clusters = cluster_hypotheses(problem)
-        tables: list[CardinalityTable] = []
+        tables: list[ClusterTable] = []
         reports: list[ClusterReport] = []
         bound_pruned = 0
         required = problem.exactly_one[problem.resource_indices]
@@ -383,9 +384,13 @@ class WindowEstimator:
             np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr)),
             required,
         )
+        independent: list[int] = []  # lone hypotheses that may be taken or not
         for members in clusters:
             if len(members) == 1:
                 h = int(members[0])
+                if problem.counts[h] and not has_required[h]:
+                    independent.append(h)
+                    continue
                 single = single_hypothesis_table(
                     float(problem.scores[h]),
                     float(problem.log_weights[h]),  # type: ignore[index]
@@ -411,6 +416,13 @@ class WindowEstimator:
             if report.status != "exact":
                 reports.append(report)
             tables.append(table.remapped(members[merged.representative]))
+        if independent:
+            lone = np.asarray(independent, dtype=np.int64)
+            tables.append(
+                independent_table(
+                    problem.scores[lone], problem.log_weights[lone], lone  # type: ignore[index]
+                )
+            )
         table = combine_tables(tables, kmax)
         posterior = k_posterior(
             table.best,

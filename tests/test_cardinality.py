@@ -124,3 +124,35 @@ def test_work_limit_raises() -> None:
     problem = random_problem(rng, 40, D=12, G=0)
     with pytest.raises(SearchLimitExceeded):
         exact_cardinality_table(problem, 10, work_limit=5)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_independent_table_equals_the_convolution_of_single_tables(seed: int) -> None:
+    from mapassoc.formulations.cardinality import independent_table, single_hypothesis_table
+
+    rng = np.random.default_rng(2000 + seed)
+    n = int(rng.integers(1, 30))
+    scores = np.round(rng.normal(0.0, 3.0, size=n), 1)  # rounded: exact ties happen
+    weights = scores + np.abs(rng.normal(0.0, 0.5, size=n))
+    indices = np.sort(rng.choice(1000, size=n, replace=False))
+    kmax = int(rng.integers(0, n + 3))
+    singles = [
+        single_hypothesis_table(float(s), float(w), True, False, 1).remapped(np.array([h]))
+        for s, w, h in zip(scores, weights, indices, strict=True)
+    ]
+    expected = combine_tables(singles, kmax)
+    got = combine_tables([independent_table(scores, weights, indices)], kmax)
+    np.testing.assert_allclose(got.best, expected.best, atol=1e-9)
+    np.testing.assert_allclose(got.log_mass, expected.log_mass, atol=1e-9)
+    for k in range(kmax + 1):
+        chosen = got.best_set(k)
+        if chosen is None:
+            assert expected.best_set(k) is None
+            continue
+        assert len(chosen) == k
+        assert sum(float(scores[np.searchsorted(indices, h)]) for h in chosen) == pytest.approx(
+            got.best[k]
+        )
+    # Ties go to the smaller indices: with equal scores the first k indices are chosen.
+    flat = independent_table(np.zeros(5), np.zeros(5), np.array([9, 3, 7, 1, 5]))
+    assert flat.best_set(2) == (1, 3)
