@@ -18,6 +18,10 @@ closely spaced parallel targets (444 hypotheses over 29 detections) this visits 
 thousand frontiers where detection order visits 339 thousand and a search over
 remaining-hypothesis sets exceeds 50 thousand nodes.
 
+Problems whose hypotheses each span fewer than 64 positions of the order (the usual
+case after the reordering) are searched with every frontier of a step as a numpy row
+(about 15 times faster per k-entry); the others by dictionaries.
+
 The search is iterative (no recursion, whatever the size), counts its work in
 *transitions* (one k-entry carried along one decision) and stops with
 :class:`SearchLimitExceeded` past ``work_limit`` transitions or past a wall-clock
@@ -260,6 +264,10 @@ def frontier_search(
     kmax = min(int(kmax), int(np.count_nonzero(problem.counts)))  # no set counts more
     H = problem.num_hypotheses
     order = resource_order(problem)
+    if max_frontiers is None and entry_margin is None:
+        vectorised = _vectorised_search(problem, kmax, order, work_limit, deadline)
+        if vectorised is not None:
+            return vectorised
     position = np.empty(problem.num_resources, dtype=np.int64)
     position[order] = np.arange(order.size)
     scores = problem.scores.tolist()
@@ -366,6 +374,168 @@ def frontier_search(
         best_sets=tuple(sets),
         log_mass=mass,
         exact=exact,
+        work=work,
+        max_frontiers=widest,
+    )
+
+
+_WORD_BITS = 64
+"""Frontiers of the vectorised search are one unsigned 64-bit word."""
+
+_VECTOR_ENTRIES_PER_TRANSITION = 16
+"""Work is counted in transitions of the dictionary search (about a microsecond each);
+the vectorised search handles a k-entry about 16 times faster and counts it so."""
+
+_VECTORISE_MIN_HYPOTHESES = 40
+"""Smaller problems take the dictionary search (numpy's per-call cost would dominate)."""
+
+
+def _vectorised_search(
+    problem: PackingProblem,
+    kmax: int,
+    order: NDArray[np.int64],
+    work_limit: int | None,
+    deadline: float | None,
+) -> FrontierResult | None:
+    """The exact frontier search with all frontiers of a step as numpy rows.
+
+    Applies when every hypothesis spans fewer than 64 positions of the resource order
+    (then a frontier, taken relative to the current position, is one 64-bit word) and
+    uses at least one resource; returns ``None`` otherwise.  Per step, every
+    (frontier, decision) pair is one row of k-entries; rows reaching the same frontier
+    are merged by ``logaddexp.reduceat`` (masses) and ``maximum.reduceat`` (best
+    scores), with back-pointers for the best sets.  Exact ties go to the first
+    candidate in a fixed order (covered or unused before taking a hypothesis,
+    hypotheses by index, frontiers by their word), so the result is deterministic and
+    does not depend on the numbering of the resources.
+    """
+    H = problem.num_hypotheses
+    R = order.size
+    if H < _VECTORISE_MIN_HYPOTHESES or R == 0:
+        return None
+    position = np.empty(R, dtype=np.int64)
+    position[order] = np.arange(R)
+    owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
+    spots = position[problem.resource_indices]
+    if np.any(np.diff(problem.resource_indptr) == 0):
+        return None  # a hypothesis without resources: the dictionary search handles it
+    first = np.full(H, R, dtype=np.int64)
+    np.minimum.at(first, owner, spots)
+    last = np.zeros(H, dtype=np.int64)
+    np.maximum.at(last, owner, spots)
+    if np.any(last - first >= _WORD_BITS):
+        return None
+    relative = np.zeros(H, dtype=np.uint64)
+    offsets = (spots - first[owner]).astype(np.uint64)
+    np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets))
+    counts = problem.counts.astype(np.int64)
+    scores = problem.scores
+    weights = problem.log_weights
+    by_start = np.argsort(first, kind="stable")
+    bounds = np.searchsorted(first[by_start], np.arange(R + 1))
+    width = kmax + 1
+    exactly_one = problem.exactly_one[order]
+    one = np.uint64(1)
+
+    covers = np.zeros(1, dtype=np.uint64)
+    best = np.zeros((1, 1))  # columns: k = 0..reach, reach growing with the sets
+    mass = np.zeros((1, 1))
+    back: list[tuple[NDArray[np.int64], NDArray[np.int64]]] = []
+    work = 0
+    widest = 1
+    for step in range(R):
+        covered = (covers & one).astype(bool)
+        keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(covers.size)
+        starting = by_start[bounds[step] : bounds[step + 1]]
+        open_rows = np.flatnonzero(~covered)
+        if starting.size and open_rows.size:
+            fits = (covers[open_rows, None] & relative[starting][None, :]) == 0
+            pair_row, pair_h = np.nonzero(fits)
+            pair_row, pair_h = open_rows[pair_row], starting[pair_h]
+        else:
+            pair_row = pair_h = np.zeros(0, dtype=np.int64)
+        reach = best.shape[1] - 1
+        grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and reach < kmax)
+        cols = reach + 1 + grow
+        source = np.concatenate([keep, pair_row])
+        if source.size == 0:  # an exactly-once resource no frontier can satisfy
+            return _result(np.full(width, _NEG_INF), np.full(width, _NEG_INF), [None] * width,
+                           work, widest)
+        cand_best = np.full((source.size, cols), _NEG_INF)
+        cand_mass = np.full((source.size, cols), _NEG_INF)
+        cand_best[: keep.size, : reach + 1] = best[keep]
+        cand_mass[: keep.size, : reach + 1] = mass[keep]
+        taken = keep.size + np.arange(pair_h.size)
+        for c in (0, 1):
+            sel = counts[pair_h] == c
+            if not np.any(sel):
+                continue
+            rows_in, rows_out = pair_row[sel], taken[sel]
+            span = min(reach + 1, cols - c)
+            cand_best[rows_out, c : c + span] = best[rows_in, :span] + scores[pair_h[sel], None]
+            cand_mass[rows_out, c : c + span] = mass[rows_in, :span] + weights[pair_h[sel], None]
+        cand_covers = np.concatenate(
+            [covers[keep] >> one, (covers[pair_row] | relative[pair_h]) >> one]
+        )
+        cand_decision = np.concatenate([np.full(keep.size, -1, dtype=np.int64), pair_h])
+        work += -(-source.size * cols // _VECTOR_ENTRIES_PER_TRANSITION)
+        if work_limit is not None and work > work_limit:
+            raise SearchLimitExceeded(
+                f"frontier search exceeded its work limit of {work_limit} transitions",
+                reason="work",
+                work=work,
+            )
+        if deadline is not None and time.perf_counter() > deadline:
+            raise SearchLimitExceeded(
+                "frontier search ran past its deadline", reason="deadline", work=work
+            )
+        unique, group = np.unique(cand_covers, return_inverse=True)
+        ranked = np.argsort(group, kind="stable")  # candidates of a frontier, in order
+        group_sorted = group[ranked]
+        starts = np.flatnonzero(np.r_[True, group_sorted[1:] != group_sorted[:-1]])
+        sorted_best = cand_best[ranked]
+        with np.errstate(invalid="ignore"):
+            mass = np.logaddexp.reduceat(cand_mass[ranked], starts, axis=0)
+        best = np.maximum.reduceat(sorted_best, starts, axis=0)
+        hits = np.where(
+            sorted_best == best[group_sorted], np.arange(ranked.size)[:, None], ranked.size
+        )
+        winner = ranked[np.minimum.reduceat(hits, starts, axis=0)]
+        back.append((source[winner], cand_decision[winner]))
+        covers = unique
+        widest = max(widest, covers.size)
+    # Every frontier word is 0 after the last position: one state remains.
+    final_best = np.full(width, _NEG_INF)
+    final_mass = np.full(width, _NEG_INF)
+    final_best[: best.shape[1]], final_mass[: mass.shape[1]] = best[0], mass[0]
+    sets: list[tuple[int, ...] | None] = [None] * width
+    for k in range(best.shape[1]):
+        if not np.isfinite(final_best[k]):
+            continue
+        chosen = []
+        state, remaining = 0, k
+        for src, decision in reversed(back):
+            h = int(decision[state, remaining])
+            state = int(src[state, remaining])
+            if h >= 0:
+                chosen.append(h)
+                remaining -= int(counts[h])
+        sets[k] = tuple(sorted(chosen))
+    return _result(final_best, final_mass, sets, work, widest)
+
+
+def _result(
+    best: NDArray[np.float64],
+    mass: NDArray[np.float64],
+    sets: list[tuple[int, ...] | None],
+    work: int,
+    widest: int,
+) -> FrontierResult:
+    return FrontierResult(
+        best=np.asarray(best, dtype=float).copy(),
+        best_sets=tuple(sets),
+        log_mass=np.asarray(mass, dtype=float).copy(),
+        exact=True,
         work=work,
         max_frontiers=widest,
     )

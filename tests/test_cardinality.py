@@ -156,3 +156,29 @@ def test_independent_table_equals_the_convolution_of_single_tables(seed: int) ->
     # Ties go to the smaller indices: with equal scores the first k indices are chosen.
     flat = independent_table(np.zeros(5), np.zeros(5), np.array([9, 3, 7, 1, 5]))
     assert flat.best_set(2) == (1, 3)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_vectorised_and_dictionary_searches_agree(seed: int) -> None:
+    """Problems of 40+ hypotheses take the vectorised search; an unbounded beam is the
+    dictionary search with nothing dropped.  Same values, and every best set is
+    feasible with its score."""
+    from mapassoc.formulations.frontier import frontier_search
+
+    rng = np.random.default_rng(3000 + seed)
+    problem = random_problem(
+        rng, int(rng.integers(40, 70)), D=int(rng.integers(15, 40)), G=int(rng.integers(0, 4))
+    )
+    kmax = int(rng.integers(0, 12))
+    vectorised = frontier_search(problem, kmax)
+    dictionary = frontier_search(problem, kmax, max_frontiers=10**9)
+    assert dictionary.exact
+    np.testing.assert_allclose(vectorised.best, dictionary.best, atol=1e-9)
+    np.testing.assert_allclose(vectorised.log_mass, dictionary.log_mass, atol=1e-9)
+    for k, chosen in enumerate(vectorised.best_sets):
+        if chosen is None:
+            assert vectorised.best[k] == -math.inf
+            continue
+        selection = np.array(chosen, dtype=np.int64)
+        assert problem.is_feasible(selection, k)
+        assert problem.value(selection) == pytest.approx(vectorised.best[k], abs=1e-9)
