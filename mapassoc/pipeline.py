@@ -178,10 +178,10 @@ def _compact(values: NDArray[np.float64], floor: float) -> list[float]:
 class WindowReport:
     """One line of ``windows.jsonl``.
 
-    ``probabilities`` (p(K | Z)) and its proven bounds are full vectors K = 0..Kmax in
-    Python; the JSON line leaves out their trailing entries below
-    :data:`P_K_FLOOR` and states the full length as ``p_k_length``, so a huge Kmax costs
-    nothing.  ``best_objective`` likewise ends at the last feasible K.
+    ``probabilities`` (p(K | Z)), its proven bounds and ``best_objective`` stop at the
+    largest K any track set of the window can reach (beyond it every p(K | Z) is exactly
+    0); ``p_k_length`` is the full length Kmax + 1, so a huge Kmax costs no memory.  The
+    JSON line also leaves out trailing p(K | Z) below :data:`P_K_FLOOR`.
     """
 
     index: int
@@ -190,6 +190,7 @@ class WindowReport:
     start_time: float
     end_time: float
     committed_scans: int
+    p_k_length: int
     probabilities: NDArray[np.float64]
     probabilities_lower: NDArray[np.float64]
     probabilities_upper: NDArray[np.float64]
@@ -225,7 +226,7 @@ class WindowReport:
             "start_time": self.start_time,
             "end_time": self.end_time,
             "committed_scans": self.committed_scans,
-            "p_k_length": int(self.probabilities.shape[0]),
+            "p_k_length": self.p_k_length,
             "p_k": _compact(self.probabilities, P_K_FLOOR),
             "joint_map_k": self.joint_map_k,
             "marginal_k": self.marginal_k,
@@ -507,6 +508,8 @@ class WindowEstimator:
                 solution.hypotheses, selection, start, commit, carried, records, next_id
             )
             piled += post.piles_up_at_kmax
+            possible = np.flatnonzero(np.isfinite(solution.table.log_mass_upper))
+            reach = int(possible[-1]) + 1 if possible.size else 1
             reports.append(
                 WindowReport(
                     index=len(reports),
@@ -515,10 +518,11 @@ class WindowEstimator:
                     start_time=scans[start].time,
                     end_time=scans[end - 1].time,
                     committed_scans=commit,
-                    probabilities=post.probabilities,
-                    probabilities_lower=post.probabilities_lower,  # type: ignore[arg-type]
-                    probabilities_upper=post.probabilities_upper,  # type: ignore[arg-type]
-                    best_objective=post.best_log_score,
+                    p_k_length=post.max_tracks + 1,
+                    probabilities=post.probabilities[:reach].copy(),
+                    probabilities_lower=post.probabilities_lower[:reach].copy(),  # type: ignore[index]
+                    probabilities_upper=post.probabilities_upper[:reach].copy(),  # type: ignore[index]
+                    best_objective=post.best_log_score[:reach].copy(),
                     joint_map_k=post.joint_map_k,
                     marginal_k=post.marginal_k,
                     chosen_k=chosen_k,
