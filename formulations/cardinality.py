@@ -31,7 +31,12 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.formulations.frontier import SearchLimitExceeded, frontier_search, tie_precedes
+from mapassoc.formulations.frontier import (
+    SearchLimitExceeded,
+    frontier_search,
+    independent_sums,
+    tie_precedes,
+)
 from mapassoc.formulations.packing import PackingProblem
 
 __all__ = [
@@ -301,14 +306,8 @@ def independent_table(
             f"scores, log_weights and indices must have one shape, got {scores.shape}, "
             f"{log_weights.shape} and {indices.shape}"
         )
-    order = np.lexsort((indices, -scores))
-    best = np.concatenate([[0.0], np.cumsum(scores[order])])
-    mass = np.full(n + 1, _NEG_INF)
-    mass[0] = 0.0
-    for i, w in enumerate(log_weights.tolist()):
-        # e_k(first i+1) = e_k(first i) + w_i e_(k-1)(first i), in log space.
-        mass[1 : i + 2] = np.logaddexp(mass[1 : i + 2], mass[: i + 1] + w)
-    return IndependentTable(best=best, log_mass=mass, ranked=indices[order])
+    best, mass, ranked = independent_sums(scores, log_weights, indices)
+    return IndependentTable(best=best, log_mass=mass, ranked=ranked)
 
 
 @dataclass(frozen=True, eq=False)

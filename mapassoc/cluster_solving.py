@@ -399,9 +399,9 @@ class ClusterSolver:
 
         The at-most-once resources with the most users are relaxed, priced by the duals
         of the LP relaxation with K free
-        (:func:`~mapassoc.formulations.bounds.relaxed_problem`): a sixteenth of them
-        first, twice as many each time the search of the relaxed problem exceeds half
-        of ``exact_work_limit``.  Returns (best upper bounds, log-mass upper bounds,
+        (:func:`~mapassoc.formulations.bounds.relaxed_problem`): a quarter of them
+        first, twice as many each time the search of the relaxed problem exceeds an
+        eighth of ``exact_work_limit``.  Returns (best upper bounds, log-mass upper bounds,
         work), or ``None`` if no relaxation fitted or the deadline passed.
         """
         lp = self.lp_solver.solve_relaxation(
@@ -413,7 +413,7 @@ class ClusterSolver:
         usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
         shared = np.flatnonzero((usage > 1) & ~problem.exactly_one)
         candidates = shared[np.lexsort((shared, -usage[shared]))]
-        count = max(1, candidates.size // 16)
+        count = max(1, candidates.size // 4)
         work = 0
         while candidates.size:
             mask = np.zeros(problem.num_resources, dtype=bool)
@@ -421,7 +421,7 @@ class ClusterSolver:
             relaxed, constant = relaxed_problem(problem, mask, multipliers)
             try:
                 found = frontier_search(
-                    relaxed, top, work_limit=max(1, self.exact_work_limit // 2), deadline=deadline
+                    relaxed, top, work_limit=max(1, self.exact_work_limit // 8), deadline=deadline
                 )
             except SearchLimitExceeded as stop:
                 work += stop.work

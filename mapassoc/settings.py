@@ -143,7 +143,7 @@ class EstimatorSettings:
     solver: str = "highs"
     time_limit: float = 2.0
     exact_work_limit: int = 500_000
-    beam_width: int = 500
+    beam_width: int = 200
 
     def __post_init__(self) -> None:
         _check_int("window_length", self.window_length, minimum=1)

@@ -182,3 +182,25 @@ def test_vectorised_and_dictionary_searches_agree(seed: int) -> None:
         selection = np.array(chosen, dtype=np.int64)
         assert problem.is_feasible(selection, k)
         assert problem.value(selection) == pytest.approx(vectorised.best[k], abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_hypotheses_without_resources_are_added_exactly(seed: int) -> None:
+    """Lone hypotheses (no resource; counted or not) are taken or left freely."""
+    rng = np.random.default_rng(4000 + seed)
+    base = random_problem(rng, int(rng.integers(0, 8)) or 1, D=int(rng.integers(1, 5)), G=1)
+    extra = int(rng.integers(1, 5))
+    scores = np.r_[base.scores, np.round(rng.normal(0.0, 2.0, size=extra), 1)]
+    counts = np.r_[base.counts, rng.random(extra) < 0.7]
+    indptr = np.r_[base.resource_indptr, np.full(extra, base.resource_indptr[-1])]
+    problem = PackingProblem(scores, indptr, base.resource_indices, base.exactly_one, counts)
+    kmax = int(rng.integers(0, problem.num_hypotheses + 1))
+    best, mass = brute_force(problem, kmax)
+    table = exact_cardinality_table(problem, kmax)
+    np.testing.assert_allclose(table.best, best, atol=1e-9)
+    np.testing.assert_allclose(table.log_mass, mass, atol=1e-9)
+    for k, chosen in enumerate(table.best_sets):
+        if chosen is not None:
+            selection = np.array(chosen, dtype=np.int64)
+            assert problem.is_feasible(selection, k)
+            assert problem.value(selection) == pytest.approx(best[k], abs=1e-9)
