@@ -459,6 +459,18 @@ def _vectorised_search(
         grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and reach < kmax)
         cols = reach + 1 + grow
         source = np.concatenate([keep, pair_row])
+        # Charged before the step's arrays are built, so a limit never overshoots.
+        work += -(-source.size * cols // _VECTOR_ENTRIES_PER_TRANSITION)
+        if work_limit is not None and work > work_limit:
+            raise SearchLimitExceeded(
+                f"frontier search exceeded its work limit of {work_limit} transitions",
+                reason="work",
+                work=work,
+            )
+        if deadline is not None and time.perf_counter() > deadline:
+            raise SearchLimitExceeded(
+                "frontier search ran past its deadline", reason="deadline", work=work
+            )
         if source.size == 0:  # an exactly-once resource no frontier can satisfy
             return _result(np.full(width, _NEG_INF), np.full(width, _NEG_INF), [None] * width,
                            work, widest)
@@ -479,17 +491,6 @@ def _vectorised_search(
             [covers[keep] >> one, (covers[pair_row] | relative[pair_h]) >> one]
         )
         cand_decision = np.concatenate([np.full(keep.size, -1, dtype=np.int64), pair_h])
-        work += -(-source.size * cols // _VECTOR_ENTRIES_PER_TRANSITION)
-        if work_limit is not None and work > work_limit:
-            raise SearchLimitExceeded(
-                f"frontier search exceeded its work limit of {work_limit} transitions",
-                reason="work",
-                work=work,
-            )
-        if deadline is not None and time.perf_counter() > deadline:
-            raise SearchLimitExceeded(
-                "frontier search ran past its deadline", reason="deadline", work=work
-            )
         unique, group = np.unique(cand_covers, return_inverse=True)
         ranked = np.argsort(group, kind="stable")  # candidates of a frontier, in order
         group_sorted = group[ranked]
