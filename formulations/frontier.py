@@ -176,6 +176,20 @@ def tie_precedes(a: tuple[int, ...], b: tuple[int, ...]) -> bool:
     return bool(differ) and min(differ) in a
 
 
+def _check_limits(work: int, work_limit: int | None, deadline: float | None) -> None:
+    """Raise :class:`SearchLimitExceeded` past the work limit or the deadline."""
+    if work_limit is not None and work > work_limit:
+        raise SearchLimitExceeded(
+            f"frontier search exceeded its work limit of {work_limit} transitions",
+            reason="work",
+            work=work,
+        )
+    if deadline is not None and time.perf_counter() > deadline:
+        raise SearchLimitExceeded(
+            "frontier search ran past its deadline", reason="deadline", work=work
+        )
+
+
 def _log_add(a: float, b: float) -> float:
     if a < b:
         a, b = b, a
@@ -309,18 +323,10 @@ def frontier_search(
     def spend(amount: int) -> None:
         nonlocal work, next_check
         work += amount
-        if work_limit is not None and work > work_limit:
-            raise SearchLimitExceeded(
-                f"frontier search exceeded its work limit of {work_limit} transitions",
-                reason="work",
-                work=work,
-            )
-        if deadline is not None and work >= next_check:
+        clock = deadline is not None and work >= next_check
+        if clock:
             next_check = work + _DEADLINE_CHECK_EVERY
-            if time.perf_counter() > deadline:
-                raise SearchLimitExceeded(
-                    "frontier search ran past its deadline", reason="deadline", work=work
-                )
+        _check_limits(work, work_limit, deadline if clock else None)
 
     # frontier (bit mask of later resources already covered) -> {k: entry}
     states: dict[int, dict[int, _Entry]] = {0: {0: (0.0, 0, 0.0)}}
@@ -461,19 +467,10 @@ def _vectorised_search(
         source = np.concatenate([keep, pair_row])
         # Charged before the step's arrays are built, so a limit never overshoots.
         work += -(-source.size * cols // _VECTOR_ENTRIES_PER_TRANSITION)
-        if work_limit is not None and work > work_limit:
-            raise SearchLimitExceeded(
-                f"frontier search exceeded its work limit of {work_limit} transitions",
-                reason="work",
-                work=work,
-            )
-        if deadline is not None and time.perf_counter() > deadline:
-            raise SearchLimitExceeded(
-                "frontier search ran past its deadline", reason="deadline", work=work
-            )
+        _check_limits(work, work_limit, deadline)
         if source.size == 0:  # an exactly-once resource no frontier can satisfy
-            return _result(np.full(width, _NEG_INF), np.full(width, _NEG_INF), [None] * width,
-                           work, widest)
+            infeasible = np.full(width, _NEG_INF)
+            return _result(infeasible, infeasible, [None] * width, work, widest)
         cand_best = np.full((source.size, cols), _NEG_INF)
         cand_mass = np.full((source.size, cols), _NEG_INF)
         cand_best[: keep.size, : reach + 1] = best[keep]
