@@ -51,7 +51,7 @@ from mapassoc.formulations.cardinality import (
 )
 from mapassoc.formulations.frontier import frontier_search
 from mapassoc.formulations.packing import PackingProblem, decode_selection, set_packing_program
-from mapassoc.solvers import HighsSolver, LPResult, ProgramSolver, SolveStatus
+from mapassoc.solvers import HighsSolver, LPResult, ProgramSolver, SolverError, SolveStatus
 
 __all__ = ["ClusterReport", "ClusterSolver", "CLUSTER_STATUSES"]
 
@@ -323,17 +323,18 @@ class ClusterSolver:
                     elif status is not SolveStatus.INFEASIBLE:
                         limited = True
                     found_best = max(found_best, float(best[k]))
-                # Every further k is bounded by the supporting line of the concave LP value.
+                # Stop once the supporting line of the concave LP value (and the mass
+                # bound with this LP's multipliers) shows every further k negligible;
+                # those bounds are applied below.
                 ahead = np.arange(k + step, -1 if step < 0 else size, step)
                 if ahead.size == 0:
                     break
-                line_best = lp.objective + mu * (ahead - k)
-                line_mass = mass_bound(multipliers, mu, ahead)
-                if np.all(line_best < found_best - self.map_margin) and np.all(
-                    line_mass < _log_sum(log_mass) - _NEGLIGIBLE_LOG_MASS
+                if np.all(lp.objective + mu * (ahead - k) < found_best - self.map_margin) and (
+                    np.all(
+                        mass_bound(multipliers, mu, ahead)
+                        < _log_sum(log_mass) - _NEGLIGIBLE_LOG_MASS
+                    )
                 ):
-                    best_upper[ahead] = np.minimum(best_upper[ahead], line_best)
-                    mass_upper[ahead] = np.minimum(mass_upper[ahead], line_mass)
                     break
                 k += step
             if line is not None:
@@ -349,12 +350,12 @@ class ClusterSolver:
         # product; bounds must never claim less than a set that exists.
         slack = 1e-7 * (1.0 + np.abs(best))
         if np.any(np.isfinite(best) & (best_upper < best - slack)):
-            raise RuntimeError("an LP upper bound fell below a feasible set's score")
+            raise SolverError(
+                f"{self.lp_solver.name}: an LP upper bound fell below a feasible set's score"
+            )
         best_upper = np.maximum(best_upper, best)
         mass_upper = np.maximum(mass_upper, log_mass)
-        table = CardinalityTable(
-            best, log_mass, tuple(sets), False, best_upper, mass_upper
-        )
+        table = CardinalityTable(best, log_mass, tuple(sets), False, best_upper, mass_upper)
         found, bound = _log_sum(log_mass), _log_sum(mass_upper)
         return table, ClusterReport(
             size=problem.num_hypotheses,
