@@ -94,6 +94,10 @@ def _check_ndim(ndim: int) -> int:
     return int(ndim)
 
 
+_MATRIX_CACHE_SIZE = 64
+"""Distinct (time step, model) pairs whose F and Q a linear kinematic model remembers."""
+
+
 class _LinearKinematic:
     """Shared machinery of the polynomial (nearly constant derivative) models.
 
@@ -131,17 +135,35 @@ class _LinearKinematic:
     def _axis_blocks(self, dt: float) -> tuple[FloatArray, FloatArray]:
         raise NotImplementedError  # implemented by each concrete model
 
-    def _expand(self, block: FloatArray) -> FloatArray:
-        # Per-axis block (order x order) on the layout [positions, velocities, ...].
-        return np.kron(block, np.eye(self.ndim))
+    def _matrices(self, dt: float) -> tuple[FloatArray, FloatArray]:
+        """(F(dt), Q(dt)), read-only and remembered per time step.
+
+        A recording has few distinct time steps, and the track trees predict with them
+        thousands of times; the per-axis blocks (order x order) are expanded onto the
+        layout [positions, velocities, ...].
+        """
+        key = (_check_dt(dt), self.ndim, self.noise_intensity)
+        cache: dict[tuple[float, int, float], tuple[FloatArray, FloatArray]] = (
+            self.__dict__.setdefault("_matrix_cache", {})
+        )
+        found = cache.get(key)
+        if found is None:
+            if len(cache) >= _MATRIX_CACHE_SIZE:
+                cache.clear()
+            eye = np.eye(self.ndim)
+            F, Q = (np.kron(block, eye) for block in self._axis_blocks(key[0]))
+            F.setflags(write=False)
+            Q.setflags(write=False)
+            found = cache[key] = (F, Q)
+        return found
 
     def transition_matrix(self, dt: float) -> FloatArray:
-        """F(dt), shape ``(n, n)``."""
-        return self._expand(self._axis_blocks(_check_dt(dt))[0])
+        """F(dt), shape ``(n, n)`` (read-only)."""
+        return self._matrices(dt)[0]
 
     def process_noise(self, dt: float) -> FloatArray:
-        """Q(dt), shape ``(n, n)``."""
-        return self._expand(self._axis_blocks(_check_dt(dt))[1])
+        """Q(dt), shape ``(n, n)`` (read-only)."""
+        return self._matrices(dt)[1]
 
     def transition(self, x: FloatArray, dt: float) -> FloatArray:
         return np.asarray(x, dtype=float) @ self.transition_matrix(dt).T
