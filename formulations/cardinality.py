@@ -360,35 +360,62 @@ class CombinedTable:
         return tuple(self.best_set(k) for k in range(self.kmax + 1))
 
 
+def _finite_length(values: NDArray[np.float64], size: int) -> int:
+    """One past the last finite entry among the first ``size``."""
+    finite = np.flatnonzero(np.isfinite(values[:size]))
+    return int(finite[-1]) + 1 if finite.size else 0
+
+
 def _sum_product(
     acc: NDArray[np.float64], entries: NDArray[np.float64], size: int
 ) -> NDArray[np.float64]:
     """Log-space convolution of ``acc`` with ``entries``, truncated to ``size`` terms.
 
-    One ``logaddexp`` pass per entry: a cluster's table is short and the accumulated
-    one long, so this is linear in the long one.
+    One ``logaddexp`` pass per finite entry of the shorter operand.
     """
     out = np.full(size, _NEG_INF)
-    for j in range(min(entries.shape[0], size)):
-        if np.isfinite(entries[j]):
-            np.logaddexp(out[j:], acc[: size - j] + entries[j], out=out[j:])
+    a_len, e_len = _finite_length(acc, size), _finite_length(entries, size)
+    short, long_ = (acc, entries) if a_len < e_len else (entries, acc)
+    for j in range(min(a_len, e_len)):
+        if np.isfinite(short[j]):
+            n = min(long_.shape[0], size - j)
+            window = out[j : j + n]
+            np.logaddexp(window, long_[:n] + short[j], out=window)
     return out
 
 
 def _max_plus(
     acc: NDArray[np.float64], entries: NDArray[np.float64], size: int
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Max-plus convolution with the share of the second operand at each k (-1: none)."""
+    """Max-plus convolution with the share of the second operand at each k (-1: none).
+
+    Loops over the finite entries of the shorter operand; on exact ties the smaller
+    share of ``entries`` wins.
+    """
     out = np.full(size, _NEG_INF)
     pointer = np.full(size, -1, dtype=np.int64)
-    for j in range(min(entries.shape[0], size)):
-        if not np.isfinite(entries[j]):
+    a_len, e_len = _finite_length(acc, size), _finite_length(entries, size)
+    if e_len <= a_len:
+        for j in range(e_len):
+            if not np.isfinite(entries[j]):
+                continue
+            candidate = np.full(size, _NEG_INF)
+            n = min(acc.shape[0], size - j)
+            candidate[j : j + n] = acc[:n] + entries[j]
+            better = candidate > out
+            out[better] = candidate[better]
+            pointer[better] = j
+        return out, pointer
+    ks = np.arange(size)
+    for i in reversed(range(a_len)):  # the share k - i of `entries` rises: smaller first
+        if not np.isfinite(acc[i]):
             continue
         candidate = np.full(size, _NEG_INF)
-        candidate[j:] = acc[: size - j] + entries[j]
+        n = min(entries.shape[0], size - i)
+        candidate[i : i + n] = entries[:n] + acc[i]
         better = candidate > out
         out[better] = candidate[better]
-        pointer[better] = j
+        pointer[better] = ks[better] - i
     return out, pointer
 
 

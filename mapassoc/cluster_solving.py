@@ -62,6 +62,10 @@ BOUND_PRUNE_MIN_HYPOTHESES = 100
 """Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of
 such a cluster costs about as much as the LP (a few milliseconds)."""
 
+_SMALL_AFTER_DEADLINE = 40
+"""Past the deadline, clusters with fewer hypotheses still get the exact search (it
+costs less than the bounds); larger ones go straight to the narrow beam."""
+
 _EMERGENCY_BEAM = 2
 """Beam width once the deadline has passed: feasible sets at little cost."""
 
@@ -74,7 +78,7 @@ _BEAM_ENTRY_MARGIN = 40.0
 _NEGLIGIBLE_LOG_MASS = 50.0
 """A k whose mass bound is this far below the mass found holds < e^-50 of it."""
 
-_MU_GRID = np.linspace(-30.0, 30.0, 121)
+_MU_GRID = np.linspace(-30.0, 30.0, 25)
 """Cardinality multipliers tried for the mass bound of k values no LP reached."""
 
 
@@ -211,6 +215,11 @@ class ClusterSolver:
         """
         started = time.perf_counter()
         kmax = min(kmax, int(np.count_nonzero(problem.counts)))
+        if (
+            problem.num_hypotheses >= _SMALL_AFTER_DEADLINE
+            and time.perf_counter() >= deadline
+        ):
+            return self._bounded(problem, kmax, deadline, 0, started)
         try:
             table = exact_cardinality_table(
                 problem, kmax, work_limit=self.exact_work_limit, deadline=deadline
