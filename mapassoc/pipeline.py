@@ -182,6 +182,9 @@ class WindowReport:
     largest K any track set of the window can reach (beyond it every p(K | Z) is exactly
     0); ``p_k_length`` is the full length Kmax + 1, so a huge Kmax costs no memory.  The
     JSON line also leaves out trailing p(K | Z) below :data:`P_K_FLOOR`.
+    ``best_objective_upper`` holds the proven upper bounds of the best objective per K;
+    it is written only where it differs from ``best_objective`` (a bounded cluster),
+    and ``null`` in ``best_objective`` then means "no set found", not "none exists".
     """
 
     index: int
@@ -195,6 +198,7 @@ class WindowReport:
     probabilities_lower: NDArray[np.float64]
     probabilities_upper: NDArray[np.float64]
     best_objective: NDArray[np.float64]
+    best_objective_upper: NDArray[np.float64]
     joint_map_k: int
     marginal_k: int
     chosen_k: int
@@ -253,6 +257,10 @@ class WindowReport:
         if not self.marginal_exact:
             out["p_k_lower"] = _compact(self.probabilities_lower, P_K_FLOOR)
             out["p_k_upper"] = _compact(self.probabilities_upper, P_K_FLOOR)
+        if np.any(self.best_objective_upper > self.best_objective):
+            out["best_objective_upper"] = [
+                float(b) if math.isfinite(b) else None for b in self.best_objective_upper
+            ]
         if timings:
             out["generate_seconds"] = self.generate_seconds
             out["solve_seconds"] = self.solve_seconds
@@ -523,6 +531,7 @@ class WindowEstimator:
                     probabilities_lower=post.probabilities_lower[:reach].copy(),  # type: ignore[index]
                     probabilities_upper=post.probabilities_upper[:reach].copy(),  # type: ignore[index]
                     best_objective=post.best_log_score[:reach].copy(),
+                    best_objective_upper=solution.table.best_upper[:reach].copy(),
                     joint_map_k=post.joint_map_k,
                     marginal_k=post.marginal_k,
                     chosen_k=chosen_k,

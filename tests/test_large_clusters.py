@@ -277,3 +277,34 @@ def test_relaxed_problem_bounds_every_k(seed: int) -> None:
         assert np.all(mass <= table.log_mass + constant + TOLERANCE)
     with pytest.raises(ValueError, match="exactly-once"):
         relaxed_problem(problem, problem.exactly_one.copy(), np.zeros(problem.num_resources))
+
+
+def test_bounded_window_lines_carry_their_bounds() -> None:
+    """Windows forced onto the bounded path write p_k and best-objective bounds that
+    contain the exact window's values."""
+    checked: list[int] = []
+    for seed in range(10):
+        case = random_window(seed)
+        exact = case.estimator.solve_window(case.scans, case.carried)
+        forced = with_settings(case.estimator, exact_work_limit=1, beam_width=1)
+        bounded = forced.solve_window(case.scans, case.carried)
+        if bounded.posterior.exact:
+            continue
+        checked.append(seed)
+        p = exact.posterior.probabilities
+        assert np.all(bounded.posterior.probabilities_lower <= p + 1e-9)
+        assert np.all(p <= bounded.posterior.probabilities_upper + 1e-9)
+        assert np.all(exact.table.best <= bounded.table.best_upper + TOLERANCE)
+    assert len(checked) >= 3, "too few windows took the bounded path"
+    # And a run's JSON lines carry the bounds.
+    from mapassoc.scenarios import build_scenario, truncate_scenario
+
+    scenario = truncate_scenario(build_scenario("crossing", 0), 8)
+    estimator = WindowEstimator(config=scenario.config)
+    run = with_settings(estimator, exact_work_limit=1, beam_width=1).run(scenario.scans)
+    lines = [w.to_json(timings=False) for w in run.windows if not w.marginal_exact]
+    assert lines and all("p_k_lower" in line and "p_k_upper" in line for line in lines)
+    for w in run.windows:
+        line = w.to_json(timings=False)
+        if np.any(w.best_objective_upper > w.best_objective):
+            assert len(line["best_objective_upper"]) == len(w.best_objective)  # type: ignore[arg-type]
