@@ -488,10 +488,13 @@ def _vectorised_search(
             [covers[keep] >> one, (covers[pair_row] | relative[pair_h]) >> one]
         )
         cand_decision = np.concatenate([np.full(keep.size, -1, dtype=np.int64), pair_h])
-        unique, group = np.unique(cand_covers, return_inverse=True)
-        ranked = np.argsort(group, kind="stable")  # candidates of a frontier, in order
-        group_sorted = group[ranked]
-        starts = np.flatnonzero(np.r_[True, group_sorted[1:] != group_sorted[:-1]])
+        # One stable sort by frontier word: the candidates of a frontier stay in order.
+        ranked = np.argsort(cand_covers, kind="stable")
+        sorted_covers = cand_covers[ranked]
+        new_frontier = np.r_[True, sorted_covers[1:] != sorted_covers[:-1]]
+        starts = np.flatnonzero(new_frontier)
+        group_sorted = np.cumsum(new_frontier) - 1
+        unique = sorted_covers[starts]
         sorted_best = cand_best[ranked]
         with np.errstate(invalid="ignore"):
             mass = np.logaddexp.reduceat(cand_mass[ranked], starts, axis=0)
