@@ -121,17 +121,19 @@ class PackingProblem:
     def subproblem(self, hypotheses: NDArray[np.int64]) -> PackingProblem:
         """The problem restricted to ``hypotheses`` (resources renumbered compactly)."""
         hyp = np.asarray(hypotheses, dtype=np.int64)
-        parts = [self.resources_of(int(h)) for h in hyp]
-        used = np.unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
+        starts = self.resource_indptr[hyp]
+        lengths = self.resource_indptr[hyp + 1] - starts
+        indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+        # Positions of the chosen hypotheses' entries, in order.
+        entry = np.repeat(starts - indptr[:-1], lengths) + np.arange(indptr[-1])
+        resources = self.resource_indices[entry]
+        used = np.unique(resources)
         remap = np.full(self.num_resources, -1, dtype=np.int64)
         remap[used] = np.arange(len(used))
-        lengths = [len(p) for p in parts]
-        indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-        indices = remap[np.concatenate(parts)] if parts else np.zeros(0, np.int64)
         return PackingProblem(
             scores=self.scores[hyp],
             resource_indptr=indptr,
-            resource_indices=indices.astype(np.int64),
+            resource_indices=remap[resources],
             exactly_one=self.exactly_one[used],
             counts=self.counts[hyp],
             log_weights=self.log_weights[hyp],  # type: ignore[index]
@@ -180,24 +182,39 @@ def merge_interchangeable(problem: PackingProblem) -> MergedProblem:
     gives the same per-k best scores and the same per-k log-masses.  Exact.
     """
     H = problem.num_hypotheses
-    groups: dict[tuple[bool, tuple[int, ...]], list[int]] = {}
-    for h in range(H):
-        key = (bool(problem.counts[h]), tuple(sorted(problem.resources_of(h).tolist())))
-        groups.setdefault(key, []).append(h)
-    classes = sorted(groups.values(), key=lambda g: g[0])
+    if H == 0:
+        return MergedProblem(problem, np.zeros(0, dtype=np.int64), ())
+    lengths = np.diff(problem.resource_indptr)
+    owner = np.repeat(np.arange(H), lengths)
+    # Each hypothesis' resources sorted, as a row padded with -1: equal rows (with equal
+    # counts) are interchangeable hypotheses.
+    order = np.lexsort((problem.resource_indices, owner))
+    rank = np.arange(order.size) - np.repeat(problem.resource_indptr[:-1], lengths)
+    keys = np.full((H, int(lengths.max()) + 1), -1, dtype=np.int64)
+    keys[:, 0] = problem.counts
+    keys[owner[order], 1 + rank] = problem.resource_indices[order]
+    _, label = np.unique(keys, axis=0, return_inverse=True)
+    label = np.asarray(label).ravel()
+    # Number the classes in order of their first member.
+    first = np.full(int(label.max()) + 1, H, dtype=np.int64)
+    np.minimum.at(first, label, np.arange(H))
+    class_of = np.argsort(np.argsort(first))[label]
     scores = problem.scores
     weights = problem.log_weights
-    reps = np.array([min(g, key=lambda h: (-scores[h], h)) for g in classes], dtype=np.int64)
-    merged_weights = np.array(
-        [np.logaddexp.reduce(weights[np.asarray(g)]) for g in classes]  # type: ignore[index]
+    # Within a class: best score first (ties: smallest index) for the representative.
+    by_class = np.lexsort((np.arange(H), -scores, class_of))
+    starts = np.flatnonzero(np.r_[True, np.diff(class_of[by_class]) != 0])
+    reps = by_class[starts].astype(np.int64)
+    merged_weights = np.logaddexp.reduceat(weights[by_class], starts)  # type: ignore[index]
+    grouped = np.argsort(class_of, kind="stable")  # members by class, ascending index
+    members = tuple(
+        np.asarray(m, dtype=np.int64)
+        for m in np.split(grouped, np.flatnonzero(np.diff(class_of[grouped]) != 0) + 1)
     )
-    lengths = [len(problem.resources_of(int(r))) for r in reps]
-    indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-    indices = (
-        np.concatenate([problem.resources_of(int(r)) for r in reps])
-        if len(reps)
-        else np.zeros(0, dtype=np.int64)
-    )
+    rep_lengths = lengths[reps]
+    indptr = np.concatenate([[0], np.cumsum(rep_lengths)]).astype(np.int64)
+    entry = np.repeat(problem.resource_indptr[reps] - indptr[:-1], rep_lengths)
+    indices = problem.resource_indices[entry + np.arange(indptr[-1])]
     merged = PackingProblem(
         scores=scores[reps],
         resource_indptr=indptr,
@@ -206,7 +223,7 @@ def merge_interchangeable(problem: PackingProblem) -> MergedProblem:
         counts=problem.counts[reps],
         log_weights=merged_weights,
     )
-    return MergedProblem(merged, reps, tuple(np.asarray(g, dtype=np.int64) for g in classes))
+    return MergedProblem(merged, reps, members)
 
 
 def set_packing_program(problem: PackingProblem, k: int | None) -> Program:

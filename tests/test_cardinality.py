@@ -204,3 +204,38 @@ def test_hypotheses_without_resources_are_added_exactly(seed: int) -> None:
             selection = np.array(chosen, dtype=np.int64)
             assert problem.is_feasible(selection, k)
             assert problem.value(selection) == pytest.approx(best[k], abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_merge_interchangeable_groups_by_resources_and_count(seed: int) -> None:
+    """Against the definition: hypotheses with the same resource set and count flag form
+    one class (classes in order of their first member), represented by the best score
+    (ties: smallest index), weighted by the log-sum-exp of the class."""
+    from mapassoc.formulations.packing import merge_interchangeable
+
+    rng = np.random.default_rng(5000 + seed)
+    problem = random_problem(
+        rng, int(rng.integers(1, 40)), D=int(rng.integers(1, 6)), G=int(rng.integers(0, 3))
+    )
+    groups: dict[tuple[bool, tuple[int, ...]], list[int]] = {}
+    for h in range(problem.num_hypotheses):
+        key = (bool(problem.counts[h]), tuple(sorted(problem.resources_of(h).tolist())))
+        groups.setdefault(key, []).append(h)
+    classes = sorted(groups.values(), key=lambda g: g[0])
+    merged = merge_interchangeable(problem)
+    assert [m.tolist() for m in merged.members] == classes
+    for i, members in enumerate(classes):
+        best = min(members, key=lambda h: (-problem.scores[h], h))
+        assert merged.representative[i] == best
+        assert merged.problem.scores[i] == problem.scores[best]
+        assert merged.problem.log_weights[i] == pytest.approx(  # type: ignore[index]
+            np.logaddexp.reduce(problem.log_weights[members])  # type: ignore[index]
+        )
+        assert sorted(merged.problem.resources_of(i).tolist()) == sorted(
+            problem.resources_of(best).tolist()
+        )
+    # Merging changes no table.
+    whole = exact_cardinality_table(problem, 6)
+    merged_table = exact_cardinality_table(merged.problem, 6)
+    np.testing.assert_allclose(merged_table.best, whole.best, atol=1e-9)
+    np.testing.assert_allclose(merged_table.log_mass, whole.log_mass, atol=1e-9)
