@@ -447,7 +447,9 @@ def _vectorised_search(
     covers = np.zeros(1, dtype=np.uint64)
     best = np.zeros((1, 1))  # columns: k = 0..reach, reach growing with the sets
     mass = np.zeros((1, 1))
-    back: list[tuple[NDArray[np.int64], NDArray[np.int64]]] = []
+    # Per step: the winning candidate of each (frontier, k) (int32, the big array), and
+    # each candidate's previous frontier and decision.
+    back: list[tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.int64]]] = []
     work = 0
     widest = 1
     for step in range(R):
@@ -503,7 +505,7 @@ def _vectorised_search(
             sorted_best == best[group_sorted], np.arange(ranked.size)[:, None], ranked.size
         )
         winner = ranked[np.minimum.reduceat(hits, starts, axis=0)]
-        back.append((source[winner], cand_decision[winner]))
+        back.append((winner.astype(np.int32), source, cand_decision))
         covers = unique
         widest = max(widest, covers.size)
     # Every frontier word is 0 after the last position: one state remains.
@@ -516,9 +518,10 @@ def _vectorised_search(
             continue
         chosen = []
         state, remaining = 0, k
-        for src, decision in reversed(back):
-            h = int(decision[state, remaining])
-            state = int(src[state, remaining])
+        for winners, src, decision in reversed(back):
+            candidate = int(winners[state, remaining])
+            h = int(decision[candidate])
+            state = int(src[candidate])
             if h >= 0:
                 chosen.append(h)
                 remaining -= int(counts[h])
