@@ -128,7 +128,8 @@ class WindowSolution:
     bound_pruned : int
         Merged hypotheses dropped by the LP bound (``ClusterSolver.bound_prune``).
     timed_out : bool
-        Whether the window ran past ``time_limit``.
+        Whether the window ran past ``time_limit`` (whether or not that changed the
+        answer; see :attr:`status`).
     """
 
     hypotheses: WindowHypotheses
@@ -144,14 +145,17 @@ class WindowSolution:
 
     @property
     def status(self) -> str:
-        """The worst of :data:`WINDOW_STATUSES` that applies."""
+        """The worst of :data:`WINDOW_STATUSES` that applies.
+
+        ``time_limit`` means that the deadline changed the answer (a cluster got only
+        what was certified by then).  A window that merely ran long, every cluster
+        still solved, keeps its status and says so in :attr:`timed_out`.
+        """
         worst = 0
         if self.hypotheses.capped:
             worst = WINDOW_STATUSES.index("capped")
         for report in self.bounded_clusters:
             worst = max(worst, WINDOW_STATUSES.index(report.status))
-        if self.timed_out:
-            worst = WINDOW_STATUSES.index("time_limit")
         return WINDOW_STATUSES[worst]
 
     @property
@@ -217,6 +221,7 @@ class WindowReport:
     bounded_clusters: int
     carried_tracks: int
     piles_up_at_kmax: bool
+    over_time_limit: bool
     generate_seconds: float
     solve_seconds: float
 
@@ -254,6 +259,8 @@ class WindowReport:
             "carried_tracks": self.carried_tracks,
             "piles_up_at_kmax": self.piles_up_at_kmax,
         }
+        if timings:
+            out["over_time_limit"] = self.over_time_limit
         if not self.marginal_exact:
             out["p_k_lower"] = _compact(self.probabilities_lower, P_K_FLOOR)
             out["p_k_upper"] = _compact(self.probabilities_upper, P_K_FLOOR)
@@ -550,6 +557,7 @@ class WindowEstimator:
                     bounded_clusters=len(solution.bounded_clusters),
                     carried_tracks=int(np.count_nonzero(solution.hypotheses.tree_track_ids >= 0)),
                     piles_up_at_kmax=post.piles_up_at_kmax,
+                    over_time_limit=solution.timed_out,
                     generate_seconds=solution.generate_seconds,
                     solve_seconds=solution.solve_seconds,
                 )

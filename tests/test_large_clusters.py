@@ -239,13 +239,18 @@ def test_frontier_search_has_no_recursion_limit() -> None:
 @pytest.mark.parametrize("seed", range(15))
 def test_window_past_its_time_limit_says_so_and_keeps_valid_bounds(seed: int) -> None:
     """A time limit of a nanosecond has passed before any cluster is solved (the
-    generation alone takes longer), so the outcome does not depend on the machine."""
+    generation alone takes longer), so the outcome does not depend on the machine; a
+    work limit of one transition sends every multi-hypothesis cluster to the path that
+    the deadline cuts short."""
     case = random_window(seed)
     exact = case.estimator.solve_window(case.scans, case.carried)
-    limited = with_settings(case.estimator, time_limit=1e-9).solve_window(
+    limited = with_settings(case.estimator, time_limit=1e-9, exact_work_limit=1).solve_window(
         case.scans, case.carried
     )
-    assert limited.status == "time_limit" and limited.timed_out
+    assert limited.timed_out
+    assert all(c.status in ("time_limit", "exact") for c in limited.bounded_clusters)
+    if limited.bounded_clusters:
+        assert limited.status == "time_limit"
     table = limited.table
     assert np.all(table.best <= exact.table.best + TOLERANCE)
     assert np.all(exact.table.best <= table.best_upper + TOLERANCE)
@@ -256,6 +261,26 @@ def test_window_past_its_time_limit_says_so_and_keeps_valid_bounds(seed: int) ->
     assert np.all(p <= limited.posterior.probabilities_upper + 1e-9)
     # The chosen K always has a feasible set to commit.
     assert limited.table.best_set(limited.posterior.marginal_k) is not None
+
+
+def test_time_limit_path_is_exercised() -> None:
+    statuses = []
+    for seed in range(15):
+        case = random_window(seed)
+        limited = with_settings(case.estimator, time_limit=1e-9, exact_work_limit=1)
+        statuses.append(limited.solve_window(case.scans, case.carried).status)
+    assert statuses.count("time_limit") >= 5
+
+
+def test_a_window_that_only_ran_long_keeps_its_exact_status() -> None:
+    """Past the limit but every cluster solved exactly (they are small): not time_limit."""
+    case = random_window(0)
+    exact = case.estimator.solve_window(case.scans, case.carried)
+    late = with_settings(case.estimator, time_limit=1e-9).solve_window(case.scans, case.carried)
+    assert late.timed_out
+    assert not late.bounded_clusters  # its clusters are all small enough to finish
+    assert late.status == exact.status
+    np.testing.assert_allclose(late.table.log_mass, exact.table.log_mass, atol=1e-12)
 
 
 @pytest.mark.parametrize("seed", range(30))
