@@ -193,11 +193,14 @@ def merge_interchangeable(problem: PackingProblem) -> MergedProblem:
     keys = np.full((H, int(lengths.max()) + 1), -1, dtype=np.int64)
     keys[:, 0] = problem.counts
     keys[owner[order], 1 + rank] = problem.resource_indices[order]
-    _, label = np.unique(keys, axis=0, return_inverse=True)
-    label = np.asarray(label).ravel()
-    # Number the classes in order of their first member.
-    first = np.full(int(label.max()) + 1, H, dtype=np.int64)
-    np.minimum.at(first, label, np.arange(H))
+    # Sort the rows (ties by index), label runs of equal rows, and number the classes
+    # in order of their first member.
+    rows = np.lexsort((np.arange(H), *keys.T[::-1]))
+    sorted_keys = keys[rows]
+    new_class = np.r_[True, np.any(sorted_keys[1:] != sorted_keys[:-1], axis=1)]
+    label = np.empty(H, dtype=np.int64)
+    label[rows] = np.cumsum(new_class) - 1
+    first = rows[new_class]  # the smallest member of each class (ties sorted by index)
     class_of = np.argsort(np.argsort(first))[label]
     scores = problem.scores
     weights = problem.log_weights

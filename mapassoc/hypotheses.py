@@ -660,26 +660,46 @@ class HypothesisGenerator:
         # Canonical order, independent of the order of detections within a scan (so
         # that ties between equal-scoring sets are broken the same way whatever the file
         # order): carried trees by track id, then new trees by their birth detection's
-        # row; within a tree by the rows along the path (-1 for a miss), alive last.
-        paths = {int(v): nodes.path(int(v)) for v in leaf_nodes}
+        # row; within a tree by the rows along the path (-1 for a miss, a shorter path
+        # first), alive last.  Paths are walked for all leaves at once, one layer a step.
         row_of = detections.rows
-
-        def canonical(leaf: int) -> tuple:
-            path = paths[leaf]
-            rows = tuple(int(row_of[d]) if d >= 0 else -1 for d in nodes.detection[path].tolist())
-            tree = int(nodes.tree[leaf])
-            owner = (0, tree_track_ids[tree]) if tree < len(carried) else (1, rows[0])
-            return owner, int(nodes.layer[path[0]]), rows, bool(nodes.alive[leaf])
-
-        leaves = np.array(sorted(leaf_nodes.tolist(), key=canonical), dtype=np.int64)
+        n_leaves = leaf_nodes.size
+        path_rows = np.full((n_leaves, len(scans)), -2, dtype=np.int64)  # -2: no node
+        path_dets = np.full((n_leaves, len(scans)), -1, dtype=np.int64)
+        root = leaf_nodes.copy()
+        current = leaf_nodes.copy()
+        walking = np.arange(n_leaves)
+        while walking.size:
+            at = current[walking]
+            det = nodes.detection[at]
+            layer = nodes.layer[at]
+            path_dets[walking, layer] = det
+            rows_here = np.full(det.shape, -1, dtype=np.int64)
+            rows_here[det >= 0] = row_of[det[det >= 0]]
+            path_rows[walking, layer] = rows_here
+            root[walking] = at
+            current[walking] = nodes.parent[at]
+            walking = walking[current[walking] >= 0]
+        leaf_tree = nodes.tree[leaf_nodes]
+        is_new = leaf_tree >= len(carried)
+        root_layer = nodes.layer[root]
+        ids = np.asarray(tree_track_ids, dtype=np.int64)
+        owner = np.where(is_new, path_rows[np.arange(n_leaves), root_layer], ids[leaf_tree])
+        order = np.lexsort(
+            (
+                nodes.alive[leaf_nodes],
+                *path_rows.T[::-1],
+                root_layer,
+                owner,
+                is_new,
+            )
+        )
+        leaves = leaf_nodes[order]
         counts = nodes.alive[leaves] | (nodes.parent[leaves] >= 0)
-        indptr = [0]
-        indices: list[int] = []
-        for leaf in leaves:
-            used = [int(nodes.detection[v]) for v in paths[int(leaf)]]
-            used = [d for d in used if d >= 0]
-            indices.extend(used)
-            indptr.append(len(indices))
+        used = path_dets[order]
+        used_mask = used >= 0
+        indptr = np.concatenate([[0], np.cumsum(used_mask.sum(axis=1))])
+        indices = used[used_mask]
         return WindowHypotheses(
             scans=scans,
             detections=detections,
