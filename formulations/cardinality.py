@@ -395,27 +395,21 @@ def _max_plus(
     out = np.full(size, _NEG_INF)
     pointer = np.full(size, -1, dtype=np.int64)
     a_len, e_len = _finite_length(acc, size), _finite_length(entries, size)
-    if e_len <= a_len:
-        for j in range(e_len):
-            if not np.isfinite(entries[j]):
-                continue
-            candidate = np.full(size, _NEG_INF)
-            n = min(acc.shape[0], size - j)
-            candidate[j : j + n] = acc[:n] + entries[j]
-            better = candidate > out
-            out[better] = candidate[better]
-            pointer[better] = j
-        return out, pointer
+    shift_entries = e_len <= a_len
+    # Shift the longer operand by each finite entry of the shorter one; when the shorter
+    # is `acc`, go from its last entry down so that the share k - i of `entries` rises.
+    base, offsets = (acc, range(e_len)) if shift_entries else (entries, reversed(range(a_len)))
+    shorter = entries if shift_entries else acc
     ks = np.arange(size)
-    for i in reversed(range(a_len)):  # the share k - i of `entries` rises: smaller first
-        if not np.isfinite(acc[i]):
+    for offset in offsets:
+        if not np.isfinite(shorter[offset]):
             continue
         candidate = np.full(size, _NEG_INF)
-        n = min(entries.shape[0], size - i)
-        candidate[i : i + n] = entries[:n] + acc[i]
+        n = min(base.shape[0], size - offset)
+        candidate[offset : offset + n] = base[:n] + shorter[offset]
         better = candidate > out
         out[better] = candidate[better]
-        pointer[better] = ks[better] - i
+        pointer[better] = offset if shift_entries else ks[better] - offset
     return out, pointer
 
 
