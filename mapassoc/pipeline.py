@@ -70,7 +70,7 @@ WINDOW_STATUSES = ("exact", "capped", *CLUSTER_STATUSES[1:])
 """Window statuses from best to worst: ``exact`` (nothing cut but the documented
 score-ratio, gate and LP-bound pruning), ``capped`` (the per-tree cap also cut nodes),
 ``bounded`` (a cluster got certified bounds instead of exact tables), ``time_limit``
-(the window's time limit bit)."""
+(the deadline changed the answer: a cluster got what was certified by then)."""
 
 P_K_FLOOR = 1e-300
 """Trailing p(K | Z) below this are left out of ``windows.jsonl`` (``p_k_length`` says
