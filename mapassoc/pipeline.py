@@ -328,6 +328,7 @@ class EstimateResult:
         if timings:
             out["seconds"] = self.seconds
             out["scans_per_second"] = self.num_scans / self.seconds if self.seconds > 0 else None
+            out["windows_over_time_limit"] = int(sum(1 for r in w if r.over_time_limit))
         return out
 
 
