@@ -294,12 +294,29 @@ def frontier_search(
         else:
             main = _result(np.zeros(1), np.zeros(1), [()], 0, 1)
         return _with_lone(main, rest, problem, np.flatnonzero(lone), kmax)
-    H = problem.num_hypotheses
     order = resource_order(problem)
-    if max_frontiers is None and entry_margin is None:
-        vectorised = _vectorised_search(problem, kmax, order, work_limit, deadline)
-        if vectorised is not None:
-            return vectorised
+    vectorised = _vectorised_search(
+        problem, kmax, order, work_limit, deadline, max_frontiers, entry_margin
+    )
+    if vectorised is not None:
+        return vectorised
+    return _dictionary_search(
+        problem, kmax, order, work_limit, deadline, max_frontiers, entry_margin
+    )
+
+
+def _dictionary_search(
+    problem: PackingProblem,
+    kmax: int,
+    order: NDArray[np.int64],
+    work_limit: int | None,
+    deadline: float | None,
+    max_frontiers: int | None,
+    entry_margin: float | None,
+) -> FrontierResult:
+    """The frontier search with one dictionary of k-entries per frontier (any problem
+    whose hypotheses all use a resource; the general path behind the vectorised one)."""
+    H = problem.num_hypotheses
     position = np.empty(problem.num_resources, dtype=np.int64)
     position[order] = np.arange(order.size)
     scores = problem.scores.tolist()
@@ -405,8 +422,13 @@ def _vectorised_search(
     order: NDArray[np.int64],
     work_limit: int | None,
     deadline: float | None,
+    max_frontiers: int | None = None,
+    entry_margin: float | None = None,
 ) -> FrontierResult | None:
-    """The exact frontier search with all frontiers of a step as numpy rows.
+    """The frontier search with all frontiers of a step as numpy rows.
+
+    ``max_frontiers`` and ``entry_margin`` make it the beam of :func:`frontier_search`
+    (frontiers ranked by their heaviest entry, ties by frontier word).
 
     Applies when every hypothesis spans fewer than 64 positions of the resource order
     (then a frontier, taken relative to the current position, is one 64-bit word) and
@@ -444,6 +466,7 @@ def _vectorised_search(
     exactly_one = problem.exactly_one[order]
     one = np.uint64(1)
 
+    exact = True
     covers = np.zeros(1, dtype=np.uint64)
     best = np.zeros((1, 1))  # columns: k = 0..reach, reach growing with the sets
     mass = np.zeros((1, 1))
@@ -472,7 +495,7 @@ def _vectorised_search(
         _check_limits(work, work_limit, deadline)
         if source.size == 0:  # an exactly-once resource no frontier can satisfy
             infeasible = np.full(width, _NEG_INF)
-            return _result(infeasible, infeasible, [None] * width, work, widest)
+            return _result(infeasible, infeasible, [None] * width, work, widest, exact)
         cand_best = np.full((source.size, cols), _NEG_INF)
         cand_mass = np.full((source.size, cols), _NEG_INF)
         cand_best[: keep.size, : reach + 1] = best[keep]
@@ -505,9 +528,19 @@ def _vectorised_search(
             sorted_best == best[group_sorted], np.arange(ranked.size)[:, None], ranked.size
         )
         winner = ranked[np.minimum.reduceat(hits, starts, axis=0)]
-        back.append((winner.astype(np.int32), source, cand_decision))
         covers = unique
         widest = max(widest, covers.size)
+        if entry_margin is not None:
+            light = mass < mass.max(axis=1, keepdims=True) - entry_margin
+            if np.any(light):
+                mass[light] = best[light] = _NEG_INF
+                exact = False
+        if max_frontiers is not None and covers.size > max_frontiers:
+            heaviest = mass.max(axis=1)
+            kept = np.sort(np.argsort(-heaviest, kind="stable")[:max_frontiers])
+            covers, best, mass, winner = covers[kept], best[kept], mass[kept], winner[kept]
+            exact = False
+        back.append((winner.astype(np.int32), source, cand_decision))
     # Every frontier word is 0 after the last position: one state remains.
     final_best = np.full(width, _NEG_INF)
     final_mass = np.full(width, _NEG_INF)
@@ -526,7 +559,7 @@ def _vectorised_search(
                 chosen.append(h)
                 remaining -= int(counts[h])
         sets[k] = tuple(sorted(chosen))
-    return _result(final_best, final_mass, sets, work, widest)
+    return _result(final_best, final_mass, sets, work, widest, exact)
 
 
 def _result(
@@ -535,12 +568,13 @@ def _result(
     sets: list[tuple[int, ...] | None],
     work: int,
     widest: int,
+    exact: bool = True,
 ) -> FrontierResult:
     return FrontierResult(
         best=np.asarray(best, dtype=float).copy(),
         best_sets=tuple(sets),
         log_mass=np.asarray(mass, dtype=float).copy(),
-        exact=True,
+        exact=exact,
         work=work,
         max_frontiers=widest,
     )

@@ -160,19 +160,40 @@ def test_independent_table_equals_the_convolution_of_single_tables(seed: int) ->
 
 @pytest.mark.parametrize("seed", range(40))
 def test_vectorised_and_dictionary_searches_agree(seed: int) -> None:
-    """Problems of 40+ hypotheses take the vectorised search; an unbounded beam is the
-    dictionary search with nothing dropped.  Same values, and every best set is
-    feasible with its score."""
-    from mapassoc.formulations.frontier import frontier_search
+    """Problems of 40+ hypotheses take the vectorised search; the dictionary search is
+    the general path.  Same values, and every best set is feasible with its score; the
+    same holds for their beams (lower bounds, exact only if nothing was dropped)."""
+    from mapassoc.formulations.frontier import (
+        _dictionary_search,
+        _vectorised_search,
+        frontier_search,
+        resource_order,
+    )
 
     rng = np.random.default_rng(3000 + seed)
     problem = random_problem(
         rng, int(rng.integers(40, 70)), D=int(rng.integers(15, 40)), G=int(rng.integers(0, 4))
     )
     kmax = int(rng.integers(0, 12))
+    order = resource_order(problem)
     vectorised = frontier_search(problem, kmax)
-    dictionary = frontier_search(problem, kmax, max_frontiers=10**9)
-    assert dictionary.exact
+    kmax = vectorised.best.shape[0] - 1  # frontier_search caps kmax at the counted ones
+    assert _vectorised_search(problem, kmax, order, None, None) is not None
+    dictionary = _dictionary_search(problem, kmax, order, None, None, None, None)
+    assert dictionary.exact and vectorised.exact
+    for width, margin in ((1, None), (4, 5.0), (10**9, None)):
+        beam = _vectorised_search(problem, kmax, order, None, None, width, margin)
+        assert beam is not None
+        assert beam.exact or width < 10**9
+        assert np.all(beam.log_mass <= dictionary.log_mass + 1e-9)
+        assert np.all(beam.best <= dictionary.best + 1e-9)
+        if beam.exact:
+            np.testing.assert_allclose(beam.log_mass, dictionary.log_mass, atol=1e-9)
+        for k, chosen in enumerate(beam.best_sets):
+            if chosen is not None:
+                selection = np.array(chosen, dtype=np.int64)
+                assert problem.is_feasible(selection, k)
+                assert problem.value(selection) == pytest.approx(beam.best[k], abs=1e-9)
     np.testing.assert_allclose(vectorised.best, dictionary.best, atol=1e-9)
     np.testing.assert_allclose(vectorised.log_mass, dictionary.log_mass, atol=1e-9)
     for k, chosen in enumerate(vectorised.best_sets):
