@@ -886,6 +886,8 @@ class HypothesisGenerator:
         # Birth density rate*Pd/V against clutter density lambda_bar/V; a sensor's first
         # scan also holds the first detections of the initial population.
         rate = self.birth.rate + (self.birth.initial_count if first_scan else 0.0)
+        if rate == 0.0:
+            return  # no target can appear here: no detection starts a track
         score = (
             math.log(rate)
             + math.log(sensor.detection_probability)

@@ -44,7 +44,9 @@ class BirthModel:
     Parameters
     ----------
     rate : float
-        Expected number of new targets per scan, > 0.
+        Expected number of new targets per scan, >= 0 (0: no target appears after the
+        start, Perry's fixed population over a window; then only ``initial_count`` starts
+        tracks, in each sensor's first scan).
     initial_count : float
         Expected number of targets present at the start of the data, >= 0 (their first
         detections are expected in each sensor's first scan).
@@ -71,7 +73,7 @@ class BirthModel:
     survival_probability: float = 0.99
 
     def __post_init__(self) -> None:
-        check_positive("birth rate", self.rate)
+        check_nonnegative("birth rate", self.rate)
         check_nonnegative("birth initial_count", self.initial_count)
         check_positive("birth velocity_std", self.velocity_std)
         check_positive("birth acceleration_std", self.acceleration_std)

@@ -521,3 +521,54 @@ def test_every_target_born_in_dense_clutter_gets_a_track() -> None:
         assert purity >= 0.8, (target, track, result.track_rows[track])
         first_scan[target] = min(j for j, s in enumerate(scenario.scans) if own & set(s.rows))
     assert max(first_scan.values()) >= 7  # births throughout the run, not only at scan 0
+
+
+def test_birth_rate_zero_starts_tracks_only_from_the_initial_population() -> None:
+    """rate = 0 is allowed: new trees are rooted only in a sensor's first scan (from
+    initial_count), and with initial_count = 0 too, nowhere."""
+    from mapassoc.settings import BirthModel
+
+    motion = ConstantVelocity(ndim=2, noise_intensity=0.1)
+    sensor = Sensor(
+        name="s",
+        measurement=LinearMeasurement.position(motion, noise_std=1.0),
+        detection_probability=0.9,
+        false_alarms_per_scan=2.0,
+        region=Region.from_bounds([[-50.0, 50.0], [-50.0, 50.0]]),
+    )
+    scans = [
+        Scan(0.0, "s", np.array([[0.0, 0.0], [20.0, 5.0]]), np.array([2, 3])),
+        Scan(1.0, "s", np.array([[1.0, 0.2], [-30.0, 9.0]]), np.array([4, 5])),
+    ]
+    for initial, first_roots in ((2.0, 2), (0.0, 0)):
+        birth = BirthModel(rate=0.0, initial_count=initial, velocity_std=2.0)
+        generator = HypothesisGenerator(
+            motion=motion,
+            sensors={"s": sensor},
+            birth=birth,
+            gate_probability=0.999,
+            max_hypotheses_per_tree=64,
+            prune_log_ratio=math.inf,
+        )
+        hyps = generator.generate(scans, first_scans=[True, False])
+        roots = hyps.nodes.parent < 0
+        assert int(np.count_nonzero(roots & (hyps.nodes.layer == 0))) == first_roots
+        assert not np.any(roots & (hyps.nodes.layer == 1))  # no births after the start
+        assert np.all(np.isfinite(hyps.scores))
+
+
+def test_birth_rate_zero_runs_end_to_end() -> None:
+    """On crossing (one target present at the start, three born later) rate = 0 keeps
+    only the first target; with initial_count = 0 too there is no track at all."""
+    from dataclasses import replace
+
+    from mapassoc.pipeline import WindowEstimator
+    from mapassoc.scenarios import build_scenario, truncate_scenario
+
+    scenario = truncate_scenario(build_scenario("crossing", 0), 12)
+    counts = []
+    for initial in (0.0, 4.0):
+        birth = replace(scenario.config.birth, rate=0.0, initial_count=initial)
+        result = WindowEstimator(config=replace(scenario.config, birth=birth)).run(scenario.scans)
+        counts.append(len(result.track_rows))
+    assert counts == [0, 1]
