@@ -31,6 +31,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.formulations.convolution import max_plus, sum_product
 from mapassoc.formulations.frontier import (
     SearchLimitExceeded,
     frontier_search,
@@ -49,7 +50,6 @@ __all__ = [
     "exact_cardinality_table",
     "convolve",
     "combine_tables",
-    "table_from_sets",
     "single_hypothesis_table",
 ]
 
@@ -128,16 +128,6 @@ class CardinalityTable:
         return CardinalityTable(
             self.best, self.log_mass, sets, self.exact, self.best_upper, self.log_mass_upper
         )
-
-
-def _logaddexp(a: float, b: float) -> float:
-    if a == _NEG_INF:
-        return b
-    if b == _NEG_INF:
-        return a
-    if a > b:
-        return a + math.log1p(math.exp(b - a))
-    return b + math.log1p(math.exp(a - b))
 
 
 def _log_sum(terms: list[float]) -> float:
@@ -360,59 +350,6 @@ class CombinedTable:
         return tuple(self.best_set(k) for k in range(self.kmax + 1))
 
 
-def _finite_length(values: NDArray[np.float64], size: int) -> int:
-    """One past the last finite entry among the first ``size``."""
-    finite = np.flatnonzero(np.isfinite(values[:size]))
-    return int(finite[-1]) + 1 if finite.size else 0
-
-
-def _sum_product(
-    acc: NDArray[np.float64], entries: NDArray[np.float64], size: int
-) -> NDArray[np.float64]:
-    """Log-space convolution of ``acc`` with ``entries``, truncated to ``size`` terms.
-
-    One ``logaddexp`` pass per finite entry of the shorter operand.
-    """
-    out = np.full(size, _NEG_INF)
-    a_len, e_len = _finite_length(acc, size), _finite_length(entries, size)
-    short, long_ = (acc, entries) if a_len < e_len else (entries, acc)
-    for j in range(min(a_len, e_len)):
-        if np.isfinite(short[j]):
-            n = min(long_.shape[0], size - j)
-            window = out[j : j + n]
-            np.logaddexp(window, long_[:n] + short[j], out=window)
-    return out
-
-
-def _max_plus(
-    acc: NDArray[np.float64], entries: NDArray[np.float64], size: int
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Max-plus convolution with the share of the second operand at each k (-1: none).
-
-    Loops over the finite entries of the shorter operand; on exact ties the smaller
-    share of ``entries`` wins.
-    """
-    out = np.full(size, _NEG_INF)
-    pointer = np.full(size, -1, dtype=np.int64)
-    a_len, e_len = _finite_length(acc, size), _finite_length(entries, size)
-    shift_entries = e_len <= a_len
-    # Shift the longer operand by each finite entry of the shorter one; when the shorter
-    # is `acc`, go from its last entry down so that the share k - i of `entries` rises.
-    base, offsets = (acc, range(e_len)) if shift_entries else (entries, reversed(range(a_len)))
-    shorter = entries if shift_entries else acc
-    ks = np.arange(size)
-    for offset in offsets:
-        if not np.isfinite(shorter[offset]):
-            continue
-        candidate = np.full(size, _NEG_INF)
-        n = min(base.shape[0], size - offset)
-        candidate[offset : offset + n] = base[:n] + shorter[offset]
-        better = candidate > out
-        out[better] = candidate[better]
-        pointer[better] = offset if shift_entries else ks[better] - offset
-    return out, pointer
-
-
 def combine_tables(tables: Sequence[ClusterTable], kmax: int) -> CombinedTable:
     """Convolve the tables of independent clusters (hypothesis indices already global).
 
@@ -433,13 +370,13 @@ def combine_tables(tables: Sequence[ClusterTable], kmax: int) -> CombinedTable:
     for table in tables:
         done = min(done + table.kmax, size - 1)
         # Entries past `done` are -inf before and after: convolve the reachable part.
-        new_best, pointer = _max_plus(best, table.best, done + 1)
-        new_mass = _sum_product(mass, table.log_mass, done + 1)
+        new_best, pointer = max_plus(best, table.best, done + 1)
+        new_mass = sum_product(mass, table.log_mass, done + 1)
         if table.bounded and best_upper is None:
             best_upper, mass_upper = best.copy(), mass.copy()
         if best_upper is not None and mass_upper is not None:
-            best_upper[: done + 1] = _max_plus(best_upper, table.best_upper, done + 1)[0]  # type: ignore[arg-type]
-            mass_upper[: done + 1] = _sum_product(mass_upper, table.log_mass_upper, done + 1)  # type: ignore[arg-type]
+            best_upper[: done + 1] = max_plus(best_upper, table.best_upper, done + 1)[0]  # type: ignore[arg-type]
+            mass_upper[: done + 1] = sum_product(mass_upper, table.log_mass_upper, done + 1)  # type: ignore[arg-type]
         best[: done + 1] = new_best
         mass[: done + 1] = new_mass
         # A cluster's share is at most its own kmax: a small integer type keeps
@@ -479,27 +416,6 @@ def single_hypothesis_table(
     if not required:
         options.append(_zero_table())
     return _to_public(_merge(options), kmax)
-
-
-def table_from_sets(
-    sets: list[tuple[tuple[int, ...], int, float, float]], kmax: int, *, exact: bool
-) -> CardinalityTable:
-    """Table from explicit feasible sets ``(hypotheses, k, score, log_weight)``.
-
-    Each set must appear once; ``exact`` says whether they are all the feasible sets.
-    """
-    if not sets:
-        return _to_public(([_NEG_INF], [_NEG_INF], [None]), kmax, exact)
-    options: list[_Table] = []
-    for hyps, k, score, weight in sets:
-        if k > kmax:
-            continue
-        options.append(
-            ([_NEG_INF] * k + [score], [_NEG_INF] * k + [weight], [None] * k + [tuple(hyps)])
-        )
-    if not options:
-        return _to_public(([_NEG_INF], [_NEG_INF], [None]), kmax, exact)
-    return _to_public(_merge(options), kmax, exact)
 
 
 def exact_cardinality_table(

@@ -47,6 +47,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from mapassoc.formulations.convolution import max_plus, sum_product
 from mapassoc.formulations.packing import PackingProblem
 
 __all__ = [
@@ -628,20 +629,8 @@ def _with_lone(
         free_scores[counted], free_weights[counted], lone[counted]  # type: ignore[index]
     )
     size = kmax + 1
-    best = np.full(size, _NEG_INF)
-    mass = np.full(size, _NEG_INF)
-    share = np.full(size, -1, dtype=np.int64)
-    n_main = main.best.shape[0]
-    for j in range(min(part_best.shape[0], size)):
-        span = min(n_main, size - j)
-        if span <= 0:
-            break
-        candidate = main.best[:span] + part_best[j]
-        better = candidate > best[j : j + span]
-        best[j : j + span][better] = candidate[better]
-        share[j : j + span][better] = j
-        window = mass[j : j + span]
-        np.logaddexp(window, main.log_mass[:span] + part_mass[j], out=window)
+    best, share = max_plus(main.best, part_best, size)
+    mass = sum_product(main.log_mass, part_mass, size)
     sets: list[tuple[int, ...] | None] = [None] * size
     for k in np.flatnonzero(share >= 0).tolist():
         inner = main.best_sets[k - share[k]]
