@@ -325,11 +325,6 @@ class CombinedTable:
     def kmax(self) -> int:
         return int(self.best.shape[0]) - 1
 
-    @property
-    def bounded(self) -> bool:
-        """Whether some cluster's table is only bounded (see :attr:`CardinalityTable.bounded`)."""
-        return any(t.bounded for t in self.tables)
-
     def best_set(self, k: int) -> tuple[int, ...] | None:
         """Hypotheses of a best set with k counted (sorted), ``None`` if infeasible."""
         if not 0 <= k <= self.kmax or not np.isfinite(self.best[k]):
