@@ -17,11 +17,11 @@ constant is ``log p(track set, K | Z)`` of seed 002, eqs. 8-14):
 ====================================  ===============================================
 event at a scan of sensor s           term
 ====================================  ===============================================
-birth at detection z                  ``log(rate) + log Pd_s - log lambda_bar_s``
-                                      (birth density ``rate Pd_s / V_s`` over clutter
-                                      density ``lambda_s = lambda_bar_s / V_s``;
-                                      ``rate + initial_count`` in a sensor's first
-                                      scan, for the initial population)
+first detection z at scan j           ``log u_j + log Pd_s - log lambda_bar_s``
+                                      (density ``u_j Pd_s / V_s`` of a target never
+                                      detected before, ``u_j`` the undetected-target
+                                      mean of :mod:`mapassoc.population`, over the
+                                      clutter density ``lambda_s = lambda_bar_s / V_s``)
 survival over dt                      ``dt log Ps``
 continued by detection z              ``log Pd_s + log N(nu; 0, S) - log lambda_s``
                                       (seed 001 weight; seed 000 eq. 11)
@@ -45,7 +45,7 @@ At each scan a node is dropped
   the window's best set over all K.  At the window's last scan the remaining gain is
   0, so this is a comparison with 0, the score of not selecting the tree.  An earlier
   node is not compared with 0 directly: a birth among many false alarms scores far
-  below 0 at its first detection (``log(rate Pd / lambda_bar)``, whatever the region's
+  below 0 at its first detection (``log(u Pd / lambda_bar)``, whatever the region's
   size) and each later detection adds up to
   ``log Pd - log lambda - 0.5 log det(2 pi R)``;
 * by the cap: at most ``max_hypotheses_per_tree`` nodes per tree and scan survive,
@@ -82,6 +82,12 @@ from mapassoc.kalman import (
     update,
 )
 from mapassoc.motion import MotionModel
+from mapassoc.population import (
+    UndetectedTargets,
+    WindowPopulation,
+    recording_start,
+    window_population,
+)
 from mapassoc.scans import Scan
 from mapassoc.sensor import Sensor
 from mapassoc.settings import BirthModel
@@ -496,38 +502,43 @@ class HypothesisGenerator:
         return np.concatenate([from_here[1:], [0.0]])
 
     # -- main entry ------------------------------------------------------------------
-    def generate(
+    def population(
         self,
         scans: Sequence[Scan],
         carried: Sequence[CarriedTrack] = (),
-        *,
-        first_scans: Sequence[bool] | None = None,
-    ) -> WindowHypotheses:
-        """Build every kept hypothesis of the window.
+        undetected: UndetectedTargets | None = None,
+    ) -> WindowPopulation:
+        """The birth model's undetected targets and target counts for a window.
 
         Parameters
         ----------
         scans : sequence of Scan
             The window's scans in time order (at least one).
         carried : sequence of CarriedTrack
-            Tracks entering the window; each must end before the window's first scan
-            time or at it.
-        first_scans : sequence of bool, optional
-            For each scan, whether it is its sensor's first scan of the data: births
-            there use ``rate + initial_count`` (the initial population).  Default: none.
+            Tracks entering the window.
+        undetected : UndetectedTargets, optional
+            The undetected targets just after the scan before the window; default: the
+            recording starts at the window's first scan (``BirthModel.initial_count``
+            targets present).
 
         Returns
         -------
-        WindowHypotheses
+        WindowPopulation
         """
         scans = tuple(scans)
         if not scans:
             raise InputError("a window needs at least one scan")
-        first = [False] * len(scans) if first_scans is None else [bool(f) for f in first_scans]
-        if len(first) != len(scans):
-            raise InputError(
-                f"first_scans must have one flag per scan ({len(scans)}), got {len(first)}"
-            )
+        self._check_scans(scans)
+        start = recording_start(self.birth, scans[0].time) if undetected is None else undetected
+        return window_population(
+            scans,
+            [self.sensors[s.sensor].detection_probability for s in scans],
+            self.birth,
+            start,
+            [t.time for t in carried],
+        )
+
+    def _check_scans(self, scans: Sequence[Scan]) -> None:
         for scan in scans:
             if scan.sensor not in self.sensors:
                 raise InputError(
@@ -540,6 +551,45 @@ class HypothesisGenerator:
                     f"scan at time {scan.time} of sensor '{scan.sensor}' has detections of "
                     f"dimension {scan.detections.shape[1]}, expected {dz}"
                 )
+
+    # -- main entry ------------------------------------------------------------------
+    def generate(
+        self,
+        scans: Sequence[Scan],
+        carried: Sequence[CarriedTrack] = (),
+        *,
+        population: WindowPopulation | None = None,
+    ) -> WindowHypotheses:
+        """Build every kept hypothesis of the window.
+
+        Parameters
+        ----------
+        scans : sequence of Scan
+            The window's scans in time order (at least one).
+        carried : sequence of CarriedTrack
+            Tracks entering the window; each must end before the window's first scan
+            time or at it.
+        population : WindowPopulation, optional
+            The undetected-target intensity of the window's scans (a new track's first
+            detection at scan ``j`` is scored against ``first_detection_means[j]``);
+            default: :meth:`population` of a window that starts the recording.
+
+        Returns
+        -------
+        WindowHypotheses
+        """
+        scans = tuple(scans)
+        if not scans:
+            raise InputError("a window needs at least one scan")
+        self._check_scans(scans)
+        if population is None:
+            population = self.population(scans, carried)
+        first_detection = np.asarray(population.first_detection_means, dtype=float)
+        if first_detection.shape != (len(scans),):
+            raise InputError(
+                f"population has first-detection means for {first_detection.shape} scans, "
+                f"the window has {len(scans)}"
+            )
         for track in carried:
             if track.time > scans[0].time:
                 raise InputError(
@@ -589,7 +639,9 @@ class HypothesisGenerator:
             layer = _Layer.empty()
             self._grow(layer, frontier, scan, sensor, j, offsets[j])
             num_trees_before = len(tree_track_ids)
-            self._births(layer, scan, sensor, offsets[j], num_trees_before, first[j])
+            self._births(
+                layer, scan, sensor, offsets[j], num_trees_before, float(first_detection[j])
+            )
             tree_track_ids.extend([-1] * scan.size)
             is_new_tree = np.array([tid < 0 for tid in tree_track_ids], dtype=bool)
             if not layer.score:
@@ -877,19 +929,22 @@ class HypothesisGenerator:
         sensor: Sensor,
         det_offset: int,
         first_tree: int,
-        first_scan: bool,
+        undetected_mean: float,
     ) -> None:
-        """One new tree rooted at every detection of the scan."""
+        """One new tree rooted at every detection of the scan.
+
+        The first detection of a target not detected before has density
+        ``u Pd / V`` (``u`` = ``undetected_mean``, the expected number of targets alive
+        at this scan and never detected, :mod:`mapassoc.population`) against the clutter
+        density ``lambda_bar / V``: score ``log u + log Pd - log lambda_bar``.
+        """
         m = scan.size
         if m == 0:
             return
-        # Birth density rate*Pd/V against clutter density lambda_bar/V; a sensor's first
-        # scan also holds the first detections of the initial population.
-        rate = self.birth.rate + (self.birth.initial_count if first_scan else 0.0)
-        if rate == 0.0:
-            return  # no target can appear here: no detection starts a track
+        if undetected_mean == 0.0:
+            return  # no undetected target can be here: no detection starts a track
         score = (
-            math.log(rate)
+            math.log(undetected_mean)
             + math.log(sensor.detection_probability)
             - math.log(sensor.false_alarms_per_scan)
         )

@@ -15,10 +15,13 @@ For each window of ``window_length`` consecutive scans:
    fits ``exact_work_limit``, otherwise certified bounds (a beam search, LP relaxations
    per k, the integer program where a k can matter; :class:`ClusterSolver`), all
    within the window's ``time_limit``;
-4. combine the clusters (max-plus and sum-product convolution), apply p(K) and get
-   p(K | Z), the joint MAP K and the marginal K (:mod:`mapassoc.posterior`);
-5. take the best track set of the chosen K, commit its oldest ``stride`` scans and carry
-   the tracks alive at the last committed scan into the next window.
+4. combine the clusters (max-plus and sum-product convolution) into per-T tables (T the
+   number of tracks), add the targets never detected (:mod:`mapassoc.population`) and
+   the prior on the number of targets K, and get p(K | Z), the joint MAP K and the
+   marginal K (:mod:`mapassoc.posterior`);
+5. take the best track set for the chosen K, commit its oldest ``stride`` scans and
+   carry the tracks alive at the last committed scan, and the undetected-target
+   intensity after it, into the next window.
 
 At the end every track is smoothed (RTS) over the detections it used.
 """
@@ -53,6 +56,7 @@ from mapassoc.formulations.packing import (
 from mapassoc.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
 from mapassoc.io import Origins, TrackTable
 from mapassoc.oracle import oracle_tracks
+from mapassoc.population import UndetectedTargets, WindowPopulation
 from mapassoc.posterior import KPosterior, k_posterior
 from mapassoc.scans import Scan, check_scan_order
 from mapassoc.solvers import HighsSolver, get_solver
@@ -118,9 +122,12 @@ class WindowSolution:
     hypotheses : WindowHypotheses
     problem : PackingProblem
     table : CombinedTable
-        Per-K best score, best set and log-mass of the whole window, with proven upper
-        bounds where a cluster was only bounded.
+        Per-T best score, best set and log-mass of the whole window (T the number of
+        tracks), with proven upper bounds where a cluster was only bounded.
     posterior : KPosterior
+        p(K | Z) over the number of targets K and the estimates of K.
+    population : WindowPopulation
+        The birth model's undetected targets in the window.
     cluster_sizes : tuple of int
     bounded_clusters : tuple of ClusterReport
         Clusters too large for the exact search (they got certified bounds).
@@ -136,6 +143,7 @@ class WindowSolution:
     problem: PackingProblem
     table: CombinedTable
     posterior: KPosterior
+    population: WindowPopulation
     cluster_sizes: tuple[int, ...]
     bounded_clusters: tuple[ClusterReport, ...]
     generate_seconds: float
@@ -163,11 +171,15 @@ class WindowSolution:
         """Lower bound on the share of the window's posterior mass that was summed."""
         return math.exp(sum(c.log_captured for c in self.bounded_clusters))
 
-    def selection(self, k: int) -> NDArray[np.int64]:
-        """Hypotheses of the best track set with k tracks."""
-        chosen = self.table.best_set(k)
+    def selection(self, tracks: int) -> NDArray[np.int64]:
+        """Hypotheses of the best track set with ``tracks`` tracks (T, not K).
+
+        The track set of an estimate of K is ``selection(posterior.marginal_tracks)``
+        or ``selection(posterior.joint_map_tracks)``.
+        """
+        chosen = self.table.best_set(tracks)
         if chosen is None:
-            raise InputError(f"no feasible track set with K = {k} in this window")
+            raise InputError(f"no feasible track set with T = {tracks} tracks in this window")
         return np.asarray(chosen, dtype=np.int64)
 
 
@@ -182,13 +194,23 @@ def _compact(values: NDArray[np.float64], floor: float) -> list[float]:
 class WindowReport:
     """One line of ``windows.jsonl``.
 
-    ``probabilities`` (p(K | Z)), its proven bounds and ``best_objective`` stop at the
-    largest K any track set of the window can reach (beyond it every p(K | Z) is exactly
-    0); ``p_k_length`` is the full length Kmax + 1, so a huge Kmax costs no memory.  The
-    JSON line also leaves out trailing p(K | Z) below :data:`P_K_FLOOR`.
-    ``best_objective_upper`` holds the proven upper bounds of the best objective per K;
-    it is written only where it differs from ``best_objective`` (a bounded cluster),
-    and ``null`` in ``best_objective`` then means "no set found", not "none exists".
+    Two counts are reported.  K is the number of **targets** present in the window
+    (seed 002's K, detected or not): ``probabilities`` (``p_k`` in JSON) is p(K | Z)
+    under the configured ``k_prior``, and ``joint_map_k``, ``marginal_k`` and
+    ``chosen_k`` are estimates of it.  T is the number of **tracks** of a track set
+    (carried tracks alive in the window plus tracks started in it; what the set packing
+    chooses): ``track_probabilities`` (``p_tracks``) is p(T | Z), ``best_objective`` the
+    best score per T, and ``chosen_tracks`` the T of the committed set (the MAP set
+    given ``chosen_k``).  ``undetected_mean`` is the expected number of targets in the
+    window that no track explains (never detected).
+
+    The vectors stop where they become exactly 0 (beyond the largest reachable T) or,
+    for p(K | Z), where its upper bound falls below :data:`P_K_FLOOR`; ``p_k_length`` is the full
+    length Kmax + 1, so a huge Kmax costs no memory.  The JSON line also leaves out
+    trailing probabilities below :data:`P_K_FLOOR`.  ``best_objective_upper`` holds the
+    proven upper bounds of the best objective per T; it is written only where it
+    differs from ``best_objective`` (a bounded cluster), and ``null`` in
+    ``best_objective`` then means "no set found", not "none exists".
     """
 
     index: int
@@ -201,11 +223,17 @@ class WindowReport:
     probabilities: NDArray[np.float64]
     probabilities_lower: NDArray[np.float64]
     probabilities_upper: NDArray[np.float64]
+    track_probabilities: NDArray[np.float64]
     best_objective: NDArray[np.float64]
     best_objective_upper: NDArray[np.float64]
     joint_map_k: int
     marginal_k: int
     chosen_k: int
+    joint_map_tracks: int
+    marginal_tracks: int
+    chosen_tracks: int
+    undetected_mean: float
+    k_prior: str
     marginal_exact: bool
     marginal_certain: bool
     joint_certain: bool
@@ -236,10 +264,16 @@ class WindowReport:
             "end_time": self.end_time,
             "committed_scans": self.committed_scans,
             "p_k_length": self.p_k_length,
+            "k_prior": self.k_prior,
             "p_k": _compact(self.probabilities, P_K_FLOOR),
             "joint_map_k": self.joint_map_k,
             "marginal_k": self.marginal_k,
             "chosen_k": self.chosen_k,
+            "undetected_mean": self.undetected_mean,
+            "p_tracks": _compact(self.track_probabilities, P_K_FLOOR),
+            "joint_map_tracks": self.joint_map_tracks,
+            "marginal_tracks": self.marginal_tracks,
+            "chosen_tracks": self.chosen_tracks,
             "best_objective": [
                 float(b) if math.isfinite(b) else None for b in self.best_objective[:end]
             ],
@@ -369,7 +403,7 @@ class WindowEstimator:
             beam_width=s.beam_width,
             prune_log_ratio=s.prune_log_ratio,
         )
-        self.log_k_prior = np.asarray(s.log_k_prior())
+        self.count_prior = s.count_prior()
 
     # -- one window ------------------------------------------------------------------
     def solve_window(
@@ -377,17 +411,28 @@ class WindowEstimator:
         scans: Sequence[Scan],
         carried: Sequence[CarriedTrack] = (),
         *,
-        first_scans: Sequence[bool] | None = None,
+        undetected: UndetectedTargets | None = None,
     ) -> WindowSolution:
-        """Hypotheses, per-K tables and posterior over K of one window.
+        """Hypotheses, per-T tables and posterior over K of one window.
 
-        ``first_scans`` flags the scans that are their sensor's first scan of the data
-        (births there include the initial population, ``BirthModel.initial_count``).
+        Parameters
+        ----------
+        scans : sequence of Scan
+            The window's scans in time order.
+        carried : sequence of CarriedTrack
+            Tracks committed by earlier windows.
+        undetected : UndetectedTargets, optional
+            The targets never detected before the window (what :meth:`run` carries
+            from window to window, ``WindowSolution.population.after_scan``).  Default:
+            the recording starts at the window's first scan, with
+            ``BirthModel.initial_count`` targets present; so ``solve_window(scans[:N])``
+            is exactly the first window of ``run(scans)``.
         """
         kmax = self.settings.max_tracks
         t0 = time.perf_counter()
         deadline = t0 + self.settings.time_limit
-        hyps = self.generator.generate(scans, carried, first_scans=first_scans)
+        population = self.generator.population(scans, carried, undetected)
+        hyps = self.generator.generate(scans, carried, population=population)
         t1 = time.perf_counter()
         problem = packing_problem(hyps)
         clusters = cluster_hypotheses(problem)
@@ -437,14 +482,17 @@ class WindowEstimator:
             lone = np.asarray(independent, dtype=np.int64)
             tables.append(
                 independent_table(
-                    problem.scores[lone], problem.log_weights[lone], lone  # type: ignore[index]
+                    problem.scores[lone],
+                    problem.log_weights[lone],
+                    lone,  # type: ignore[index]
                 )
             )
         table = combine_tables(tables, kmax)
         posterior = k_posterior(
             table.best,
             table.log_mass,
-            self.log_k_prior,
+            prior=self.count_prior,
+            population=population,
             exact=table.exact,
             best_upper=table.best_upper,
             log_mass_upper=table.log_mass_upper,
@@ -455,6 +503,7 @@ class WindowEstimator:
             problem=problem,
             table=table,
             posterior=posterior,
+            population=population,
             cluster_sizes=tuple(len(c) for c in clusters),
             bounded_clusters=tuple(reports),
             generate_seconds=t1 - t0,
@@ -495,15 +544,11 @@ class WindowEstimator:
                     f"configuration does not define (known: {sorted(self.config.sensors)})"
                 )
         t_start = time.perf_counter()
-        seen_sensors: set[str] = set()
-        first_of_sensor = []
-        for scan in scans:
-            first_of_sensor.append(scan.sensor not in seen_sensors)
-            seen_sensors.add(scan.sensor)
         N = self.settings.window_length
         stride = self.settings.stride
         records: dict[int, _TrackRecord] = {}
         carried: list[CarriedTrack] = []
+        undetected: UndetectedTargets | None = None  # the recording starts here
         reports: list[WindowReport] = []
         next_id = 1
         start = 0
@@ -512,20 +557,22 @@ class WindowEstimator:
         while start < total:
             end = min(start + N, total)
             commit = stride if end < total else end - start
-            solution = self.solve_window(
-                scans[start:end], carried, first_scans=first_of_sensor[start:end]
-            )
+            solution = self.solve_window(scans[start:end], carried, undetected=undetected)
             post = solution.posterior
-            chosen_k = (
-                post.marginal_k if self.settings.k_estimate == "marginal" else post.joint_map_k
-            )
-            selection = solution.selection(chosen_k)
+            if self.settings.k_estimate == "marginal":
+                chosen_k, chosen_tracks = post.marginal_k, post.marginal_tracks
+            else:
+                chosen_k, chosen_tracks = post.joint_map_k, post.joint_map_tracks
+            selection = solution.selection(chosen_tracks)
             carried, next_id = self._commit(
                 solution.hypotheses, selection, start, commit, carried, records, next_id
             )
+            undetected = solution.population.after_scan[commit - 1]
             piled += post.piles_up_at_kmax
             possible = np.flatnonzero(np.isfinite(solution.table.log_mass_upper))
             reach = int(possible[-1]) + 1 if possible.size else 1
+            positive = np.flatnonzero(post.probabilities_upper >= P_K_FLOOR)
+            k_reach = int(positive[-1]) + 1 if positive.size else 1
             reports.append(
                 WindowReport(
                     index=len(reports),
@@ -535,14 +582,20 @@ class WindowEstimator:
                     end_time=scans[end - 1].time,
                     committed_scans=commit,
                     p_k_length=post.max_tracks + 1,
-                    probabilities=post.probabilities[:reach].copy(),
-                    probabilities_lower=post.probabilities_lower[:reach].copy(),  # type: ignore[index]
-                    probabilities_upper=post.probabilities_upper[:reach].copy(),  # type: ignore[index]
+                    probabilities=post.probabilities[:k_reach].copy(),
+                    probabilities_lower=post.probabilities_lower[:k_reach].copy(),
+                    probabilities_upper=post.probabilities_upper[:k_reach].copy(),
+                    track_probabilities=post.track_probabilities[:reach].copy(),
                     best_objective=post.best_log_score[:reach].copy(),
                     best_objective_upper=solution.table.best_upper[:reach].copy(),
                     joint_map_k=post.joint_map_k,
                     marginal_k=post.marginal_k,
                     chosen_k=chosen_k,
+                    joint_map_tracks=post.joint_map_tracks,
+                    marginal_tracks=post.marginal_tracks,
+                    chosen_tracks=chosen_tracks,
+                    undetected_mean=post.undetected_mean,
+                    k_prior=post.count_prior.kind,
                     marginal_exact=post.exact,
                     marginal_certain=post.marginal_certain,
                     joint_certain=post.joint_certain,

@@ -1,84 +1,202 @@
-"""The posterior over the number of tracks K in a window (seed 002).
+"""The posterior over the number of targets K in a window (seed 002), under a named prior.
 
-With hypothesis scores that are log-likelihood ratios (``mapassoc.hypotheses``), the
-window's per-K tables give, for K = 0..Kmax,
+The window's per-T tables (T the number of tracks of a track set: carried tracks
+alive in the window plus tracks started in it) give, for T = 0..Kmax,
 
-* ``best[K] = max over track sets with K tracks of sum of scores``, so that
-  ``log p(K, track set | Z) = log p(K) + best[K] + const`` at the best set
-  (seed 002, eqs. 8 and 14);
-* ``log_mass[K] = log sum over track sets with K tracks of exp(sum of scores)``, so that
-  ``p(K | Z) ∝ p(K) exp(log_mass[K])`` with the track sets summed out (seed 002,
-  "Marginalization for Number of tracks").
+* ``best[T] = max over track sets with T tracks of sum of scores`` and
+* ``log_mass[T] = log sum over those track sets of exp(sum of scores)``.
 
-The constant (all detections false alarms: ``prod_m e^(-lambda_bar) lambda^(m_m) / m_m!``)
-is the same for every K and track set, so it cancels on normalising.  The joint MAP K
-maximises ``log p(K) + best[K]``; the marginal estimate maximises ``p(K | Z)``; ties go
-to the smaller K.  A K with no feasible track set gets probability exactly 0.
+The scores are log-likelihood ratios under the birth model (``mapassoc.hypotheses``,
+``docs/model.md`` sections 2-3), whose targets form a Poisson process: given the
+data, the targets present in the window but never detected are Poisson with mean
+``nu`` (:class:`~mapassoc.population.WindowPopulation`), independent of the track
+set.  So under the birth model
+
+    p_birth(K, omega | Z)  ∝  exp(score(omega)) Po(K - T(omega); nu)              (1)
+
+with K the number of targets present in the window (T of them in tracks).  A named
+prior ``pi(K)`` on the number of targets replaces the birth model's own law
+``p_birth(K)`` of it (the birth model conditioned on K: K interchangeable targets):
+
+    p(K, omega | Z)  ∝  pi(K) / p_birth(K) * exp(score(omega)) Po(K - T(omega); nu)  (2)
+
+    p(K | Z)  ∝  pi(K) / p_birth(K) * sum_T exp(log_mass[T]) Po(K - T; nu).         (3)
+
+For ``"birth"`` the ratio is 1.  Without carried tracks ``p_birth(K) = Po(K; mu)``
+(``mu`` the expected number of targets in the window), and (2) becomes
+
+    pi(K) K! / (K - T)! * mu^(-T) q^(K - T) * exp(score(omega))
+
+with ``q = nu / mu`` the probability that a target of the window is never detected
+((1 - Pd)^N when every target lives through the window): the ``K!/(K - T)!`` ways to
+give T unlabelled tracks to K labelled targets and the ``(1 - Pd)`` of every missed
+scan of the undetected ones (``docs/model.md`` section 4).
+
+The joint MAP estimate maximises (2) over (K, omega): ``joint_map_k`` and the track
+count ``joint_map_tracks`` of its set.  The marginal estimate maximises (3); the track
+set committed for it is the MAP set given K (``marginal_tracks``, maximising
+``best[T] + log Po(K - T; nu)``).  Ties go to the smaller K, then the smaller T.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.special import gammaln
 
 from mapassoc.errors import InputError
+from mapassoc.population import WindowPopulation
 
-__all__ = ["KPosterior", "k_posterior", "PILE_UP_THRESHOLD"]
+__all__ = [
+    "COUNT_PRIORS",
+    "CountPrior",
+    "KPosterior",
+    "k_posterior",
+    "PILE_UP_THRESHOLD",
+    "NEGLIGIBLE_LOG_RATIO",
+]
+
+FloatArray = NDArray[np.float64]
+
+COUNT_PRIORS = ("birth", "uniform", "poisson", "weights")
+"""Priors on the number of targets in a window (:class:`CountPrior`)."""
 
 PILE_UP_THRESHOLD = 0.01
 """p(Kmax | Z) above this means Kmax probably cuts off the posterior."""
 
+NEGLIGIBLE_LOG_RATIO = 800.0
+"""A K whose weight is this many nats below the largest is below double precision's
+smallest number relative to it (e^-745): the posterior stops there (see
+:func:`k_posterior`)."""
+
+_BLOCK = 256
+"""K values per block of the (T, K) weight matrix."""
+
+
+@dataclass(frozen=True)
+class CountPrior:
+    """The prior on the number K of targets present in a window, K = 0..kmax.
+
+    Parameters
+    ----------
+    kind : {"birth", "uniform", "poisson", "weights"}
+        ``"birth"``: the law the birth model implies (initial population, births,
+        survival, carried tracks; :meth:`WindowPopulation.log_count_prior`), cut at
+        kmax.  ``"uniform"``: uniform on 0..kmax (seed 002).  ``"poisson"``: Poisson
+        with mean ``mean``, cut at kmax.  ``"weights"``: proportional to ``weights``.
+    kmax : int
+        Largest K, >= 0.
+    mean : float
+        Mean of the ``"poisson"`` prior, > 0.
+    weights : tuple of float
+        ``kmax + 1`` non-negative weights for ``"weights"``, not all 0.
+    """
+
+    kind: str = "birth"
+    kmax: int = 20
+    mean: float = 5.0
+    weights: tuple[float, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        if self.kind not in COUNT_PRIORS:
+            raise InputError(f"k_prior must be one of {COUNT_PRIORS}, got {self.kind!r}")
+        if isinstance(self.kmax, bool) or not isinstance(self.kmax, int) or self.kmax < 0:
+            raise InputError(f"max_tracks must be an integer >= 0, got {self.kmax!r}")
+        if not (math.isfinite(self.mean) and self.mean > 0):
+            raise InputError(f"k_prior_mean must be a finite number > 0, got {self.mean!r}")
+        if self.kind == "weights":
+            if len(self.weights) != self.kmax + 1:
+                raise InputError(
+                    f"k_prior_weights must have max_tracks + 1 = {self.kmax + 1} entries, "
+                    f"got {len(self.weights)}"
+                )
+            for i, v in enumerate(self.weights):
+                if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                    raise InputError(f"k_prior_weights[{i}] must be a number >= 0, got {v!r}")
+            if not any(v > 0 for v in self.weights):
+                raise InputError("k_prior_weights must have at least one positive entry")
+
+    def log_prior(self, population: WindowPopulation, top: int) -> FloatArray:
+        """log pi(K) for K = 0..top (top <= kmax), up to an additive constant."""
+        k = np.arange(top + 1, dtype=float)
+        if self.kind == "birth":
+            return population.log_count_prior(top)
+        if self.kind == "uniform":
+            return np.zeros(top + 1)
+        if self.kind == "poisson":
+            return k * math.log(self.mean) - gammaln(k + 1.0)
+        with np.errstate(divide="ignore"):
+            return np.log(np.asarray(self.weights[: top + 1], dtype=float))
+
+    def log_ratio(self, population: WindowPopulation, top: int) -> FloatArray:
+        """``log pi(K) - log p_birth(K)`` for K = 0..top, up to a constant (eq. 2).
+
+        ``-inf`` where either law gives K no probability.
+        """
+        if self.kind == "birth":
+            return np.where(np.isfinite(population.log_count_prior(top)), 0.0, -math.inf)
+        prior = self.log_prior(population, top)
+        birth = population.log_count_prior(top)
+        possible = np.isfinite(prior) & np.isfinite(birth)
+        out = np.full(top + 1, -math.inf)
+        out[possible] = prior[possible] - birth[possible]
+        return out
+
 
 @dataclass(frozen=True, eq=False)
 class KPosterior:
-    """Posterior over K = 0..Kmax for one window.
+    """Posterior over the number of targets K = 0..Kmax of one window.
 
     Attributes
     ----------
-    log_prior : ndarray, shape (Kmax + 1,)
     best_log_score : ndarray, shape (Kmax + 1,)
-        Best total score per K (``-inf`` where infeasible): the objective per K.
+        Best total score per number of tracks T (``-inf`` where infeasible).
     log_mass : ndarray, shape (Kmax + 1,)
+        log of the summed weight of the track sets with T tracks.
     probabilities : ndarray, shape (Kmax + 1,)
-        p(K | Z); sums to 1.
-    joint_map_k : int
-        K of the joint MAP estimate of (K, track set).
+        p(K | Z) over the number of targets present in the window; sums to 1.
+    track_probabilities : ndarray, shape (Kmax + 1,)
+        p(T | Z) over the number of tracks of the track set; sums to 1.
+    joint_map_k, joint_map_tracks : int
+        K and the track count T of the joint MAP estimate of (K, track set).
     marginal_k : int
         argmax p(K | Z).
+    marginal_tracks : int
+        Track count of the MAP track set given ``marginal_k`` targets.
+    undetected_mean : float
+        Expected number of targets in the window never detected (``nu``).
+    count_prior : CountPrior
     exact : bool
         Whether ``log_mass`` summed every feasible track set.
     probabilities_lower, probabilities_upper : ndarray, shape (Kmax + 1,)
         Proven bounds on p(K | Z) from the mass bounds (equal to ``probabilities`` up to
-        round-off when exact): with masses ``L_K <= M_K <= U_K`` and prior ``pi_K``,
-        ``L_K pi_K / (L_K pi_K + sum_{j != K} U_j pi_j) <= p(K | Z) <=
-        U_K pi_K / (U_K pi_K + sum_{j != K} L_j pi_j)``.
+        round-off when exact): with weights ``L_K <= W_K <= U_K`` (eq. 3 with the lower
+        and upper masses; it is increasing in every mass),
+        ``L_K / (L_K + sum_{j != K} U_j) <= p(K | Z) <= U_K / (U_K + sum_{j != K} L_j)``.
     marginal_certain : bool
-        Whether ``marginal_k`` is proven to be argmax p(K | Z) (its lower bound beats
-        every other K's upper bound, or everything is exact).
+        Whether ``marginal_k`` is proven to be argmax p(K | Z).
     joint_certain : bool
-        Whether ``joint_map_k`` is proven to be the joint MAP K (likewise with the best
-        scores and their upper bounds).
+        Whether ``joint_map_k`` is proven to be the joint MAP K.
     """
 
-    log_prior: NDArray[np.float64]
-    best_log_score: NDArray[np.float64]
-    log_mass: NDArray[np.float64]
-    probabilities: NDArray[np.float64]
+    best_log_score: FloatArray
+    log_mass: FloatArray
+    probabilities: FloatArray
+    track_probabilities: FloatArray
     joint_map_k: int
+    joint_map_tracks: int
     marginal_k: int
+    marginal_tracks: int
+    undetected_mean: float
+    count_prior: CountPrior
     exact: bool
-    probabilities_lower: NDArray[np.float64] | None = None
-    probabilities_upper: NDArray[np.float64] | None = None
+    probabilities_lower: FloatArray
+    probabilities_upper: FloatArray
     marginal_certain: bool = True
     joint_certain: bool = True
-
-    def __post_init__(self) -> None:
-        for name in ("probabilities_lower", "probabilities_upper"):
-            if getattr(self, name) is None:
-                object.__setattr__(self, name, self.probabilities)
 
     @property
     def max_tracks(self) -> int:
@@ -94,19 +212,17 @@ class KPosterior:
         return float(np.dot(np.arange(self.max_tracks + 1), self.probabilities))
 
 
-def _argmax_first(values: NDArray[np.float64]) -> int:
+def _argmax_first(values: FloatArray) -> int:
     return int(np.flatnonzero(values == np.max(values))[0])
 
 
-def _beats_others(lower: NDArray[np.float64], upper: NDArray[np.float64], k: int) -> bool:
+def _beats_others(lower: FloatArray, upper: FloatArray, k: int) -> bool:
     """Whether entry k's lower value is at least every other entry's upper value."""
     others = np.delete(upper, k)
     return bool(others.size == 0 or lower[k] >= np.max(others))
 
 
-def _probability_bounds(
-    lower: NDArray[np.float64], upper: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _probability_bounds(lower: FloatArray, upper: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Bounds on normalised weights from log-weight bounds (see :class:`KPosterior`)."""
     top = float(np.max(upper))
     lo = np.exp(lower - top)
@@ -117,27 +233,111 @@ def _probability_bounds(
     return p_lo, np.minimum(p_hi, 1.0)
 
 
+def _log_poisson(u: NDArray[np.int64], nu: float) -> FloatArray:
+    """log Po(u; nu), ``-inf`` for u < 0 (and for u > 0 when nu = 0)."""
+    out = np.full(u.shape, -math.inf)
+    ok = u >= 0
+    if nu > 0:
+        uf = u[ok].astype(float)
+        out[ok] = uf * math.log(nu) - nu - gammaln(uf + 1.0)
+    else:
+        out[ok & (u == 0)] = 0.0
+    return out
+
+
+def _log_sum(a: FloatArray, axis: int) -> FloatArray:
+    """``log sum exp`` along ``axis``; ``-inf`` where every entry is ``-inf``."""
+    top = np.max(a, axis=axis, keepdims=True)
+    safe = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        out = np.log(np.sum(np.exp(a - safe), axis=axis, keepdims=True)) + safe
+    return np.squeeze(np.where(np.isfinite(top), out, -math.inf), axis=axis)
+
+
+@dataclass
+class _Sweep:
+    """Per-K reductions of the (T, K) weight matrix over K = 0..top."""
+
+    mass_lower: FloatArray
+    mass_upper: FloatArray
+    joint: FloatArray
+    joint_upper: FloatArray
+    joint_tracks: NDArray[np.int64]
+    tracks: FloatArray  # per T: log sum over K of the lower weights
+    decreasing_at_top: bool
+
+
+def _sweep(
+    top: int,
+    ratio: FloatArray,
+    nu: float,
+    mass: FloatArray,
+    mass_upper: FloatArray,
+    best: FloatArray,
+    best_upper: FloatArray,
+) -> _Sweep:
+    T = mass.shape[0]
+    ts = np.arange(T, dtype=np.int64)[:, None]
+    n = top + 1
+    out = _Sweep(
+        np.full(n, -math.inf),
+        np.full(n, -math.inf),
+        np.full(n, -math.inf),
+        np.full(n, -math.inf),
+        np.zeros(n, dtype=np.int64),
+        np.full(T, -math.inf),
+        True,
+    )
+    for k0 in range(0, n, _BLOCK):
+        ks = np.arange(k0, min(n, k0 + _BLOCK), dtype=np.int64)
+        weight = ratio[ks][None, :] + _log_poisson(ks[None, :] - ts, nu)  # (T, block)
+        lower = mass[:, None] + weight
+        out.mass_lower[ks] = _log_sum(lower, 0)
+        out.mass_upper[ks] = _log_sum(mass_upper[:, None] + weight, 0)
+        scored = best[:, None] + weight
+        out.joint[ks] = np.max(scored, axis=0)
+        out.joint_tracks[ks] = np.argmax(scored, axis=0)
+        out.joint_upper[ks] = np.max(best_upper[:, None] + weight, axis=0)
+        out.tracks = np.logaddexp(out.tracks, _log_sum(lower, 1))
+    if top >= 1:
+        # Whether every term's weight falls from top - 1 to top (each is concave in K
+        # for the priors whose range is cut, so it keeps falling).
+        ks = np.array([top - 1, top], dtype=np.int64)
+        weight = ratio[ks][None, :] + _log_poisson(ks[None, :] - ts, nu)
+        live = np.isfinite(mass_upper) & np.isfinite(weight[:, 1])
+        out.decreasing_at_top = bool(np.all(weight[live, 1] <= weight[live, 0]))
+    return out
+
+
 def k_posterior(
-    best: NDArray[np.float64],
-    log_mass: NDArray[np.float64],
-    log_prior: NDArray[np.float64] | list[float],
+    best: FloatArray,
+    log_mass: FloatArray,
     *,
+    prior: CountPrior,
+    population: WindowPopulation,
     exact: bool = True,
-    best_upper: NDArray[np.float64] | None = None,
-    log_mass_upper: NDArray[np.float64] | None = None,
+    best_upper: FloatArray | None = None,
+    log_mass_upper: FloatArray | None = None,
 ) -> KPosterior:
-    """Combine per-K tables with the prior p(K).
+    """p(K | Z), the joint MAP and the marginal estimates (eqs. 2-3 of the module).
+
+    The K range is 0..kmax.  Except for the ``"weights"`` prior, the weights are
+    computed up to the first K (grown by doubling) past which every term falls and is
+    :data:`NEGLIGIBLE_LOG_RATIO` nats below the largest weight; the K beyond get
+    probability 0, which is what double precision would give them.  So a huge kmax
+    costs nothing.
 
     Parameters
     ----------
-    best, log_mass : ndarray, shape (Kmax + 1,)
-        Per-K best score and log-mass of the window (``log_mass`` a lower bound when
-        not exact: the sets summed).
-    log_prior : array_like, shape (Kmax + 1,)
-        log p(K); ``-inf`` allowed.
+    best, log_mass : ndarray, shape (T,)
+        Per track count T = 0..T-1 (T <= kmax + 1): best score and log-mass of the window
+        (``log_mass`` a lower bound when not exact: the sets summed).
+    prior : CountPrior
+    population : WindowPopulation
+        The window's undetected-target mean and the birth model's law of K.
     exact : bool
         Whether ``log_mass`` is exact.
-    best_upper, log_mass_upper : ndarray, shape (Kmax + 1,), optional
+    best_upper, log_mass_upper : ndarray, shape (T,), optional
         Proven upper bounds (default: ``best`` and ``log_mass``, i.e. exact).
 
     Raises
@@ -147,45 +347,84 @@ def k_posterior(
     """
     best = np.asarray(best, dtype=float)
     log_mass = np.asarray(log_mass, dtype=float)
-    log_prior = np.asarray(log_prior, dtype=float)
     best_upper = best if best_upper is None else np.asarray(best_upper, dtype=float)
     mass_upper = log_mass if log_mass_upper is None else np.asarray(log_mass_upper, dtype=float)
+    kmax = prior.kmax
     if (
-        not (best.shape == log_mass.shape == log_prior.shape == best_upper.shape)
-        or mass_upper.shape != best.shape
-        or best.ndim != 1
+        best.ndim != 1
+        or not (best.shape == log_mass.shape == best_upper.shape == mass_upper.shape)
+        or not 1 <= best.shape[0] <= kmax + 1
     ):
         raise InputError(
-            f"best, log_mass, log_prior and their bounds must be 1-D of one length, got "
-            f"{best.shape}, {log_mass.shape}, {log_prior.shape}, {best_upper.shape}, "
+            f"best, log_mass and their bounds must be 1-D of one length in 1..kmax + 1 = "
+            f"{kmax + 1}, got {best.shape}, {log_mass.shape}, {best_upper.shape}, "
             f"{mass_upper.shape}"
         )
-    joint = log_prior + log_mass
+    reachable = np.flatnonzero(np.isfinite(mass_upper))
+    if reachable.size == 0:
+        raise InputError("the window has no feasible track set for any number of tracks")
+    n_tracks = int(reachable[-1]) + 1
+    best, log_mass = best[:n_tracks], log_mass[:n_tracks]
+    best_upper, mass_upper = best_upper[:n_tracks], mass_upper[:n_tracks]
+    nu = population.undetected_mean
+
+    if prior.kind == "weights":
+        top = kmax
+    else:
+        top = min(kmax, n_tracks - 1 + 64 + int(math.ceil(4.0 * nu)))
+    while True:
+        ratio = prior.log_ratio(population, top)
+        sweep = _sweep(top, ratio, nu, log_mass, mass_upper, best, best_upper)
+        if top == kmax:
+            break
+        peak = float(np.max(sweep.mass_lower))
+        if sweep.decreasing_at_top and sweep.mass_upper[top] < peak - NEGLIGIBLE_LOG_RATIO:
+            break
+        top = min(kmax, 2 * top + 1)
+
+    joint = sweep.mass_lower
     if not np.any(np.isfinite(joint)):
         raise InputError(
             "no K in 0..Kmax has a feasible track set with positive prior probability; "
             "raise max_tracks or check k_prior_weights"
         )
-    top = np.max(joint)
-    weights = np.exp(joint - top)  # exp(-inf) is exactly 0 for infeasible K
-    probabilities = weights / weights.sum()
-    joint_scores = log_prior + best
-    joint_map_k = _argmax_first(joint_scores)
+    weights = np.exp(joint - np.max(joint))
+    probabilities = np.zeros(kmax + 1)
+    probabilities[: top + 1] = weights / weights.sum()
+    p_lower_part, p_upper_part = _probability_bounds(joint, sweep.mass_upper)
+    p_lower = np.zeros(kmax + 1)
+    p_upper = np.zeros(kmax + 1)
+    p_lower[: top + 1] = p_lower_part
+    p_upper[: top + 1] = p_upper_part
+    track_weights = np.exp(sweep.tracks - np.max(sweep.tracks))
+    track_probabilities = np.zeros(kmax + 1)
+    track_probabilities[:n_tracks] = track_weights / track_weights.sum()
+
     marginal_k = _argmax_first(probabilities)
-    joint_upper = log_prior + mass_upper
-    p_lower, p_upper = _probability_bounds(joint, joint_upper)
+    given_k = best + _log_poisson(marginal_k - np.arange(n_tracks, dtype=np.int64), nu)
+    joint_map_k = _argmax_first(sweep.joint)
+    padded = np.full(kmax + 1, -math.inf)
+    padded[:n_tracks] = best
+    padded_upper = np.full(kmax + 1, -math.inf)
+    padded_upper[:n_tracks] = best_upper
+    mass_padded = np.full(kmax + 1, -math.inf)
+    mass_padded[:n_tracks] = log_mass
     return KPosterior(
-        log_prior=log_prior,
-        best_log_score=best,
-        log_mass=log_mass,
+        best_log_score=padded,
+        log_mass=mass_padded,
         probabilities=probabilities,
+        track_probabilities=track_probabilities,
         joint_map_k=joint_map_k,
+        joint_map_tracks=int(sweep.joint_tracks[joint_map_k]),
         marginal_k=marginal_k,
+        marginal_tracks=_argmax_first(given_k),
+        undetected_mean=nu,
+        count_prior=prior,
         exact=exact,
         probabilities_lower=p_lower,
         probabilities_upper=p_upper,
-        marginal_certain=_beats_others(joint, joint_upper, marginal_k),
-        joint_certain=_beats_others(joint_scores, log_prior + best_upper, joint_map_k),
+        marginal_certain=_beats_others(joint, sweep.mass_upper, marginal_k),
+        joint_certain=_beats_others(sweep.joint, sweep.joint_upper, joint_map_k),
     )
 
 

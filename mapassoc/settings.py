@@ -7,15 +7,15 @@ TOML file (section and key names equal the field names).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from mapassoc.errors import InputError
+from mapassoc.posterior import COUNT_PRIORS, CountPrior
 from mapassoc.validation import check_nonnegative, check_positive, check_probability
 
 __all__ = ["BirthModel", "EstimatorSettings", "K_PRIORS", "K_ESTIMATES"]
 
-K_PRIORS = ("uniform", "poisson", "weights")
+K_PRIORS = COUNT_PRIORS
 K_ESTIMATES = ("marginal", "joint")
 
 
@@ -27,29 +27,26 @@ def _check_int(name: str, value: object, *, minimum: int) -> int:
 
 @dataclass(frozen=True)
 class BirthModel:
-    """Where new tracks come from and how long tracks live.
+    """Where targets come from and how long they live: one generative model.
 
-    A new track starts at a detection.  First detections of new targets are Poisson
-    with mean ``rate`` per scan, uniform over the sensor's surveillance region, so
-    their density in a scan of a sensor with detection probability Pd and region
-    volume V is ``rate * Pd / V`` (a target is taken to be born at its first
-    detection).  The unmeasured state components start from zero mean with the
-    standard deviations below (single-point initiation).  A track alive at time t
-    is still alive at t + dt with probability ``survival_probability ** dt``.
-
-    The targets already present when the recording starts are not births at a rate:
-    ``initial_count`` (the expected number of targets present at the start, Poisson)
-    adds to ``rate`` for detections in each sensor's first scan.
+    ``initial_count`` targets (Poisson) are present at the first scan of the recording;
+    before every scan ``rate`` new targets (Poisson) appear; a target alive at time t
+    is still alive at t + dt with probability ``survival_probability ** dt``; at each
+    scan it is detected with the sensor's detection probability.  Positions are
+    uniform over the scanning sensor's region.  The targets not detected so far are
+    carried through the recording as an expected number (the undetected-target
+    intensity, :mod:`mapassoc.population`), so a target's first detection, at the
+    first scan or later, has density ``u * Pd / V`` with ``u`` that expected number.
+    At its first detection a track starts (single-point initiation): the unmeasured
+    state components start from zero mean with the standard deviations below.
 
     Parameters
     ----------
     rate : float
         Expected number of new targets per scan, >= 0 (0: no target appears after the
-        start, Perry's fixed population over a window; then only ``initial_count`` starts
-        tracks, in each sensor's first scan).
+        start, as in seed 002's fixed population).
     initial_count : float
-        Expected number of targets present at the start of the data, >= 0 (their first
-        detections are expected in each sensor's first scan).
+        Expected number of targets present at the first scan of the recording, >= 0.
     velocity_std : float
         Prior standard deviation of each velocity component at birth (Cartesian
         models), > 0.
@@ -61,7 +58,7 @@ class BirthModel:
     turn_rate_std : float
         Prior standard deviation of the turn rate at birth (coordinated turn), > 0.
     survival_probability : float
-        Probability that a track survives one unit of time, in (0, 1].
+        Probability that a target survives one unit of time, in (0, 1].
     """
 
     rate: float = 0.1
@@ -79,9 +76,7 @@ class BirthModel:
         check_positive("birth acceleration_std", self.acceleration_std)
         check_positive("birth speed_std", self.speed_std)
         check_positive("birth turn_rate_std", self.turn_rate_std)
-        check_probability(
-            "birth survival_probability", self.survival_probability, allow_zero=False
-        )
+        check_probability("birth survival_probability", self.survival_probability, allow_zero=False)
 
 
 @dataclass(frozen=True)
@@ -95,7 +90,8 @@ class EstimatorSettings:
     stride : int
         Scans committed per window, 1 <= stride <= window_length.
     max_tracks : int
-        Kmax: the window is solved for every K = 0..Kmax.
+        Kmax: the largest number of targets in a window; the window is solved for every
+        number of tracks T = 0..Kmax.
     gate_probability : float
         Chi-square gate probability P_G in (0, 1]; 1 disables gating (every detection
         of a scan may continue every track), which only small problems can afford.
@@ -107,15 +103,22 @@ class EstimatorSettings:
         window leaves it more than this below 0 (not selecting the tree); clusters drop
         hypotheses whose LP bound is this far below the cluster's best set (>= 0;
         ``inf`` disables all three).
-    k_prior : {"uniform", "poisson", "weights"}
-        Prior p(K) on 0..Kmax (seed 002 uses uniform).
+    k_prior : {"birth", "uniform", "poisson", "weights"}
+        Prior p(K) on the number K of targets present in a window (detected or not),
+        K = 0..Kmax; the reported p(K | Z) is the exact posterior under it
+        (:mod:`mapassoc.posterior`).  ``"birth"`` (default): the law the birth model
+        implies (Poisson for a window that starts the recording), no extra factor;
+        ``"uniform"``: uniform on 0..Kmax (seed 002); ``"poisson"``: Poisson with mean
+        ``k_prior_mean``; ``"weights"``: ``k_prior_weights``.  The default was chosen by
+        measurement (README, "Prior on the number of targets").
     k_prior_mean : float
         Mean of the Poisson prior (used when ``k_prior == "poisson"``).
     k_prior_weights : tuple of float
         Unnormalised p(K) for K = 0..Kmax (used when ``k_prior == "weights"``).
     k_estimate : {"marginal", "joint"}
-        Which K the committed track set uses: ``argmax p(K | Z)`` (marginal, default) or
-        the K of the joint MAP (K, track set) (seed 002, eq. 14).
+        Which estimate of K the committed track set uses: ``argmax p(K | Z)`` (marginal,
+        default) or the K of the joint MAP (K, track set) (seed 002, eq. 14); the set is
+        the MAP track set given that K.
     solver : str
         Integer-program backend for clusters too large for the exact search (a name
         from ``mapassoc.solvers.available_solvers()``).
@@ -138,7 +141,7 @@ class EstimatorSettings:
     gate_probability: float = 0.999
     max_hypotheses_per_tree: int = 64
     prune_log_ratio: float = 9.0
-    k_prior: str = "uniform"
+    k_prior: str = "birth"
     k_prior_mean: float = 5.0
     k_prior_weights: tuple[float, ...] = field(default_factory=tuple)
     k_estimate: str = "marginal"
@@ -162,20 +165,7 @@ class EstimatorSettings:
                 f"prune_log_ratio must be a number >= 0 (inf disables), got "
                 f"{self.prune_log_ratio!r}"
             )
-        if self.k_prior not in K_PRIORS:
-            raise InputError(f"k_prior must be one of {K_PRIORS}, got {self.k_prior!r}")
-        check_positive("k_prior_mean", self.k_prior_mean)
-        if self.k_prior == "weights":
-            w = tuple(self.k_prior_weights)
-            if len(w) != self.max_tracks + 1:
-                raise InputError(
-                    f"k_prior_weights must have max_tracks + 1 = {self.max_tracks + 1} "
-                    f"entries, got {len(w)}"
-                )
-            for i, v in enumerate(w):
-                check_nonnegative(f"k_prior_weights[{i}]", v)
-            if not any(v > 0 for v in w):
-                raise InputError("k_prior_weights must have at least one positive entry")
+        self.count_prior()  # validates k_prior, k_prior_mean and k_prior_weights
         if self.k_estimate not in K_ESTIMATES:
             raise InputError(f"k_estimate must be one of {K_ESTIMATES}, got {self.k_estimate!r}")
         if not isinstance(self.solver, str) or not self.solver:
@@ -184,16 +174,11 @@ class EstimatorSettings:
         _check_int("exact_work_limit", self.exact_work_limit, minimum=1)
         _check_int("beam_width", self.beam_width, minimum=1)
 
-    def log_k_prior(self) -> list[float]:
-        """log p(K) for K = 0..Kmax, normalised (``-inf`` where p(K) = 0)."""
-        kmax = self.max_tracks
-        if self.k_prior == "uniform":
-            return [-math.log(kmax + 1)] * (kmax + 1)
-        if self.k_prior == "poisson":
-            mu = self.k_prior_mean
-            raw = [k * math.log(mu) - mu - math.lgamma(k + 1) for k in range(kmax + 1)]
-        else:
-            raw = [math.log(v) if v > 0 else -math.inf for v in self.k_prior_weights]
-        top = max(raw)
-        norm = top + math.log(sum(math.exp(r - top) for r in raw))
-        return [r - norm for r in raw]
+    def count_prior(self) -> CountPrior:
+        """The prior on the number of targets in a window these settings name."""
+        return CountPrior(
+            kind=self.k_prior,
+            kmax=self.max_tracks,
+            mean=self.k_prior_mean,
+            weights=tuple(self.k_prior_weights),
+        )

@@ -52,30 +52,33 @@ def test_a_scan_of_thousands_of_detections_followed_by_another_runs() -> None:
     assert window.status in ("exact", "capped")
     # Each grid point is a pair of detections one scan apart: most become tracks.
     assert window.posterior.marginal_k > 2_000
-    chosen = window.selection(window.posterior.marginal_k)
-    assert window.problem.is_feasible(chosen, window.posterior.marginal_k)
+    tracks = window.posterior.marginal_tracks
+    assert tracks <= window.posterior.marginal_k
+    chosen = window.selection(tracks)
+    assert window.problem.is_feasible(chosen, tracks)
 
 
 def test_a_huge_max_tracks_costs_nothing_per_window() -> None:
     """Kmax = 10^6 on the crossing scenario: every window reports p_k_length = 10^6 + 1
-    but stores and writes only the K its track sets can reach, with the same posterior
+    but stores and writes only the K with p(K | Z) above 1e-300, with the same posterior
     as a Kmax that is just large enough."""
     from mapassoc.scenarios import build_scenario, truncate_scenario
 
     scenario = truncate_scenario(build_scenario("crossing", 0), 10)
 
     def run(kmax: int):  # type: ignore[no-untyped-def]
-        config = replace(
-            scenario.config, estimator=replace(scenario.config.estimator, max_tracks=kmax)
-        )
+        # Under the birth prior Kmax only truncates p(K) (a uniform prior on 0..Kmax is a
+        # different prior for every Kmax).
+        estimator = replace(scenario.config.estimator, max_tracks=kmax, k_prior="birth")
+        config = replace(scenario.config, estimator=estimator)
         return WindowEstimator(config=config).run(scenario.scans)
 
-    huge, fitted = run(10**6), run(60)
+    huge, fitted = run(10**6), run(120)
     for a, b in zip(huge.windows, fitted.windows, strict=True):
         line = a.to_json(timings=False)
         assert line["p_k_length"] == 10**6 + 1
         assert len(a.probabilities) < 100 and len(line["p_k"]) < 100  # type: ignore[arg-type]
         n = len(a.probabilities)
         np.testing.assert_allclose(a.probabilities, b.probabilities[:n], atol=1e-12)
-        assert np.all(b.probabilities[n:] == 0.0)
+        assert np.all(b.probabilities[n:] < 1e-300)
         assert a.marginal_k == b.marginal_k and a.chosen_k == b.chosen_k

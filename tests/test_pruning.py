@@ -288,8 +288,7 @@ def test_random_windows_cover_the_interesting_cases() -> None:
 @pytest.mark.parametrize("seed", range(40))
 def test_gain_bound_bounds_every_descendant(seed: int) -> None:
     generator, scans, carried = random_window(seed)
-    first = [j == 0 for j in range(len(scans))]
-    hyps = generator.generate(scans, carried, first_scans=first)
+    hyps = generator.generate(scans, carried)
     assert hyps.pruned == 0 and hyps.capped == 0
     gains = generator.remaining_gain_bounds(scans)
     best_below = best_leaf_below(hyps)
@@ -297,7 +296,8 @@ def test_gain_bound_bounds_every_descendant(seed: int) -> None:
     checked = 0
     for j in range(len(scans)):
         # Node scores at scan j: the leaves of the window cut after scan j.
-        cut = generator.generate(scans[: j + 1], carried, first_scans=first[: j + 1])
+        # (the undetected-target intensity of a scan depends only on earlier scans)
+        cut = generator.generate(scans[: j + 1], carried)
         score_of = leaf_scores_by_key(cut)
         for v in np.flatnonzero(nodes.layer == j):
             score = score_of[node_key(hyps, int(v))]
@@ -524,8 +524,9 @@ def test_every_target_born_in_dense_clutter_gets_a_track() -> None:
 
 
 def test_birth_rate_zero_starts_tracks_only_from_the_initial_population() -> None:
-    """rate = 0 is allowed: new trees are rooted only in a sensor's first scan (from
-    initial_count), and with initial_count = 0 too, nowhere."""
+    """rate = 0 is allowed: new trees are rooted only in targets present at the start,
+    first detected at scan 0 (u_0 = initial_count) or later, when they were missed
+    (u_1 = initial_count (1 - Pd) Ps^dt); with initial_count = 0 too, nowhere."""
     from mapassoc.settings import BirthModel
 
     motion = ConstantVelocity(ndim=2, noise_intensity=0.1)
@@ -540,8 +541,10 @@ def test_birth_rate_zero_starts_tracks_only_from_the_initial_population() -> Non
         Scan(0.0, "s", np.array([[0.0, 0.0], [20.0, 5.0]]), np.array([2, 3])),
         Scan(1.0, "s", np.array([[1.0, 0.2], [-30.0, 9.0]]), np.array([4, 5])),
     ]
-    for initial, first_roots in ((2.0, 2), (0.0, 0)):
-        birth = BirthModel(rate=0.0, initial_count=initial, velocity_std=2.0)
+    for initial, roots_per_scan in ((2.0, 2), (0.0, 0)):
+        birth = BirthModel(
+            rate=0.0, initial_count=initial, velocity_std=2.0, survival_probability=0.8
+        )
         generator = HypothesisGenerator(
             motion=motion,
             sensors={"s": sensor},
@@ -550,25 +553,41 @@ def test_birth_rate_zero_starts_tracks_only_from_the_initial_population() -> Non
             max_hypotheses_per_tree=64,
             prune_log_ratio=math.inf,
         )
-        hyps = generator.generate(scans, first_scans=[True, False])
-        roots = hyps.nodes.parent < 0
-        assert int(np.count_nonzero(roots & (hyps.nodes.layer == 0))) == first_roots
-        assert not np.any(roots & (hyps.nodes.layer == 1))  # no births after the start
-        assert np.all(np.isfinite(hyps.scores))
+        for layer, undetected in ((0, initial), (1, initial * 0.1 * 0.8)):
+            # Roots at the window's last scan are leaves: their score is the root's.
+            hyps = generator.generate(scans[: layer + 1])
+            nodes = hyps.nodes
+            roots = np.flatnonzero((nodes.parent < 0) & (nodes.layer == layer))
+            assert len(roots) == roots_per_scan
+            at_roots = np.isin(hyps.leaf, roots)
+            expected = math.log(undetected) + math.log(0.9) - math.log(2.0) if initial else 0.0
+            np.testing.assert_allclose(hyps.scores[at_roots], expected, rtol=0, atol=1e-12)
+            assert np.all(np.isfinite(hyps.scores))
 
 
 def test_birth_rate_zero_runs_end_to_end() -> None:
-    """On crossing (one target present at the start, three born later) rate = 0 keeps
-    only the first target; with initial_count = 0 too there is no track at all."""
+    """On crossing's first 12 scans (one target present at the start, two born later)
+    with rate = 0:
+    with initial_count = 0 no target can exist, so there is no track at all; with
+    initial_count = 4 the targets born later can only be explained as present from the
+    start but missed until they appear (the undetected-target intensity), and every
+    target gets its track."""
     from dataclasses import replace
 
     from mapassoc.pipeline import WindowEstimator
     from mapassoc.scenarios import build_scenario, truncate_scenario
 
     scenario = truncate_scenario(build_scenario("crossing", 0), 12)
-    counts = []
-    for initial in (0.0, 4.0):
-        birth = replace(scenario.config.birth, rate=0.0, initial_count=initial)
-        result = WindowEstimator(config=replace(scenario.config, birth=birth)).run(scenario.scans)
-        counts.append(len(result.track_rows))
-    assert counts == [0, 1]
+    assert len(np.unique(scenario.truth.target_ids)) == 3
+    counts = {}
+    for prior in ("birth", "uniform"):
+        for initial in (0.0, 4.0):
+            birth = replace(scenario.config.birth, rate=0.0, initial_count=initial)
+            estimator = replace(scenario.config.estimator, k_prior=prior)
+            config = replace(scenario.config, birth=birth, estimator=estimator)
+            result = WindowEstimator(config=config).run(scenario.scans)
+            counts[prior, initial] = len(result.track_rows)
+    assert counts["birth", 0.0] == counts["uniform", 0.0] == 0
+    assert counts["birth", 4.0] == 3
+    # The uniform prior on K favours more targets than the birth model expects.
+    assert counts["uniform", 4.0] >= 3

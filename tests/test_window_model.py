@@ -38,6 +38,7 @@ from mapassoc.measurement import LinearMeasurement
 from mapassoc.metrics import gospa
 from mapassoc.motion import ConstantVelocity, MotionModel, RandomWalk
 from mapassoc.pipeline import WindowEstimator, WindowSolution
+from mapassoc.posterior import k_posterior
 from mapassoc.scans import Scan
 from mapassoc.sensor import Region, Sensor
 from mapassoc.settings import BirthModel, EstimatorSettings
@@ -60,6 +61,7 @@ def make_config(
     false_alarms_per_scan: float,
     region: list[list[float]],
     rate: float = 0.1,
+    initial_count: float = 0.0,
     velocity_std: float = 1.0,
     survival_probability: float = 0.95,
     max_tracks: int = 5,
@@ -86,7 +88,10 @@ def make_config(
         motion=motion,
         sensors={SENSOR: sensor},
         birth=BirthModel(
-            rate=rate, velocity_std=velocity_std, survival_probability=survival_probability
+            rate=rate,
+            initial_count=initial_count,
+            velocity_std=velocity_std,
+            survival_probability=survival_probability,
         ),
         estimator=EstimatorSettings(
             window_length=window_length,
@@ -223,12 +228,21 @@ def test_window_tables_equal_integer_program_and_enumeration(seed: int) -> None:
         assert problem.is_feasible(best_set, k)
         assert abs(problem.value(best_set) - table.best[k]) <= TOLERANCE
         lse[k] = oracle.log_sum_exp
-    # p(K | Z) ∝ p(K) exp(log-sum-exp_K)  (seed 002, "Marginalization for Number of tracks").
-    joint = case.estimator.log_k_prior + lse
-    expected = np.exp(joint - joint.max())
-    expected /= expected.sum()
-    np.testing.assert_allclose(solution.posterior.probabilities, expected, rtol=0, atol=1e-9)
-    assert table.best[-1] == -math.inf  # K = D + carried + 1 has no feasible set
+    # The posterior over K is the one the enumerated masses give (its formula is
+    # checked against labelled targets in test_target_count.py).
+    expected = k_posterior(
+        table.best,
+        lse,
+        prior=case.estimator.count_prior,
+        population=solution.population,
+    )
+    np.testing.assert_allclose(
+        solution.posterior.probabilities, expected.probabilities, rtol=0, atol=1e-9
+    )
+    np.testing.assert_allclose(
+        solution.posterior.track_probabilities, expected.track_probabilities, rtol=0, atol=1e-9
+    )
+    assert table.best[-1] == -math.inf  # T = D + carried + 1 has no feasible set
 
 
 def test_random_windows_cover_the_interesting_cases() -> None:
@@ -311,13 +325,15 @@ def log_poisson(count: int, mean: float) -> float:
 
 
 def brute_force_posterior(model: TinyModel, kmax: int) -> tuple[np.ndarray, np.ndarray]:
-    """best[K] and log-mass[K] of log p(track set, Z) (up to one constant), by enumeration.
+    """best[T] and log-mass[T] of log p(track set, Z) (up to one constant), by enumeration.
 
     The joint density of a track set omega and the window's data is evaluated literally
     (docs/model.md, eq. (*) and section 3), scan by scan:
 
     * F_m false alarms: Po(F_m; lambda_bar) V^-F_m, uniform over the region;
-    * B_m tracks born (first detected) at scan m: Po(B_m; rate Pd) V^-B_m;
+    * B_m tracks first detected at scan m: Po(B_m; u_m Pd) V^-B_m, with u_m the expected
+      number of targets alive at scan m and never detected before (births at ``rate``
+      per scan, thinned by 1 - Pd and survival; docs/model.md section 3);
     * the shuffle: the scan's M_m detections are a random order of the track detections,
       the births and the false alarms, so the named positions have probability
       F_m! B_m! / M_m! (false alarms and births are unordered among themselves);
@@ -333,6 +349,12 @@ def brute_force_posterior(model: TinyModel, kmax: int) -> tuple[np.ndarray, np.n
     lam_bar, V, pd = model.false_alarms_per_scan, model.volume, model.pd
     best = np.full(kmax + 1, -math.inf)
     terms: list[list[float]] = [[] for _ in range(kmax + 1)]
+    # Expected number of targets alive at scan m and never detected before it: first
+    # detections at scan m are Poisson(u_m Pd), uniform (the recording starts at scan 0).
+    u = [model.rate]
+    for m in range(1, num_scans):
+        survive = model.survival ** (times[m] - times[m - 1])
+        u.append(u[-1] * (1.0 - pd) * survive + model.rate)
 
     def kalman_loglik(track: tuple[int, ...], last_scan: int) -> float:
         """Sum of log N(nu; 0, S) over the track's detections after the first."""
@@ -372,7 +394,7 @@ def brute_force_posterior(model: TinyModel, kmax: int) -> tuple[np.ndarray, np.n
                             continued += 1
                 F = M[m] - continued - born
                 log_p += log_poisson(F, lam_bar) - F * math.log(V)
-                log_p += log_poisson(born, model.rate * pd) - born * math.log(V)
+                log_p += log_poisson(born, u[m] * pd) - born * math.log(V)
                 log_p += math.lgamma(F + 1) + math.lgamma(born + 1) - math.lgamma(M[m] + 1)
                 log_p += continued * math.log(pd) + (alive - continued - born) * math.log1p(-pd)
             for track, last_alive in zip(partition, lifetimes, strict=True):
@@ -453,12 +475,13 @@ def test_posterior_equals_literal_seed_002_formula(seed: int | str) -> None:
     assert table.best[0] == 0.0  # the empty track set
     assert_tables_equal(table.best, best - best[0], "best[K] - best[0]")
     assert_tables_equal(table.log_mass, log_mass - log_mass[0], "log_mass[K] - log_mass[0]")
-    log_prior = np.asarray(config.estimator.log_k_prior())
-    joint = log_prior + log_mass
-    expected = np.exp(joint - joint.max())
-    expected /= expected.sum()
-    np.testing.assert_allclose(solution.posterior.probabilities, expected, rtol=0, atol=1e-9)
-    assert solution.posterior.probabilities[-1] == 0.0
+    expected = k_posterior(
+        best, log_mass, prior=config.estimator.count_prior(), population=solution.population
+    )
+    np.testing.assert_allclose(
+        solution.posterior.probabilities, expected.probabilities, rtol=0, atol=1e-9
+    )
+    assert solution.posterior.track_probabilities[-1] == 0.0
 
 
 def test_partition_enumeration_counts() -> None:
@@ -650,15 +673,20 @@ def test_two_clear_tracks_are_found_in_any_detection_order() -> None:
 def test_posterior_normalised_and_infeasible_k_has_zero_probability(seed: int) -> None:
     case = random_window(seed)
     solution = case.estimator.solve_window(case.scans, ())  # no carried tracks
-    p = solution.posterior.probabilities
-    assert abs(float(p.sum()) - 1.0) <= 1e-12
-    assert np.all(p >= 0.0)
+    post = solution.posterior
+    for p in (post.probabilities, post.track_probabilities):
+        assert abs(float(p.sum()) - 1.0) <= 1e-12
+        assert np.all(p >= 0.0)
     num_detections = sum(s.size for s in case.scans)
     assert solution.table.best[0] == 0.0  # the empty set: every detection a false alarm
-    assert p[0] > 0.0
-    for k in range(num_detections + 1, solution.table.kmax + 1):
-        assert p[k] == 0.0
-        assert solution.table.best[k] == -math.inf
+    assert post.track_probabilities[0] > 0.0
+    for t in range(num_detections + 1, solution.table.kmax + 1):
+        assert post.track_probabilities[t] == 0.0  # no set has more tracks than detections
+        assert solution.table.best[t] == -math.inf
+    # Targets never detected are possible whenever Pd < 1: every K has mass.
+    if post.undetected_mean > 0:
+        assert np.all(post.probabilities > 0.0)
+    assert post.marginal_k >= post.marginal_tracks
     assert np.all(np.isfinite(solution.table.best[: num_detections + 1]))
 
 

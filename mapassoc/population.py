@@ -1,0 +1,244 @@
+"""The target population of a window: undetected targets and the prior on their number.
+
+The birth model (:class:`~mapassoc.settings.BirthModel`) is one generative model of the
+targets (``docs/model.md``, section 3):
+
+* ``initial_count`` targets (Poisson) are present at the first scan of the recording;
+* before every scan, ``rate`` new targets (Poisson) appear, alive at that scan;
+* a target alive at time ``t`` is alive at ``t + dt`` with probability ``Ps ** dt``;
+* at each scan a target is detected with the scanning sensor's probability ``Pd``.
+
+The targets never detected so far form a Poisson process whose expected number is
+data independent (a Poisson multi-Bernoulli mixture filter's undetected intensity,
+taken uniform over the scanning sensor's region).  Just before scan ``j`` it is
+
+    u_j = Ps ** (t_j - t_{j-1}) * (1 - Pd_{j-1}) * u_{j-1} + rate,   u_0 = initial_count + rate
+
+(``u_0`` at the recording's first scan; a later window starts from the state the
+previous windows left, :class:`UndetectedTargets`).  A new track's first detection at
+scan ``j`` is scored against this intensity: density ``u_j Pd_j / V`` against the
+clutter density ``lambda_bar / V`` (``mapassoc.hypotheses``), so a target missed at
+first is still started when it is detected.
+
+For the posterior over the number of targets K present in a window
+(:mod:`mapassoc.posterior`) the window needs three more numbers:
+
+* ``new_target_mean``: the expected number of targets present in the window (alive at
+  one of its scans) that were never detected before it, ``u_0 + (N - 1) rate``;
+* ``undetected_mean``: the expected number of those never detected in the window
+  either (``nu`` below); they are part of K but of no track;
+* ``carried_alive``: for every track carried into the window, the probability that it
+  is still alive at the window's first scan (``Ps ** dt``).
+
+With ``q_j`` the probability that a target alive at scan ``j`` is not detected at any
+scan ``j..N-1`` of the window,
+
+    q_{N-1} = 1 - Pd_{N-1},   q_j = (1 - Pd_j) (1 - s_j + s_j q_{j+1}),
+    s_j = Ps ** (t_{j+1} - t_j),
+
+    nu = u_0 q_0 + rate * sum_{j >= 1} q_j.
+
+Under the birth model the number of targets in the window is, given the carried tracks,
+``sum_i Bernoulli(carried_alive_i) + Poisson(new_target_mean)``
+(:meth:`WindowPopulation.log_count_prior`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapassoc.errors import InputError
+from mapassoc.scans import Scan
+
+if TYPE_CHECKING:  # settings import the count prior, which needs this module
+    from mapassoc.settings import BirthModel
+
+__all__ = ["UndetectedTargets", "WindowPopulation", "recording_start", "window_population"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class UndetectedTargets:
+    """The targets never detected so far, just after a scan (or at the recording's start).
+
+    Parameters
+    ----------
+    expected_count : float
+        Expected number of targets alive at ``time`` and never detected, >= 0.
+    time : float
+        Time of the scan after which this holds (the first scan's time at the start).
+    """
+
+    expected_count: float
+    time: float
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.expected_count) and self.expected_count >= 0):
+            raise InputError(
+                f"UndetectedTargets.expected_count must be a finite number >= 0, got "
+                f"{self.expected_count!r}"
+            )
+        if not math.isfinite(self.time):
+            raise InputError(f"UndetectedTargets.time must be finite, got {self.time!r}")
+
+
+def recording_start(birth: BirthModel, time: float) -> UndetectedTargets:
+    """The undetected targets when the recording starts: ``initial_count`` of them.
+
+    Parameters
+    ----------
+    birth : BirthModel
+    time : float
+        Time of the recording's first scan.
+    """
+    return UndetectedTargets(expected_count=float(birth.initial_count), time=float(time))
+
+
+@dataclass(frozen=True, eq=False)
+class WindowPopulation:
+    """What the birth model says about the targets of one window (module docstring).
+
+    Attributes
+    ----------
+    first_detection_means : ndarray, shape (N,)
+        ``u_j``: expected number of targets alive at scan ``j`` and never detected before
+        it; a new track's first detection at scan ``j`` has density ``u_j Pd_j / V``.
+    after_scan : tuple of UndetectedTargets, length N
+        The undetected targets just after each scan (the state a window starting at the
+        next scan continues from).
+    new_target_mean : float
+        Expected number of targets present in the window and never detected before it.
+    undetected_mean : float
+        Expected number of targets present in the window and never detected in it (nor
+        before): ``nu``.
+    carried_alive : ndarray, shape (C,)
+        Probability that each carried track is alive at the window's first scan.
+    """
+
+    first_detection_means: FloatArray
+    after_scan: tuple[UndetectedTargets, ...]
+    new_target_mean: float
+    undetected_mean: float
+    carried_alive: FloatArray
+
+    def log_count_prior(self, kmax: int) -> FloatArray:
+        """log p(K) for K = 0..kmax under the birth model, given the carried tracks.
+
+        ``K = sum_i B_i + P`` with independent ``B_i ~ Bernoulli(carried_alive_i)`` and
+        ``P ~ Poisson(new_target_mean)``: the Bernoulli laws are multiplied out as a
+        polynomial, then convolved with the Poisson law, in log space.  Not normalised
+        over 0..kmax (the tail beyond kmax is cut).
+
+        Returns
+        -------
+        ndarray, shape (kmax + 1,)
+            ``-inf`` where p(K) = 0.
+        """
+        k = np.arange(kmax + 1, dtype=float)
+        mu = self.new_target_mean
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if mu > 0:
+                log_poisson = k * math.log(mu) - mu - _log_factorial(k)
+            else:
+                log_poisson = np.where(k == 0, 0.0, -math.inf)
+            bern = np.full(min(kmax, self.carried_alive.size) + 1, -math.inf)
+            bern[0] = 0.0
+            for a in self.carried_alive:
+                log_a = math.log(a) if a > 0 else -math.inf
+                log_not = math.log1p(-a) if a < 1 else -math.inf
+                shifted = np.r_[-math.inf, bern[:-1]] + log_a
+                bern = np.logaddexp(bern + log_not, shifted)
+        out = np.full(kmax + 1, -math.inf)
+        for c, log_b in enumerate(bern):
+            if log_b > -math.inf:
+                out[c:] = np.logaddexp(out[c:], log_b + log_poisson[: kmax + 1 - c])
+        return out
+
+
+def _log_factorial(k: FloatArray) -> FloatArray:
+    from scipy.special import gammaln
+
+    return np.asarray(gammaln(k + 1.0), dtype=float)
+
+
+def window_population(
+    scans: Sequence[Scan],
+    detection_probabilities: Sequence[float],
+    birth: BirthModel,
+    start: UndetectedTargets,
+    carried_times: Sequence[float] = (),
+) -> WindowPopulation:
+    """Undetected-target intensity and target counts of a window (module docstring).
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+        The window's scans in time order (at least one).
+    detection_probabilities : sequence of float
+        Pd of each scan's sensor, in (0, 1].
+    birth : BirthModel
+    start : UndetectedTargets
+        The undetected targets just after the scan before the window
+        (:func:`recording_start` for a window that starts the recording).
+    carried_times : sequence of float
+        Time of each carried track's last committed scan (<= the first scan's time).
+
+    Returns
+    -------
+    WindowPopulation
+
+    Raises
+    ------
+    InputError
+        No scans, a length mismatch, or a time before ``start.time``.
+    """
+    n = len(scans)
+    if n == 0:
+        raise InputError("a window needs at least one scan")
+    if len(detection_probabilities) != n:
+        raise InputError(
+            f"detection_probabilities must have one entry per scan ({n}), got "
+            f"{len(detection_probabilities)}"
+        )
+    times = np.array([s.time for s in scans], dtype=float)
+    pd = np.asarray(detection_probabilities, dtype=float)
+    if times[0] < start.time:
+        raise InputError(
+            f"the window's first scan at time {times[0]} is before the undetected-target "
+            f"state's time {start.time}"
+        )
+    log_ps = math.log(birth.survival_probability)
+    rate = float(birth.rate)
+    u = np.empty(n)
+    after: list[UndetectedTargets] = []
+    remaining, previous = start.expected_count, start.time
+    for j in range(n):
+        u[j] = remaining * math.exp((times[j] - previous) * log_ps) + rate
+        remaining, previous = u[j] * (1.0 - pd[j]), float(times[j])
+        after.append(UndetectedTargets(expected_count=float(remaining), time=previous))
+    # q_j: a target alive at scan j is detected at none of scans j..N-1.
+    q = np.empty(n)
+    q[-1] = 1.0 - pd[-1]
+    for j in range(n - 2, -1, -1):
+        s = math.exp((times[j + 1] - times[j]) * log_ps)
+        q[j] = (1.0 - pd[j]) * (1.0 - s + s * q[j + 1])
+    carried = np.asarray(carried_times, dtype=float)
+    if np.any(carried > times[0]):
+        raise InputError(
+            f"carried track times {carried[carried > times[0]].tolist()} are after the "
+            f"window's first scan at {times[0]}"
+        )
+    return WindowPopulation(
+        first_detection_means=u,
+        after_scan=tuple(after),
+        new_target_mean=float(u[0] + rate * (n - 1)),
+        undetected_mean=float(u[0] * q[0] + rate * q[1:].sum()),
+        carried_alive=np.exp((times[0] - carried) * log_ps),
+    )
