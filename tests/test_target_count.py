@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
-from test_window_model import make_config, make_scans
+from test_window_model import make_config, make_scans, partitions
 
 from mapassoc.motion import ConstantVelocity
 from mapassoc.pipeline import WindowEstimator
@@ -331,3 +331,129 @@ def test_brute_force_counts_labelled_assignments() -> None:
     assert p_k[2] > 1.0 - 1e-6 and p_t[2] > 1.0 - 1e-6
     options = single_target_options(w)
     assert sorted(o[0] for o in options) == [1, 2]  # each detection alone
+
+
+# ------------------------------------------------------ reductions through the config
+
+
+def perry_posterior(w: Window) -> np.ndarray:
+    """Seed 002's p(K | Z), literally: a uniform p(K) on 0..Kmax; K labelled targets
+    present at every scan of the window; each detected with probability Pd at every
+    scan; a track set omega with T tracks can be given to the K targets in
+    K! / (K - T)! ways, and the K - T targets without a track are missed at all N
+    scans; a track's first detection has density 1/V (uniform position) and its later
+    ones the stacked Gaussian; Poisson false alarms, uniform, shuffled (eqs. 8-13)."""
+    n = len(w.times)
+    scan_of = [m for m, dets in enumerate(w.detections) for _ in dets]
+    values = [v for dets in w.detections for v in dets]
+    counts = [len(d) for d in w.detections]
+    weight_by_t = np.zeros(w.kmax + 1)
+    for partition in partitions(scan_of):
+        t = len(partition)
+        if t > w.kmax:
+            continue
+        log_w = 0.0
+        for track in partition:
+            scans = [scan_of[d] for d in track]
+            log_w += len(track) * math.log(w.pd) + (n - len(track)) * math.log1p(-w.pd)
+            log_w += log_kinematic_density(w, scans, [values[d] for d in track])
+        for m in range(n):
+            used = sum(1 for track in partition for d in track if scan_of[d] == m)
+            log_w += (counts[m] - used) * math.log(w.false_alarms / w.volume)
+        weight_by_t[t] += math.exp(log_w)
+    p = np.zeros(w.kmax + 1)
+    for k in range(w.kmax + 1):
+        for t in range(k + 1):
+            arrangements = math.factorial(k) / math.factorial(k - t)
+            p[k] += arrangements * weight_by_t[t] * (1.0 - w.pd) ** (n * (k - t))
+    return p / p.sum()
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_public_configuration_reduces_to_seed_002(seed: int) -> None:
+    """rate = 0, survival_probability = 1, k_prior = "uniform", no gate and no pruning,
+    a window that starts the recording: p(K | Z) is seed 002's posterior under its
+    uniform prior, whatever initial_count is (it scales every track set with T
+    tracks by initial_count^T, which the uniform prior's reweighting removes)."""
+    w = replace(
+        random_window(seed),
+        rate=0.0,
+        survival=1.0,
+        previous_time=None,
+        pd=float(np.random.default_rng(seed).uniform(0.3, 0.95)),
+    )
+    expected = perry_posterior(w)
+    for initial in (0.3, w.initial, 5.0):
+        post = solve(replace(w, initial=initial), "uniform").posterior
+        np.testing.assert_allclose(post.probabilities, expected, rtol=0, atol=1e-9)
+
+
+def test_public_configuration_reduces_to_seed_001() -> None:
+    """Seed 001's worked example (two objects, two measurements) through the public
+    configuration alone: rate = 0 and initial_count = 0 (no new targets),
+    survival_probability = 1, no gate.  The window's feasible track sets are then
+    exactly seed 001's seven association vectors, with its weights; both targets are
+    certainly present (p(K = 2 | Z) = 1)."""
+    from mapassoc.association import n_object_posterior
+    from mapassoc.formulations.packing import set_packing_program
+    from mapassoc.hypotheses import CarriedTrack
+    from mapassoc.motion import RandomWalk
+    from mapassoc.solvers import enumerate_feasible
+
+    config = make_config(
+        motion=RandomWalk(ndim=1, noise_intensity=0.01),
+        noise_std=math.sqrt(0.2),
+        detection_probability=0.85,
+        false_alarms_per_scan=3.0,
+        region=[[-5.0, 5.0]],
+        rate=0.0,
+        initial_count=0.0,
+        survival_probability=1.0,
+    )
+    carried = [
+        CarriedTrack(
+            track_id=i + 1,
+            mean=np.array([m]),
+            covariance=np.array([[0.35]]),  # + 0.01 * dt = 0.36 at the scan
+            time=-1.0,
+            initiated=True,
+            num_detections=2,
+            first_detection_time=-2.0,
+        )
+        for i, m in enumerate([-2.5, 2.5])
+    ]
+    scans = make_scans([0.0], [[[-1.6], [1.0]]], 1)
+    solution = WindowEstimator(config=config).solve_window(scans, carried)
+    hyps = solution.hypotheses
+    assert np.all(hyps.tree < 2)  # no new track can start
+    sets = [
+        np.flatnonzero(x > 0.5)
+        for x in enumerate_feasible(set_packing_program(solution.problem, None))
+    ]
+    assert len(sets) == 7
+
+    def theta_of(selection: np.ndarray) -> tuple[int, ...]:
+        theta = [0, 0]
+        for h in selection.tolist():
+            used = hyps.detections_of(h)
+            theta[int(hyps.tree[h])] = int(used[0]) + 1 if len(used) else 0
+        return tuple(theta)
+
+    log_w = {theta_of(s): float(np.sum(hyps.scores[s])) for s in sets}
+    reference = n_object_posterior(
+        prior_means=np.array([[-2.5], [2.5]]),
+        prior_covs=np.array([[[0.36]], [[0.36]]]),
+        measurements=np.array([[-1.6], [1.0]]),
+        measurement_model=config.sensors["s"].measurement,
+        detection_probability=0.85,
+        clutter_intensity=0.3,
+    )
+    values = np.array([log_w[t] for t in reference.associations])
+    weights = np.exp(values - values.max())
+    np.testing.assert_allclose(weights / weights.sum(), reference.weights, rtol=0, atol=1e-12)
+    post = solution.posterior
+    assert post.undetected_mean == 0.0
+    np.testing.assert_allclose(post.probabilities[:3], [0.0, 0.0, 1.0], atol=1e-15)
+    assert post.marginal_k == post.marginal_tracks == 2
+    best = reference.associations[int(np.argmax(reference.weights))]
+    assert theta_of(solution.selection(2)) == best
