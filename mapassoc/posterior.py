@@ -245,6 +245,18 @@ def _log_poisson(u: NDArray[np.int64], nu: float) -> FloatArray:
     return out
 
 
+def _poisson_reach(nu: float) -> int:
+    """Smallest u >= 1 with ``Po(u; nu)`` :data:`NEGLIGIBLE_LOG_RATIO` nats below the mode."""
+    if nu <= 0:
+        return 1
+    mode = math.floor(nu)
+    peak = mode * math.log(nu) - nu - math.lgamma(mode + 1)
+    u = max(1, mode)
+    while u * math.log(nu) - nu - math.lgamma(u + 1) > peak - NEGLIGIBLE_LOG_RATIO:
+        u = 2 * u
+    return u
+
+
 def _log_sum(a: FloatArray, axis: int) -> FloatArray:
     """``log sum exp`` along ``axis``; ``-inf`` where every entry is ``-inf``."""
     top = np.max(a, axis=axis, keepdims=True)
@@ -371,7 +383,7 @@ def k_posterior(
     if prior.kind == "weights":
         top = kmax
     else:
-        top = min(kmax, n_tracks - 1 + 64 + int(math.ceil(4.0 * nu)))
+        top = min(kmax, n_tracks - 1 + _poisson_reach(nu))
     while True:
         ratio = prior.log_ratio(population, top)
         sweep = _sweep(top, ratio, nu, log_mass, mass_upper, best, best_upper)

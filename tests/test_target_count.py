@@ -457,3 +457,79 @@ def test_public_configuration_reduces_to_seed_001() -> None:
     assert post.marginal_k == post.marginal_tracks == 2
     best = reference.associations[int(np.argmax(reference.weights))]
     assert theta_of(solution.selection(2)) == best
+
+
+def test_solve_window_is_the_first_window_of_run() -> None:
+    """No hidden flag: solve_window(scans[:N]) computes what run() computes for its first
+    window (the recording starts there), and the undetected-target state run() carries
+    is the one the window reports after its committed scan."""
+    from mapassoc.scenarios import build_scenario, truncate_scenario
+
+    scenario = truncate_scenario(build_scenario("crossing", 0), 8)
+    estimator = WindowEstimator(config=scenario.config)
+    n = scenario.config.estimator.window_length
+    result = estimator.run(scenario.scans)
+    window = estimator.solve_window(scenario.scans[:n])
+    report = result.windows[0]
+    k = len(report.probabilities)
+    np.testing.assert_array_equal(report.probabilities, window.posterior.probabilities[:k])
+    assert report.marginal_k == window.posterior.marginal_k
+    assert report.chosen_tracks == window.posterior.marginal_tracks
+    assert report.undetected_mean == window.posterior.undetected_mean
+    # The first scan's undetected targets: initial_count + rate, thinned by 1 - Pd.
+    birth = scenario.config.birth
+    pd = scenario.config.sensors["pos"].detection_probability
+    after = window.population.after_scan[0]
+    assert after.expected_count == pytest.approx((birth.initial_count + birth.rate) * (1 - pd))
+
+
+def test_undetected_targets_by_hand() -> None:
+    """Golden values of the recursion (docs/model.md section 3), derived by hand:
+    scans at t = 0, 1, 3; Pd = 0.5; Ps = 0.8 per unit time; initial_count = 2; rate 1.
+
+    u_1 = 2 + 1 = 3;  u_2 = 3 * 0.5 * 0.8 + 1 = 2.2;  u_3 = 2.2 * 0.5 * 0.64 + 1 = 1.704;
+    q_3 = 0.5;  q_2 = 0.5 (0.36 + 0.64 * 0.5) = 0.34;  q_1 = 0.5 (0.2 + 0.8 * 0.34) = 0.236;
+    nu = 3 * 0.236 + 1 * (0.34 + 0.5) = 1.548;  mu_new = 3 + 2 = 5."""
+    from mapassoc.population import recording_start, window_population
+    from mapassoc.scans import Scan
+    from mapassoc.settings import BirthModel
+
+    birth = BirthModel(rate=1.0, initial_count=2.0, survival_probability=0.8)
+    scans = [Scan(t, "s", np.zeros((0, 1)), np.zeros(0, dtype=np.int64)) for t in (0.0, 1.0, 3.0)]
+    carried_times = [-1.0, 0.0]
+    population = window_population(
+        scans, [0.5] * 3, birth, recording_start(birth, 0.0), carried_times
+    )
+    np.testing.assert_allclose(population.first_detection_means, [3.0, 2.2, 1.704])
+    assert population.undetected_mean == pytest.approx(1.548)
+    assert population.new_target_mean == pytest.approx(5.0)
+    np.testing.assert_allclose(population.carried_alive, [0.8, 1.0])
+    assert population.after_scan[-1].expected_count == pytest.approx(0.852)
+    # p_birth(K) = Bernoulli(0.8) + 1 + Poisson(5): by direct convolution.
+    poisson = np.array([math.exp(-5.0) * 5.0**k / math.factorial(k) for k in range(12)])
+    expected = np.zeros(12)
+    expected[1:] += 0.2 * poisson[:11]
+    expected[2:] += 0.8 * poisson[:10]
+    np.testing.assert_allclose(np.exp(population.log_count_prior(11)), expected, rtol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_cut_range_of_k_equals_the_full_range(seed: int) -> None:
+    """The uniform prior's K range is found by doubling and cut where the weights are
+    negligible; equal weights ("weights", always the full range) give the same
+    posterior over a Kmax of 3,000."""
+    w = random_window(seed)
+    solution = solve(w, "uniform")
+    kmax = 3000
+    posts = [
+        k_posterior(
+            solution.table.best,
+            solution.table.log_mass,
+            prior=CountPrior(kind=kind, kmax=kmax, weights=weights),
+            population=solution.population,
+        )
+        for kind, weights in (("uniform", ()), ("weights", (1.0,) * (kmax + 1)))
+    ]
+    np.testing.assert_allclose(posts[0].probabilities, posts[1].probabilities, atol=1e-14)
+    assert posts[0].marginal_k == posts[1].marginal_k
+    assert posts[0].joint_map_k == posts[1].joint_map_k
