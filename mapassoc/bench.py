@@ -1,8 +1,9 @@
-"""``mapassoc bench``: speed and accuracy over scenario families and seeds.
+"""``mapassoc bench``: speed and accuracy over scenario families, seeds and priors on K.
 
-For every family (a built-in scenario, :mod:`mapassoc.scenarios`) and every seed
-``0..seeds-1`` the benchmark simulates the scenario, runs the window estimator and
-reports
+For every family (a built-in scenario, :mod:`mapassoc.scenarios`), every prior on the
+number of targets in ``k_priors`` (``EstimatorSettings.k_prior``; default ``birth`` and
+``uniform``) and every seed ``0..seeds-1`` the benchmark simulates the scenario, runs
+the window estimator and reports
 
 * throughput (scans per second of :meth:`~mapassoc.pipeline.WindowEstimator.run`) and
   window time (hypothesis generation plus solving) p50 / p95 / max, with the number of
@@ -11,17 +12,31 @@ reports
 * the mix of window statuses (counted as the pipeline names them, whatever they are)
   and the smallest ``captured_mass``;
 * GOSPA (cut-off :data:`GOSPA_CUTOFF`, with the localisation / missed / false parts of
-  GOSPA^2) next to the oracle's (Kalman smoother on the true associations) and their ratio.
+  GOSPA^2) next to the oracle's (Kalman smoother on the true associations) and their
+  ratio;
+* how well p(K | Z) (``WindowReport.probabilities``) predicts the true number K of
+  targets in each window, i.e. the distinct truth targets with a truth record at a time
+  in ``[start_time, end_time]`` of the window (:func:`window_target_counts`): the Brier
+  score ``sum_K (p(K | Z) - 1[K = true K])^2`` (0 is a certain right answer, 2 a
+  certain wrong one, ``1 - 1 / (Kmax + 1)`` the uniform guess), the fraction of windows
+  whose ``marginal_k`` is the true K and the mean p(true K | Z), each averaged over
+  windows (:func:`count_scores`).
 
-Then, per family, the mean GOSPA ratio over seeds with its spread and the mean
-throughput; how time per scan grows over the ``scale20 -> scale50 -> scale100`` family
-(fixed density, so linear in targets is the goal); and the throughput of batched gating.
-Numbers, not pass/fail: the project's goals are printed beside them.
+Then, per family and prior, the mean GOSPA ratio over seeds with its spread, the mean
+Brier score and hit rate and the mean throughput; how time per scan grows over the
+``scale20 -> scale50 -> scale100`` family (fixed density, so linear in targets is the
+goal); the throughput of batched gating; the goals (speed, GOSPA, time limit and growth
+are judged on the first prior of ``k_priors`` only, so that no run is counted twice);
+and a comparison of the priors: per family the mean GOSPA ratio and Brier score of each,
+and which prior has the lower of each averaged over the families.  Numbers, not
+pass/fail: the project's goals are printed beside them.
 
 By default every family runs with the same untuned configuration,
 :func:`mapassoc.scenarios.generic_config`; ``config="scenario"`` uses each scenario's
-own configuration (fitted to its truth) instead.  Lines are printed (and flushed) as
-soon as each run finishes: the whole benchmark can take minutes.
+own configuration (fitted to its truth) instead.  Either way only ``k_prior`` is set by
+the benchmark (``"poisson"`` keeps the configuration's ``k_prior_mean``; ``"weights"``
+needs weights per configuration and is not offered).  Lines are printed (and flushed) as
+soon as each run finishes: the whole benchmark can take minutes per prior.
 """
 
 from __future__ import annotations
@@ -33,31 +48,40 @@ import time
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
+from numbers import Real
 from pathlib import Path
-from typing import TextIO
+from typing import Protocol, TextIO
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.config import Config
 from mapassoc.errors import InputError
 from mapassoc.evaluation import evaluate_tables
+from mapassoc.io import TruthTable
 from mapassoc.kalman import pairwise_gate_and_loglik
 from mapassoc.oracle import oracle_tracks
 from mapassoc.pipeline import WindowEstimator
 from mapassoc.scenarios import build_scenario, generic_config, scenario_names, truncate_scenario
+from mapassoc.settings import K_PRIORS
 
 __all__ = [
     "DEFAULT_FAMILIES",
+    "DEFAULT_K_PRIORS",
+    "BENCH_K_PRIORS",
     "CONFIG_CHOICES",
     "GOSPA_CUTOFF",
     "GOSPA_RATIO_GOAL",
     "SPEED_GOALS",
     "SCALE_FAMILIES",
     "GospaParts",
+    "CountScores",
     "RunResult",
     "FamilySummary",
     "ScaleGrowth",
     "BenchmarkResult",
+    "window_target_counts",
+    "count_scores",
     "bench_scenario",
     "summarize_family",
     "scale_growth",
@@ -77,6 +101,12 @@ DEFAULT_FAMILIES: tuple[str, ...] = (
     "dense",
     "dense50",
 )
+#: Priors on the number of targets in a window (``EstimatorSettings.k_prior``) the
+#: benchmark can compare: every prior of :data:`mapassoc.settings.K_PRIORS` but
+#: ``"weights"``, which needs weights fitted to each configuration's Kmax.
+BENCH_K_PRIORS: tuple[str, ...] = tuple(name for name in K_PRIORS if name != "weights")
+#: Priors compared by default, in this order (the first is the one the goals judge).
+DEFAULT_K_PRIORS: tuple[str, ...] = ("birth", "uniform")
 #: ``generic``: :func:`~mapassoc.scenarios.generic_config`; ``scenario``: each
 #: scenario's own configuration.
 CONFIG_CHOICES: tuple[str, ...] = ("generic", "scenario")
@@ -129,8 +159,29 @@ class GospaParts:
 
 
 @dataclass(frozen=True)
+class CountScores:
+    """How well p(K | Z) predicted the true number of targets, averaged over windows.
+
+    Parameters
+    ----------
+    brier : float
+        Mean over windows of the Brier score ``sum_K (p(K | Z) - 1[K = true K])^2``, in
+        [0, 2] for a probability vector: 0 for certainty on the true K, 2 for certainty
+        on a wrong one.
+    hit_rate : float
+        Fraction of windows whose ``marginal_k`` (argmax p(K | Z)) is the true K.
+    mean_p_true : float
+        Mean over windows of p(true K | Z).
+    """
+
+    brier: float
+    hit_rate: float
+    mean_p_true: float
+
+
+@dataclass(frozen=True)
 class RunResult:
-    """One family run with one seed.
+    """One family run with one prior on K and one seed.
 
     Parameters
     ----------
@@ -139,6 +190,8 @@ class RunResult:
     seed : int
     config : {"generic", "scenario"}
         Which configuration was used.
+    k_prior : str
+        ``EstimatorSettings.k_prior`` of the run (one of :data:`BENCH_K_PRIORS`).
     targets : int
         Distinct targets in the (possibly truncated) truth.
     scans : int
@@ -177,11 +230,18 @@ class RunResult:
     gospa_ratio : float
         ``gospa.total / oracle_gospa.total`` (``inf`` if only the oracle is perfect, 1 if
         both are).
+    k_brier : float
+        Mean Brier score of p(K | Z) over the windows (:class:`CountScores`), in [0, 2].
+    k_hit_rate : float
+        Fraction of windows whose ``marginal_k`` is the true number of targets.
+    k_mean_p_true : float
+        Mean over windows of p(true K | Z).
     """
 
     family: str
     seed: int
     config: str
+    k_prior: str
     targets: int
     scans: int
     detections_per_scan: float
@@ -206,15 +266,20 @@ class RunResult:
     gospa: GospaParts
     oracle_gospa: GospaParts
     gospa_ratio: float
+    k_brier: float
+    k_hit_rate: float
+    k_mean_p_true: float
 
 
 @dataclass(frozen=True)
 class FamilySummary:
-    """One family over its seeds.
+    """One family with one prior on K over its seeds.
 
     Parameters
     ----------
     family : str
+    k_prior : str
+        ``EstimatorSettings.k_prior`` of the runs.
     seeds : tuple of int
     targets : int
         Most distinct targets of any seed's run.
@@ -231,11 +296,16 @@ class FamilySummary:
     status_counts : tuple of (str, int)
         Totals over seeds, most frequent first.
     min_captured_mass : float
+    k_brier_mean : float
+        Mean over seeds of the runs' mean Brier score of p(K | Z).
+    k_hit_rate_mean : float
+        Mean over seeds of the runs' fraction of windows with ``marginal_k`` right.
     speed_goal : float or None
         Scans-per-second goal of the family (:data:`SPEED_GOALS`), if any.
     """
 
     family: str
+    k_prior: str
     seeds: tuple[int, ...]
     targets: int
     scans_per_second: float
@@ -248,6 +318,8 @@ class FamilySummary:
     windows_over_limit: int
     status_counts: tuple[tuple[str, int], ...]
     min_captured_mass: float
+    k_brier_mean: float
+    k_hit_rate_mean: float
     speed_goal: float | None
 
     @property
@@ -303,9 +375,12 @@ class BenchmarkResult:
     settings : dict
         The benchmark's arguments.
     runs : tuple of RunResult
+        Family by family, prior by prior (in the order of ``k_priors``), seed by seed.
     families : tuple of FamilySummary
+        One per (family, prior), in the order of the runs.
     growth : ScaleGrowth or None
-        ``None`` unless at least two scale families ran.
+        ``None`` unless at least two scale families ran; from the runs with the first
+        prior of ``k_priors``.
     gating_pairs_per_second : float
     """
 
@@ -393,6 +468,181 @@ def _check_families(families: Sequence[str]) -> list[str]:
     return names
 
 
+def _check_k_prior(name: str, value: object) -> str:
+    """``value`` if it is a prior the benchmark can run (:data:`BENCH_K_PRIORS`)."""
+    if isinstance(value, str) and value == "weights":
+        raise InputError(
+            f"{name} cannot be 'weights' in the benchmark: that prior needs "
+            "k_prior_weights fitted to each configuration's max_tracks; expected one of "
+            f"{', '.join(BENCH_K_PRIORS)}"
+        )
+    if not isinstance(value, str) or value not in BENCH_K_PRIORS:
+        raise InputError(f"{name} must be one of {', '.join(BENCH_K_PRIORS)}, got {value!r}")
+    return value
+
+
+def _check_k_priors(k_priors: Sequence[str]) -> list[str]:
+    if isinstance(k_priors, str) or not isinstance(k_priors, Sequence):
+        raise InputError(
+            f"k_priors must be a sequence of prior names (e.g. ('birth', 'uniform')), got "
+            f"{k_priors!r}"
+        )
+    names = [_check_k_prior(f"k_priors[{i}]", value) for i, value in enumerate(k_priors)]
+    if not names:
+        raise InputError(
+            f"k_priors must name at least one prior of {', '.join(BENCH_K_PRIORS)}, got []"
+        )
+    if len(set(names)) != len(names):
+        raise InputError(f"k_priors must be distinct, got {names!r}")
+    return names
+
+
+# --------------------------------------------------------------------------- p(K | Z)
+
+
+class _WindowSpan(Protocol):
+    """What :func:`window_target_counts` reads of a window (e.g. a ``WindowReport``)."""
+
+    @property
+    def start_time(self) -> float: ...
+
+    @property
+    def end_time(self) -> float: ...
+
+
+class _WindowCount(Protocol):
+    """What :func:`count_scores` reads of a window (e.g. a ``WindowReport``)."""
+
+    @property
+    def probabilities(self) -> ArrayLike: ...
+
+    @property
+    def marginal_k(self) -> int: ...
+
+
+def window_target_counts(truth: TruthTable, windows: Sequence[_WindowSpan]) -> NDArray[np.int64]:
+    """The true number of targets in each window.
+
+    A target is in a window when the truth has a record of it at a time in
+    ``[start_time, end_time]`` of the window (both ends included), which is when it is
+    alive at one of the window's scans, detected or not: the K of p(K | Z).
+
+    Parameters
+    ----------
+    truth : TruthTable
+        One record per (target, time) at which the target is alive.
+    windows : sequence of window-like
+        Anything with ``start_time`` and ``end_time`` (finite, ``start_time <=
+        end_time``), such as :class:`~mapassoc.pipeline.WindowReport`.
+
+    Returns
+    -------
+    ndarray of int64, shape (len(windows),)
+        Distinct ``truth.target_ids`` with a record in each window.
+
+    Raises
+    ------
+    InputError
+        ``truth`` not a :class:`~mapassoc.io.TruthTable`, or a window without finite
+        times in order.
+
+    Examples
+    --------
+    Target 0 alive at t = 0, 1, 2 and target 1 at t = 2, 3: the window [0, 1] holds one
+    target, [1, 2] two and [3, 4] one.
+    """
+    if not isinstance(truth, TruthTable):
+        raise InputError(f"truth must be a TruthTable, got {type(truth).__name__}")
+    ids = np.asarray(truth.target_ids)
+    times = np.asarray(truth.times, dtype=float)
+    counts = np.empty(len(windows), dtype=np.int64)
+    for i, window in enumerate(windows):
+        start, end = window.start_time, window.end_time
+        if not (
+            isinstance(start, Real)
+            and isinstance(end, Real)
+            and math.isfinite(start)
+            and math.isfinite(end)
+            and start <= end
+        ):
+            raise InputError(
+                f"windows[{i}] must have finite start_time <= end_time, got start_time "
+                f"{start!r} and end_time {end!r}"
+            )
+        inside = (times >= start) & (times <= end)
+        counts[i] = np.unique(ids[inside]).size
+    return counts
+
+
+def count_scores(windows: Sequence[_WindowCount], true_counts: ArrayLike) -> CountScores:
+    """Score the windows' p(K | Z) against the true numbers of targets.
+
+    Per window, with ``p = probabilities`` padded with zeros up to the true K (its
+    trailing zeros are implicit) and ``k`` the true K: the Brier score
+    ``sum_K (p[K] - 1[K = k])^2``, whether ``marginal_k == k`` and ``p[k]``; each is
+    averaged over the windows.
+
+    Parameters
+    ----------
+    windows : sequence of window-like
+        Anything with ``probabilities`` (1-D, p(K | Z) for K = 0, 1, ...) and
+        ``marginal_k``, such as :class:`~mapassoc.pipeline.WindowReport`; at least one.
+    true_counts : array-like of int
+        True K of each window (:func:`window_target_counts`), >= 0, one per window.
+
+    Returns
+    -------
+    CountScores
+
+    Raises
+    ------
+    InputError
+        No window, ``true_counts`` not one integer >= 0 per window, or ``probabilities``
+        not a 1-D vector of finite numbers in [0, 1].
+
+    Examples
+    --------
+    Windows with p = (0.2, 0.8), marginal K 1, true K 1, and p = (0.5, 0.5), marginal
+    K 0, true K 2: Brier scores 0.04 + 0.04 = 0.08 and 0.25 + 0.25 + 1 = 1.5, mean 0.79;
+    hit rate 0.5; mean p(true K) (0.8 + 0) / 2 = 0.4.
+    """
+    windows = list(windows)
+    if not windows:
+        raise InputError("windows must contain at least one window, got none")
+    truth_k = np.asarray(true_counts)
+    if (
+        truth_k.shape != (len(windows),)
+        or not np.issubdtype(truth_k.dtype, np.integer)
+        or np.any(truth_k < 0)
+    ):
+        raise InputError(
+            f"true_counts must hold one integer >= 0 per window ({len(windows)}), got "
+            f"{true_counts!r}"
+        )
+    brier = np.empty(len(windows))
+    p_true = np.empty(len(windows))
+    hits = np.empty(len(windows), dtype=bool)
+    for i, (window, k) in enumerate(zip(windows, truth_k.tolist(), strict=True)):
+        p = np.asarray(window.probabilities, dtype=float)
+        if p.ndim != 1 or not np.all(np.isfinite(p)) or np.any((p < 0) | (p > 1)):
+            raise InputError(
+                f"windows[{i}].probabilities must be a 1-D vector of probabilities in "
+                f"[0, 1], got {window.probabilities!r}"
+            )
+        full = np.zeros(max(p.size, k + 1))
+        full[: p.size] = p
+        indicator = np.zeros_like(full)
+        indicator[k] = 1.0
+        brier[i] = float(np.sum((full - indicator) ** 2))
+        p_true[i] = full[k]
+        hits[i] = int(window.marginal_k) == k
+    return CountScores(
+        brier=float(brier.mean()),
+        hit_rate=float(hits.mean()),
+        mean_p_true=float(p_true.mean()),
+    )
+
+
 # --------------------------------------------------------------------------- one run
 
 
@@ -418,8 +668,9 @@ def bench_scenario(
     time_limit: float = 2.0,
     config: str = "generic",
     scans: int | None = None,
+    k_prior: str = "birth",
 ) -> RunResult:
-    """Simulate one family with one seed, estimate, and measure speed and GOSPA.
+    """Simulate one family with one seed, estimate, and measure speed, GOSPA and p(K | Z).
 
     Parameters
     ----------
@@ -439,6 +690,10 @@ def bench_scenario(
     scans : int, optional
         Keep only the first ``scans`` scans (:func:`~mapassoc.scenarios.truncate_scenario`),
         for quick checks.
+    k_prior : {"birth", "uniform", "poisson"}
+        ``EstimatorSettings.k_prior`` of the run, set on either configuration
+        (``"poisson"`` uses its ``k_prior_mean``).  ``"weights"`` is refused: the
+        benchmark has no weights to give it.
 
     Returns
     -------
@@ -447,8 +702,9 @@ def bench_scenario(
     Raises
     ------
     InputError
-        An unknown scenario or a bad argument.
+        An unknown scenario or a bad argument (checked before anything runs).
     """
+    prior = _check_k_prior("k_prior", k_prior)
     choice = _check_config_choice(config)
     limit = _check_time_limit(time_limit)
     if window_length is not None:
@@ -460,6 +716,7 @@ def bench_scenario(
         run_config = generic_config(scenario, window_length=window_length, time_limit=limit)
     else:
         run_config = _bench_config(scenario.config, window_length, limit)
+    run_config = replace(run_config, estimator=replace(run_config.estimator, k_prior=prior))
 
     estimator = WindowEstimator(config=run_config)
     start = time.perf_counter()
@@ -479,12 +736,14 @@ def bench_scenario(
             c=GOSPA_CUTOFF,
         )["gospa"]  # type: ignore[arg-type]
     )
+    counts = count_scores(windows, window_target_counts(scenario.truth, windows))
     sizes = [scan.size for scan in scenario.scans]
     n_scans = len(scenario.scans)
     return RunResult(
         family=name,
         seed=int(seed),
         config=choice,
+        k_prior=prior,
         targets=len(np.unique(scenario.truth.target_ids)),
         scans=n_scans,
         detections_per_scan=float(np.mean(sizes)),
@@ -509,6 +768,9 @@ def bench_scenario(
         gospa=estimate,
         oracle_gospa=oracle,
         gospa_ratio=_ratio(estimate.total, oracle.total),
+        k_brier=counts.brier,
+        k_hit_rate=counts.hit_rate,
+        k_mean_p_true=counts.mean_p_true,
     )
 
 
@@ -521,12 +783,12 @@ def _ordered(counts: Counter[str]) -> tuple[tuple[str, int], ...]:
 
 
 def summarize_family(runs: Sequence[RunResult]) -> FamilySummary:
-    """Combine the runs of one family over its seeds.
+    """Combine the runs of one family with one prior on K over its seeds.
 
     Raises
     ------
     InputError
-        No runs, or runs of different families.
+        No runs, or runs of different families or different priors.
     """
     runs = list(runs)
     if not runs:
@@ -534,6 +796,9 @@ def summarize_family(runs: Sequence[RunResult]) -> FamilySummary:
     families = {run.family for run in runs}
     if len(families) != 1:
         raise InputError(f"runs must all be of one family, got {sorted(families)}")
+    priors = {run.k_prior for run in runs}
+    if len(priors) != 1:
+        raise InputError(f"runs must all be of one k_prior, got {sorted(priors)}")
     family = runs[0].family
     ratios = np.array([run.gospa_ratio for run in runs])
     statuses: Counter[str] = Counter()
@@ -541,6 +806,7 @@ def summarize_family(runs: Sequence[RunResult]) -> FamilySummary:
         statuses.update(dict(run.status_counts))
     return FamilySummary(
         family=family,
+        k_prior=runs[0].k_prior,
         seeds=tuple(run.seed for run in runs),
         targets=max(run.targets for run in runs),
         scans_per_second=float(np.mean([run.scans_per_second for run in runs])),
@@ -553,12 +819,23 @@ def summarize_family(runs: Sequence[RunResult]) -> FamilySummary:
         windows_over_limit=sum(run.windows_over_limit for run in runs),
         status_counts=_ordered(statuses),
         min_captured_mass=min(run.min_captured_mass for run in runs),
+        k_brier_mean=float(np.mean([run.k_brier for run in runs])),
+        k_hit_rate_mean=float(np.mean([run.k_hit_rate for run in runs])),
         speed_goal=SPEED_GOALS.get(family),
     )
 
 
 def scale_growth(summaries: Sequence[FamilySummary]) -> ScaleGrowth | None:
-    """Time per scan against targets over the scale families present (at least two)."""
+    """Time per scan against targets over the scale families present (at least two).
+
+    Raises
+    ------
+    InputError
+        ``summaries`` of more than one ``k_prior`` (pass one prior's summaries).
+    """
+    priors = {summary.k_prior for summary in summaries}
+    if len(priors) > 1:
+        raise InputError(f"summaries must all be of one k_prior, got {sorted(priors)}")
     by_name = {summary.family: summary for summary in summaries}
     present = [by_name[name] for name in SCALE_FAMILIES if name in by_name]
     if len(present) < 2:
@@ -591,10 +868,10 @@ def bench_gating(tracks: int = 2000, detections: int = 50, repeats: int = 5) -> 
 # --------------------------------------------------------------------------- printing
 
 _HEADER = (
-    f"{'family':10s} {'seed':>4s} {'tgts':>4s} {'det/scn':>7s} {'scans':>5s} {'scans/s':>8s} "
-    f"{'p50 ms':>8s} {'p95 ms':>8s} {'max ms':>8s} {'>lim':>4s} {'hyps':>7s} {'maxcl':>6s} "
-    f"{'minmass':>7s} {'GOSPA (GOSPA^2: loc/miss/false)':>31s} {'oracle':>6s} {'ratio':>6s}  "
-    "status"
+    f"{'family':10s} {'seed':>4s} {'k_prior':7s} {'tgts':>4s} {'det/scn':>7s} {'scans':>5s} "
+    f"{'scans/s':>8s} {'p50 ms':>8s} {'p95 ms':>8s} {'max ms':>8s} {'>lim':>4s} {'hyps':>7s} "
+    f"{'maxcl':>6s} {'minmass':>7s} {'GOSPA (GOSPA^2: loc/miss/false)':>31s} {'oracle':>6s} "
+    f"{'ratio':>6s} {'Brier':>5s} {'K hit':>5s}  status"
 )
 
 
@@ -609,12 +886,13 @@ def _status_text(counts: Sequence[tuple[str, int]]) -> str:
 def _run_line(r: RunResult) -> str:
     g = r.gospa
     return (
-        f"{r.family:10s} {r.seed:4d} {r.targets:4d} {r.detections_per_scan:7.1f} {r.scans:5d} "
-        f"{r.scans_per_second:8.1f} {r.window_p50_ms:8.1f} {r.window_p95_ms:8.1f} "
+        f"{r.family:10s} {r.seed:4d} {r.k_prior:7s} {r.targets:4d} {r.detections_per_scan:7.1f} "
+        f"{r.scans:5d} {r.scans_per_second:8.1f} {r.window_p50_ms:8.1f} {r.window_p95_ms:8.1f} "
         f"{r.window_max_ms:8.1f} {r.windows_over_limit:4d} {r.hypotheses_mean:7.0f} "
         f"{r.largest_cluster:6d} {r.min_captured_mass:7.3f} "
         f"{g.total:6.2f} ({g.localisation:7.2f}/{g.missed:7.2f}/{g.false:7.2f}) "
-        f"{r.oracle_gospa.total:6.2f} {r.gospa_ratio:6.2f}  {_status_text(r.status_counts)}"
+        f"{r.oracle_gospa.total:6.2f} {r.gospa_ratio:6.2f} {r.k_brier:5.3f} {r.k_hit_rate:5.2f}  "
+        f"{_status_text(r.status_counts)}"
     )
 
 
@@ -623,9 +901,11 @@ def _family_line(s: FamilySummary, time_limit: float) -> str:
     if s.speed_goal is not None:
         speed += f" [goal >= {s.speed_goal:g}: {_mark(s.speed_met)}]"
     return (
-        f"  => {s.family}, {len(s.seeds)} seed(s): {speed}; GOSPA {s.gospa_ratio_mean:.2f}x "
-        f"oracle (min {s.gospa_ratio_min:.2f}, max {s.gospa_ratio_max:.2f}) "
-        f"[goal <= {GOSPA_RATIO_GOAL:g}x: {_mark(s.gospa_met)}]; windows over {time_limit:g} s: "
+        f"  => {s.family} (k_prior {s.k_prior}), {len(s.seeds)} seed(s): {speed}; GOSPA "
+        f"{s.gospa_ratio_mean:.2f}x oracle (min {s.gospa_ratio_min:.2f}, max "
+        f"{s.gospa_ratio_max:.2f}) [goal <= {GOSPA_RATIO_GOAL:g}x: {_mark(s.gospa_met)}]; "
+        f"p(K | Z) Brier {s.k_brier_mean:.3f}, marginal K right in {s.k_hit_rate_mean:.0%} of "
+        f"windows; windows over {time_limit:g} s: "
         f"{s.windows_over_limit}/{s.windows} [goal 0: {_mark(s.time_limit_met)}], slowest "
         f"{s.window_max_ms:.0f} ms; status {_status_text(s.status_counts)}; min captured mass "
         f"{s.min_captured_mass:.3f}"
@@ -647,6 +927,54 @@ def _growth_line(g: ScaleGrowth) -> str:
     )
 
 
+def _lowest(means: dict[str, float], fmt: str) -> str:
+    """Which prior has the smallest mean, with every prior's mean."""
+    every = ", ".join(f"{prior} {value:{fmt}}" for prior, value in means.items())
+    if len(means) == 1:
+        return f"{every} (one prior only)"
+    best = min(means.values())
+    winners = [prior for prior, value in means.items() if value == best]
+    if len(winners) == len(means):
+        return f"tie ({every})"
+    return f"{' and '.join(winners)} ({every})"
+
+
+def _comparison_text(summaries: Sequence[FamilySummary], priors: Sequence[str]) -> str:
+    """Per family and prior: mean GOSPA ratio / mean Brier; then the best prior overall."""
+    by_key = {(s.family, s.k_prior): s for s in summaries}
+    families = list(dict.fromkeys(s.family for s in summaries))
+    width = max(10, *(len(family) for family in families))
+    lines = [
+        "k_prior comparison, GOSPA ratio to the oracle / Brier score of p(K | Z) (means over "
+        "seeds; lower is better):",
+        f"  {'family':{width}s}" + "".join(f" {prior:>14s}" for prior in priors),
+    ]
+    for family in families:
+        cells = [by_key[family, prior] for prior in priors]
+        lines.append(
+            f"  {family:{width}s}"
+            + "".join(f" {c.gospa_ratio_mean:6.2f} / {c.k_brier_mean:5.3f}" for c in cells)
+        )
+    ratio = {
+        prior: float(np.mean([by_key[f, prior].gospa_ratio_mean for f in families]))
+        for prior in priors
+    }
+    brier = {
+        prior: float(np.mean([by_key[f, prior].k_brier_mean for f in families]))
+        for prior in priors
+    }
+    lines.append(
+        f"  {'mean':{width}s}"
+        + "".join(f" {ratio[prior]:6.2f} / {brier[prior]:5.3f}" for prior in priors)
+    )
+    word = "lower" if len(priors) == 2 else "lowest"
+    lines.append(
+        f"  {word} mean GOSPA ratio over families: {_lowest(ratio, '.2f')}; {word} mean "
+        f"Brier: {_lowest(brier, '.3f')}"
+    )
+    return "\n".join(lines)
+
+
 # --------------------------------------------------------------------------- benchmark
 
 
@@ -661,6 +989,7 @@ def run_benchmark(
     json_path: Path | str | None = None,
     gating: bool = True,
     out: TextIO | None = None,
+    k_priors: Sequence[str] = DEFAULT_K_PRIORS,
 ) -> BenchmarkResult:
     """Run and print the benchmark; optionally write the results as JSON.
 
@@ -685,6 +1014,10 @@ def run_benchmark(
         Also measure batched gating throughput (:func:`bench_gating`).
     out : text stream, optional
         Where to print (default ``sys.stdout``); every line is flushed.
+    k_priors : sequence of str
+        Priors on K (``EstimatorSettings.k_prior``, from :data:`BENCH_K_PRIORS`,
+        distinct) to run every family and seed with (default :data:`DEFAULT_K_PRIORS`);
+        the goals and the scale growth use the first only.
 
     Returns
     -------
@@ -696,6 +1029,7 @@ def run_benchmark(
         An unknown family or a bad argument (checked before anything runs).
     """
     names = _check_families(families)
+    priors = _check_k_priors(k_priors)
     n_seeds = _check_int("seeds", seeds, 1)
     if window_length is not None:
         _check_int("window_length", window_length, 1)
@@ -714,12 +1048,14 @@ def run_benchmark(
         "window_length": window_length,
         "time_limit": limit,
         "config": choice,
+        "k_priors": priors,
         "scans": scans,
         "gospa_cutoff": GOSPA_CUTOFF,
     }
     say(
         f"window length {window_length if window_length is not None else 'of the config'}, "
-        f"time limit {limit:g} s, {choice} configuration, seeds 0..{n_seeds - 1}"
+        f"time limit {limit:g} s, {choice} configuration, k_priors {','.join(priors)}, "
+        f"seeds 0..{n_seeds - 1}"
         + (f", first {scans} scans" if scans is not None else "")
         + f", GOSPA cut-off {GOSPA_CUTOFF:g}"
     )
@@ -727,25 +1063,34 @@ def run_benchmark(
     runs: list[RunResult] = []
     summaries: list[FamilySummary] = []
     for name in names:
-        family_runs = []
-        for seed in range(n_seeds):
-            run = bench_scenario(
-                name, seed, window_length, time_limit=limit, config=choice, scans=scans
-            )
-            family_runs.append(run)
-            say(_run_line(run))
-        summary = summarize_family(family_runs)
-        summaries.append(summary)
-        runs.extend(family_runs)
-        say(_family_line(summary, limit))
+        for prior in priors:
+            family_runs = []
+            for seed in range(n_seeds):
+                run = bench_scenario(
+                    name,
+                    seed,
+                    window_length,
+                    time_limit=limit,
+                    config=choice,
+                    scans=scans,
+                    k_prior=prior,
+                )
+                family_runs.append(run)
+                say(_run_line(run))
+            summary = summarize_family(family_runs)
+            summaries.append(summary)
+            runs.extend(family_runs)
+            say(_family_line(summary, limit))
 
-    growth = scale_growth(summaries)
+    first = [summary for summary in summaries if summary.k_prior == priors[0]]
+    growth = scale_growth(first)
     if growth is not None:
         say(_growth_line(growth))
     pairs = bench_gating() if gating else math.nan
     if gating:
         say(f"batched gating + likelihood: {pairs / 1e6:.1f} million (track, detection) pairs/s")
-    say(_goals_text(summaries, growth))
+    say(_goals_text(first, growth))
+    say(_comparison_text(summaries, priors))
 
     result = BenchmarkResult(
         settings=settings,
@@ -762,8 +1107,11 @@ def run_benchmark(
 
 
 def _goals_text(summaries: Sequence[FamilySummary], growth: ScaleGrowth | None) -> str:
-    """The goals, one line each, with the measured number and whether it is met."""
-    lines = ["goals:"]
+    """The goals, one line each, with the measured number and whether it is met.
+
+    ``summaries`` are of one prior (the first of ``k_priors``), named in the heading.
+    """
+    lines = [f"goals (k_prior {summaries[0].k_prior}):"]
     for s in summaries:
         if s.speed_goal is not None:
             lines.append(

@@ -165,6 +165,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         config=args.config,
         scans=args.scans,
         json_path=Path(args.json) if args.json else None,
+        k_priors=args.k_priors,
     )
     return 0
 
@@ -182,6 +183,12 @@ _BENCH_FAMILIES = (
     "dense",
     "dense50",
 )
+_BENCH_K_PRIORS = "birth,uniform"
+
+
+def _comma_separated(text: str) -> list[str]:
+    """``"birth, uniform"`` -> ``["birth", "uniform"]`` (names are checked by the bench)."""
+    return [item.strip() for item in text.split(",")]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -253,14 +260,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "bench",
-        help="speed and accuracy over scenario families and seeds",
+        help="speed, accuracy and p(K | Z) over scenario families, seeds and priors on K",
         description="Runs every family (a built-in scenario) with seeds 0..N-1 and prints, "
         "per run, scans per second, window time p50/p95/max and windows over the time "
         "limit, hypotheses, the largest cluster, the window status mix, the smallest "
-        "captured mass, and GOSPA (loc/missed/false) next to the oracle's; then per family "
-        "the mean GOSPA ratio over seeds with its spread and the mean throughput, the growth "
-        "of time per scan over scale20 -> scale50 -> scale100, and the goals beside the "
-        "numbers.",
+        "captured mass, GOSPA (loc/missed/false) next to the oracle's, and the Brier score "
+        "of p(K | Z) against the true number of targets per window with the fraction of "
+        "windows whose marginal K is right; every family runs once per prior on K "
+        "(--k-priors).  Then per family and prior the mean GOSPA ratio over seeds with its "
+        "spread, the mean Brier score and the mean throughput, the growth of time per scan "
+        "over scale20 -> scale50 -> scale100, the goals beside the numbers (judged on the "
+        "first prior), and a comparison of the priors: mean GOSPA ratio and Brier score per "
+        "family and which prior is lower on each over all families.",
         # No abbreviations: the former `--seed S` must not silently mean `--seeds S`.
         allow_abbrev=False,
     )
@@ -303,6 +314,16 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="N",
         help="keep only the first N scans of every scenario (quick checks)",
+    )
+    p.add_argument(
+        "--k-priors",
+        type=_comma_separated,
+        default=_BENCH_K_PRIORS,
+        metavar="PRIOR,...",
+        help="comma-separated priors on the number of targets per window "
+        "(EstimatorSettings.k_prior: birth, uniform, poisson with the configuration's "
+        "k_prior_mean) to run every family with; the first is the one the goals judge "
+        f"(default {_BENCH_K_PRIORS})",
     )
     p.add_argument("--json", metavar="PATH", help="also write the results to this JSON file")
     p.set_defaults(func=_cmd_bench)

@@ -1,4 +1,4 @@
-"""``mapassoc bench``: a quick smoke run, the summaries, and the command-line options."""
+"""``mapassoc bench``: a smoke run, the scores of p(K | Z), the summaries, the options."""
 
 from __future__ import annotations
 
@@ -6,37 +6,57 @@ import io
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from mapassoc.bench import (
+    BENCH_K_PRIORS,
     DEFAULT_FAMILIES,
+    DEFAULT_K_PRIORS,
     GOSPA_RATIO_GOAL,
     SPEED_GOALS,
     BenchmarkResult,
     GospaParts,
     RunResult,
+    _comparison_text,
     bench_scenario,
+    count_scores,
     run_benchmark,
     scale_growth,
     summarize_family,
+    window_target_counts,
 )
-from mapassoc.cli import _BENCH_FAMILIES, build_parser, main
+from mapassoc.cli import _BENCH_FAMILIES, _BENCH_K_PRIORS, build_parser, main
 from mapassoc.errors import InputError
+from mapassoc.io import TruthTable
 from mapassoc.scenarios import build_scenario, scenario_names, truncate_scenario
 
 # A few scans of the crossing scenario: enough for several 3-scan windows, fast.
 SCANS = 8
 WINDOW = 3
+PRIORS = ("birth", "uniform")
 
 
-def _run(family: str, seed: int, *, seconds_per_scan: float, ratio: float, statuses) -> RunResult:
+def _run(
+    family: str,
+    seed: int,
+    *,
+    seconds_per_scan: float,
+    ratio: float,
+    statuses,
+    k_prior: str = "birth",
+    brier: float = 0.5,
+    hit_rate: float = 0.5,
+) -> RunResult:
     """A synthetic run (no estimator) for the summary functions."""
     parts = GospaParts(total=ratio, localisation=1.0, missed=0.0, false=0.0)
     return RunResult(
         family=family,
         seed=seed,
         config="generic",
+        k_prior=k_prior,
         targets=int(family.removeprefix("scale")) if family.startswith("scale") else 4,
         scans=30,
         detections_per_scan=10.0,
@@ -61,7 +81,99 @@ def _run(family: str, seed: int, *, seconds_per_scan: float, ratio: float, statu
         gospa=parts,
         oracle_gospa=GospaParts(total=1.0, localisation=1.0, missed=0.0, false=0.0),
         gospa_ratio=ratio,
+        k_brier=brier,
+        k_hit_rate=hit_rate,
+        k_mean_p_true=0.5,
     )
+
+
+# --------------------------------------------------------------------------- p(K | Z) scores
+
+
+def _truth(records: list[tuple[int, float]]) -> TruthTable:
+    ids, times = zip(*records, strict=True)
+    return TruthTable(
+        target_ids=np.array(ids),
+        times=np.array(times, dtype=float),
+        states=np.zeros((len(records), 1)),
+        state_names=("x",),
+    )
+
+
+def _window(start: float, end: float) -> SimpleNamespace:
+    return SimpleNamespace(start_time=start, end_time=end)
+
+
+def _counted(probabilities: list[float], marginal_k: int) -> SimpleNamespace:
+    return SimpleNamespace(probabilities=np.array(probabilities), marginal_k=marginal_k)
+
+
+def test_window_target_counts_counts_distinct_targets_alive_in_the_window() -> None:
+    # Target 0 alive at t = 0, 1, 2; target 1 at t = 2, 3; target 5 at t = 4 only.
+    truth = _truth([(0, 0.0), (0, 1.0), (0, 2.0), (1, 2.0), (1, 3.0), (5, 4.0)])
+    windows = [
+        _window(0.0, 1.0),  # target 0 (two records, counted once)
+        _window(1.0, 2.0),  # 0 and 1 (1 enters at the end time: both ends count)
+        _window(2.0, 3.0),  # 0 (at the start time) and 1
+        _window(3.0, 4.0),  # 1 and 5
+        _window(4.5, 6.0),  # nobody
+        _window(0.0, 4.0),  # all three
+        _window(2.0, 2.0),  # one instant: 0 and 1
+    ]
+    counts = window_target_counts(truth, windows)
+    assert counts.dtype == np.int64
+    assert counts.tolist() == [1, 2, 2, 2, 0, 3, 2]
+    assert window_target_counts(truth, []).tolist() == []
+
+
+def test_window_target_counts_checks_its_arguments() -> None:
+    truth = _truth([(0, 0.0)])
+    with pytest.raises(InputError, match="truth must be a TruthTable"):
+        window_target_counts([(0, 0.0)], [_window(0.0, 1.0)])  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"windows\[1\] must have finite start_time <= end_time"):
+        window_target_counts(truth, [_window(0.0, 1.0), _window(2.0, 1.0)])
+    with pytest.raises(InputError, match=r"windows\[0\]"):
+        window_target_counts(truth, [_window(math.nan, 1.0)])
+
+
+def test_count_scores_golden_values() -> None:
+    windows = [
+        # True K 1: Brier (0.2 - 0)^2 + (0.8 - 1)^2 = 0.08; p(true) 0.8; marginal right.
+        _counted([0.2, 0.8], 1),
+        # True K 2, past the vector's end (implicit 0): 0.5^2 + 0.5^2 + (0 - 1)^2 = 1.5;
+        # p(true) 0; marginal wrong.
+        _counted([0.5, 0.5], 0),
+        # True K 0: (0.1 - 1)^2 + 0.6^2 + 0.3^2 = 0.81 + 0.36 + 0.09 = 1.26; p(true) 0.1.
+        _counted([0.1, 0.6, 0.3], 1),
+    ]
+    scores = count_scores(windows, [1, 2, 0])
+    assert scores.brier == pytest.approx((0.08 + 1.5 + 1.26) / 3)
+    assert scores.hit_rate == pytest.approx(1 / 3)
+    assert scores.mean_p_true == pytest.approx((0.8 + 0.0 + 0.1) / 3)
+    # The ends of the range: certain and right, certain and wrong (also past the end).
+    certain = count_scores([_counted([0.0, 0.0, 1.0], 2)], np.array([2]))
+    assert (certain.brier, certain.hit_rate, certain.mean_p_true) == (0.0, 1.0, 1.0)
+    assert count_scores([_counted([0.0, 1.0], 1)], [0]).brier == pytest.approx(2.0)
+    assert count_scores([_counted([1.0], 0)], [3]).brier == pytest.approx(2.0)
+    # Uniform over 0..3 with the true K inside: 1 - 1/4.
+    assert count_scores([_counted([0.25] * 4, 0)], [3]).brier == pytest.approx(0.75)
+
+
+@pytest.mark.parametrize(
+    ("windows", "counts", "message"),
+    [
+        ([], [], "at least one window"),
+        ([_counted([1.0], 0)], [0, 1], "one integer >= 0 per window"),
+        ([_counted([1.0], 0)], [-1], "one integer >= 0 per window"),
+        ([_counted([1.0], 0)], [0.5], "one integer >= 0 per window"),
+        ([_counted([[1.0]], 0)], [0], r"windows\[0\].probabilities"),
+        ([_counted([1.5, -0.5], 0)], [0], r"windows\[0\].probabilities"),
+        ([_counted([math.nan], 0)], [0], r"windows\[0\].probabilities"),
+    ],
+)
+def test_count_scores_checks_its_arguments(windows, counts, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        count_scores(windows, counts)
 
 
 # --------------------------------------------------------------------------- smoke run
@@ -80,13 +192,15 @@ def smoke(tmp_path_factory: pytest.TempPathFactory) -> tuple[BenchmarkResult, st
         json_path=path,
         gating=False,
         out=out,
+        k_priors=PRIORS,
     )
     return result, out.getvalue(), json.loads(path.read_text())
 
 
 def test_smoke_run_measures_the_crossing_scenario(smoke) -> None:
     result, _, _ = smoke
-    (run,) = result.runs
+    assert [run.k_prior for run in result.runs] == list(PRIORS)
+    run = result.runs[0]
     assert (run.family, run.seed, run.config, run.scans) == ("crossing", 0, "generic", SCANS)
     assert run.window_length == WINDOW and run.time_limit == 5.0
     assert run.windows >= 1
@@ -102,33 +216,90 @@ def test_smoke_run_measures_the_crossing_scenario(smoke) -> None:
     # The generic configuration: Kmax twice the most detections of the scans run.
     scenario = truncate_scenario(build_scenario("crossing", 0), SCANS)
     assert run.max_tracks == 2 * max(scan.size for scan in scenario.scans) == 2 * run.max_detections
-    (family,) = result.families
-    assert family.family == "crossing" and family.seeds == (0,)
-    assert family.speed_goal == SPEED_GOALS["crossing"]
-    assert family.gospa_ratio_mean == pytest.approx(run.gospa_ratio)
+    for r in result.runs:
+        assert 0.0 <= r.k_brier <= 2.0
+        assert 0.0 <= r.k_hit_rate <= 1.0 and 0.0 <= r.k_mean_p_true <= 1.0
+    # One summary per prior, in the order of k_priors.
+    assert [(f.family, f.k_prior) for f in result.families] == [("crossing", p) for p in PRIORS]
+    for family, r in zip(result.families, result.runs, strict=True):
+        assert family.seeds == (0,)
+        assert family.speed_goal == SPEED_GOALS["crossing"]
+        assert family.gospa_ratio_mean == pytest.approx(r.gospa_ratio)
+        assert family.k_brier_mean == pytest.approx(r.k_brier)
+        assert family.k_hit_rate_mean == pytest.approx(r.k_hit_rate)
     assert result.growth is None and math.isnan(result.gating_pairs_per_second)
 
 
 def test_smoke_run_prints_lines_and_goals(smoke) -> None:
-    _, text, _ = smoke
+    result, text, _ = smoke
     lines = text.splitlines()
     assert lines[0].startswith("window length 3, time limit 5 s, generic configuration")
-    assert any(line.startswith("crossing      0") for line in lines)
-    assert any("=> crossing, 1 seed(s)" in line for line in lines)
+    assert "k_priors birth,uniform" in lines[0]
+    assert "Brier" in lines[1] and "k_prior" in lines[1]
+    for run in result.runs:
+        (line,) = [line for line in lines if line.startswith(f"crossing      0 {run.k_prior} ")]
+        assert f" {run.k_brier:5.3f} " in line
+    for prior in PRIORS:
+        assert any(f"=> crossing (k_prior {prior}), 1 seed(s)" in line for line in lines)
     assert "goal >= 150" in text and f"goal <= {GOSPA_RATIO_GOAL:g}x" in text
     assert "every window within its time limit" in text
-    assert "goals:" in lines
+    # The goals judge the first prior only: the speed goal is listed once.
+    assert "goals (k_prior birth):" in lines
+    assert text.count("crossing >= 150 scans/s") == 1
+    # The comparison block comes last: per family and prior, then the better prior.
+    start = lines.index(next(line for line in lines if line.startswith("k_prior comparison")))
+    block = lines[start:]
+    assert block[1].split() == ["family", *PRIORS]
+    assert block[2].split()[0] == "crossing" and block[3].split()[0] == "mean"
+    assert block[4].startswith("  lower mean GOSPA ratio over families: ")
+    assert "lower mean Brier: " in block[4]
 
 
 def test_smoke_run_writes_json(smoke) -> None:
     result, _, data = smoke
     assert data["settings"]["families"] == ["crossing"]
     assert data["settings"]["scans"] == SCANS
-    (run,) = data["runs"]
-    assert sum(run["status_counts"].values()) == result.runs[0].windows
-    assert run["gospa"]["total"] == pytest.approx(result.runs[0].gospa.total)
+    assert data["settings"]["k_priors"] == list(PRIORS)
+    assert [run["k_prior"] for run in data["runs"]] == list(PRIORS)
+    for run, measured in zip(data["runs"], result.runs, strict=True):
+        assert sum(run["status_counts"].values()) == measured.windows
+        assert run["gospa"]["total"] == pytest.approx(measured.gospa.total)
+        assert run["k_brier"] == pytest.approx(measured.k_brier)
+        assert run["k_hit_rate"] == pytest.approx(measured.k_hit_rate)
+        assert run["k_mean_p_true"] == pytest.approx(measured.k_mean_p_true)
+    assert [family["k_prior"] for family in data["families"]] == list(PRIORS)
+    assert all("k_brier_mean" in family for family in data["families"])
     assert data["families"][0]["speed_met"] in (True, False)
     assert data["gating_pairs_per_second"] is None  # not measured: NaN written as null
+
+
+def test_bench_scenario_runs_the_prior_it_is_given() -> None:
+    runs = {
+        prior: bench_scenario("crossing", 0, WINDOW, time_limit=5.0, scans=SCANS, k_prior=prior)
+        for prior in PRIORS
+    }
+    assert {prior: run.k_prior for prior, run in runs.items()} == {p: p for p in PRIORS}
+    for run in runs.values():
+        assert 0.0 <= run.k_brier <= 2.0
+        assert 0.0 <= run.k_hit_rate <= 1.0 and 0.0 <= run.k_mean_p_true <= 1.0
+    # The same windows, another prior: p(K | Z) differs.
+    assert runs["birth"].windows == runs["uniform"].windows
+    assert runs["birth"].k_brier != runs["uniform"].k_brier
+    # The scores are those of the helpers on the estimator's own windows.
+    scenario = truncate_scenario(build_scenario("crossing", 0), SCANS)
+    assert runs["birth"].targets == len(np.unique(scenario.truth.target_ids))
+
+
+@pytest.mark.parametrize(
+    ("k_prior", "message"),
+    [
+        ("weights", "k_prior cannot be 'weights'.*k_prior_weights"),
+        ("nope", "k_prior must be one of"),
+    ],
+)
+def test_bench_scenario_checks_the_prior(k_prior: str, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        bench_scenario("crossing", 0, WINDOW, scans=SCANS, k_prior=k_prior)
 
 
 def test_scenario_configuration_keeps_the_scenarios_kmax() -> None:
@@ -148,6 +319,11 @@ def test_scenario_configuration_keeps_the_scenarios_kmax() -> None:
         ({"time_limit": math.inf}, "time_limit"),
         ({"config": "tuned"}, "config"),
         ({"scans": 0}, "scans"),
+        ({"k_priors": ("birth", "nope")}, r"k_priors\[1\] must be one of birth, uniform, poisson"),
+        ({"k_priors": ("weights",)}, r"k_priors\[0\] cannot be 'weights'"),
+        ({"k_priors": ()}, "k_priors must name at least one prior"),
+        ({"k_priors": ("uniform", "uniform")}, "k_priors must be distinct"),
+        ({"k_priors": "birth"}, "k_priors must be a sequence of prior names"),
     ],
 )
 def test_run_benchmark_checks_arguments_before_running(kwargs, message: str) -> None:
@@ -162,17 +338,31 @@ def test_run_benchmark_checks_arguments_before_running(kwargs, message: str) -> 
 
 def test_family_summary_counts_any_status_and_spreads_the_ratio() -> None:
     runs = [
-        _run("parallel", 0, seconds_per_scan=0.1, ratio=1.1, statuses=[("exact", 20)]),
+        _run(
+            "parallel",
+            0,
+            seconds_per_scan=0.1,
+            ratio=1.1,
+            statuses=[("exact", 20)],
+            k_prior="uniform",
+            brier=0.2,
+            hit_rate=0.9,
+        ),
         _run(
             "parallel",
             1,
             seconds_per_scan=0.05,
             ratio=1.5,
             statuses=[("exact", 18), ("bounded", 1), ("time_limit", 1)],
+            k_prior="uniform",
+            brier=0.6,
+            hit_rate=0.5,
         ),
     ]
     summary = summarize_family(runs)
-    assert summary.seeds == (0, 1)
+    assert summary.seeds == (0, 1) and summary.k_prior == "uniform"
+    assert summary.k_brier_mean == pytest.approx(0.4)
+    assert summary.k_hit_rate_mean == pytest.approx(0.7)
     assert dict(summary.status_counts) == {"exact": 38, "bounded": 1, "time_limit": 1}
     assert summary.status_counts[0] == ("exact", 38)
     assert summary.gospa_ratio_mean == pytest.approx(1.3)
@@ -185,6 +375,9 @@ def test_family_summary_counts_any_status_and_spreads_the_ratio() -> None:
         summarize_family([runs[0], _run("burst", 0, seconds_per_scan=1, ratio=1, statuses=[])])
     with pytest.raises(InputError, match="at least one"):
         summarize_family([])
+    birth = _run("parallel", 2, seconds_per_scan=1, ratio=1, statuses=[], k_prior="birth")
+    with pytest.raises(InputError, match="one k_prior, got \\['birth', 'uniform'\\]"):
+        summarize_family([runs[0], birth])
 
 
 def test_scale_growth_exponent() -> None:
@@ -202,6 +395,47 @@ def test_scale_growth_exponent() -> None:
     assert quadratic is not None and quadratic.exponent == pytest.approx(2.0)
     assert not quadratic.linear_or_better
     assert scale_growth([family(20, 0.2)]) is None
+    uniform = summarize_family(
+        [_run("scale50", 0, seconds_per_scan=0.5, ratio=1.0, statuses=[], k_prior="uniform")]
+    )
+    with pytest.raises(InputError, match="one k_prior"):
+        scale_growth([family(20, 0.2), uniform])
+
+
+def test_comparison_names_the_prior_with_the_lower_means() -> None:
+    def summary(family: str, prior: str, ratio: float, brier: float):
+        return summarize_family(
+            [
+                _run(
+                    family,
+                    0,
+                    seconds_per_scan=0.1,
+                    ratio=ratio,
+                    statuses=[("exact", 1)],
+                    k_prior=prior,
+                    brier=brier,
+                )
+            ]
+        )
+
+    summaries = [
+        summary("crossing", "birth", 1.0, 0.5),
+        summary("crossing", "uniform", 1.2, 0.1),
+        summary("dense", "birth", 1.4, 0.3),
+        summary("dense", "uniform", 1.4, 0.5),
+    ]
+    lines = _comparison_text(summaries, ["birth", "uniform"]).splitlines()
+    assert lines[1].split() == ["family", "birth", "uniform"]
+    assert lines[2].split() == ["crossing", "1.00", "/", "0.500", "1.20", "/", "0.100"]
+    assert lines[3].split() == ["dense", "1.40", "/", "0.300", "1.40", "/", "0.500"]
+    # Means over families: ratio 1.20 vs 1.30, Brier 0.400 vs 0.300.
+    assert lines[4].split() == ["mean", "1.20", "/", "0.400", "1.30", "/", "0.300"]
+    assert lines[5] == (
+        "  lower mean GOSPA ratio over families: birth (birth 1.20, uniform 1.30); "
+        "lower mean Brier: uniform (birth 0.400, uniform 0.300)"
+    )
+    alone = _comparison_text(summaries[:1], ["birth"]).splitlines()
+    assert "(one prior only)" in alone[-1]
 
 
 # --------------------------------------------------------------------------- command line
@@ -213,6 +447,8 @@ def test_bench_defaults() -> None:
     assert set(DEFAULT_FAMILIES) <= set(scenario_names())
     assert (args.seeds, args.window_length, args.time_limit) == (5, 5, 2.0)
     assert (args.config, args.scans, args.json) == ("generic", None, None)
+    assert args.k_priors == list(DEFAULT_K_PRIORS) == _BENCH_K_PRIORS.split(",")
+    assert set(DEFAULT_K_PRIORS) <= set(BENCH_K_PRIORS)
 
 
 def test_bench_options_parse() -> None:
@@ -234,8 +470,11 @@ def test_bench_options_parse() -> None:
             "12",
             "--json",
             "out.json",
+            "--k-priors",
+            "uniform, poisson",
         ]
     )
+    assert args.k_priors == ["uniform", "poisson"]
     assert args.families == ["parallel", "scale20"]
     assert (args.seeds, args.window_length, args.time_limit) == (3, 7, 0.5)
     assert (args.config, args.scans, args.json) == ("scenario", 12, "out.json")
@@ -263,13 +502,19 @@ def test_bench_command_reports_bad_values(capsys: pytest.CaptureFixture[str]) ->
     assert "no-such-family" in capsys.readouterr().err
     assert main(["bench", "--seeds", "0"]) == 2
     assert "seeds" in capsys.readouterr().err
+    assert main(["bench", "--families", "crossing", "--k-priors", "birth,weights"]) == 2
+    assert "k_priors[1] cannot be 'weights'" in capsys.readouterr().err
+    assert main(["bench", "--families", "crossing", "--k-priors", "birth,"]) == 2
+    assert "k_priors[1] must be one of" in capsys.readouterr().err
 
 
 def test_bench_command_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "bench.json"
     argv = ["bench", "--families", "crossing", "--seeds", "1", "--scans", "5"]
-    assert main([*argv, "--window-length", "2", "--json", str(path)]) == 0
+    assert main([*argv, "--window-length", "2", "--json", str(path), "--k-priors", "uniform"]) == 0
     out = capsys.readouterr().out
-    assert "=> crossing" in out and "pairs/s" in out
+    assert "=> crossing (k_prior uniform)" in out and "pairs/s" in out
+    assert "k_prior birth" not in out
     data = json.loads(path.read_text())
     assert data["runs"][0]["scans"] == 5 and data["runs"][0]["window_length"] == 2
+    assert data["settings"]["k_priors"] == ["uniform"] and data["runs"][0]["k_prior"] == "uniform"
