@@ -508,6 +508,11 @@ def enumerate_sets(problem: PackingProblem) -> list[np.ndarray]:
 
 
 def test_one_scan_window_reduces_to_seed_001() -> None:
+    """Seed 001's worked example through the public configuration alone (the seed-001
+    column of docs/model.md section 4): rate = 0 and initial_count = 0 (no new target),
+    survival_probability = 1, no gate.  The window's feasible track sets are exactly
+    seed 001's seven association vectors with its weights and components, and both
+    targets are certainly present (p(K = 2 | Z) = 1)."""
     # Seed 001's example: priors N(-2.5, 0.36), N(2.5, 0.36); measurements -1.6 and 1;
     # R = 0.2; Pd = 0.85; lambda = 0.3 per unit length on [-5, 5].
     config = make_config(
@@ -516,6 +521,8 @@ def test_one_scan_window_reduces_to_seed_001() -> None:
         detection_probability=0.85,
         false_alarms_per_scan=3.0,
         region=[[-5.0, 5.0]],
+        rate=0.0,
+        initial_count=0.0,
         survival_probability=1.0,
     )
     carried = [
@@ -533,10 +540,11 @@ def test_one_scan_window_reduces_to_seed_001() -> None:
     scans = make_scans([0.0], [[[-1.6], [1.0]]], 1)
     solution = WindowEstimator(config=config).solve_window(scans, carried)
     hyps = solution.hypotheses
-    carried_hyps = np.flatnonzero(hyps.tree < 2)
-    # Ps = 1: no "ended" hypothesis; each carried tree misses or takes one detection.
-    assert len(carried_hyps) == 6
-    sub = solution.problem.subproblem(carried_hyps)
+    carried_hyps = np.arange(hyps.count)
+    # No new track can start; Ps = 1: no "ended" hypothesis; each carried tree misses or
+    # takes one detection.
+    assert np.all(hyps.tree < 2) and len(carried_hyps) == 6
+    sub = solution.problem
     sets = [np.flatnonzero(x > 0.5) for x in enumerate_sets(sub)]
     assert len(sets) == 7  # seed 001: "for two objects and two measurements, seven"
 
@@ -577,6 +585,12 @@ def test_one_scan_window_reduces_to_seed_001() -> None:
         mean, cov = hyps.nodes.state(int(hyps.leaf[h]))
         np.testing.assert_allclose(mean, reference.means[a, obj], rtol=0, atol=1e-12)
         np.testing.assert_allclose(cov, reference.covariances[a, obj], rtol=0, atol=1e-12)
+    post = solution.posterior
+    assert post.undetected_mean == 0.0
+    np.testing.assert_allclose(post.probabilities[:3], [0.0, 0.0, 1.0], atol=1e-15)
+    assert post.marginal_k == post.marginal_tracks == 2
+    best = reference.associations[int(np.argmax(reference.weights))]
+    assert theta_of(solution.selection(2)) == best
 
 
 # ------------------------------------------------------------------- 4. invariances
