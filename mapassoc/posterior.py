@@ -279,6 +279,36 @@ class _Sweep:
     decreasing_at_top: bool
 
 
+def _relevant_rows(
+    ratio: FloatArray,
+    log_po: FloatArray,
+    mass: FloatArray,
+    mass_upper: FloatArray,
+    best: FloatArray,
+    best_upper: FloatArray,
+) -> NDArray[np.int64]:
+    """The track counts T whose terms can matter for some K <= top.
+
+    Row T adds ``mass[T] + ratio(K) + log Po(K - T; nu)`` to column K >= T, at most
+    ``mass_upper[T] + max_{K >= T} ratio(K) + max_u log Po(u; nu)``; and the largest
+    column is at least ``mass[T'] + ratio(T') + log Po(0; nu)`` for every T'.  A row whose
+    bound is :data:`NEGLIGIBLE_LOG_RATIO` below that is below double precision relative
+    to the peak in every column, and a row whose best-score bound is below the joint
+    peak's lower bound cannot hold the joint MAP: both kinds are left out.  (Clutter
+    bursts make thousands of T reachable, nearly all of them hopeless.)
+    """
+    suffix = np.maximum.accumulate(ratio[::-1])[::-1][: mass.shape[0]]
+    reach = suffix + float(np.max(log_po))
+    here = ratio[: mass.shape[0]] + log_po[0]
+    with np.errstate(invalid="ignore"):
+        peak_mass = float(np.max(mass + here))
+        peak_joint = float(np.max(best + here))
+        keep = (mass_upper + reach >= peak_mass - NEGLIGIBLE_LOG_RATIO) | (
+            best_upper + reach >= peak_joint
+        )
+    return np.flatnonzero(keep & np.isfinite(mass_upper)).astype(np.int64)
+
+
 def _sweep(
     top: int,
     ratio: FloatArray,
@@ -288,35 +318,46 @@ def _sweep(
     best: FloatArray,
     best_upper: FloatArray,
 ) -> _Sweep:
-    T = mass.shape[0]
-    ts = np.arange(T, dtype=np.int64)[:, None]
     n = top + 1
+    log_po = _log_poisson(np.arange(n, dtype=np.int64), nu)
+    rows = _relevant_rows(ratio, log_po, mass, mass_upper, best, best_upper)
     out = _Sweep(
         np.full(n, -math.inf),
         np.full(n, -math.inf),
         np.full(n, -math.inf),
         np.full(n, -math.inf),
         np.zeros(n, dtype=np.int64),
-        np.full(T, -math.inf),
+        np.full(mass.shape[0], -math.inf),
         True,
     )
-    for k0 in range(0, n, _BLOCK):
+    if rows.size == 0:
+        return out
+    ts = rows[:, None]
+
+    def weights(ks: NDArray[np.int64]) -> FloatArray:
+        u = ks[None, :] - ts
+        po = np.where(u >= 0, log_po[np.clip(u, 0, top)], -math.inf)
+        return ratio[ks][None, :] + po  # (rows, block)
+
+    m, mu, b, bu = mass[rows], mass_upper[rows], best[rows], best_upper[rows]
+    tracks = np.full(rows.size, -math.inf)
+    for k0 in range(int(rows[0]), n, _BLOCK):
         ks = np.arange(k0, min(n, k0 + _BLOCK), dtype=np.int64)
-        weight = ratio[ks][None, :] + _log_poisson(ks[None, :] - ts, nu)  # (T, block)
-        lower = mass[:, None] + weight
+        weight = weights(ks)
+        lower = m[:, None] + weight
         out.mass_lower[ks] = _log_sum(lower, 0)
-        out.mass_upper[ks] = _log_sum(mass_upper[:, None] + weight, 0)
-        scored = best[:, None] + weight
+        out.mass_upper[ks] = _log_sum(mu[:, None] + weight, 0)
+        scored = b[:, None] + weight
         out.joint[ks] = np.max(scored, axis=0)
-        out.joint_tracks[ks] = np.argmax(scored, axis=0)
-        out.joint_upper[ks] = np.max(best_upper[:, None] + weight, axis=0)
-        out.tracks = np.logaddexp(out.tracks, _log_sum(lower, 1))
+        out.joint_tracks[ks] = rows[np.argmax(scored, axis=0)]
+        out.joint_upper[ks] = np.max(bu[:, None] + weight, axis=0)
+        tracks = np.logaddexp(tracks, _log_sum(lower, 1))
+    out.tracks[rows] = tracks
     if top >= 1:
         # Whether every term's weight falls from top - 1 to top (each is concave in K
         # for the priors whose range is cut, so it keeps falling).
-        ks = np.array([top - 1, top], dtype=np.int64)
-        weight = ratio[ks][None, :] + _log_poisson(ks[None, :] - ts, nu)
-        live = np.isfinite(mass_upper) & np.isfinite(weight[:, 1])
+        weight = weights(np.array([top - 1, top], dtype=np.int64))
+        live = np.isfinite(weight[:, 1])
         out.decreasing_at_top = bool(np.all(weight[live, 1] <= weight[live, 0]))
     return out
 
