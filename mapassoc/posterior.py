@@ -378,7 +378,8 @@ def k_posterior(
     computed up to the first K (grown by doubling) past which every term falls and is
     :data:`NEGLIGIBLE_LOG_RATIO` nats below the largest weight; the K beyond get
     probability 0, which is what double precision would give them.  So a huge kmax
-    costs nothing.
+    costs nothing.  Track counts whose terms cannot reach that precision for any K are
+    skipped likewise (:func:`_relevant_rows`).
 
     Parameters
     ----------
@@ -458,8 +459,6 @@ def k_posterior(
     joint_map_k = _argmax_first(sweep.joint)
     padded = np.full(kmax + 1, -math.inf)
     padded[:n_tracks] = best
-    padded_upper = np.full(kmax + 1, -math.inf)
-    padded_upper[:n_tracks] = best_upper
     mass_padded = np.full(kmax + 1, -math.inf)
     mass_padded[:n_tracks] = log_mass
     return KPosterior(
