@@ -219,8 +219,9 @@ def build_parser() -> argparse.ArgumentParser:
         "run",
         help="estimate tracks from a detections file",
         description="Estimate tracks window by window and write tracks.csv, windows.jsonl "
-        "(one line per window: p(K | Z), joint MAP and marginal K, objective per K, solver "
-        "status, hypothesis counts) and summary.json.",
+        "(one line per window: p(K | Z) over the targets present and p(T | Z) over the "
+        "tracks, joint MAP and marginal K, objective per number of tracks, solver status, "
+        "hypothesis counts) and summary.json.",
     )
     p.add_argument("config", help="TOML configuration (motion, sensors, birth, estimator)")
     p.add_argument("detections", help="detections CSV")

@@ -42,7 +42,7 @@ At each scan a node is dropped
   Every hypothesis grown from it then scores below ``-prune_log_ratio``, and removing
   it from any track set keeps the set feasible (with one track fewer) and raises its
   score by more than ``prune_log_ratio``: every set containing it is that far below
-  the window's best set over all K.  At the window's last scan the remaining gain is
+  the window's best set over all T.  At the window's last scan the remaining gain is
   0, so this is a comparison with 0, the score of not selecting the tree.  An earlier
   node is not compared with 0 directly: a birth among many false alarms scores far
   below 0 at its first detection (``log(u Pd / lambda_bar)``, whatever the region's
