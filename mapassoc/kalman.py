@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
-from scipy.stats import chi2
+from scipy.special import gammaincinv
 
 from mapassoc.errors import InputError, NotPositiveDefiniteError
 from mapassoc.measurement import MeasurementModel
@@ -311,7 +311,10 @@ def gate_threshold(probability: float, dim: int) -> float:
         raise InputError(f"gate dimension must be >= 1, got {dim!r}")
     if probability == 1.0:
         return math.inf
-    return float(chi2.ppf(probability, dim))
+    # The chi-square quantile with dim degrees of freedom, as scipy.stats.chi2.ppf
+    # computes it (2 P^-1(dim / 2, probability), P the regularised lower incomplete
+    # gamma function), without importing scipy.stats (about 0.3 s).
+    return float(2.0 * gammaincinv(dim / 2.0, probability))
 
 
 def rts_smooth(

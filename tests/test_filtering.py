@@ -222,6 +222,12 @@ def test_pairwise_scores_match_single_evaluations() -> None:
 
 def test_gate_threshold_values() -> None:
     assert gate_threshold(0.99, 2) == pytest.approx(9.2103, abs=1e-4)
+    # Bit for bit scipy.stats.chi2.ppf, which the module no longer imports.
+    from scipy.stats import chi2
+
+    for p in (0.5, 0.9, 0.99, 0.999, 0.99999):
+        for dim in (1, 2, 3, 4, 6):
+            assert gate_threshold(p, dim) == float(chi2.ppf(p, dim))
     assert gate_threshold(1.0, 2) == math.inf
     with pytest.raises(InputError, match="gate probability"):
         gate_threshold(0.0, 2)
