@@ -30,7 +30,7 @@ class ConfigError(MapassocError, ValueError):
     Parameters
     ----------
     key : str
-        Dotted path of the offending key, for example ``"sensors.radar.detection_probability"``.
+        Path of the offending key, for example ``"sensors[0].detection_probability"``.
     message : str
         What is wrong and what was expected.
     source : str, optional

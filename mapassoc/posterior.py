@@ -479,11 +479,3 @@ def k_posterior(
         joint_certain=_beats_others(sweep.joint, sweep.joint_upper, joint_map_k),
     )
 
-
-def log_sum_exp(values: NDArray[np.float64]) -> float:
-    """Stable ``log sum exp(values)``; ``-inf`` for an empty or all ``-inf`` input."""
-    values = np.asarray(values, dtype=float)
-    if values.size == 0 or not np.any(np.isfinite(values)):
-        return -math.inf
-    top = float(np.max(values))
-    return top + math.log(float(np.sum(np.exp(values - top))))
