@@ -19,7 +19,7 @@ demo: $(STAMP)
 	$(BIN)/mapassoc demo --out $(OUT)
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -m ""
 
 bench: $(STAMP)
 	$(BIN)/mapassoc bench

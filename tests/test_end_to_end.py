@@ -14,35 +14,30 @@ measured values are in the comments:
 
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Callable
 
 import numpy as np
 import pytest
+from conftest import ScenarioRun
 
-from mapassoc.evaluation import evaluate_tables
-from mapassoc.oracle import oracle_tracks
-from mapassoc.pipeline import WindowEstimator
-from mapassoc.scenarios import build_scenario
-
-CUTOFF = 10.0
+Runner = Callable[..., ScenarioRun]
 
 
-def gospa_ratio(name: str, seed: int, window_length: int | None = None) -> tuple[float, dict]:
-    scenario = build_scenario(name, seed)
-    config = scenario.config
-    if window_length is not None:
-        config = replace(config, estimator=replace(config.estimator, window_length=window_length))
-    result = WindowEstimator(config=config).run(scenario.scans)
-    estimate = evaluate_tables(scenario.truth, result.tracks, c=CUTOFF)
-    oracle = evaluate_tables(
-        scenario.truth, oracle_tracks(scenario.scans, scenario.origins, scenario.config), c=CUTOFF
-    )
-    ratio = estimate["gospa"]["mean_total"] / oracle["gospa"]["mean_total"]
-    return ratio, {"estimate": estimate, "oracle": oracle, "result": result, "scenario": scenario}
+def gospa_ratio(
+    scenario_run: Runner, name: str, seed: int, window_length: int | None = None
+) -> tuple[float, dict]:
+    run = scenario_run(name, seed, window_length)
+    info = {
+        "estimate": run.estimate,
+        "oracle": run.oracle,
+        "result": run.result,
+        "scenario": run.scenario,
+    }
+    return run.gospa_ratio, info
 
 
-def test_demo_crossing_scenario_is_close_to_the_oracle() -> None:
-    ratio, info = gospa_ratio("crossing", 0)
+def test_demo_crossing_scenario_is_close_to_the_oracle(scenario_run: Runner) -> None:
+    ratio, info = gospa_ratio(scenario_run, "crossing", 0)
     assert ratio <= 1.2, f"crossing GOSPA ratio {ratio:.3f} (measured 1.055)"
     # Every target is tracked by exactly one track, with no false or missed part.
     gospa = info["estimate"]["gospa"]
@@ -52,11 +47,12 @@ def test_demo_crossing_scenario_is_close_to_the_oracle() -> None:
     assert all(w.status == "exact" for w in info["result"].windows)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("window_length", "bound", "measured"), [(5, 1.9, 1.69), (7, 1.3, 1.10)])
 def test_dense_scenario_within_measured_factor(
-    window_length: int, bound: float, measured: float
+    scenario_run: Runner, window_length: int, bound: float, measured: float
 ) -> None:
-    ratio, info = gospa_ratio("dense", 0, window_length)
+    ratio, info = gospa_ratio(scenario_run, "dense", 0, window_length)
     assert ratio <= bound, f"dense window {window_length}: ratio {ratio:.3f} (measured {measured})"
     # Tracks are pure: each track's detections come (almost) all from one target.
     origins = dict(
@@ -72,8 +68,8 @@ def test_dense_scenario_within_measured_factor(
         assert counts.max() / len(rows) >= 0.8
 
 
-def test_posterior_over_k_tracks_the_true_count_on_crossing() -> None:
-    _, info = gospa_ratio("crossing", 0)
+def test_posterior_over_k_tracks_the_true_count_on_crossing(scenario_run: Runner) -> None:
+    _, info = gospa_ratio(scenario_run, "crossing", 0)
     scenario, result = info["scenario"], info["result"]
     hits = 0
     for w in result.windows:
@@ -86,9 +82,11 @@ def test_posterior_over_k_tracks_the_true_count_on_crossing() -> None:
     assert hits / len(result.windows) >= 0.85
 
 
-def test_pruning_never_makes_a_k_infeasible_that_carried_tracks_can_reach() -> None:
+def test_pruning_never_makes_a_k_infeasible_that_carried_tracks_can_reach(
+    scenario_run: Runner,
+) -> None:
     """With c carried tracks (each can end or miss), every K = 0..c keeps a feasible set."""
-    _, info = gospa_ratio("crossing", 0)
+    _, info = gospa_ratio(scenario_run, "crossing", 0)
     for w in info["result"].windows:
         feasible = [b is not None for b in w.best_objective]
         assert all(feasible[: w.carried_tracks + 1]), (w.index, w.best_objective)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from test_window_model import SENSOR, make_config
 
 from mapassoc.motion import ConstantVelocity
@@ -12,6 +13,7 @@ from mapassoc.pipeline import WindowEstimator
 from mapassoc.scans import Scan
 
 
+@pytest.mark.slow
 def test_a_scan_of_thousands_of_detections_followed_by_another_runs() -> None:
     """One scan of 3,000 detections, then another (20,000 once raised a RecursionError;
     that size now runs in about 30 s on this machine, mostly combining 20,000

@@ -137,6 +137,7 @@ def calibration_failures(predicted: np.ndarray, observed: np.ndarray) -> list[tu
     return failures
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("prior", ["birth", "uniform"])
 def test_posterior_over_k_is_calibrated(prior: str) -> None:
     predicted, observed = scored_windows(prior, prior, WINDOWS, 20261201)
@@ -156,6 +157,7 @@ def test_the_simulator_draws_the_prior() -> None:
     assert abs(np.mean(counts) - mu) < 4.0 * math.sqrt(mu / 2000)
 
 
+@pytest.mark.slow
 def test_the_calibration_check_fails_under_the_wrong_prior() -> None:
     """The check can fail: windows simulated with K uniform on 0..Kmax but scored with
     the birth prior (mean 3.2) are not calibrated."""
