@@ -52,6 +52,11 @@ from mapassoc.population import WindowPopulation
 
 __all__ = [
     "COUNT_PRIORS",
+    "K_ESTIMATORS",
+    "KEstimator",
+    "MarginalK",
+    "JointMapK",
+    "MedianK",
     "CountPrior",
     "KPosterior",
     "k_posterior",
@@ -211,6 +216,70 @@ class KPosterior:
     def mean_k(self) -> float:
         return float(np.dot(np.arange(self.max_tracks + 1), self.probabilities))
 
+    def tracks_given(self, k: int) -> int:
+        """T of the MAP track set given K = k targets: argmax over T <= k of
+        ``best[T] + log Po(k - T; nu)`` (eq. 2; the prior's factor is the same for every
+        T).  Ties go to the smaller T.
+
+        Raises
+        ------
+        InputError
+            When k is outside 0..Kmax or no track set has at most k tracks.
+        """
+        integer = isinstance(k, (int, np.integer)) and not isinstance(k, bool)
+        if not integer or not 0 <= k <= self.max_tracks:
+            raise InputError(f"k must be an integer in 0..{self.max_tracks}, got {k!r}")
+        return _tracks_given(self.best_log_score, self.undetected_mean, int(k))
+
+
+class KEstimator:
+    """An estimate of the number of targets K from a window's posterior, and the number
+    of tracks T of the track set committed for it (``WindowEstimator.run``).
+
+    A new estimator is one subclass with a ``name`` and :meth:`choose`, registered in
+    :data:`K_ESTIMATORS`; ``EstimatorSettings.k_estimate`` names it.
+    """
+
+    name: str = ""
+
+    def choose(self, posterior: KPosterior) -> tuple[int, int]:
+        """``(K, T)``: the estimate of K and the track count of the set to commit."""
+        raise NotImplementedError
+
+
+class MarginalK(KEstimator):
+    """argmax p(K | Z) (seed 002: the track sets summed out), with the MAP set given K."""
+
+    name = "marginal"
+
+    def choose(self, posterior: KPosterior) -> tuple[int, int]:
+        return posterior.marginal_k, posterior.marginal_tracks
+
+
+class JointMapK(KEstimator):
+    """K and the track set of the joint MAP estimate of (K, track set) (seed 002, eq. 14)."""
+
+    name = "joint"
+
+    def choose(self, posterior: KPosterior) -> tuple[int, int]:
+        return posterior.joint_map_k, posterior.joint_map_tracks
+
+
+class MedianK(KEstimator):
+    """The posterior median of K (it minimises the expected absolute error |K - K_hat|):
+    the smallest K with p(K' <= K | Z) >= 1/2, with the MAP set given that K."""
+
+    name = "median"
+
+    def choose(self, posterior: KPosterior) -> tuple[int, int]:
+        cdf = np.cumsum(posterior.probabilities)
+        k = int(np.searchsorted(cdf, 0.5 - 1e-12))
+        return k, posterior.tracks_given(k)
+
+
+K_ESTIMATORS: dict[str, KEstimator] = {e.name: e for e in (MarginalK(), JointMapK(), MedianK())}
+"""Estimators of K by the name ``EstimatorSettings.k_estimate`` uses."""
+
 
 def _argmax_first(values: FloatArray) -> int:
     return int(np.flatnonzero(values == np.max(values))[0])
@@ -243,6 +312,15 @@ def _log_poisson(u: NDArray[np.int64], nu: float) -> FloatArray:
     else:
         out[ok & (u == 0)] = 0.0
     return out
+
+
+def _tracks_given(best: FloatArray, nu: float, k: int) -> int:
+    """argmax over T <= k of ``best[T] + log Po(k - T; nu)`` (eq. 2), the smaller T on ties."""
+    tracks = np.arange(min(k + 1, best.shape[0]), dtype=np.int64)
+    scores = best[: tracks.shape[0]] + _log_poisson(k - tracks, nu)
+    if not np.any(np.isfinite(scores)):
+        raise InputError(f"no track set of this window has at most {k} tracks")
+    return _argmax_first(scores)
 
 
 def _poisson_reach(nu: float) -> int:
@@ -455,7 +533,6 @@ def k_posterior(
     track_probabilities[:n_tracks] = track_weights / track_weights.sum()
 
     marginal_k = _argmax_first(probabilities)
-    given_k = best + _log_poisson(marginal_k - np.arange(n_tracks, dtype=np.int64), nu)
     joint_map_k = _argmax_first(sweep.joint)
     padded = np.full(kmax + 1, -math.inf)
     padded[:n_tracks] = best
@@ -469,7 +546,7 @@ def k_posterior(
         joint_map_k=joint_map_k,
         joint_map_tracks=int(sweep.joint_tracks[joint_map_k]),
         marginal_k=marginal_k,
-        marginal_tracks=_argmax_first(given_k),
+        marginal_tracks=_tracks_given(best, nu, marginal_k),
         undetected_mean=nu,
         count_prior=prior,
         exact=exact,

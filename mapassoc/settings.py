@@ -10,13 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from mapassoc.errors import InputError
-from mapassoc.posterior import COUNT_PRIORS, CountPrior
+from mapassoc.posterior import COUNT_PRIORS, K_ESTIMATORS, CountPrior, KEstimator
 from mapassoc.validation import check_nonnegative, check_positive, check_probability
 
 __all__ = ["BirthModel", "EstimatorSettings", "K_PRIORS", "K_ESTIMATES"]
 
 K_PRIORS = COUNT_PRIORS
-K_ESTIMATES = ("marginal", "joint")
+K_ESTIMATES = tuple(K_ESTIMATORS)
 
 
 def _check_int(name: str, value: object, *, minimum: int) -> int:
@@ -115,10 +115,11 @@ class EstimatorSettings:
         Mean of the Poisson prior (used when ``k_prior == "poisson"``).
     k_prior_weights : tuple of float
         Unnormalised p(K) for K = 0..Kmax (used when ``k_prior == "weights"``).
-    k_estimate : {"marginal", "joint"}
-        Which estimate of K the committed track set uses: ``argmax p(K | Z)`` (marginal,
-        default) or the K of the joint MAP (K, track set) (seed 002, eq. 14); the set is
-        the MAP track set given that K.
+    k_estimate : {"marginal", "joint", "median"}
+        Which estimate of K the committed track set uses (``mapassoc.posterior.K_ESTIMATORS``):
+        ``argmax p(K | Z)`` (marginal, default), the K of the joint MAP (K, track set)
+        (seed 002, eq. 14) with its set, or the posterior median; for the marginal and
+        the median the set is the MAP track set given that K.
     solver : str
         Integer-program backend for clusters too large for the exact search (a name
         from ``mapassoc.solvers.available_solvers()``).
@@ -173,6 +174,10 @@ class EstimatorSettings:
         check_positive("time_limit", self.time_limit)
         _check_int("exact_work_limit", self.exact_work_limit, minimum=1)
         _check_int("beam_width", self.beam_width, minimum=1)
+
+    def k_estimator(self) -> KEstimator:
+        """The estimator of K these settings name."""
+        return K_ESTIMATORS[self.k_estimate]
 
     def count_prior(self) -> CountPrior:
         """The prior on the number of targets in a window these settings name."""

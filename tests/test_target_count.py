@@ -34,6 +34,7 @@ import numpy as np
 import pytest
 from test_window_model import make_config, make_scans, partitions
 
+from mapassoc.errors import InputError
 from mapassoc.motion import ConstantVelocity
 from mapassoc.pipeline import WindowEstimator
 from mapassoc.population import UndetectedTargets
@@ -462,3 +463,35 @@ def test_cut_range_of_k_equals_the_full_range(seed: int) -> None:
     np.testing.assert_allclose(posts[0].probabilities, posts[1].probabilities, atol=1e-14)
     assert posts[0].marginal_k == posts[1].marginal_k
     assert posts[0].joint_map_k == posts[1].joint_map_k
+
+
+def test_k_estimators_on_the_one_scan_case() -> None:
+    """Hand-derived: uniform p(K | Z) = [1, 3, 6, 6] / 16 has CDF [1, 4, 10, 16] / 16, so
+    the median is 2 (the marginal too); the birth prior's [1, 3, 3, 1] / 8 has CDF
+    [1, 4, 7, 8] / 8, so the median is 1.  With Pd = 1 nothing goes undetected, so the
+    committed track count equals K."""
+    from mapassoc.posterior import K_ESTIMATORS, MedianK
+
+    w = replace(random_window(0), times=(0.0,), detections=((-3.0, 0.0, 3.0),), pd=1.0,
+                false_alarms=1.0, rate=0.0, initial=1.0, previous_time=None, kmax=3,
+                weights=(1.0,) * 4)
+    uniform, birth = solve(w, "uniform").posterior, solve(w, "birth").posterior
+    assert MedianK().choose(uniform) == (2, 2)
+    assert MedianK().choose(birth) == (1, 1)
+    assert K_ESTIMATORS["marginal"].choose(uniform) == (uniform.marginal_k, uniform.marginal_tracks)
+    assert K_ESTIMATORS["joint"].choose(birth) == (birth.joint_map_k, birth.joint_map_tracks)
+    assert birth.tracks_given(3) == 3
+    with pytest.raises(InputError, match="k must be an integer in 0..3"):
+        birth.tracks_given(4)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_joint_map_set_is_the_map_set_given_its_k(seed: int) -> None:
+    """Two code paths agree: the joint MAP (K, T) from the sweep over the (T, K) table,
+    and ``tracks_given`` (eq. 2 maximised over T for a fixed K); likewise the marginal."""
+    w = random_window(seed)
+    for prior in ("uniform", "birth"):
+        post = solve(w, prior).posterior
+        assert post.tracks_given(post.joint_map_k) == post.joint_map_tracks
+        assert post.tracks_given(post.marginal_k) == post.marginal_tracks
+        assert post.joint_map_tracks <= post.joint_map_k
