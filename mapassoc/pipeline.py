@@ -404,6 +404,7 @@ class WindowEstimator:
             prune_log_ratio=s.prune_log_ratio,
         )
         self.count_prior = s.count_prior()
+        self.k_estimator = s.k_estimator()
 
     # -- one window ------------------------------------------------------------------
     def solve_window(
@@ -559,10 +560,7 @@ class WindowEstimator:
             commit = stride if end < total else end - start
             solution = self.solve_window(scans[start:end], carried, undetected=undetected)
             post = solution.posterior
-            if self.settings.k_estimate == "marginal":
-                chosen_k, chosen_tracks = post.marginal_k, post.marginal_tracks
-            else:
-                chosen_k, chosen_tracks = post.joint_map_k, post.joint_map_tracks
+            chosen_k, chosen_tracks = self.k_estimator.choose(post)
             selection = solution.selection(chosen_tracks)
             carried, next_id = self._commit(
                 solution.hypotheses, selection, start, commit, carried, records, next_id

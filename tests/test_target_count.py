@@ -495,3 +495,21 @@ def test_the_joint_map_set_is_the_map_set_given_its_k(seed: int) -> None:
         assert post.tracks_given(post.joint_map_k) == post.joint_map_tracks
         assert post.tracks_given(post.marginal_k) == post.marginal_tracks
         assert post.joint_map_tracks <= post.joint_map_k
+
+
+def test_every_registered_k_estimator_runs_end_to_end() -> None:
+    """k_estimate names any registered estimator; the committed set has its T tracks."""
+    from mapassoc.posterior import K_ESTIMATORS
+    from mapassoc.scenarios import build_scenario, truncate_scenario
+
+    scenario = truncate_scenario(build_scenario("crossing", 0), 8)
+    for name, estimator in K_ESTIMATORS.items():
+        settings = replace(scenario.config.estimator, k_estimate=name)
+        result = WindowEstimator(config=replace(scenario.config, estimator=settings)).run(
+            scenario.scans
+        )
+        for report in result.windows:
+            assert report.chosen_tracks <= report.chosen_k
+            assert name != "marginal" or report.chosen_k == report.marginal_k
+            assert name != "joint" or report.chosen_tracks == report.joint_map_tracks
+        assert estimator.name == name
