@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.formulations.packing import PackingProblem
-from mapassoc.formulations.program import Program
+from mapassoc.formulations.program import Program, lagrangian_terms
 
 __all__ = [
     "fixed_variable_bounds",
@@ -47,16 +47,9 @@ def fixed_variable_bounds(
     ndarray, shape (n,)
         Includes ``program.constant``.
     """
-    y = np.maximum(np.asarray(ineq_duals, dtype=float), 0.0)
-    w = np.asarray(eq_duals, dtype=float)
-    if y.shape != (program.A_ub.shape[0],) or w.shape != (program.A_eq.shape[0],):
-        raise ValueError(
-            f"ineq_duals must have shape ({program.A_ub.shape[0]},) and eq_duals "
-            f"({program.A_eq.shape[0]},), got {y.shape} and {w.shape}"
-        )
+    y, w, d = lagrangian_terms(program, ineq_duals, eq_duals)
     if np.any(program.lower < 0) or np.any(program.upper > 1):
         raise ValueError("fixed_variable_bounds needs every variable bounded in [0, 1]")
-    d = program.objective - program.A_ub.T @ y - program.A_eq.T @ w
     total = float(y @ program.b_ub + w @ program.b_eq + np.sum(np.maximum(d, 0.0)))
     return total - np.maximum(d, 0.0) + d + program.constant
 

@@ -16,13 +16,14 @@ solutions; solvers only see arrays.  This module imports no solver library.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-__all__ = ["Program", "FlowProgram"]
+__all__ = ["Program", "FlowProgram", "lagrangian_bound", "lagrangian_terms"]
 
 
 def _frozen(a: NDArray) -> NDArray:
@@ -212,3 +213,79 @@ class FlowProgram:
     @property
     def num_edges(self) -> int:
         return int(self.tails.shape[0])
+
+
+def lagrangian_terms(
+    program: Program,
+    ineq_duals: NDArray[np.float64],
+    eq_duals: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Multipliers and reduced objective of the Lagrangian of ``program``.
+
+    For ``y >= 0`` (one per ``A_ub`` row) and any ``w`` (one per ``A_eq`` row), every
+    feasible ``x`` has ``c x <= b_ub y + b_eq w + r x`` with ``r = c - A_ubᵀ y - A_eqᵀ w``
+    (weak duality).  Negative entries of ``ineq_duals`` (solver round-off) are replaced by
+    0: any non-negative multipliers give a valid bound.
+
+    Returns
+    -------
+    y : ndarray, shape (r,)
+        ``max(ineq_duals, 0)``.
+    w : ndarray, shape (q,)
+    reduced : ndarray, shape (n,)
+        ``r``.
+
+    Raises
+    ------
+    ValueError
+        Wrong shapes or non-finite multipliers.
+    """
+    y = np.asarray(ineq_duals, dtype=float)
+    w = np.asarray(eq_duals, dtype=float)
+    if y.shape != (program.A_ub.shape[0],) or w.shape != (program.A_eq.shape[0],):
+        raise ValueError(
+            f"ineq_duals must have shape ({program.A_ub.shape[0]},) and eq_duals "
+            f"({program.A_eq.shape[0]},), got {y.shape} and {w.shape}"
+        )
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(w))):
+        raise ValueError("duals must be finite")
+    y_nonnegative = np.maximum(y, 0.0)
+    reduced = program.objective - program.A_ub.T @ y_nonnegative - program.A_eq.T @ w
+    return y_nonnegative, w, reduced
+
+
+def lagrangian_bound(
+    program: Program,
+    ineq_duals: NDArray[np.float64],
+    eq_duals: NDArray[np.float64],
+) -> float:
+    """Upper bound on the program's optimum from any multipliers (weak duality).
+
+    ::
+
+        max {c x + const : A_ub x <= b_ub, A_eq x = b_eq, l <= x <= u}
+            <= const + b_ub y + b_eq w + Σ_i max_{l_i <= x_i <= u_i} r_i x_i,
+
+    with ``y, w, r`` of :func:`lagrangian_terms`; it also bounds the integer optimum.
+
+    Returns
+    -------
+    float
+        The bound; ``inf`` if some ``r_i`` pushes towards an infinite variable bound.
+    """
+    y, w, reduced = lagrangian_terms(program, ineq_duals, eq_duals)
+    box_terms = np.zeros(program.num_variables)
+    up, down = reduced > 0, reduced < 0
+    with np.errstate(invalid="ignore"):
+        box_terms[up] = reduced[up] * program.upper[up]
+        box_terms[down] = reduced[down] * program.lower[down]
+    return float(
+        math.fsum(
+            [
+                program.constant,
+                float(program.b_ub @ y),
+                float(program.b_eq @ w),
+                *box_terms.tolist(),
+            ]
+        )
+    )

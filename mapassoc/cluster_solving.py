@@ -51,9 +51,16 @@ from mapassoc.formulations.cardinality import (
 )
 from mapassoc.formulations.frontier import frontier_search
 from mapassoc.formulations.packing import PackingProblem, decode_selection, set_packing_program
-from mapassoc.solvers import HighsSolver, LPResult, ProgramSolver, SolverError, SolveStatus
+from mapassoc.solvers import (
+    HighsSolver,
+    LPResult,
+    ProgramSolver,
+    RelaxationSolver,
+    SolverError,
+    SolveStatus,
+)
 
-__all__ = ["ClusterReport", "ClusterSolver", "CLUSTER_STATUSES"]
+__all__ = ["ClusterReport", "ClusterSolver", "CLUSTER_STATUSES", "default_lp_solver"]
 
 CLUSTER_STATUSES = ("exact", "bounded", "time_limit")
 """From best to worst; a window reports the worst of its clusters."""
@@ -120,6 +127,18 @@ def _log_sum(values: NDArray[np.float64]) -> float:
     return float(np.logaddexp.reduce(finite))
 
 
+def default_lp_solver(solver: ProgramSolver) -> RelaxationSolver:
+    """The LP-relaxation backend that goes with an integer-program backend.
+
+    ``solver`` itself when it declares ``supports_relaxation`` (it implements
+    :class:`~mapassoc.solvers.RelaxationSolver`), otherwise a default
+    :class:`~mapassoc.solvers.HighsSolver` (simplex duals at a vertex).
+    """
+    if getattr(solver, "supports_relaxation", False):
+        return solver  # type: ignore[return-value]
+    return HighsSolver()
+
+
 class ClusterSolver:
     """Solves the clusters of a window: exact frontier search, else certified bounds.
 
@@ -127,8 +146,10 @@ class ClusterSolver:
     ----------
     solver : ProgramSolver
         Exact integer-program backend.
-    lp_solver : HighsSolver
-        Backend of the LP relaxations (it must return duals).
+    lp_solver : RelaxationSolver or None, default None
+        Backend of the LP relaxations (``solve_relaxation``, with duals).  ``None``
+        (default) picks :func:`default_lp_solver` of ``solver``: ``solver`` itself when
+        it has ``supports_relaxation``, else a :class:`~mapassoc.solvers.HighsSolver`.
     exact_work_limit : int
         Transitions the exact frontier search may take per cluster.
     beam_width : int
@@ -148,7 +169,7 @@ class ClusterSolver:
         self,
         *,
         solver: ProgramSolver,
-        lp_solver: HighsSolver,
+        lp_solver: RelaxationSolver | None = None,
         exact_work_limit: int,
         beam_width: int,
         prune_log_ratio: float,
@@ -156,7 +177,7 @@ class ClusterSolver:
         bound_prune_min_hypotheses: int = BOUND_PRUNE_MIN_HYPOTHESES,
     ) -> None:
         self.solver = solver
-        self.lp_solver = lp_solver
+        self.lp_solver = default_lp_solver(solver) if lp_solver is None else lp_solver
         self.exact_work_limit = int(exact_work_limit)
         self.beam_width = int(beam_width)
         self.prune_log_ratio = float(prune_log_ratio)

@@ -11,6 +11,11 @@ Backends (one module each) consume :class:`~mapassoc.formulations.program.Progra
 * :class:`NetworkxFlowSolver` (``"networkx-flow"``): min-cost flow for every K.
 * :func:`solve_k_best`: the m best distinct points of a binary program by no-good cuts.
 
+One table, :data:`SOLVERS` (:mod:`mapassoc.solvers.registry`), names every backend with
+its capabilities; :func:`get_solver` builds one.  Backends with ``supports_relaxation``
+are :class:`RelaxationSolver`: ``solve_relaxation`` returns the LP relaxation with duals.
+Optional libraries (cvxpy, networkx) are imported on first use, not by this package.
+
 Infeasible, unbounded and limited solves are :class:`SolveStatus` values; only a broken
 or misused backend raises :class:`SolverError`.
 """
@@ -20,13 +25,21 @@ from mapassoc.solvers.enumeration import EnumerationSolver, enumerate_feasible
 from mapassoc.solvers.highs import HighsSolver
 from mapassoc.solvers.k_best import no_good_cut, solve_k_best
 from mapassoc.solvers.networkx_flow import NetworkxFlowSolver
-from mapassoc.solvers.registry import SOLVER_NAMES, available_solvers, get_solver
+from mapassoc.solvers.registry import (
+    SOLVER_NAMES,
+    SOLVERS,
+    SolverSpec,
+    available_solvers,
+    get_solver,
+    solver_spec,
+)
 from mapassoc.solvers.results import (
     EnumerationResult,
     FlowResult,
     FlowSolver,
     LPResult,
     ProgramSolver,
+    RelaxationSolver,
     SolverError,
     SolveResult,
     SolveStatus,
@@ -42,14 +55,18 @@ __all__ = [
     "LPResult",
     "NetworkxFlowSolver",
     "ProgramSolver",
+    "RelaxationSolver",
+    "SOLVERS",
     "SOLVER_NAMES",
     "SolveResult",
     "SolveStatus",
     "SolverError",
+    "SolverSpec",
     "available_solvers",
     "enumerate_feasible",
     "get_solver",
     "lagrangian_bound",
     "no_good_cut",
     "solve_k_best",
+    "solver_spec",
 ]

@@ -15,7 +15,9 @@ solution but with HiGHS's MIP dual bound.
 Both backends return :class:`LPResult`.  For continuous programs that end OPTIMAL it
 carries the duals of the ``A_ub`` and ``A_eq`` rows (``d optimum / d b``) and ``bound``
 is :func:`lagrangian_bound` evaluated at those duals, a bound that is valid whatever the
-duals' accuracy.  cvxpy is imported on first use (it takes about a second).
+duals' accuracy.  :meth:`CvxpySolver.solve_relaxation` solves ``program.relaxed()``
+with either backend (the relaxation capability of the solver protocol).  cvxpy is
+imported on first use (it takes about a second).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from mapassoc.formulations.program import Program
+from mapassoc.formulations.program import Program, lagrangian_bound
 from mapassoc.solvers._common import (
     all_bounds_finite,
     empty_program_is_feasible,
@@ -50,61 +52,17 @@ _CVXPY_STATUS_WARNINGS = (
 #: cvxpy solver names this module drives, and whether each accepts integer variables.
 CVXPY_BACKENDS: dict[str, bool] = {"CLARABEL": False, "HIGHS": True}
 
-
-def lagrangian_bound(
-    program: Program,
-    ineq_duals: NDArray[np.float64],
-    eq_duals: NDArray[np.float64],
-) -> float:
-    """Upper bound on the program's optimum from any multipliers (weak duality).
-
-    For ``y >= 0`` (one per ``A_ub`` row) and any ``w`` (one per ``A_eq`` row)::
-
-        max {c x + const : A_ub x <= b_ub, A_eq x = b_eq, l <= x <= u}
-            <= const + b_ub y + b_eq w + Σ_i max_{l_i <= x_i <= u_i} r_i x_i,
-        r = c - A_ubᵀ y - A_eqᵀ w,
-
-    which also bounds the integer optimum.  Negative entries of ``ineq_duals``
-    (interior-point round-off) are replaced by 0 *for this evaluation only*: the bound
-    stays valid for any multipliers, so this only chooses which valid bound is computed.
-
-    Parameters
-    ----------
-    program : Program
-    ineq_duals : ndarray, shape (r,)
-    eq_duals : ndarray, shape (q,)
-
-    Returns
-    -------
-    float
-        The bound; ``inf`` if some ``r_i`` pushes towards an infinite variable bound.
-    """
-    y = np.asarray(ineq_duals, dtype=float)
-    w = np.asarray(eq_duals, dtype=float)
-    if y.shape != (program.A_ub.shape[0],) or w.shape != (program.A_eq.shape[0],):
-        raise ValueError(
-            f"ineq_duals must have shape ({program.A_ub.shape[0]},) and eq_duals "
-            f"({program.A_eq.shape[0]},), got {y.shape} and {w.shape}"
-        )
-    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(w))):
-        raise ValueError("duals must be finite")
-    y_nonnegative = np.maximum(y, 0.0)
-    reduced = program.objective - program.A_ub.T @ y_nonnegative - program.A_eq.T @ w
-    box_terms = np.zeros(program.num_variables)
-    up, down = reduced > 0, reduced < 0
-    with np.errstate(invalid="ignore"):
-        box_terms[up] = reduced[up] * program.upper[up]
-        box_terms[down] = reduced[down] * program.lower[down]
-    return float(
-        math.fsum(
-            [
-                program.constant,
-                float(program.b_ub @ y_nonnegative),
-                float(program.b_eq @ w),
-                *box_terms.tolist(),
-            ]
-        )
-    )
+#: cvxpy status strings (``cvxpy.settings``) with an unambiguous :class:`SolveStatus`.
+#: ``infeasible_or_unbounded`` and ``user_limit`` depend on the program and the clock
+#: (see :meth:`CvxpySolver._translate`); every other string (``*_inaccurate``,
+#: ``solver_error``, ...) is FAILED.
+_CVXPY_STATUSES: dict[str, SolveStatus] = {
+    "optimal": SolveStatus.OPTIMAL,
+    "infeasible": SolveStatus.INFEASIBLE,
+    "unbounded": SolveStatus.UNBOUNDED,
+}
+_CVXPY_INFEASIBLE_OR_UNBOUNDED = "infeasible_or_unbounded"
+_CVXPY_USER_LIMIT = "user_limit"
 
 
 def _selection(indices: NDArray[np.intp], n: int) -> sp.csr_matrix:
@@ -131,6 +89,7 @@ class CvxpySolver:
     """
 
     supports_flow = False
+    supports_relaxation = True
 
     def __init__(self, *, backend: str = "CLARABEL") -> None:
         if backend not in CVXPY_BACKENDS:
@@ -244,6 +203,25 @@ class CvxpySolver:
             point = snap_integer_variables(program, point, self.name)
         return self._translate(program, problem, point, ub_rows, eq_rows, limit, seconds)
 
+    def solve_relaxation(self, program: Program, *, time_limit: float | None = None) -> LPResult:
+        """Solve the LP relaxation (``program.relaxed()``) and return it with its duals.
+
+        Parameters
+        ----------
+        program : Program
+            Integrality, if any, is ignored (the relaxation is solved).
+        time_limit : float or None
+
+        Returns
+        -------
+        LPResult
+            Duals set when OPTIMAL; ``bound`` is :func:`lagrangian_bound` at those duals.
+        """
+        if not isinstance(program, Program):
+            raise TypeError(f"program must be a Program, got {type(program).__name__}")
+        return self.solve(program.relaxed() if program.is_integer else program,
+                          time_limit=time_limit)
+
     def _empty(self, program: Program, seconds: float) -> LPResult:
         if empty_program_is_feasible(program, 1e-9):
             return LPResult(
@@ -277,8 +255,8 @@ class CvxpySolver:
         stats = problem.solver_stats.extra_stats if problem.solver_stats else None
         mip_dual_bound = getattr(stats, "mip_dual_bound", None) if program.is_integer else None
 
-        if status_text == "optimal":
-            status = SolveStatus.OPTIMAL
+        status = _CVXPY_STATUSES.get(status_text, SolveStatus.FAILED)
+        if status is SolveStatus.OPTIMAL:
             if program.is_integer:
                 if mip_dual_bound is not None:
                     bound = -float(mip_dual_bound) + program.constant
@@ -286,14 +264,12 @@ class CvxpySolver:
                 ineq_duals = self._duals(ub_rows, program.A_ub.shape[0])
                 eq_duals = self._duals(eq_rows, program.A_eq.shape[0])
                 bound = lagrangian_bound(program, ineq_duals, eq_duals)
-        elif status_text == "infeasible":
-            status, point = SolveStatus.INFEASIBLE, None
-        elif status_text == "unbounded":
-            status, point = SolveStatus.UNBOUNDED, None
-        elif status_text == "infeasible_or_unbounded" and all_bounds_finite(program):
+        elif status in (SolveStatus.INFEASIBLE, SolveStatus.UNBOUNDED):
+            point = None
+        elif status_text == _CVXPY_INFEASIBLE_OR_UNBOUNDED and all_bounds_finite(program):
             status, point = SolveStatus.INFEASIBLE, None
             message += "; all variables have finite bounds, so the program is infeasible"
-        elif status_text == "user_limit":
+        elif status_text == _CVXPY_USER_LIMIT:
             # cvxpy merges time and iteration limits into user_limit; elapsed time (which
             # includes cvxpy's compilation) tells them apart.
             timed_out = limit is not None and seconds >= limit
@@ -302,7 +278,7 @@ class CvxpySolver:
                 bound = -float(mip_dual_bound) + program.constant
         else:  # *_inaccurate, solver_error, unknown, ambiguous infeasible_or_unbounded
             status = SolveStatus.FAILED
-            if status_text == "infeasible_or_unbounded":
+            if status_text == _CVXPY_INFEASIBLE_OR_UNBOUNDED:
                 message += (
                     "; the solver cannot tell infeasible from unbounded because some "
                     "variable bounds are infinite"

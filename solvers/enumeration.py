@@ -231,6 +231,7 @@ class EnumerationSolver:
     name = _NAME
     supports_integer = True
     supports_flow = False
+    supports_relaxation = False
     exact = True
 
     def __init__(

@@ -44,6 +44,14 @@ _SCIPY_LIMIT = 1
 _SCIPY_INFEASIBLE = 2
 _SCIPY_UNBOUNDED = 3
 
+# linprog(method="highs") uses the same codes; a limit is refined to TIME_LIMIT by message.
+_LINPROG_STATUSES: dict[int, SolveStatus] = {
+    _SCIPY_OPTIMAL: SolveStatus.OPTIMAL,
+    _SCIPY_LIMIT: SolveStatus.WORK_LIMIT,
+    _SCIPY_INFEASIBLE: SolveStatus.INFEASIBLE,
+    _SCIPY_UNBOUNDED: SolveStatus.UNBOUNDED,
+}
+
 
 class HighsSolver:
     """Exact MILP/LP backend: HiGHS branch and bound / simplex via ``scipy.optimize.milp``.
@@ -63,6 +71,7 @@ class HighsSolver:
     name = "highs"
     supports_integer = True
     supports_flow = False
+    supports_relaxation = True
     exact = True
 
     def __init__(
@@ -177,13 +186,7 @@ class HighsSolver:
         )
         seconds = time.perf_counter() - started
         code = int(raw.status)
-        statuses = {
-            0: SolveStatus.OPTIMAL,
-            1: SolveStatus.WORK_LIMIT,
-            2: SolveStatus.INFEASIBLE,
-            3: SolveStatus.UNBOUNDED,
-        }
-        status = statuses.get(code, SolveStatus.FAILED)
+        status = _LINPROG_STATUSES.get(code, SolveStatus.FAILED)
         if status is SolveStatus.WORK_LIMIT and "time limit" in str(raw.message).lower():
             status = SolveStatus.TIME_LIMIT
         if status is not SolveStatus.OPTIMAL:

@@ -14,22 +14,37 @@ at the source and demand K at the sink (negative-cost cycles, parallel edges and
 self-loops are handled by networkx).  The feasible flow values form the interval
 ``0..maximum_flow_value``, computed once; larger K are INFEASIBLE without a simplex call.
 The minimum cost is a convex function of K on that interval (parametric min-cost flow).
+networkx is imported on first use, so importing :mod:`mapassoc.solvers` does not load it.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
-import networkx as nx
 import numpy as np
 
 from mapassoc.formulations.program import FlowProgram
-from mapassoc.solvers.results import FlowResult, SolveStatus, validate_time_limit
+from mapassoc.solvers.results import (
+    FlowResult,
+    SolverError,
+    SolveStatus,
+    validate_time_limit,
+)
 
 __all__ = ["NetworkxFlowSolver"]
 
 _EXACT_INTEGER_LIMIT = 2.0**53
+
+
+def _networkx() -> Any:
+    """networkx, imported on first use (importing :mod:`mapassoc.solvers` stays light)."""
+    try:
+        import networkx
+    except ImportError as error:
+        raise SolverError(f"networkx-flow: networkx is not importable ({error})") from error
+    return networkx
 
 
 class NetworkxFlowSolver:
@@ -44,6 +59,7 @@ class NetworkxFlowSolver:
     name = "networkx-flow"
     supports_integer = False
     supports_flow = True
+    supports_relaxation = False
     exact = True
 
     def __init__(self, *, cost_scale: float = 1e6) -> None:
@@ -95,6 +111,7 @@ class NetworkxFlowSolver:
                 f"flow_program must be a FlowProgram, got {type(flow_program).__name__}"
             )
         limit = validate_time_limit(time_limit)
+        nx = _networkx()
         started = time.perf_counter()
         scaled = self.integer_costs(flow_program)
         num_edges = flow_program.num_edges
@@ -154,6 +171,7 @@ class NetworkxFlowSolver:
 
 def _maximum_flow_value(flow_program: FlowProgram) -> int:
     """Largest feasible flow value from source to sink (parallel edges merged)."""
+    nx = _networkx()
     merged = nx.DiGraph()
     merged.add_nodes_from(range(flow_program.num_nodes))
     for tail, head, capacity in zip(

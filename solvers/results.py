@@ -36,6 +36,7 @@ __all__ = [
     "FlowResult",
     "SolverError",
     "ProgramSolver",
+    "RelaxationSolver",
     "FlowSolver",
     "validate_time_limit",
 ]
@@ -248,15 +249,31 @@ class ProgramSolver(Protocol):
     ``supports_integer``: accepts programs with integer variables.  ``exact``: an OPTIMAL
     status is a proven optimum at a vertex / integer point, fit to serve as an oracle and
     for k-best enumeration (interior-point backends are not exact: on ties they return
-    the midpoint of the optimal face).
+    the midpoint of the optimal face).  ``supports_relaxation``: the backend also is a
+    :class:`RelaxationSolver` (it has ``solve_relaxation``, returning duals).
     """
 
     name: str
     supports_integer: bool
     supports_flow: bool
+    supports_relaxation: bool
     exact: bool
 
     def solve(self, program: Program, *, time_limit: float | None = None) -> SolveResult: ...
+
+
+class RelaxationSolver(ProgramSolver, Protocol):
+    """A :class:`ProgramSolver` that solves LP relaxations with their duals.
+
+    Backends with ``supports_relaxation = True`` implement it.  ``solve_relaxation``
+    ignores the program's integrality and returns an :class:`LPResult` whose
+    ``ineq_duals`` / ``eq_duals`` are ``d optimum / d b`` (set when OPTIMAL) and whose
+    ``bound`` is a proven upper bound on the relaxation's optimum.
+    """
+
+    def solve_relaxation(
+        self, program: Program, *, time_limit: float | None = None
+    ) -> LPResult: ...
 
 
 class FlowSolver(Protocol):
@@ -265,6 +282,7 @@ class FlowSolver(Protocol):
     name: str
     supports_integer: bool
     supports_flow: bool
+    supports_relaxation: bool
     exact: bool
 
     def solve_flow(
