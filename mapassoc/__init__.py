@@ -32,6 +32,7 @@ _EXPORTS: dict[str, str] = {
     "ConstantAcceleration": "mapassoc.motion",
     "RandomWalk": "mapassoc.motion",
     "CoordinatedTurn": "mapassoc.motion",
+    "Singer": "mapassoc.motion",
     "LinearMeasurement": "mapassoc.measurement",
     "RangeBearing": "mapassoc.measurement",
     "Sensor": "mapassoc.sensor",

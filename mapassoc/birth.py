@@ -13,6 +13,10 @@ track therefore starts in a 2-D constant-velocity state ``(x, y, vx, vy)`` (the
 is observed (first-order conversion through the polar Jacobian; turn rate
 ``N(0, turn_rate_std^2)``).  For every other model the initiation model is the motion
 model itself and the conversion is the identity.
+
+Each model says all this itself (:class:`~mapassoc.motion.MotionModel`:
+``initiation_model``, ``needs_conversion``, ``birth_prior``, ``convert_initiated``); the
+functions here delegate to it.
 """
 
 from __future__ import annotations
@@ -22,13 +26,7 @@ from numpy.typing import NDArray
 
 from mapassoc.errors import InputError
 from mapassoc.measurement import LinearMeasurement, MeasurementModel
-from mapassoc.motion import (
-    ConstantAcceleration,
-    ConstantVelocity,
-    CoordinatedTurn,
-    MotionModel,
-    RandomWalk,
-)
+from mapassoc.motion import MotionModel
 from mapassoc.settings import BirthModel
 
 __all__ = [
@@ -45,10 +43,7 @@ FloatArray = NDArray[np.float64]
 
 def initiation_model(motion: MotionModel) -> MotionModel:
     """The motion model a track uses until its second detection."""
-    if isinstance(motion, CoordinatedTurn):
-        # Along-track acceleration noise of the turn model, spread on both axes.
-        return ConstantVelocity(ndim=2, noise_intensity=motion.speed_noise_intensity)
-    return motion
+    return motion.initiation_model()
 
 
 def initiation_measurement(motion: MotionModel, measurement: MeasurementModel) -> MeasurementModel:
@@ -83,7 +78,7 @@ def initiation_measurement(motion: MotionModel, measurement: MeasurementModel) -
 
 def needs_conversion(motion: MotionModel) -> bool:
     """Whether :func:`convert_initiated` changes the state space of ``motion``."""
-    return isinstance(motion, CoordinatedTurn)
+    return motion.needs_conversion()
 
 
 def birth_state(
@@ -118,16 +113,16 @@ def birth_state(
     x[idx] = pos
     P[np.ix_(idx, idx)] = pos_cov
     rest = [i for i in range(n) if i not in idx]
-    if isinstance(model, ConstantVelocity):
-        P[rest, rest] = birth.velocity_std**2
-    elif isinstance(model, ConstantAcceleration):
-        d = model.ndim
-        P[rest[:d], rest[:d]] = birth.velocity_std**2
-        P[rest[d:], rest[d:]] = birth.acceleration_std**2
-    elif isinstance(model, RandomWalk):
-        pass
-    else:
-        raise InputError(f"no birth prior is defined for motion model {type(model).__name__}")
+    mean, cov = model.birth_prior(birth)
+    if np.shape(mean) != (len(rest),) or np.shape(cov) != (len(rest), len(rest)):
+        raise InputError(
+            f"the birth prior of {type(model).__name__} has shapes {np.shape(mean)}, "
+            f"{np.shape(cov)}; expected ({len(rest)},) and ({len(rest)}, {len(rest)}) for its "
+            "unmeasured components"
+        )
+    if rest:
+        x[rest] = mean
+        P[np.ix_(rest, rest)] = cov
     return x, P
 
 
@@ -170,20 +165,4 @@ def convert_initiated(
     x : ndarray, shape (n,)
     P : ndarray, shape (n, n)
     """
-    if not isinstance(motion, CoordinatedTurn):
-        return x, P
-    px, py, vx, vy = x
-    speed = float(np.hypot(vx, vy))
-    if speed == 0.0:
-        raise InputError(
-            "cannot convert a zero-velocity initiation state to coordinated turn "
-            "(heading undefined)"
-        )
-    J = np.zeros((5, 4))
-    J[0, 0] = J[1, 1] = 1.0
-    J[2, 2], J[2, 3] = vx / speed, vy / speed
-    J[3, 2], J[3, 3] = -vy / speed**2, vx / speed**2
-    x_ct = np.array([px, py, speed, np.arctan2(vy, vx), 0.0])
-    P_ct = J @ P @ J.T
-    P_ct[4, 4] = birth.turn_rate_std**2
-    return x_ct, 0.5 * (P_ct + P_ct.T)
+    return motion.convert_initiated(x, P, birth)

@@ -4,10 +4,12 @@ Schema (unknown keys anywhere are an error; every value is checked)::
 
     [motion]
     model = "constant_velocity"   # constant_velocity | constant_acceleration | random_walk
-                                  # | coordinated_turn
+                                  # | coordinated_turn | singer
     ndim = 2                      # 1, 2 or 3; linear models only (coordinated_turn is 2-D)
-    noise_intensity = 0.5         # linear models only
+    noise_intensity = 0.5         # constant_velocity, constant_acceleration, random_walk
     # coordinated_turn instead: speed_noise_intensity = ..., turn_rate_noise_intensity = ...
+    # singer instead: ndim, time_constant = ... (tau > 0), acceleration_std = ... (> 0)
+    # (the keys of each model: mapassoc.motion.MOTION_REGISTRY)
 
     [[sensors]]                   # one table per sensor, at least one, distinct names
     name = "radar"
@@ -46,13 +48,7 @@ import numpy as np
 
 from mapassoc.errors import ConfigError, InputError
 from mapassoc.measurement import LinearMeasurement, MeasurementModel, RangeBearing
-from mapassoc.motion import (
-    ConstantAcceleration,
-    ConstantVelocity,
-    CoordinatedTurn,
-    MotionModel,
-    RandomWalk,
-)
+from mapassoc.motion import MOTION_REGISTRY, MotionModel, motion_spec
 from mapassoc.sensor import Region, Sensor
 from mapassoc.settings import BirthModel, EstimatorSettings
 from mapassoc.validation import check_nonnegative, check_positive, check_probability
@@ -69,14 +65,11 @@ __all__ = [
 
 PathLike = str | os.PathLike[str]
 
-MOTION_MODELS = ("constant_velocity", "constant_acceleration", "random_walk", "coordinated_turn")
+MOTION_MODELS = tuple(MOTION_REGISTRY)
+"""Motion model names registered when this module was imported (see
+:data:`mapassoc.motion.MOTION_REGISTRY`, which the reader and writer use)."""
 MEASUREMENTS = ("position", "range_bearing")
 
-_LINEAR_MOTION = {
-    "constant_velocity": ConstantVelocity,
-    "constant_acceleration": ConstantAcceleration,
-    "random_walk": RandomWalk,
-}
 _SECTIONS = ("motion", "sensors", "birth", "estimator")
 _SENSOR_COMMON_KEYS = (
     "name",
@@ -255,27 +248,25 @@ def _parse_motion(parser: _Parser, data: Mapping[str, object]) -> MotionModel:
     if "motion" not in data:
         raise parser.fail("motion", "missing required section [motion]")
     table = parser.table(data["motion"], "motion")
-    model = parser.choice(parser.required(table, "motion", "model"), "motion.model", MOTION_MODELS)
-    if model == "coordinated_turn":
-        allowed = ("model", "speed_noise_intensity", "turn_rate_noise_intensity")
-        parser.only_keys(table, "motion", allowed, "for coordinated_turn (always 2-D)")
-        speed = parser.positive(
-            parser.required(table, "motion", "speed_noise_intensity"),
-            "motion.speed_noise_intensity",
-        )
-        turn = parser.positive(
-            parser.required(table, "motion", "turn_rate_noise_intensity"),
-            "motion.turn_rate_noise_intensity",
-        )
-        return CoordinatedTurn(speed_noise_intensity=speed, turn_rate_noise_intensity=turn)
-    parser.only_keys(table, "motion", ("model", "ndim", "noise_intensity"), f"for {model}")
-    ndim = parser.integer(parser.required(table, "motion", "ndim"), "motion.ndim")
-    if ndim not in (1, 2, 3):
-        raise parser.fail("motion.ndim", f"must be 1, 2 or 3 spatial dimensions, got {ndim!r}")
-    intensity = parser.positive(
-        parser.required(table, "motion", "noise_intensity"), "motion.noise_intensity"
-    )
-    return _LINEAR_MOTION[model](ndim=ndim, noise_intensity=intensity)
+    names = tuple(MOTION_REGISTRY)
+    model = parser.choice(parser.required(table, "motion", "model"), "motion.model", names)
+    spec = MOTION_REGISTRY[model]
+    parser.only_keys(table, "motion", spec.keys, spec.context)
+    values: dict[str, object] = {}
+    for setting in spec.settings:
+        key = f"motion.{setting.key}"
+        raw = parser.required(table, "motion", setting.key)
+        if setting.kind == "ndim":
+            ndim = parser.integer(raw, key)
+            if ndim not in (1, 2, 3):
+                raise parser.fail(key, f"must be 1, 2 or 3 spatial dimensions, got {ndim!r}")
+            values[setting.key] = ndim
+        else:
+            values[setting.key] = parser.positive(raw, key)
+    try:
+        return spec.cls(**values)
+    except InputError as exc:  # a model's own cross-checks of its settings
+        raise parser.fail("motion", str(exc)) from None
 
 
 def _parse_region(
@@ -554,20 +545,15 @@ def _toml_floats(values: object) -> str:
 
 
 def _motion_lines(motion: MotionModel) -> list[str]:
-    if isinstance(motion, CoordinatedTurn):
-        return [
-            'model = "coordinated_turn"',
-            f"speed_noise_intensity = {_toml_float(motion.speed_noise_intensity)}",
-            f"turn_rate_noise_intensity = {_toml_float(motion.turn_rate_noise_intensity)}",
-        ]
-    for name, cls in _LINEAR_MOTION.items():
-        if type(motion) is cls:
-            return [
-                f"model = {_toml_string(name)}",
-                f"ndim = {motion.ndim}",
-                f"noise_intensity = {_toml_float(motion.noise_intensity)}",
-            ]
-    raise ConfigError("motion", f"cannot write motion model {motion!r} as TOML")
+    spec = motion_spec(motion)
+    if spec is None:
+        raise ConfigError("motion", f"cannot write motion model {motion!r} as TOML")
+    lines = [f"model = {_toml_string(spec.name)}"]
+    for setting in spec.settings:
+        value = getattr(motion, setting.key)
+        written = str(int(value)) if setting.kind == "ndim" else _toml_float(value)
+        lines.append(f"{setting.key} = {written}")
+    return lines
 
 
 def _measurement_lines(measurement: MeasurementModel, motion: MotionModel, key: str) -> list[str]:

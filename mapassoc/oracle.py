@@ -36,11 +36,15 @@ heading wrapped to (-pi, pi].  A coordinated-turn target detected at a single ti
 velocity information: its rows report speed, heading and turn rate 0 with the variances
 ``speed_std^2``, ``pi^2 / 3`` (a heading uniform on (-pi, pi]) and ``turn_rate_std^2`` of
 the birth model.
+
+The model-specific pieces of this (initiation model, conversion and its inverse,
+the turn rate taken from the conversion step, canonical form, states of unconverted tracks)
+are methods of the motion model (:class:`mapassoc.motion.MotionModel`); the code here
+works for any model that converts, with dimensions from ``state_dim``.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -57,7 +61,6 @@ from mapassoc.config import Config
 from mapassoc.errors import InputError
 from mapassoc.io import Origins, TrackTable
 from mapassoc.kalman import innovation, predict_motion, rts_smooth, update
-from mapassoc.measurement import wrap_angle
 from mapassoc.motion import MotionModel
 from mapassoc.scans import Scan, check_scan_order
 from mapassoc.settings import BirthModel
@@ -65,10 +68,6 @@ from mapassoc.settings import BirthModel
 __all__ = ["oracle_tracks"]
 
 FloatArray = NDArray[np.float64]
-
-# Variance of a heading uniform on (-pi, pi]: (2 pi)^2 / 12.
-_UNIFORM_HEADING_VARIANCE = math.pi**2 / 3.0
-
 
 class _Segment:
     """Filtered and predicted moments of consecutive steps in one state space.
@@ -115,97 +114,27 @@ class _Segment:
         )
 
 
-def _smooth_back_through_conversion(
-    x_ct_smoothed: FloatArray, P_ct_smoothed: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Smoothed initiation-model moments at the conversion step.
-
-    The conversion is a change of variables ``(vx, vy) -> (speed, heading)`` plus an
-    independent turn-rate prior: it adds no information about the constant-velocity
-    state.  For a linear change of variables ``x_ct = J x_cv + b`` the RTS gain of this
-    step is ``G = [J^-1, 0]`` and the smoothed moments are exactly the inverse map of the
-    smoothed turn-state moments (turn rate marginalised).  Here the inverse map
-    ``(x, y, speed, heading) -> (x, y, speed cos heading, speed sin heading)`` is applied
-    at the smoothed mean, with its Jacobian there for the covariance.  Linearising at the
-    smoothed mean, rather than at the filtered velocity of two detections, keeps the
-    early states as accurate as the rest of the track.
-
-    Parameters
-    ----------
-    x_ct_smoothed : ndarray, shape (5,)
-    P_ct_smoothed : ndarray, shape (5, 5)
-
-    Returns
-    -------
-    x_cv : ndarray, shape (4,)
-    P_cv : ndarray, shape (4, 4)
-    """
-    px, py, speed, heading = (float(v) for v in x_ct_smoothed[:4])
-    cos_h, sin_h = math.cos(heading), math.sin(heading)
-    x_cv = np.array([px, py, speed * cos_h, speed * sin_h])
-    J = np.zeros((4, 4))
-    J[0, 0] = J[1, 1] = 1.0
-    J[2, 2], J[2, 3] = cos_h, -speed * sin_h
-    J[3, 2], J[3, 3] = sin_h, speed * cos_h
-    P_cv = J @ P_ct_smoothed[:4, :4] @ J.T
-    return x_cv, 0.5 * (P_cv + P_cv.T)
-
-
-def _to_turn_space(
+def _to_model_space(
     motion: MotionModel,
-    x_cv: FloatArray,
-    P_cv: FloatArray,
+    x0: FloatArray,
+    P0: FloatArray,
     birth: BirthModel,
-    turn_rate: float,
-    turn_rate_variance: float,
+    x_conv: FloatArray,
+    P_conv: FloatArray,
 ) -> tuple[FloatArray, FloatArray]:
-    """A smoothed initiation-model state expressed in the coordinated-turn space."""
-    x, P = convert_initiated(motion, x_cv, P_cv, birth)
+    """A smoothed initiation-model state expressed in ``motion``'s space.
+
+    The components the conversion draws from the birth prior
+    (``motion.conversion_prior_indices``) are taken from the smoothed state ``x_conv,
+    P_conv`` at the conversion step instead.
+    """
+    x, P = convert_initiated(motion, x0, P0, birth)
     x = np.array(x, copy=True)
     P = np.array(P, copy=True)
-    x[4] = turn_rate
-    P[4, 4] = turn_rate_variance
-    return x, P
-
-
-def _canonical_turn_states(
-    states: FloatArray, covariances: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Coordinated-turn states with speed >= 0 and heading in (-pi, pi].
-
-    ``(speed, heading)`` and ``(-speed, heading + pi)`` are the same motion; an EKF whose
-    first heading estimate (from two noisy detections) is more than 90 degrees off can
-    settle on the negative-speed form.  The reflection ``speed -> -speed`` flips the signs
-    of the speed's covariances with the other components; the shift of the heading by pi
-    and its wrapping change no covariance.
-
-    Parameters
-    ----------
-    states : ndarray, shape (T, 5)
-    covariances : ndarray, shape (T, 5, 5)
-    """
-    states = np.array(states, dtype=float, copy=True)
-    covariances = np.array(covariances, dtype=float, copy=True)
-    reversed_ = states[:, 2] < 0.0
-    flip = np.ones(5)
-    flip[2] = -1.0
-    states[reversed_, 2] *= -1.0
-    states[reversed_, 3] += math.pi
-    covariances[reversed_] *= np.outer(flip, flip)
-    states[:, 3] = wrap_angle(states[:, 3])
-    return states, covariances
-
-
-def _undetermined_turn_state(
-    x_cv: FloatArray, P_cv: FloatArray, birth: BirthModel
-) -> tuple[FloatArray, FloatArray]:
-    """Coordinated-turn moments of a track detected at a single time (no velocity)."""
-    x = np.array([x_cv[0], x_cv[1], 0.0, 0.0, 0.0])
-    P = np.zeros((5, 5))
-    P[:2, :2] = P_cv[:2, :2]
-    P[2, 2] = birth.speed_std**2
-    P[3, 3] = _UNIFORM_HEADING_VARIANCE
-    P[4, 4] = birth.turn_rate_std**2
+    idx = list(motion.conversion_prior_indices)
+    if idx:
+        x[idx] = x_conv[idx]
+        P[np.ix_(idx, idx)] = P_conv[np.ix_(idx, idx)]
     return x, P
 
 
@@ -270,20 +199,23 @@ def _track(
         states, covariances = early.smooth()
         return scan_indices, states, covariances, rows
     if late is None:
-        # Detected at a single time: the velocity, hence speed and heading, is unknown.
-        xs_cv, Ps_cv = early.smooth()
-        pairs = [_undetermined_turn_state(a, b, birth) for a, b in zip(xs_cv, Ps_cv, strict=True)]
+        # Never converted (detected at a single time): e.g. no velocity, hence no heading.
+        xs_0, Ps_0 = early.smooth()
+        pairs = [motion.unconverted_state(a, b, birth) for a, b in zip(xs_0, Ps_0, strict=True)]
         return scan_indices, np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs]), rows
-    xs_ct, Ps_ct = late.smooth()
-    x_join, P_join = _smooth_back_through_conversion(xs_ct[0], Ps_ct[0])
-    xs_cv, Ps_cv = early.smooth(x_join, P_join)
+    n = motion.state_dim
+    xs_late, Ps_late = late.smooth()
+    x_join, P_join = motion.revert_conversion(xs_late[0], Ps_late[0])
+    xs_0, Ps_0 = early.smooth(x_join, P_join)
     early_states = [
-        _to_turn_space(motion, a, b, birth, float(xs_ct[0][4]), float(Ps_ct[0][4, 4]))
-        for a, b in zip(xs_cv[:-1], Ps_cv[:-1], strict=True)
+        _to_model_space(motion, a, b, birth, xs_late[0], Ps_late[0])
+        for a, b in zip(xs_0[:-1], Ps_0[:-1], strict=True)
     ]
-    states = np.concatenate([np.array([s[0] for s in early_states]).reshape(-1, 5), xs_ct])
-    covariances = np.concatenate([np.array([s[1] for s in early_states]).reshape(-1, 5, 5), Ps_ct])
-    states, covariances = _canonical_turn_states(states, covariances)
+    states = np.concatenate([np.array([s[0] for s in early_states]).reshape(-1, n), xs_late])
+    covariances = np.concatenate(
+        [np.array([s[1] for s in early_states]).reshape(-1, n, n), Ps_late]
+    )
+    states, covariances = motion.canonical_states(states, covariances)
     return scan_indices, states, covariances, rows
 
 

@@ -138,10 +138,7 @@ def _turning(
 
 
 def _speed(motion: MotionModel, state: FloatArray) -> float:
-    if isinstance(motion, CoordinatedTurn):
-        return abs(float(state[2]))
-    velocity = [state[i] for i in getattr(motion, "velocity_indices", ())]
-    return float(np.hypot(*velocity)) if len(velocity) == 2 else float(np.linalg.norm(velocity))
+    return motion.speed(state)
 
 
 def birth_model_for(motion: MotionModel, targets: Sequence[TargetSpec], plan: Plan) -> BirthModel:
@@ -177,11 +174,7 @@ def birth_model_for(motion: MotionModel, targets: Sequence[TargetSpec], plan: Pl
     alive_time = sum(min(t.death_time, last) - max(t.birth_time, first) for t in seen)
     hazard = max(deaths, 1) / max(alive_time, 1.0)
     top_speed = max(_speed(motion, t.initial_state) for t in seen)
-    top_turn = (
-        max(abs(float(t.initial_state[4])) for t in seen)
-        if isinstance(motion, CoordinatedTurn)
-        else 0.0
-    )
+    top_turn = max(abs(motion.turn_rate(t.initial_state)) for t in seen)
     return BirthModel(
         rate=max(0.01, births / len(plan)),
         initial_count=float(present),

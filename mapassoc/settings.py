@@ -38,7 +38,8 @@ class BirthModel:
     intensity, :mod:`mapassoc.population`), so a target's first detection, at the
     first scan or later, has density ``u * Pd / V`` with ``u`` that expected number.
     At its first detection a track starts (single-point initiation): the unmeasured
-    state components start from zero mean with the standard deviations below.
+    state components start from zero mean with the standard deviations below (each
+    motion model picks its own: ``MotionModel.birth_prior``, :mod:`mapassoc.motion`).
 
     Parameters
     ----------
@@ -52,7 +53,7 @@ class BirthModel:
         models), > 0.
     acceleration_std : float
         Prior standard deviation of each acceleration component at birth (constant
-        acceleration model), > 0.
+        acceleration and Singer models), > 0.
     speed_std : float
         Prior standard deviation of the speed at birth (coordinated turn), > 0.
     turn_rate_std : float
