@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -96,25 +96,14 @@ __all__ = [
     "CarriedTrack",
     "WindowDetections",
     "HypothesisNodes",
+    "CommittedTrack",
     "WindowHypotheses",
     "HypothesisGenerator",
 ]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-
-_LAYER_FIELDS = (
-    "parent",
-    "detection",
-    "alive",
-    "tree",
-    "initiated",
-    "num_detections",
-    "first_time",
-    "score",
-    "protected",
-)
-"""Per-node fields of a layer that are concatenated, pruned and stored together."""
+BoolArray = NDArray[np.bool_]
 
 _DENSE_GATING_PAIRS = 4096
 """Above this many (node, detection) pairs per scan, linear gating goes through a k-d tree."""
@@ -177,7 +166,14 @@ class WindowDetections:
 
 @dataclass(frozen=True, eq=False)
 class HypothesisNodes:
-    """Every kept node of a window's track trees (a node = a track's state at one scan).
+    """Nodes of a window's track trees (a node = a track's state at one scan).
+
+    One record of equal-length arrays, used for every set of nodes the generator
+    handles: the nodes created at one scan (a layer, before pruning), the frontier of
+    alive nodes grown at the next scan, and the window's kept nodes
+    (:attr:`WindowHypotheses.nodes`, where a node's id is its position and children
+    follow their parents).  Build records with :meth:`empty`, :meth:`concat` and
+    :meth:`take`.
 
     States of different state spaces (coordinated turn before and after initiation)
     share padded arrays; ``state_dims`` says how many leading entries are used.
@@ -187,7 +183,7 @@ class HypothesisNodes:
     parent : ndarray of int, shape (V,)
         Parent node, -1 for a root.
     layer : ndarray of int, shape (V,)
-        Scan position in the window.
+        Scan position in the window (-1 for a carried track's prior, before the window).
     detection : ndarray of int, shape (V,)
         Window detection used at this node, -1 for a miss or an end.
     alive : ndarray of bool, shape (V,)
@@ -198,6 +194,10 @@ class HypothesisNodes:
         Detections used along the path including this node (carried history included).
     first_time : ndarray, shape (V,)
         Time of the track's first detection.
+    score : ndarray, shape (V,)
+        Log-likelihood ratio of the path from the root to this node.
+    protected : ndarray of bool, shape (V,)
+        Never pruned (the leaf of a carried tree that uses no detection).
     means : ndarray, shape (V, n_max)
     covariances : ndarray, shape (V, n_max, n_max)
     state_dims : ndarray of int, shape (V,)
@@ -206,14 +206,70 @@ class HypothesisNodes:
     parent: IntArray
     layer: IntArray
     detection: IntArray
-    alive: NDArray[np.bool_]
+    alive: BoolArray
     tree: IntArray
-    initiated: NDArray[np.bool_]
+    initiated: BoolArray
     num_detections: IntArray
     first_time: FloatArray
+    score: FloatArray
+    protected: BoolArray
     means: FloatArray
     covariances: FloatArray
     state_dims: IntArray
+
+    def __post_init__(self) -> None:
+        n = len(self.parent)
+        for name in _NODE_FIELDS:
+            if len(getattr(self, name)) != n:
+                raise ValueError(
+                    f"node field '{name}' has {len(getattr(self, name))} entries, "
+                    f"'parent' has {n}"
+                )
+
+    def __len__(self) -> int:
+        return int(self.parent.shape[0])
+
+    @classmethod
+    def empty(cls, state_dim: int = 0) -> HypothesisNodes:
+        """No nodes; states padded to ``state_dim``."""
+        i = np.zeros(0, dtype=np.int64)
+        b = np.zeros(0, dtype=bool)
+        f = np.zeros(0, dtype=float)
+        return cls(
+            parent=i,
+            layer=i.copy(),
+            detection=i.copy(),
+            alive=b,
+            tree=i.copy(),
+            initiated=b.copy(),
+            num_detections=i.copy(),
+            first_time=f,
+            score=f.copy(),
+            protected=b.copy(),
+            means=np.zeros((0, state_dim)),
+            covariances=np.zeros((0, state_dim, state_dim)),
+            state_dims=i.copy(),
+        )
+
+    @classmethod
+    def concat(cls, records: Sequence[HypothesisNodes], *, state_dim: int = 0) -> HypothesisNodes:
+        """The nodes of ``records`` one after the other (:meth:`empty` of ``state_dim`` if none).
+
+        Node ids are positions: ``parent`` is kept as it is, so it refers to the
+        concatenated record only when the records were numbered that way.
+        """
+        if not records:
+            return cls.empty(state_dim)
+        return cls(
+            **{name: np.concatenate([getattr(r, name) for r in records]) for name in _NODE_FIELDS}
+        )
+
+    def take(self, index: IntArray | BoolArray) -> HypothesisNodes:
+        """The nodes at ``index`` (positions, or a boolean mask of length ``len(self)``)."""
+        index = np.asarray(index)
+        if index.dtype == bool and index.shape != (len(self),):
+            raise ValueError(f"mask has shape {index.shape}, expected ({len(self)},)")
+        return type(self)(**{name: getattr(self, name)[index] for name in _NODE_FIELDS})
 
     def path(self, leaf: int) -> list[int]:
         """Node ids from the root to ``leaf``."""
@@ -227,6 +283,55 @@ class HypothesisNodes:
     def state(self, node: int) -> tuple[FloatArray, FloatArray]:
         d = int(self.state_dims[node])
         return self.means[node, :d].copy(), self.covariances[node, :d, :d].copy()
+
+
+_NODE_FIELDS = tuple(f.name for f in fields(HypothesisNodes))
+"""The arrays of a :class:`HypothesisNodes` record, all indexed by node."""
+
+
+@dataclass(frozen=True, eq=False)
+class CommittedTrack:
+    """What committing a window's first scans keeps of one selected hypothesis.
+
+    Attributes
+    ----------
+    hypothesis : int
+        The selected hypothesis.
+    track_id : int
+        Track id of a carried tree; -1 for a new tree, born within the committed scans
+        (the caller gives it an id).
+    detections : ndarray of int, shape (m,)
+        Window detections the track uses at the committed scans, in scan order.
+    rows : ndarray of int, shape (m,)
+        Their line numbers in the detections file.
+    scan_positions : ndarray of int, shape (m,)
+        Positions of their scans in the window.
+    ended : bool
+        Whether the track ended within the committed scans.
+    state : CarriedTrack or None
+        The track's state at the last committed scan if it is alive there (to be
+        carried into the next window), else None.  Its ``track_id`` is ``track_id``
+        (-1 for a new tree: use :meth:`carried`).
+    """
+
+    hypothesis: int
+    track_id: int
+    detections: IntArray
+    rows: IntArray
+    scan_positions: IntArray
+    ended: bool
+    state: CarriedTrack | None
+
+    @property
+    def is_new(self) -> bool:
+        """Whether the track was born in the window (it has no track id yet)."""
+        return self.track_id < 0
+
+    def carried(self, track_id: int) -> CarriedTrack | None:
+        """:attr:`state` under ``track_id``, or None when the track is not alive there."""
+        if self.state is None:
+            return None
+        return replace(self.state, track_id=track_id)
 
 
 @dataclass(frozen=True, eq=False)
@@ -268,7 +373,7 @@ class WindowHypotheses:
     scores: FloatArray
     tree: IntArray
     leaf: IntArray
-    counts_toward_k: NDArray[np.bool_]
+    counts_toward_k: BoolArray
     detection_indptr: IntArray
     detection_indices: IntArray
     nodes: HypothesisNodes
@@ -283,56 +388,124 @@ class WindowHypotheses:
     def detections_of(self, h: int) -> IntArray:
         return self.detection_indices[self.detection_indptr[h] : self.detection_indptr[h + 1]]
 
+    def commit(
+        self, selection: Sequence[int] | IntArray, committed_scans: int
+    ) -> list[CommittedTrack]:
+        """Commit the first ``committed_scans`` scans of the selected hypotheses.
 
-@dataclass
-class _Layer:
-    """Nodes created at one scan, before they are stored (mutable scratch)."""
+        Parameters
+        ----------
+        selection : sequence of int
+            Selected hypotheses (indices into this window's hypotheses).
+        committed_scans : int
+            How many of the window's first scans are committed, 1 to ``len(scans)``.
 
-    parent: list[IntArray]
-    detection: list[IntArray]
-    alive: list[NDArray[np.bool_]]
-    tree: list[IntArray]
-    initiated: list[NDArray[np.bool_]]
-    num_detections: list[IntArray]
-    first_time: list[FloatArray]
-    score: list[FloatArray]
-    protected: list[NDArray[np.bool_]]
-    means: list[FloatArray]
-    covs: list[FloatArray]
+        Returns
+        -------
+        list of CommittedTrack
+            One per selected hypothesis, in ``selection`` order, except the new trees
+            born after the committed scans: a later window decides them.  A track's
+            committed part is its path up to the last committed scan, stopped at an
+            "ended" node; its state is carried when the path is alive at that scan.
+        """
+        num_scans = len(self.scans)
+        if not 1 <= committed_scans <= num_scans:
+            raise InputError(
+                f"committed_scans must be in 1..{num_scans} (the window's scans), "
+                f"got {committed_scans}"
+            )
+        nodes = self.nodes
+        last = committed_scans - 1
+        time = self.scans[last].time
+        out: list[CommittedTrack] = []
+        for h in np.asarray(selection, dtype=np.int64).tolist():
+            if not 0 <= h < self.count:
+                raise InputError(f"hypothesis {h} is not in 0..{self.count - 1}")
+            path = nodes.path(int(self.leaf[h]))
+            track_id = int(self.tree_track_ids[int(self.tree[h])])
+            if track_id < 0 and nodes.layer[path[0]] > last:
+                continue  # born after the committed scans: decided by a later window
+            used: list[int] = []
+            ended = False
+            carry = -1
+            for v in path:
+                layer = int(nodes.layer[v])
+                if layer > last:
+                    break
+                if not nodes.alive[v]:
+                    ended = True
+                    break
+                det = int(nodes.detection[v])
+                if det >= 0:
+                    used.append(det)
+                if layer == last:
+                    carry = v
+            state = None
+            if carry >= 0:
+                mean, cov = nodes.state(carry)
+                state = CarriedTrack(
+                    track_id=track_id,
+                    mean=mean,
+                    covariance=cov,
+                    time=time,
+                    initiated=bool(nodes.initiated[carry]),
+                    num_detections=int(nodes.num_detections[carry]),
+                    first_detection_time=float(nodes.first_time[carry]),
+                )
+            dets = np.asarray(used, dtype=np.int64)
+            out.append(
+                CommittedTrack(
+                    hypothesis=h,
+                    track_id=track_id,
+                    detections=dets,
+                    rows=self.detections.rows[dets],
+                    scan_positions=self.detections.scan_position[dets],
+                    ended=ended,
+                    state=state,
+                )
+            )
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Frontier:
+    """Alive nodes to grow at the next scan.
+
+    ``ids`` are their stored node ids (-1 for a carried track's prior), ``time`` the
+    times of their states.
+    """
+
+    nodes: HypothesisNodes
+    ids: IntArray
+    time: FloatArray
+
+    def __len__(self) -> int:
+        return len(self.nodes)
 
     @classmethod
-    def empty(cls) -> _Layer:
-        return cls([], [], [], [], [], [], [], [], [], [], [])
+    def empty(cls, state_dim: int) -> _Frontier:
+        return cls(HypothesisNodes.empty(state_dim), np.zeros(0, np.int64), np.zeros(0))
 
-    def add(
-        self,
-        *,
-        parent: IntArray,
-        detection: IntArray,
-        alive: bool,
-        tree: IntArray,
-        initiated: NDArray[np.bool_],
-        num_detections: IntArray,
-        first_time: FloatArray,
-        score: FloatArray,
-        protected: NDArray[np.bool_],
-        means: FloatArray,
-        covs: FloatArray,
-    ) -> None:
-        k = len(score)
-        if k == 0:
-            return
-        self.parent.append(np.asarray(parent, dtype=np.int64))
-        self.detection.append(np.asarray(detection, dtype=np.int64))
-        self.alive.append(np.full(k, alive))
-        self.tree.append(np.asarray(tree, dtype=np.int64))
-        self.initiated.append(np.asarray(initiated, dtype=bool))
-        self.num_detections.append(np.asarray(num_detections, dtype=np.int64))
-        self.first_time.append(np.broadcast_to(np.asarray(first_time, dtype=float), (k,)).copy())
-        self.score.append(np.asarray(score, dtype=float))
-        self.protected.append(np.asarray(protected, dtype=bool))
-        self.means.append(means)
-        self.covs.append(covs)
+    @classmethod
+    def of_layer(cls, kept: HypothesisNodes, first_id: int, time: float) -> _Frontier:
+        """The alive nodes of a pruned layer stored with ids ``first_id, first_id + 1, ...``."""
+        alive = kept.alive
+        ids = first_id + np.arange(len(kept))
+        return cls(kept.take(alive), ids[alive], np.full(int(np.count_nonzero(alive)), time))
+
+
+def _window_detections(scans: Sequence[Scan]) -> tuple[WindowDetections, IntArray]:
+    """The window's detections, and the window index of each scan's first detection."""
+    det_counts = [s.size for s in scans]
+    offsets = np.concatenate([[0], np.cumsum(det_counts)]).astype(np.int64)
+    detections = WindowDetections(
+        scan_position=np.repeat(np.arange(len(scans)), det_counts).astype(np.int64),
+        index_in_scan=np.concatenate(
+            [np.arange(c, dtype=np.int64) for c in det_counts] or [np.zeros(0, np.int64)]
+        ),
+        rows=np.concatenate([s.rows for s in scans] or [np.zeros(0, np.int64)]),
+    )
+    return detections, offsets
 
 
 def _pad(means: FloatArray, covs: FloatArray, n_max: int) -> tuple[FloatArray, FloatArray]:
@@ -578,6 +751,59 @@ class HypothesisGenerator:
         -------
         WindowHypotheses
         """
+        scans, first_detection = self._validated(scans, carried, population)
+        detections, offsets = _window_detections(scans)
+        tree_track_ids: list[int] = [t.track_id for t in carried]
+        remaining_gain = self.remaining_gain_bounds(scans)
+        frontier = self._carried_frontier(carried)
+        kept_layers: list[HypothesisNodes] = []
+        node_count = generated = pruned = capped = 0
+        for j, scan in enumerate(scans):
+            layer = self._grow_scan(
+                frontier, scan, j, offsets[j], len(tree_track_ids), float(first_detection[j])
+            )
+            tree_track_ids.extend([-1] * scan.size)
+            if len(layer) == 0:
+                frontier = _Frontier.empty(self._n_max)
+                continue
+            generated += len(layer)
+            is_new_tree = np.array([tid < 0 for tid in tree_track_ids], dtype=bool)
+            kept, cut, cut_by_cap = self._prune_layer(layer, is_new_tree, remaining_gain[j])
+            pruned += cut
+            capped += cut_by_cap
+            kept_layers.append(kept)
+            frontier = _Frontier.of_layer(kept, node_count, scan.time)
+            node_count += len(kept)
+        nodes = HypothesisNodes.concat(kept_layers, state_dim=self._n_max)
+        leaves, used = self._leaves_in_canonical_order(
+            nodes, detections, tree_track_ids, len(carried), len(scans)
+        )
+        used_mask = used >= 0
+        indptr = np.concatenate([[0], np.cumsum(used_mask.sum(axis=1))])
+        return WindowHypotheses(
+            scans=scans,
+            detections=detections,
+            tree_track_ids=np.asarray(tree_track_ids, dtype=np.int64),
+            scores=nodes.score[leaves],
+            tree=nodes.tree[leaves],
+            leaf=leaves.astype(np.int64),
+            counts_toward_k=nodes.alive[leaves] | (nodes.parent[leaves] >= 0),
+            detection_indptr=np.asarray(indptr, dtype=np.int64),
+            detection_indices=np.asarray(used[used_mask], dtype=np.int64),
+            nodes=nodes,
+            generated=generated,
+            pruned=pruned,
+            capped=capped,
+        )
+
+    # -- steps of generate -----------------------------------------------------------
+    def _validated(
+        self,
+        scans: Sequence[Scan],
+        carried: Sequence[CarriedTrack],
+        population: WindowPopulation | None,
+    ) -> tuple[tuple[Scan, ...], FloatArray]:
+        """The window's scans, checked, and the first-detection means of its scans."""
         scans = tuple(scans)
         if not scans:
             raise InputError("a window needs at least one scan")
@@ -596,119 +822,54 @@ class HypothesisGenerator:
                     f"carried track {track.track_id} has time {track.time}, after the "
                     f"window's first scan at {scans[0].time}"
                 )
-        det_counts = [s.size for s in scans]
-        offsets = np.concatenate([[0], np.cumsum(det_counts)]).astype(np.int64)
-        detections = WindowDetections(
-            scan_position=np.repeat(np.arange(len(scans)), det_counts).astype(np.int64),
-            index_in_scan=np.concatenate(
-                [np.arange(c, dtype=np.int64) for c in det_counts] or [np.zeros(0, np.int64)]
-            ),
-            rows=np.concatenate([s.rows for s in scans] or [np.zeros(0, np.int64)]),
+        return scans, first_detection
+
+    def _grow_scan(
+        self,
+        frontier: _Frontier,
+        scan: Scan,
+        j: int,
+        det_offset: int,
+        first_tree: int,
+        undetected_mean: float,
+    ) -> HypothesisNodes:
+        """The nodes created at scan ``j``: children of the frontier, then births."""
+        sensor = self.sensors[scan.sensor]
+        parts = self._grow(frontier, scan, sensor, j, det_offset)
+        parts += self._births(scan, sensor, j, det_offset, first_tree, undetected_mean)
+        return HypothesisNodes.concat(parts, state_dim=self._n_max)
+
+    def _prune_layer(
+        self, layer: HypothesisNodes, is_new_tree: BoolArray, remaining_gain: float
+    ) -> tuple[HypothesisNodes, int, int]:
+        """The kept nodes of one scan's layer, how many were dropped and how many by the cap."""
+        # An ended node gains nothing more; an alive one at most G_j.
+        gain = np.where(layer.alive, remaining_gain, 0.0)
+        keep, cut_by_cap = self._prune_mask(
+            layer.tree, layer.score, layer.protected, is_new_tree, gain
         )
+        return layer.take(keep), int(np.count_nonzero(~keep)), cut_by_cap
 
-        tree_track_ids: list[int] = [t.track_id for t in carried]
-        # Stored nodes, appended layer by layer.
-        store: dict[str, list[np.ndarray]] = {
-            k: []
-            for k in (
-                "parent",
-                "layer",
-                "detection",
-                "alive",
-                "tree",
-                "initiated",
-                "num_detections",
-                "first_time",
-                "means",
-                "covs",
-                "dims",
-                "score",
-                "protected",
-            )
-        }
-        node_count = 0
-        generated = 0
-        pruned = 0
-        capped = 0
-        remaining_gain = self.remaining_gain_bounds(scans)
+    def _leaves_in_canonical_order(
+        self,
+        nodes: HypothesisNodes,
+        detections: WindowDetections,
+        tree_track_ids: Sequence[int],
+        num_carried: int,
+        num_scans: int,
+    ) -> tuple[IntArray, IntArray]:
+        """The window's leaves in canonical order, and the detections along each path.
 
-        # Frontier: alive nodes to grow at the next scan.
-        frontier = self._carried_frontier(carried)
-        for j, scan in enumerate(scans):
-            sensor = self.sensors[scan.sensor]
-            layer = _Layer.empty()
-            self._grow(layer, frontier, scan, sensor, j, offsets[j])
-            num_trees_before = len(tree_track_ids)
-            self._births(
-                layer, scan, sensor, offsets[j], num_trees_before, float(first_detection[j])
-            )
-            tree_track_ids.extend([-1] * scan.size)
-            is_new_tree = np.array([tid < 0 for tid in tree_track_ids], dtype=bool)
-            if not layer.score:
-                frontier = None
-                continue
-            cat = {name: np.concatenate(getattr(layer, name)) for name in _LAYER_FIELDS}
-            dims = np.where(
-                cat["initiated"], self.motion.state_dim, self._init_model.state_dim
-            ).astype(np.int64)
-            padded = [_pad(m, c, self._n_max) for m, c in zip(layer.means, layer.covs, strict=True)]
-            means = np.concatenate([p[0] for p in padded])
-            covs = np.concatenate([p[1] for p in padded])
-            generated += len(cat["score"])
-            # An ended node gains nothing more; an alive one at most G_j.
-            gain = np.where(cat["alive"], remaining_gain[j], 0.0)
-            keep, cut_by_cap = self._prune_mask(
-                cat["tree"], cat["score"], cat["protected"], is_new_tree, gain
-            )
-            pruned += int(np.count_nonzero(~keep))
-            capped += cut_by_cap
-            ids = node_count + np.arange(int(np.count_nonzero(keep)))
-            node_count += len(ids)
-            for name in _LAYER_FIELDS:
-                store[name].append(cat[name][keep])
-            store["layer"].append(np.full(len(ids), j, dtype=np.int64))
-            store["means"].append(means[keep])
-            store["covs"].append(covs[keep])
-            store["dims"].append(dims[keep])
-            alive = cat["alive"][keep]
-            frontier = {
-                "node": ids[alive],
-                "tree": cat["tree"][keep][alive],
-                "initiated": cat["initiated"][keep][alive],
-                "num_detections": cat["num_detections"][keep][alive],
-                "first_time": cat["first_time"][keep][alive],
-                "score": cat["score"][keep][alive],
-                "protected": cat["protected"][keep][alive],
-                "means": means[keep][alive],
-                "covs": covs[keep][alive],
-                "dims": dims[keep][alive],
-                "time": np.full(int(np.count_nonzero(alive)), scan.time),
-            }
-
-        def _cat(name: str, dtype: type, shape_tail: tuple[int, ...] = ()) -> np.ndarray:
-            parts = store[name]
-            if not parts:
-                return np.zeros((0,) + shape_tail, dtype=dtype)
-            return np.concatenate(parts).astype(dtype, copy=False)
-
-        nodes = HypothesisNodes(
-            parent=_cat("parent", np.int64),
-            layer=_cat("layer", np.int64),
-            detection=_cat("detection", np.int64),
-            alive=_cat("alive", bool),
-            tree=_cat("tree", np.int64),
-            initiated=_cat("initiated", bool),
-            num_detections=_cat("num_detections", np.int64),
-            first_time=_cat("first_time", float),
-            means=_cat("means", float, (self._n_max,)),
-            covariances=_cat("covs", float, (self._n_max, self._n_max)),
-            state_dims=_cat("dims", np.int64),
-        )
-        scores_all = _cat("score", float)
-        last = len(scans) - 1
+        Returns
+        -------
+        leaves : ndarray of int, shape (H,)
+        used : ndarray of int, shape (H, num_scans)
+            Window detection of each leaf's path at each scan, -1 for none.
+        """
+        last = num_scans - 1
         is_leaf = (~nodes.alive) | (nodes.layer == last)
         leaf_nodes = np.flatnonzero(is_leaf)
-        self._check_carried_have_leaves(nodes.tree[leaf_nodes], len(carried))
+        self._check_carried_have_leaves(nodes.tree[leaf_nodes], num_carried)
         # Canonical order, independent of the order of detections within a scan (so
         # that ties between equal-scoring sets are broken the same way whatever the file
         # order): carried trees by track id, then new trees by their birth detection's
@@ -716,8 +877,8 @@ class HypothesisGenerator:
         # first), alive last.  Paths are walked for all leaves at once, one layer a step.
         row_of = detections.rows
         n_leaves = leaf_nodes.size
-        path_rows = np.full((n_leaves, len(scans)), -2, dtype=np.int64)  # -2: no node
-        path_dets = np.full((n_leaves, len(scans)), -1, dtype=np.int64)
+        path_rows = np.full((n_leaves, num_scans), -2, dtype=np.int64)  # -2: no node
+        path_dets = np.full((n_leaves, num_scans), -1, dtype=np.int64)
         root = leaf_nodes.copy()
         current = leaf_nodes.copy()
         walking = np.arange(n_leaves)
@@ -733,7 +894,7 @@ class HypothesisGenerator:
             current[walking] = nodes.parent[at]
             walking = walking[current[walking] >= 0]
         leaf_tree = nodes.tree[leaf_nodes]
-        is_new = leaf_tree >= len(carried)
+        is_new = leaf_tree >= num_carried
         root_layer = nodes.layer[root]
         ids = np.asarray(tree_track_ids, dtype=np.int64)
         owner = np.where(is_new, path_rows[np.arange(n_leaves), root_layer], ids[leaf_tree])
@@ -746,33 +907,50 @@ class HypothesisGenerator:
                 is_new,
             )
         )
-        leaves = leaf_nodes[order]
-        counts = nodes.alive[leaves] | (nodes.parent[leaves] >= 0)
-        used = path_dets[order]
-        used_mask = used >= 0
-        indptr = np.concatenate([[0], np.cumsum(used_mask.sum(axis=1))])
-        indices = used[used_mask]
-        return WindowHypotheses(
-            scans=scans,
-            detections=detections,
-            tree_track_ids=np.asarray(tree_track_ids, dtype=np.int64),
-            scores=scores_all[leaves],
-            tree=nodes.tree[leaves],
-            leaf=leaves.astype(np.int64),
-            counts_toward_k=counts,
-            detection_indptr=np.asarray(indptr, dtype=np.int64),
-            detection_indices=np.asarray(indices, dtype=np.int64),
-            nodes=nodes,
-            generated=generated,
-            pruned=pruned,
-            capped=capped,
-        )
+        return leaf_nodes[order], path_dets[order]
 
     # -- pieces ----------------------------------------------------------------------
-    def _carried_frontier(self, carried: Sequence[CarriedTrack]) -> dict[str, np.ndarray] | None:
+    def _nodes(
+        self,
+        *,
+        parent: IntArray,
+        layer: int,
+        detection: IntArray,
+        alive: bool,
+        tree: IntArray,
+        initiated: BoolArray,
+        num_detections: IntArray,
+        first_time: FloatArray | float,
+        score: FloatArray,
+        protected: BoolArray,
+        means: FloatArray,
+        covs: FloatArray,
+    ) -> HypothesisNodes:
+        """A record of new nodes at scan ``layer``; states already padded to ``n_max``."""
+        k = len(score)
+        initiated = np.asarray(initiated, dtype=bool)
+        return HypothesisNodes(
+            parent=np.asarray(parent, dtype=np.int64),
+            layer=np.full(k, layer, dtype=np.int64),
+            detection=np.asarray(detection, dtype=np.int64),
+            alive=np.full(k, alive),
+            tree=np.asarray(tree, dtype=np.int64),
+            initiated=initiated,
+            num_detections=np.asarray(num_detections, dtype=np.int64),
+            first_time=np.broadcast_to(np.asarray(first_time, dtype=float), (k,)).copy(),
+            score=np.asarray(score, dtype=float),
+            protected=np.asarray(protected, dtype=bool),
+            means=means,
+            covariances=covs,
+            state_dims=np.where(
+                initiated, self.motion.state_dim, self._init_model.state_dim
+            ).astype(np.int64),
+        )
+
+    def _carried_frontier(self, carried: Sequence[CarriedTrack]) -> _Frontier:
         if not carried:
-            return None
-        means, covs, dims = [], [], []
+            return _Frontier.empty(self._n_max)
+        means, covs = [], []
         for t in carried:
             d = self.motion.state_dim if t.initiated else self._init_model.state_dim
             m = np.asarray(t.mean, dtype=float)
@@ -785,56 +963,65 @@ class HypothesisGenerator:
             pm, pc = _pad(m[None], c[None], self._n_max)
             means.append(pm[0])
             covs.append(pc[0])
-            dims.append(d)
         k = len(carried)
-        return {
-            "node": np.full(k, -1, dtype=np.int64),
-            "tree": np.arange(k, dtype=np.int64),
-            "initiated": np.array([t.initiated for t in carried], dtype=bool),
-            "num_detections": np.array([t.num_detections for t in carried], dtype=np.int64),
-            "first_time": np.array([t.first_detection_time for t in carried], dtype=float),
-            "score": np.zeros(k),
-            "protected": np.ones(k, dtype=bool),
-            "means": np.array(means),
-            "covs": np.array(covs),
-            "dims": np.array(dims, dtype=np.int64),
-            "time": np.array([t.time for t in carried], dtype=float),
-        }
+        nodes = self._nodes(
+            parent=np.full(k, -1),
+            layer=-1,
+            detection=np.full(k, -1),
+            alive=True,
+            tree=np.arange(k),
+            initiated=np.array([t.initiated for t in carried], dtype=bool),
+            num_detections=np.array([t.num_detections for t in carried], dtype=np.int64),
+            first_time=np.array([t.first_detection_time for t in carried], dtype=float),
+            score=np.zeros(k),
+            protected=np.ones(k, dtype=bool),
+            means=np.array(means),
+            covs=np.array(covs),
+        )
+        return _Frontier(
+            nodes, np.full(k, -1, dtype=np.int64), np.array([t.time for t in carried], dtype=float)
+        )
 
     def _grow(
         self,
-        layer: _Layer,
-        frontier: dict[str, np.ndarray] | None,
+        frontier: _Frontier,
         scan: Scan,
         sensor: Sensor,
         j: int,
         det_offset: int,
-    ) -> None:
+    ) -> list[HypothesisNodes]:
         """Children of every frontier node at scan ``j``: end, miss, each gated detection."""
-        if frontier is None or len(frontier["score"]) == 0:
-            return
-        dt = scan.time - frontier["time"]
+        if len(frontier) == 0:
+            return []
+        parts: list[HypothesisNodes] = []
+        f = frontier.nodes
+        node_id = frontier.ids
+        dt = scan.time - frontier.time
         # Ended between the previous state and this scan.
         log_end = self._log_end(dt)
         can_end = np.isfinite(log_end)
         # A carried track that can end keeps its "ended before the window" leaf protected;
         # otherwise its all-miss path carries the protection.
-        protect_end = frontier["protected"] & can_end
-        protect_miss = frontier["protected"] & ~can_end
+        protect_end = f.protected & can_end
+        protect_miss = f.protected & ~can_end
         idx = np.flatnonzero(can_end)
-        layer.add(
-            parent=frontier["node"][idx],
-            detection=np.full(len(idx), -1),
-            alive=False,
-            tree=frontier["tree"][idx],
-            initiated=frontier["initiated"][idx],
-            num_detections=frontier["num_detections"][idx],
-            first_time=frontier["first_time"][idx],
-            score=frontier["score"][idx] + log_end[idx],
-            protected=protect_end[idx],
-            means=frontier["means"][idx],
-            covs=frontier["covs"][idx],
-        )
+        if len(idx):
+            parts.append(
+                self._nodes(
+                    parent=node_id[idx],
+                    layer=j,
+                    detection=np.full(len(idx), -1),
+                    alive=False,
+                    tree=f.tree[idx],
+                    initiated=f.initiated[idx],
+                    num_detections=f.num_detections[idx],
+                    first_time=f.first_time[idx],
+                    score=f.score[idx] + log_end[idx],
+                    protected=protect_end[idx],
+                    means=f.means[idx],
+                    covs=f.covariances[idx],
+                )
+            )
         log_miss = self._log_miss(sensor)
         log_pd = math.log(sensor.detection_probability)
         log_lambda = sensor.log_clutter_density
@@ -842,7 +1029,7 @@ class HypothesisGenerator:
         R = sensor.measurement.noise_covariance
         Z = scan.detections
         for initiated in (False, True):
-            group = np.flatnonzero(frontier["initiated"] == initiated)
+            group = np.flatnonzero(f.initiated == initiated)
             if len(group) == 0:
                 continue
             model = self.motion if initiated else self._init_model
@@ -852,30 +1039,33 @@ class HypothesisGenerator:
                 else initiation_measurement(self.motion, sensor.measurement)
             )
             d = model.state_dim
-            x = frontier["means"][group, :d]
-            P = frontier["covs"][group, :d, :d]
+            x = f.means[group, :d]
+            P = f.covariances[group, :d, :d]
             gdt = dt[group]
             # Predict, grouped by distinct dt (one value except at a window's start).
             for value in np.unique(gdt):
                 sel = np.flatnonzero(gdt == value)
                 if value > 0:
                     x[sel], P[sel], _ = predict_motion(model, x[sel], P[sel], float(value))
-            base = frontier["score"][group] + gdt * self._log_survival
+            base = f.score[group] + gdt * self._log_survival
             # Missed at this scan.
             if math.isfinite(log_miss):
                 mm, mc = _pad(x, P, self._n_max)
-                layer.add(
-                    parent=frontier["node"][group],
-                    detection=np.full(len(group), -1),
-                    alive=True,
-                    tree=frontier["tree"][group],
-                    initiated=np.full(len(group), initiated),
-                    num_detections=frontier["num_detections"][group],
-                    first_time=frontier["first_time"][group],
-                    score=base + log_miss,
-                    protected=protect_miss[group],
-                    means=mm,
-                    covs=mc,
+                parts.append(
+                    self._nodes(
+                        parent=node_id[group],
+                        layer=j,
+                        detection=np.full(len(group), -1),
+                        alive=True,
+                        tree=f.tree[group],
+                        initiated=np.full(len(group), initiated),
+                        num_detections=f.num_detections[group],
+                        first_time=f.first_time[group],
+                        score=base + log_miss,
+                        protected=protect_miss[group],
+                        means=mm,
+                        covs=mc,
+                    )
                 )
             if scan.size == 0:
                 continue
@@ -898,39 +1088,43 @@ class HypothesisGenerator:
             if len(li) == 0:
                 continue
             xu, Pu = update(x[li], P[li], nu_pairs, S[li], H[li], R)
-            ndet = frontier["num_detections"][group][li] + 1
+            ndet = f.num_detections[group][li] + 1
             um, uc = _pad(xu, Pu, self._n_max)
             init_flags = np.full(len(li), initiated)
             if not initiated:
                 # Only coordinated-turn tracks are ever uninitiated.  One enters the turn
                 # state at its first detection later in time than its first one (the
                 # velocity is then observed); the padded rows take the converted state.
-                init_flags = scan.time > frontier["first_time"][group][li]
+                init_flags = scan.time > f.first_time[group][li]
                 for k in np.flatnonzero(init_flags):
                     um[k], uc[k] = convert_initiated(self.motion, xu[k], Pu[k], self.birth)
-            layer.add(
-                parent=frontier["node"][group][li],
-                detection=det_offset + mi,
-                alive=True,
-                tree=frontier["tree"][group][li],
-                initiated=init_flags,
-                num_detections=ndet,
-                first_time=frontier["first_time"][group][li],
-                score=base[li] + log_pd + pair_loglik - log_lambda,
-                protected=np.zeros(len(li), dtype=bool),
-                means=um,
-                covs=uc,
+            parts.append(
+                self._nodes(
+                    parent=node_id[group][li],
+                    layer=j,
+                    detection=det_offset + mi,
+                    alive=True,
+                    tree=f.tree[group][li],
+                    initiated=init_flags,
+                    num_detections=ndet,
+                    first_time=f.first_time[group][li],
+                    score=base[li] + log_pd + pair_loglik - log_lambda,
+                    protected=np.zeros(len(li), dtype=bool),
+                    means=um,
+                    covs=uc,
+                )
             )
+        return parts
 
     def _births(
         self,
-        layer: _Layer,
         scan: Scan,
         sensor: Sensor,
+        j: int,
         det_offset: int,
         first_tree: int,
         undetected_mean: float,
-    ) -> None:
+    ) -> list[HypothesisNodes]:
         """One new tree rooted at every detection of the scan.
 
         The first detection of a target not detected before has density
@@ -940,9 +1134,9 @@ class HypothesisGenerator:
         """
         m = scan.size
         if m == 0:
-            return
+            return []
         if undetected_mean == 0.0:
-            return  # no undetected target can be here: no detection starts a track
+            return []  # no undetected target can be here: no detection starts a track
         score = (
             math.log(undetected_mean)
             + math.log(sensor.detection_probability)
@@ -951,28 +1145,31 @@ class HypothesisGenerator:
         x, P = birth_states(self.motion, sensor.measurement, scan.detections, self.birth)
         initiated = not self._converts
         mm, mc = _pad(x, P, self._n_max)
-        layer.add(
-            parent=np.full(m, -1),
-            detection=det_offset + np.arange(m),
-            alive=True,
-            tree=first_tree + np.arange(m),
-            initiated=np.full(m, initiated),
-            num_detections=np.ones(m, dtype=np.int64),
-            first_time=np.full(m, scan.time),
-            score=np.full(m, score),
-            protected=np.zeros(m, dtype=bool),
-            means=mm,
-            covs=mc,
-        )
+        return [
+            self._nodes(
+                parent=np.full(m, -1),
+                layer=j,
+                detection=det_offset + np.arange(m),
+                alive=True,
+                tree=first_tree + np.arange(m),
+                initiated=np.full(m, initiated),
+                num_detections=np.ones(m, dtype=np.int64),
+                first_time=np.full(m, scan.time),
+                score=np.full(m, score),
+                protected=np.zeros(m, dtype=bool),
+                means=mm,
+                covs=mc,
+            )
+        ]
 
     def _prune_mask(
         self,
         tree: IntArray,
         score: FloatArray,
-        protected: NDArray[np.bool_],
-        is_new_tree: NDArray[np.bool_],
+        protected: BoolArray,
+        is_new_tree: BoolArray,
         gain: FloatArray,
-    ) -> tuple[NDArray[np.bool_], int]:
+    ) -> tuple[BoolArray, int]:
         """Which nodes of one scan's layer are kept, and how many the cap alone cut.
 
         A node passes the score-ratio tests when

@@ -59,7 +59,7 @@ from mapassoc.oracle import oracle_tracks
 from mapassoc.population import UndetectedTargets, WindowPopulation
 from mapassoc.posterior import KPosterior, k_posterior
 from mapassoc.scans import Scan, check_scan_order
-from mapassoc.solvers import HighsSolver, get_solver
+from mapassoc.solvers import get_solver
 
 __all__ = [
     "ClusterReport",
@@ -314,8 +314,6 @@ class _TrackRecord:
 
     track_id: int
     rows: list[int] = field(default_factory=list)
-    scan_indices: list[int] = field(default_factory=list)
-    ended: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -398,7 +396,6 @@ class WindowEstimator:
             )
         self.cluster_solver = ClusterSolver(
             solver=self.solver,
-            lp_solver=HighsSolver(),
             exact_work_limit=s.exact_work_limit,
             beam_width=s.beam_width,
             prune_log_ratio=s.prune_log_ratio,
@@ -563,7 +560,7 @@ class WindowEstimator:
             chosen_k, chosen_tracks = self.k_estimator.choose(post)
             selection = solution.selection(chosen_tracks)
             carried, next_id = self._commit(
-                solution.hypotheses, selection, start, commit, carried, records, next_id
+                solution.hypotheses, selection, commit, records, next_id
             )
             undetected = solution.population.after_scan[commit - 1]
             piled += post.piles_up_at_kmax
@@ -640,55 +637,23 @@ class WindowEstimator:
         self,
         hyps: WindowHypotheses,
         selection: NDArray[np.int64],
-        start: int,
         commit: int,
-        carried: list[CarriedTrack],
         records: dict[int, _TrackRecord],
         next_id: int,
     ) -> tuple[list[CarriedTrack], int]:
         """Commit the first ``commit`` scans of the chosen set; return the new carried tracks."""
-        nodes = hyps.nodes
-        scans = hyps.scans
         new_carried: list[CarriedTrack] = []
-        last_layer = commit - 1
-        for h in selection.tolist():
-            tree = int(hyps.tree[h])
-            path = nodes.path(int(hyps.leaf[h]))
-            track_id = int(hyps.tree_track_ids[tree])
-            if track_id < 0:
-                if nodes.layer[path[0]] > last_layer:
-                    continue  # born after the committed scans: decided by a later window
+        for track in hyps.commit(selection, commit):
+            if track.is_new:
                 track_id = next_id
                 next_id += 1
                 records[track_id] = _TrackRecord(track_id)
-            record = records[track_id]
-            carry_node = -1
-            for v in path:
-                layer = int(nodes.layer[v])
-                if layer > last_layer:
-                    break
-                if not nodes.alive[v]:
-                    record.ended = True
-                    break
-                det = int(nodes.detection[v])
-                if det >= 0:
-                    record.rows.append(int(hyps.detections.rows[det]))
-                    record.scan_indices.append(start + layer)
-                if layer == last_layer:
-                    carry_node = v
-            if carry_node >= 0:
-                mean, cov = nodes.state(carry_node)
-                new_carried.append(
-                    CarriedTrack(
-                        track_id=track_id,
-                        mean=mean,
-                        covariance=cov,
-                        time=scans[last_layer].time,
-                        initiated=bool(nodes.initiated[carry_node]),
-                        num_detections=int(nodes.num_detections[carry_node]),
-                        first_detection_time=float(nodes.first_time[carry_node]),
-                    )
-                )
+            else:
+                track_id = track.track_id
+            records[track_id].rows.extend(track.rows.tolist())
+            state = track.carried(track_id)
+            if state is not None:
+                new_carried.append(state)
         new_carried.sort(key=lambda t: t.track_id)
         return new_carried, next_id
 
