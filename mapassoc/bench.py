@@ -14,7 +14,7 @@ the window estimator and reports
 * GOSPA (cut-off :data:`GOSPA_CUTOFF`, with the localisation / missed / false parts of
   GOSPA^2) next to the oracle's (Kalman smoother on the true associations) and their
   ratio;
-* how well p(K | Z) (``WindowReport.probabilities``) predicts the true number K of
+* how well p(K | Z) (``WindowReport.p_k``) predicts the true number K of
   targets in each window, i.e. the distinct truth targets with a truth record at a time
   in ``[start_time, end_time]`` of the window (:func:`window_target_counts`): the Brier
   score ``sum_K (p(K | Z) - 1[K = true K])^2`` (0 is a certain right answer, 2 a
@@ -514,7 +514,7 @@ class _WindowCount(Protocol):
     """What :func:`count_scores` reads of a window (e.g. a ``WindowReport``)."""
 
     @property
-    def probabilities(self) -> ArrayLike: ...
+    def p_k(self) -> ArrayLike: ...
 
     @property
     def marginal_k(self) -> int: ...
@@ -577,7 +577,7 @@ def window_target_counts(truth: TruthTable, windows: Sequence[_WindowSpan]) -> N
 def count_scores(windows: Sequence[_WindowCount], true_counts: ArrayLike) -> CountScores:
     """Score the windows' p(K | Z) against the true numbers of targets.
 
-    Per window, with ``p = probabilities`` padded with zeros up to the true K (its
+    Per window, with ``p = p_k`` padded with zeros up to the true K (its
     trailing zeros are implicit) and ``k`` the true K: the Brier score
     ``sum_K (p[K] - 1[K = k])^2``, whether ``marginal_k == k`` and ``p[k]``; each is
     averaged over the windows.
@@ -585,7 +585,7 @@ def count_scores(windows: Sequence[_WindowCount], true_counts: ArrayLike) -> Cou
     Parameters
     ----------
     windows : sequence of window-like
-        Anything with ``probabilities`` (1-D, p(K | Z) for K = 0, 1, ...) and
+        Anything with ``p_k`` (1-D, p(K | Z) for K = 0, 1, ...) and
         ``marginal_k``, such as :class:`~mapassoc.pipeline.WindowReport`; at least one.
     true_counts : array-like of int
         True K of each window (:func:`window_target_counts`), >= 0, one per window.
@@ -597,7 +597,7 @@ def count_scores(windows: Sequence[_WindowCount], true_counts: ArrayLike) -> Cou
     Raises
     ------
     InputError
-        No window, ``true_counts`` not one integer >= 0 per window, or ``probabilities``
+        No window, ``true_counts`` not one integer >= 0 per window, or ``p_k``
         not a 1-D vector of finite numbers in [0, 1].
 
     Examples
@@ -623,11 +623,11 @@ def count_scores(windows: Sequence[_WindowCount], true_counts: ArrayLike) -> Cou
     p_true = np.empty(len(windows))
     hits = np.empty(len(windows), dtype=bool)
     for i, (window, k) in enumerate(zip(windows, truth_k.tolist(), strict=True)):
-        p = np.asarray(window.probabilities, dtype=float)
+        p = np.asarray(window.p_k, dtype=float)
         if p.ndim != 1 or not np.all(np.isfinite(p)) or np.any((p < 0) | (p > 1)):
             raise InputError(
-                f"windows[{i}].probabilities must be a 1-D vector of probabilities in "
-                f"[0, 1], got {window.probabilities!r}"
+                f"windows[{i}].p_k must be a 1-D vector of probabilities in "
+                f"[0, 1], got {window.p_k!r}"
             )
         full = np.zeros(max(p.size, k + 1))
         full[: p.size] = p
@@ -759,8 +759,8 @@ def bench_scenario(
         window_max_ms=float(window_seconds.max() * 1e3),
         windows=len(windows),
         windows_over_limit=int(np.sum(window_seconds > limit)),
-        hypotheses_mean=float(np.mean([w.hypotheses for w in windows])),
-        hypotheses_max=int(max(w.hypotheses for w in windows)),
+        hypotheses_mean=float(np.mean([w.hypotheses_kept for w in windows])),
+        hypotheses_max=int(max(w.hypotheses_kept for w in windows)),
         largest_cluster=int(max(w.largest_cluster for w in windows)),
         status_counts=_ordered(statuses),
         min_captured_mass=float(min(w.captured_mass for w in windows)),

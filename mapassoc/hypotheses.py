@@ -50,7 +50,7 @@ At each scan a node is dropped
   ``log Pd - log lambda - 0.5 log det(2 pi R)``;
 * by the cap: at most ``max_hypotheses_per_tree`` nodes per tree and scan survive,
   the best-scoring ones among those that pass the two tests above.  Nodes cut only by
-  the cap are counted in :attr:`WindowHypotheses.capped`, so that a caller can report
+  the cap are counted in :attr:`WindowHypotheses.nodes_capped`, so that a caller can report
   that the window's hypotheses are not all those within the ratio.
 
 A carried tree always keeps a leaf that uses no detection (ended before the window, or
@@ -355,12 +355,13 @@ class WindowHypotheses:
     detection_indices : ndarray of int, shape (nnz,)
         Window detections used by hypothesis h: ``indices[indptr[h]:indptr[h+1]]``.
     nodes : HypothesisNodes
-    generated : int
-        Nodes created (before pruning).
-    pruned : int
+    nodes_generated : int
+        Tree nodes created (before pruning); not hypotheses (a hypothesis is a
+        root-to-leaf path, ``count`` of them are kept).
+    nodes_pruned : int
         Nodes dropped, by the score-ratio tests and by the cap together.
-    capped : int
-        Of the ``pruned`` nodes, those dropped only by the per-tree cap
+    nodes_capped : int
+        Of the ``nodes_pruned``, those dropped only by the per-tree cap
         (``max_hypotheses_per_tree``): they passed the score-ratio tests.  Nonzero means
         the cap, not the ratio, decided which hypotheses the window has, so the window's
         tables are not exact over the hypotheses within ``prune_log_ratio``.  (Every
@@ -377,9 +378,9 @@ class WindowHypotheses:
     detection_indptr: IntArray
     detection_indices: IntArray
     nodes: HypothesisNodes
-    generated: int
-    pruned: int
-    capped: int = 0
+    nodes_generated: int
+    nodes_pruned: int
+    nodes_capped: int = 0
 
     @property
     def count(self) -> int:
@@ -791,9 +792,9 @@ class HypothesisGenerator:
             detection_indptr=np.asarray(indptr, dtype=np.int64),
             detection_indices=np.asarray(used[used_mask], dtype=np.int64),
             nodes=nodes,
-            generated=generated,
-            pruned=pruned,
-            capped=capped,
+            nodes_generated=generated,
+            nodes_pruned=pruned,
+            nodes_capped=capped,
         )
 
     # -- steps of generate -----------------------------------------------------------

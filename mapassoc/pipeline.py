@@ -160,7 +160,7 @@ class WindowSolution:
         still solved, keeps its status and says so in :attr:`timed_out`.
         """
         worst = 0
-        if self.hypotheses.capped:
+        if self.hypotheses.nodes_capped:
             worst = WINDOW_STATUSES.index("capped")
         for report in self.bounded_clusters:
             worst = max(worst, WINDOW_STATUSES.index(report.status))
@@ -213,17 +213,17 @@ class WindowReport:
     ``best_objective`` then means "no set found", not "none exists".
     """
 
-    index: int
+    window: int
     first_scan: int
     last_scan: int
     start_time: float
     end_time: float
     committed_scans: int
     p_k_length: int
-    probabilities: NDArray[np.float64]
-    probabilities_lower: NDArray[np.float64]
-    probabilities_upper: NDArray[np.float64]
-    track_probabilities: NDArray[np.float64]
+    p_k: NDArray[np.float64]
+    p_k_lower: NDArray[np.float64]
+    p_k_upper: NDArray[np.float64]
+    p_tracks: NDArray[np.float64]
     best_objective: NDArray[np.float64]
     best_objective_upper: NDArray[np.float64]
     joint_map_k: int
@@ -239,11 +239,11 @@ class WindowReport:
     joint_certain: bool
     captured_mass: float
     status: str
-    hypotheses: int
-    generated: int
-    pruned: int
-    capped: int
-    bound_pruned: int
+    hypotheses_kept: int
+    nodes_generated: int
+    nodes_pruned: int
+    nodes_capped: int
+    hypotheses_pruned_by_bound: int
     clusters: int
     largest_cluster: int
     bounded_clusters: int
@@ -257,7 +257,7 @@ class WindowReport:
         feasible = np.flatnonzero(np.isfinite(self.best_objective))
         end = int(feasible[-1]) + 1 if feasible.size else 0
         out: dict[str, object] = {
-            "window": self.index,
+            "window": self.window,
             "first_scan": self.first_scan,
             "last_scan": self.last_scan,
             "start_time": self.start_time,
@@ -265,12 +265,12 @@ class WindowReport:
             "committed_scans": self.committed_scans,
             "p_k_length": self.p_k_length,
             "k_prior": self.k_prior,
-            "p_k": _compact(self.probabilities, P_K_FLOOR),
+            "p_k": _compact(self.p_k, P_K_FLOOR),
             "joint_map_k": self.joint_map_k,
             "marginal_k": self.marginal_k,
             "chosen_k": self.chosen_k,
             "undetected_mean": self.undetected_mean,
-            "p_tracks": _compact(self.track_probabilities, P_K_FLOOR),
+            "p_tracks": _compact(self.p_tracks, P_K_FLOOR),
             "joint_map_tracks": self.joint_map_tracks,
             "marginal_tracks": self.marginal_tracks,
             "chosen_tracks": self.chosen_tracks,
@@ -282,11 +282,11 @@ class WindowReport:
             "marginal_certain": self.marginal_certain,
             "joint_certain": self.joint_certain,
             "captured_mass": self.captured_mass,
-            "hypotheses": self.hypotheses,
-            "hypotheses_generated": self.generated,
-            "hypotheses_pruned": self.pruned,
-            "hypotheses_capped": self.capped,
-            "hypotheses_pruned_by_bound": self.bound_pruned,
+            "hypotheses_kept": self.hypotheses_kept,
+            "nodes_generated": self.nodes_generated,
+            "nodes_pruned": self.nodes_pruned,
+            "nodes_capped": self.nodes_capped,
+            "hypotheses_pruned_by_bound": self.hypotheses_pruned_by_bound,
             "clusters": self.clusters,
             "largest_cluster": self.largest_cluster,
             "bounded_clusters": self.bounded_clusters,
@@ -296,8 +296,8 @@ class WindowReport:
         if timings:
             out["over_time_limit"] = self.over_time_limit
         if not self.marginal_exact:
-            out["p_k_lower"] = _compact(self.probabilities_lower, P_K_FLOOR)
-            out["p_k_upper"] = _compact(self.probabilities_upper, P_K_FLOOR)
+            out["p_k_lower"] = _compact(self.p_k_lower, P_K_FLOOR)
+            out["p_k_upper"] = _compact(self.p_k_upper, P_K_FLOOR)
         if np.any(self.best_objective_upper > self.best_objective):
             out["best_objective_upper"] = [
                 float(b) if math.isfinite(b) else None for b in self.best_objective_upper
@@ -350,10 +350,12 @@ class EstimateResult:
                 status: int(sum(1 for r in w if r.status == status)) for status in WINDOW_STATUSES
             },
             "windows_marginal_certain": int(sum(1 for r in w if r.marginal_certain)),
-            "hypotheses_capped": int(sum(r.capped for r in w)),
+            "nodes_capped": int(sum(r.nodes_capped for r in w)),
             "windows_marginal_exact": int(sum(1 for r in w if r.marginal_exact)),
             "windows_piling_up_at_kmax": int(sum(1 for r in w if r.piles_up_at_kmax)),
-            "mean_hypotheses_per_window": float(np.mean([r.hypotheses for r in w])) if w else 0.0,
+            "mean_hypotheses_per_window": (
+                float(np.mean([r.hypotheses_kept for r in w])) if w else 0.0
+            ),
             "max_cluster": int(max((r.largest_cluster for r in w), default=0)),
             "min_captured_mass": float(min((r.captured_mass for r in w), default=1.0)),
         }
@@ -570,17 +572,17 @@ class WindowEstimator:
             k_reach = int(positive[-1]) + 1 if positive.size else 1
             reports.append(
                 WindowReport(
-                    index=len(reports),
+                    window=len(reports),
                     first_scan=start,
                     last_scan=end - 1,
                     start_time=scans[start].time,
                     end_time=scans[end - 1].time,
                     committed_scans=commit,
                     p_k_length=post.max_tracks + 1,
-                    probabilities=post.probabilities[:k_reach].copy(),
-                    probabilities_lower=post.probabilities_lower[:k_reach].copy(),
-                    probabilities_upper=post.probabilities_upper[:k_reach].copy(),
-                    track_probabilities=post.track_probabilities[:reach].copy(),
+                    p_k=post.probabilities[:k_reach].copy(),
+                    p_k_lower=post.probabilities_lower[:k_reach].copy(),
+                    p_k_upper=post.probabilities_upper[:k_reach].copy(),
+                    p_tracks=post.track_probabilities[:reach].copy(),
                     best_objective=post.best_log_score[:reach].copy(),
                     best_objective_upper=solution.table.best_upper[:reach].copy(),
                     joint_map_k=post.joint_map_k,
@@ -596,11 +598,11 @@ class WindowEstimator:
                     joint_certain=post.joint_certain,
                     captured_mass=solution.captured_mass,
                     status=solution.status,
-                    hypotheses=solution.hypotheses.count,
-                    generated=solution.hypotheses.generated,
-                    pruned=solution.hypotheses.pruned,
-                    capped=solution.hypotheses.capped,
-                    bound_pruned=solution.bound_pruned,
+                    hypotheses_kept=solution.hypotheses.count,
+                    nodes_generated=solution.hypotheses.nodes_generated,
+                    nodes_pruned=solution.hypotheses.nodes_pruned,
+                    nodes_capped=solution.hypotheses.nodes_capped,
+                    hypotheses_pruned_by_bound=solution.bound_pruned,
                     clusters=len(solution.cluster_sizes),
                     largest_cluster=max(solution.cluster_sizes, default=0),
                     bounded_clusters=len(solution.bounded_clusters),

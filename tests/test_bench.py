@@ -105,7 +105,7 @@ def _window(start: float, end: float) -> SimpleNamespace:
 
 
 def _counted(probabilities: list[float], marginal_k: int) -> SimpleNamespace:
-    return SimpleNamespace(probabilities=np.array(probabilities), marginal_k=marginal_k)
+    return SimpleNamespace(p_k=np.array(probabilities), marginal_k=marginal_k)
 
 
 def test_window_target_counts_counts_distinct_targets_alive_in_the_window() -> None:
@@ -166,9 +166,9 @@ def test_count_scores_golden_values() -> None:
         ([_counted([1.0], 0)], [0, 1], "one integer >= 0 per window"),
         ([_counted([1.0], 0)], [-1], "one integer >= 0 per window"),
         ([_counted([1.0], 0)], [0.5], "one integer >= 0 per window"),
-        ([_counted([[1.0]], 0)], [0], r"windows\[0\].probabilities"),
-        ([_counted([1.5, -0.5], 0)], [0], r"windows\[0\].probabilities"),
-        ([_counted([math.nan], 0)], [0], r"windows\[0\].probabilities"),
+        ([_counted([[1.0]], 0)], [0], r"windows\[0\].p_k"),
+        ([_counted([1.5, -0.5], 0)], [0], r"windows\[0\].p_k"),
+        ([_counted([math.nan], 0)], [0], r"windows\[0\].p_k"),
     ],
 )
 def test_count_scores_checks_its_arguments(windows, counts, message: str) -> None:

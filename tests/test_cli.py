@@ -46,7 +46,7 @@ def test_run_then_evaluate(
         assert sum(w["p_k"]) == pytest.approx(1.0, abs=1e-9)
         assert 0 <= w["marginal_k"] < len(w["p_k"]) and 0 <= w["joint_map_k"] < len(w["p_k"])
         assert w["status"] in ("exact", "capped", "bounded", "time_limit")
-        assert w["hypotheses_generated"] >= w["hypotheses"] - w["carried_tracks"]
+        assert w["nodes_generated"] >= w["hypotheses_kept"] - w["carried_tracks"]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["scans"] == windows[-1]["last_scan"] + 1
     capsys.readouterr()

@@ -77,7 +77,7 @@ def test_posterior_over_k_tracks_the_true_count_on_crossing(scenario_run: Runner
         alive = (scenario.truth.times >= start) & (scenario.truth.times <= end)
         true_count = len(np.unique(scenario.truth.target_ids[alive]))
         hits += w.marginal_k == true_count
-        assert sum(w.probabilities) == pytest.approx(1.0, abs=1e-12)
+        assert sum(w.p_k) == pytest.approx(1.0, abs=1e-12)
     # The marginal K equals the number of targets present in the window almost always.
     assert hits / len(result.windows) >= 0.85
 

@@ -91,8 +91,8 @@ def hand_window() -> WindowHypotheses:
         detection_indptr=np.array([0, 2, 2, 3, 4], dtype=np.int64),
         detection_indices=np.array([0, 2, 1, 3], dtype=np.int64),
         nodes=nodes,
-        generated=6,
-        pruned=0,
+        nodes_generated=6,
+        nodes_pruned=0,
     )
 
 

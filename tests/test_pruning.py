@@ -15,7 +15,7 @@ What is checked, against what:
    score of not selecting a new tree), dropped every such birth at its root: its score
    was more than 5 below 0.  A lone birth at the window's last scan, which cannot gain
    anything more, is still dropped.
-3. ``WindowHypotheses.capped`` counts the nodes cut only by ``max_hypotheses_per_tree``.
+3. ``WindowHypotheses.nodes_capped`` counts the nodes cut only by ``max_hypotheses_per_tree``.
 4. End to end: 1,000 false alarms per scan over a 2,000 x 2,000 region, five targets born
    throughout 15 scans, ``prune_log_ratio = 5``: every target gets a track.
 """
@@ -289,7 +289,7 @@ def test_random_windows_cover_the_interesting_cases() -> None:
 def test_gain_bound_bounds_every_descendant(seed: int) -> None:
     generator, scans, carried = random_window(seed)
     hyps = generator.generate(scans, carried)
-    assert hyps.pruned == 0 and hyps.capped == 0
+    assert hyps.nodes_pruned == 0 and hyps.nodes_capped == 0
     gains = generator.remaining_gain_bounds(scans)
     best_below = best_leaf_below(hyps)
     nodes = hyps.nodes
@@ -382,7 +382,7 @@ def test_births_in_dense_clutter_survive_at_later_scans() -> None:
     # A lone birth at the last scan can gain nothing more and scores below -5: dropped.
     last_rows = set(scans[-1].rows.tolist())
     assert not any(len(k) == 1 and k[0] in last_rows for k in used)
-    assert hyps.capped == 0
+    assert hyps.nodes_capped == 0
 
 
 # --------------------------------------------------------------------- 3. the cap
@@ -418,16 +418,16 @@ def test_capped_counts_nodes_cut_only_by_the_cap() -> None:
     # missed, two continuations), and the two births at scan 1 one node each.
     generator, scans = cap_window(max_hypotheses_per_tree=10**6, prune_log_ratio=math.inf)
     full = generator.generate(scans)
-    assert full.generated == 7 and full.pruned == 0 and full.capped == 0
+    assert full.nodes_generated == 7 and full.nodes_pruned == 0 and full.nodes_capped == 0
     first_tree = full.nodes.tree == 0
     assert np.count_nonzero(first_tree & (full.nodes.layer == 1)) == 4
     # Cap 1, no ratio: 3 of the 4 siblings are cut, all by the cap.
     generator, scans = cap_window(max_hypotheses_per_tree=1, prune_log_ratio=math.inf)
     capped = generator.generate(scans)
-    assert capped.pruned == 3 and capped.capped == 3
+    assert capped.nodes_pruned == 3 and capped.nodes_capped == 3
     # Cap 2: 2 cut by the cap.
     generator, scans = cap_window(max_hypotheses_per_tree=2, prune_log_ratio=math.inf)
-    assert generator.generate(scans).capped == 2
+    assert generator.generate(scans).nodes_capped == 2
     # A ratio that keeps both continuations and drops "ended" and "missed"; cap 1 then
     # cuts one continuation, and only that one counts as capped.
     scores = {
@@ -443,19 +443,19 @@ def test_capped_counts_nodes_cut_only_by_the_cap() -> None:
     assert min(continued) > -ratio  # the last-scan bound does not cut them
     generator, scans = cap_window(max_hypotheses_per_tree=1, prune_log_ratio=ratio)
     mixed = generator.generate(scans)
-    assert mixed.pruned == 3 and mixed.capped == 1
+    assert mixed.nodes_pruned == 3 and mixed.nodes_capped == 1
     # The same ratio without a biting cap: pruned by the ratio only.
     generator, scans = cap_window(max_hypotheses_per_tree=2, prune_log_ratio=ratio)
     by_ratio = generator.generate(scans)
-    assert by_ratio.pruned == 2 and by_ratio.capped == 0
+    assert by_ratio.nodes_pruned == 2 and by_ratio.nodes_capped == 0
 
 
 def test_window_hypotheses_capped_defaults_to_zero() -> None:
     generator, scans = cap_window(max_hypotheses_per_tree=1, prune_log_ratio=math.inf)
     hyps = generator.generate(scans)
     fields = {name: getattr(hyps, name) for name in hyps.__dataclass_fields__}
-    del fields["capped"]
-    assert WindowHypotheses(**fields).capped == 0
+    del fields["nodes_capped"]
+    assert WindowHypotheses(**fields).nodes_capped == 0
 
 
 # ------------------------------------------------------------------ 4. end to end

@@ -308,7 +308,7 @@ def test_window_status_is_the_worst_cluster_status_in_any_order() -> None:
     worst_first = (report("time_limit"), report("bounded"), report("exact"))
     for clusters in (worst_first, worst_first[::-1], worst_first[1:], ()):
         for capped in (False, True):
-            window = SimpleNamespace(hypotheses=SimpleNamespace(capped=capped),
+            window = SimpleNamespace(hypotheses=SimpleNamespace(nodes_capped=capped),
                                      bounded_clusters=clusters)
             expected = max(
                 [WINDOW_STATUSES.index("capped" if capped else "exact")]

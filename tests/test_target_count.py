@@ -401,8 +401,8 @@ def test_solve_window_is_the_first_window_of_run() -> None:
     result = estimator.run(scenario.scans)
     window = estimator.solve_window(scenario.scans[:n])
     report = result.windows[0]
-    k = len(report.probabilities)
-    np.testing.assert_array_equal(report.probabilities, window.posterior.probabilities[:k])
+    k = len(report.p_k)
+    np.testing.assert_array_equal(report.p_k, window.posterior.probabilities[:k])
     assert report.marginal_k == window.posterior.marginal_k
     assert report.chosen_tracks == window.posterior.marginal_tracks
     assert report.undetected_mean == window.posterior.undetected_mean

@@ -196,7 +196,7 @@ def test_window_tables_equal_integer_program_and_enumeration(seed: int) -> None:
     solution = case.estimator.solve_window(case.scans, case.carried)
     table = solution.table
     problem = solution.problem
-    assert solution.hypotheses.pruned == 0
+    assert solution.hypotheses.nodes_pruned == 0
     assert table.exact
     highs = get_solver("highs")
     enumeration = get_solver("enumeration")
@@ -837,7 +837,7 @@ def test_aggressive_pruning_keeps_a_detection_free_hypothesis(survival: float) -
     scans = make_scans([0.0, 1.0, 2.0], [[[1.0], [-7.0]], [[2.0]], [[3.0], [6.0]]], 1)
     solution = WindowEstimator(config=config).solve_window(scans, carried)
     hyps = solution.hypotheses
-    assert hyps.pruned > 0
+    assert hyps.nodes_pruned > 0
     carried_hyps = np.flatnonzero(hyps.tree == 0)
     assert any(len(hyps.detections_of(int(h))) == 0 for h in carried_hyps)
     assert any(len(hyps.detections_of(int(h))) == 3 for h in carried_hyps)
