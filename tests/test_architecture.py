@@ -81,3 +81,19 @@ def test_no_generic_top_level_packages_are_shipped() -> None:
     mapping = data["tool"]["setuptools"]["package-dir"]
     assert mapping["mapassoc.formulations"] == "formulations"
     assert mapping["mapassoc.solvers"] == "solvers"
+
+
+def test_the_installed_package_exposes_no_generic_top_level_name() -> None:
+    """In the installed environment (the editable install of ``make setup``), the
+    folders are importable only under ``mapassoc``: ``import formulations`` and
+    ``import solvers`` fail from a directory outside the checkout."""
+    import subprocess
+    import sys
+
+    code = (
+        "import importlib.util as u; "
+        "assert u.find_spec('mapassoc.formulations') and u.find_spec('mapassoc.solvers'); "
+        "assert u.find_spec('formulations') is None, 'formulations'; "
+        "assert u.find_spec('solvers') is None, 'solvers'"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, cwd="/")
