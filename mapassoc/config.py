@@ -38,7 +38,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import re
 import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -417,22 +416,6 @@ def _field_kind(field: dataclasses.Field[object]) -> str:
     return str(annotation)
 
 
-_SETTINGS_FIELD_IN_MESSAGE = re.compile(r"^(?:birth )?([a-z_]+)(\[\d+\])?")
-
-
-def _settings_error_key(section: str, message: str, field_names: set[str]) -> str:
-    """Dotted key of the field a settings constructor complained about.
-
-    The constructors in :mod:`mapassoc.settings` start every message with the field name
-    (``"stride must be <= window_length ..."``, ``"birth rate must be positive ..."``);
-    when no field name leads the message, the section itself is named.
-    """
-    match = _SETTINGS_FIELD_IN_MESSAGE.match(message)
-    if match and match.group(1) in field_names:
-        return f"{section}.{match.group(1)}{match.group(2) or ''}"
-    return section
-
-
 _Settings = TypeVar("_Settings", BirthModel, EstimatorSettings)
 
 
@@ -462,7 +445,9 @@ def _parse_settings(
     try:
         return cls(**values)
     except InputError as exc:
-        key = _settings_error_key(section, str(exc), set(fields))
+        # The settings constructors name the offending field in ``exc.key``; an error
+        # without one is reported against the whole section.
+        key = section if exc.key is None else f"{section}.{exc.key}"
         raise parser.fail(key, str(exc)) from None
 
 

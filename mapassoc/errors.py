@@ -21,7 +21,22 @@ class MapassocError(Exception):
 
 
 class InputError(MapassocError, ValueError):
-    """A public function was called with an argument it cannot accept."""
+    """A public function was called with an argument it cannot accept.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong: the argument, the value received and what was expected.
+    key : str, optional
+        Name of the offending field when a settings dataclass raised it (for example
+        ``"rate"`` or ``"max_tracks"``), followed by an element index for an entry of a
+        sequence field (``"k_prior_weights[1]"``); ``None`` otherwise.
+        :mod:`mapassoc.config` reports it as the configuration key.
+    """
+
+    def __init__(self, message: str, *, key: str | None = None) -> None:
+        self.key = key
+        super().__init__(message)
 
 
 class ConfigError(MapassocError, ValueError):

@@ -107,22 +107,34 @@ class CountPrior:
 
     def __post_init__(self) -> None:
         if self.kind not in COUNT_PRIORS:
-            raise InputError(f"k_prior must be one of {COUNT_PRIORS}, got {self.kind!r}")
+            raise InputError(
+                f"k_prior must be one of {COUNT_PRIORS}, got {self.kind!r}", key="k_prior"
+            )
         if isinstance(self.kmax, bool) or not isinstance(self.kmax, int) or self.kmax < 0:
-            raise InputError(f"max_tracks must be an integer >= 0, got {self.kmax!r}")
+            raise InputError(
+                f"max_tracks must be an integer >= 0, got {self.kmax!r}", key="max_tracks"
+            )
         if not (math.isfinite(self.mean) and self.mean > 0):
-            raise InputError(f"k_prior_mean must be a finite number > 0, got {self.mean!r}")
+            raise InputError(
+                f"k_prior_mean must be a finite number > 0, got {self.mean!r}", key="k_prior_mean"
+            )
         if self.kind == "weights":
             if len(self.weights) != self.kmax + 1:
                 raise InputError(
                     f"k_prior_weights must have max_tracks + 1 = {self.kmax + 1} entries, "
-                    f"got {len(self.weights)}"
+                    f"got {len(self.weights)}",
+                    key="k_prior_weights",
                 )
             for i, v in enumerate(self.weights):
                 if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                    raise InputError(f"k_prior_weights[{i}] must be a number >= 0, got {v!r}")
+                    raise InputError(
+                        f"k_prior_weights[{i}] must be a number >= 0, got {v!r}",
+                        key=f"k_prior_weights[{i}]",
+                    )
             if not any(v > 0 for v in self.weights):
-                raise InputError("k_prior_weights must have at least one positive entry")
+                raise InputError(
+                    "k_prior_weights must have at least one positive entry", key="k_prior_weights"
+                )
 
     def log_prior(self, population: WindowPopulation, top: int) -> FloatArray:
         """log pi(K) for K = 0..top (top <= kmax), up to an additive constant."""

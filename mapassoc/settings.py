@@ -1,7 +1,8 @@
 """Settings of the window estimator: target birth and death, windows, K, solving.
 
 Plain frozen dataclasses, validated on construction; every field error names the
-field, the value and what was expected.  :mod:`mapassoc.config` builds them from a
+field, the value and what was expected, and carries the field name in
+``InputError.key``.  :mod:`mapassoc.config` builds them from a
 TOML file (section and key names equal the field names).
 """
 
@@ -21,7 +22,7 @@ K_ESTIMATES = tuple(K_ESTIMATORS)
 
 def _check_int(name: str, value: object, *, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}", key=name)
     return value
 
 
@@ -71,13 +72,18 @@ class BirthModel:
     survival_probability: float = 0.99
 
     def __post_init__(self) -> None:
-        check_nonnegative("birth rate", self.rate)
-        check_nonnegative("birth initial_count", self.initial_count)
-        check_positive("birth velocity_std", self.velocity_std)
-        check_positive("birth acceleration_std", self.acceleration_std)
-        check_positive("birth speed_std", self.speed_std)
-        check_positive("birth turn_rate_std", self.turn_rate_std)
-        check_probability("birth survival_probability", self.survival_probability, allow_zero=False)
+        check_nonnegative("birth rate", self.rate, key="rate")
+        check_nonnegative("birth initial_count", self.initial_count, key="initial_count")
+        check_positive("birth velocity_std", self.velocity_std, key="velocity_std")
+        check_positive("birth acceleration_std", self.acceleration_std, key="acceleration_std")
+        check_positive("birth speed_std", self.speed_std, key="speed_std")
+        check_positive("birth turn_rate_std", self.turn_rate_std, key="turn_rate_std")
+        check_probability(
+            "birth survival_probability",
+            self.survival_probability,
+            allow_zero=False,
+            key="survival_probability",
+        )
 
 
 @dataclass(frozen=True)
@@ -157,22 +163,29 @@ class EstimatorSettings:
         _check_int("stride", self.stride, minimum=1)
         if self.stride > self.window_length:
             raise InputError(
-                f"stride must be <= window_length ({self.window_length}), got {self.stride}"
+                f"stride must be <= window_length ({self.window_length}), got {self.stride}",
+                key="stride",
             )
         _check_int("max_tracks", self.max_tracks, minimum=0)
-        check_probability("gate_probability", self.gate_probability, allow_zero=False)
+        check_probability(
+            "gate_probability", self.gate_probability, allow_zero=False, key="gate_probability"
+        )
         _check_int("max_hypotheses_per_tree", self.max_hypotheses_per_tree, minimum=1)
         if not (isinstance(self.prune_log_ratio, (int, float)) and self.prune_log_ratio >= 0):
             raise InputError(
                 f"prune_log_ratio must be a number >= 0 (inf disables), got "
-                f"{self.prune_log_ratio!r}"
+                f"{self.prune_log_ratio!r}",
+                key="prune_log_ratio",
             )
         self.count_prior()  # validates k_prior, k_prior_mean and k_prior_weights
         if self.k_estimate not in K_ESTIMATES:
-            raise InputError(f"k_estimate must be one of {K_ESTIMATES}, got {self.k_estimate!r}")
+            raise InputError(
+                f"k_estimate must be one of {K_ESTIMATES}, got {self.k_estimate!r}",
+                key="k_estimate",
+            )
         if not isinstance(self.solver, str) or not self.solver:
-            raise InputError(f"solver must be a backend name, got {self.solver!r}")
-        check_positive("time_limit", self.time_limit)
+            raise InputError(f"solver must be a backend name, got {self.solver!r}", key="solver")
+        check_positive("time_limit", self.time_limit, key="time_limit")
         _check_int("exact_work_limit", self.exact_work_limit, minimum=1)
         _check_int("beam_width", self.beam_width, minimum=1)
 

@@ -23,20 +23,25 @@ __all__ = [
 ]
 
 
-def _as_float(name: str, value: object) -> float:
+def _as_float(name: str, value: object, key: str | None = None) -> float:
     if isinstance(value, bool):
-        raise InputError(f"{name} must be a number, got the boolean {value!r}")
+        raise InputError(f"{name} must be a number, got the boolean {value!r}", key=key)
     try:
         out = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
+        raise InputError(f"{name} must be a number, got {value!r}", key=key) from None
     if not math.isfinite(out):
-        raise InputError(f"{name} must be finite, got {value!r}")
+        raise InputError(f"{name} must be finite, got {value!r}", key=key)
     return out
 
 
 def check_probability(
-    name: str, value: object, *, allow_zero: bool = True, allow_one: bool = True
+    name: str,
+    value: object,
+    *,
+    allow_zero: bool = True,
+    allow_one: bool = True,
+    key: str | None = None,
 ) -> float:
     """Return ``value`` as a float after checking it is a probability.
 
@@ -48,30 +53,38 @@ def check_probability(
         The value to check.
     allow_zero, allow_one : bool
         Whether the closed ends of [0, 1] are accepted.
+    key : str, optional
+        Field name stored in the raised error's ``InputError.key``.
     """
-    p = _as_float(name, value)
+    p = _as_float(name, value, key)
     lo_ok = p >= 0.0 if allow_zero else p > 0.0
     hi_ok = p <= 1.0 if allow_one else p < 1.0
     if not (lo_ok and hi_ok):
         lo = "[0" if allow_zero else "(0"
         hi = "1]" if allow_one else "1)"
-        raise InputError(f"{name} must be a probability in {lo}, {hi}, got {value!r}")
+        raise InputError(f"{name} must be a probability in {lo}, {hi}, got {value!r}", key=key)
     return p
 
 
-def check_positive(name: str, value: object) -> float:
-    """Return ``value`` as a float after checking it is finite and > 0."""
-    v = _as_float(name, value)
+def check_positive(name: str, value: object, *, key: str | None = None) -> float:
+    """Return ``value`` as a float after checking it is finite and > 0.
+
+    ``key`` is stored in the raised error's ``InputError.key``.
+    """
+    v = _as_float(name, value, key)
     if v <= 0.0:
-        raise InputError(f"{name} must be positive, got {value!r}")
+        raise InputError(f"{name} must be positive, got {value!r}", key=key)
     return v
 
 
-def check_nonnegative(name: str, value: object) -> float:
-    """Return ``value`` as a float after checking it is finite and >= 0."""
-    v = _as_float(name, value)
+def check_nonnegative(name: str, value: object, *, key: str | None = None) -> float:
+    """Return ``value`` as a float after checking it is finite and >= 0.
+
+    ``key`` is stored in the raised error's ``InputError.key``.
+    """
+    v = _as_float(name, value, key)
     if v < 0.0:
-        raise InputError(f"{name} must be non-negative, got {value!r}")
+        raise InputError(f"{name} must be non-negative, got {value!r}", key=key)
     return v
 
 

@@ -1,0 +1,144 @@
+"""Tests of ``InputError.key``: the settings dataclasses name the offending field.
+
+:mod:`mapassoc.config` reports ``<section>.<key>`` from it, so every validated field of
+:class:`BirthModel` and :class:`EstimatorSettings` must set it.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import tomllib
+
+import pytest
+
+from mapassoc.config import parse_config
+from mapassoc.errors import ConfigError, InputError
+from mapassoc.posterior import CountPrior
+from mapassoc.settings import BirthModel, EstimatorSettings
+
+MINIMAL_TOML = """
+[motion]
+model = "constant_velocity"
+ndim = 2
+noise_intensity = 0.5
+
+[[sensors]]
+name = "radar"
+measurement = "position"
+noise_std = 1.0
+detection_probability = 0.9
+false_alarms_per_scan = 10.0
+region = [[-100.0, 100.0], [-100.0, 100.0]]
+"""
+
+# One bad value per validated field, typed as the TOML reader hands it over (so the
+# same table drives the constructor and the config reader), plus the other fields it
+# needs to be checked at all.
+BAD_BIRTH: dict[str, tuple[object, dict[str, object]]] = {
+    "rate": (-0.1, {}),
+    "initial_count": (-1.0, {}),
+    "velocity_std": (0.0, {}),
+    "acceleration_std": (-1.0, {}),
+    "speed_std": (0.0, {}),
+    "turn_rate_std": (float("inf"), {}),
+    "survival_probability": (0.0, {}),
+}
+
+BAD_ESTIMATOR: dict[str, tuple[object, dict[str, object]]] = {
+    "window_length": (0, {}),
+    "stride": (6, {"window_length": 5}),
+    "max_tracks": (-1, {}),
+    "gate_probability": (1.5, {}),
+    "max_hypotheses_per_tree": (0, {}),
+    "prune_log_ratio": (-1.0, {}),
+    "k_prior": ("flat", {}),
+    "k_prior_mean": (0.0, {}),
+    "k_prior_weights": ((1.0,), {"k_prior": "weights", "max_tracks": 2}),
+    "k_estimate": ("mode", {}),
+    "solver": ("", {}),
+    "time_limit": (0.0, {}),
+    "exact_work_limit": (0, {}),
+    "beam_width": (0, {}),
+}
+
+CASES = [
+    (section, cls, name, bad, extra)
+    for section, cls, table in (
+        ("birth", BirthModel, BAD_BIRTH),
+        ("estimator", EstimatorSettings, BAD_ESTIMATOR),
+    )
+    for name, (bad, extra) in table.items()
+]
+
+
+def _validated_fields(cls: type) -> set[str]:
+    """Every field of ``cls``: each has a validation rule (the table must cover it)."""
+    return {field.name for field in dataclasses.fields(cls)}
+
+
+@pytest.mark.parametrize(
+    ("cls", "table"), [(BirthModel, BAD_BIRTH), (EstimatorSettings, BAD_ESTIMATOR)]
+)
+def test_table_covers_every_validated_field(
+    cls: type, table: dict[str, tuple[object, dict[str, object]]]
+) -> None:
+    assert set(table) == _validated_fields(cls), (
+        f"{cls.__name__}: give every validated field a bad value in this table"
+    )
+    cls()  # the defaults are valid
+
+
+@pytest.mark.parametrize(
+    ("section", "cls", "name", "bad", "extra"), CASES, ids=[f"{c[0]}.{c[2]}" for c in CASES]
+)
+def test_settings_error_names_the_field(
+    section: str, cls: type, name: str, bad: object, extra: dict[str, object]
+) -> None:
+    with pytest.raises(InputError) as info:
+        cls(**extra, **{name: bad})
+    assert info.value.key == name
+    assert name in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("section", "cls", "name", "bad", "extra"), CASES, ids=[f"{c[0]}.{c[2]}" for c in CASES]
+)
+def test_config_reports_section_and_field(
+    section: str, cls: type, name: str, bad: object, extra: dict[str, object]
+) -> None:
+    with pytest.raises(InputError) as direct:
+        cls(**extra, **{name: bad})
+    data = copy.deepcopy(tomllib.loads(MINIMAL_TOML))
+    data[section] = {**extra, name: list(bad) if isinstance(bad, tuple) else bad}
+    with pytest.raises(ConfigError) as info:
+        parse_config(data, source="bad.toml")
+    assert info.value.key == f"{section}.{name}"
+    assert str(info.value) == f"bad.toml: config key '{section}.{name}': {direct.value}"
+
+
+def test_weight_entry_error_names_the_entry() -> None:
+    with pytest.raises(InputError) as info:
+        EstimatorSettings(max_tracks=2, k_prior="weights", k_prior_weights=(1.0, -1.0, 0.0))
+    assert info.value.key == "k_prior_weights[1]"
+    with pytest.raises(InputError) as info:
+        EstimatorSettings(max_tracks=1, k_prior="weights", k_prior_weights=(0.0, 0.0))
+    assert info.value.key == "k_prior_weights"
+    assert str(info.value) == "k_prior_weights must have at least one positive entry"
+
+
+def test_count_prior_names_the_settings_field() -> None:
+    with pytest.raises(InputError) as info:
+        CountPrior(kmax=-1)
+    assert info.value.key == "max_tracks"
+
+
+def test_key_defaults_to_none_and_message_is_unchanged() -> None:
+    error = InputError("x must be positive, got -1")
+    assert error.key is None
+    assert str(error) == "x must be positive, got -1"
+    assert error.args == ("x must be positive, got -1",)
+    keyed = InputError("rate must be positive, got -1", key="rate")
+    assert (keyed.key, str(keyed)) == ("rate", "rate must be positive, got -1")
+    with pytest.raises(TypeError):
+        InputError("message", "rate")  # type: ignore[misc]
