@@ -31,7 +31,7 @@ class InputError(MapassocError, ValueError):
         Name of the offending field when a settings dataclass raised it (for example
         ``"rate"`` or ``"max_tracks"``), followed by an element index for an entry of a
         sequence field (``"k_prior_weights[1]"``); ``None`` otherwise.
-        :mod:`mapassoc.config` reports it as the configuration key.
+        :mod:`mapassoc.data.config` reports it as the configuration key.
     """
 
     def __init__(self, message: str, *, key: str | None = None) -> None:

@@ -13,11 +13,11 @@ from dataclasses import dataclass, replace
 
 import pytest
 
-from mapassoc.evaluation import evaluate_tables
-from mapassoc.oracle import oracle_tracks
-from mapassoc.pipeline import EstimateResult, WindowEstimator
-from mapassoc.scenarios import build_scenario
-from mapassoc.simulate import Scenario
+from mapassoc.estimator.pipeline import EstimateResult, WindowEstimator
+from mapassoc.evaluation.oracle import oracle_tracks
+from mapassoc.evaluation.scenarios import build_scenario
+from mapassoc.evaluation.simulate import Scenario
+from mapassoc.evaluation.tables import evaluate_tables
 
 GOSPA_CUTOFF = 10.0
 

@@ -32,7 +32,7 @@ def imported_modules(path: Path) -> list[str]:
 
 
 def files(folder: str) -> list[Path]:
-    found = sorted((ROOT / folder).glob("*.py"))
+    found = sorted((ROOT / folder).rglob("*.py"))
     assert found, f"no Python files under {folder}/"
     return found
 

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from mapassoc.bench import (
+from mapassoc.apps.bench import (
     BENCH_K_PRIORS,
     DEFAULT_FAMILIES,
     DEFAULT_K_PRIORS,
@@ -28,10 +28,10 @@ from mapassoc.bench import (
     summarize_family,
     window_target_counts,
 )
-from mapassoc.cli import _BENCH_FAMILIES, _BENCH_K_PRIORS, build_parser, main
+from mapassoc.apps.cli import _BENCH_FAMILIES, _BENCH_K_PRIORS, build_parser, main
+from mapassoc.data.io import TruthTable
 from mapassoc.errors import InputError
-from mapassoc.io import TruthTable
-from mapassoc.scenarios import build_scenario, scenario_names, truncate_scenario
+from mapassoc.evaluation.scenarios import build_scenario, scenario_names, truncate_scenario
 
 # A few scans of the crossing scenario: enough for several 3-scan windows, fast.
 SCANS = 8

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from mapassoc.cli import main
-from mapassoc.io import read_tracks
+from mapassoc.apps.cli import main
+from mapassoc.data.io import read_tracks
 
 
 @pytest.fixture(scope="module")
@@ -22,9 +22,9 @@ def test_simulate_writes_the_scenario_folder(scenario_dir: Path) -> None:
     """The files read back as the scenario the library builds for the same name and seed."""
     import numpy as np
 
-    from mapassoc.config import load_config
-    from mapassoc.io import read_detections, read_origins, read_truth
-    from mapassoc.scenarios import build_scenario
+    from mapassoc.data.config import load_config
+    from mapassoc.data.io import read_detections, read_origins, read_truth
+    from mapassoc.evaluation.scenarios import build_scenario
 
     scenario = build_scenario("turning", 3)
     config = load_config(scenario_dir / "config.toml")

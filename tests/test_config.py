@@ -1,4 +1,4 @@
-"""Tests of mapassoc.config: parsing, the TOML emitter round trip, and every bad-key case."""
+"""Tests of mapassoc.data.config: parsing, the TOML emitter round trip, and every bad-key case."""
 
 from __future__ import annotations
 
@@ -13,12 +13,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mapassoc.config import Config, config_to_toml, load_config, parse_config, write_config
+from mapassoc.data.config import Config, config_to_toml, load_config, parse_config, write_config
+from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
-from mapassoc.measurement import LinearMeasurement, RangeBearing
-from mapassoc.motion import ConstantAcceleration, ConstantVelocity, CoordinatedTurn, RandomWalk
-from mapassoc.sensor import Region, Sensor
-from mapassoc.settings import BirthModel, EstimatorSettings
+from mapassoc.models.measurement import LinearMeasurement, RangeBearing
+from mapassoc.models.motion import (
+    ConstantAcceleration,
+    ConstantVelocity,
+    CoordinatedTurn,
+    RandomWalk,
+)
+from mapassoc.models.sensor import Region, Sensor
 
 FULL_TOML = """
 [motion]

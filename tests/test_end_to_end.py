@@ -1,6 +1,6 @@
 """End to end on simulated scenarios: GOSPA within a measured factor of the oracle.
 
-The oracle is a Kalman smoother on the true associations (``mapassoc.oracle``).  The
+The oracle is a Kalman smoother on the true associations (``mapassoc.evaluation.oracle``).  The
 bounds are the factors measured on this code (seed and settings below) plus a margin
 for floating-point differences between machines; they are regression guards, and the
 measured values are in the comments:

@@ -1,6 +1,6 @@
 """Tests of ``InputError.key``: the settings dataclasses name the offending field.
 
-:mod:`mapassoc.config` reports ``<section>.<key>`` from it, so every validated field of
+:mod:`mapassoc.data.config` reports ``<section>.<key>`` from it, so every validated field of
 :class:`BirthModel` and :class:`EstimatorSettings` must set it.
 """
 
@@ -12,10 +12,10 @@ import tomllib
 
 import pytest
 
-from mapassoc.config import parse_config
+from mapassoc.data.config import parse_config
+from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
-from mapassoc.posterior import CountPrior
-from mapassoc.settings import BirthModel, EstimatorSettings
+from mapassoc.estimator.posterior import CountPrior
 
 MINIMAL_TOML = """
 [motion]

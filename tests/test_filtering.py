@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy.stats import multivariate_normal
 
 from mapassoc.errors import InputError, NotPositiveDefiniteError
-from mapassoc.kalman import (
+from mapassoc.filtering.kalman import (
     FilterStep,
     filter_sequence,
     gate_threshold,
@@ -21,8 +21,13 @@ from mapassoc.kalman import (
     predict_motion,
     update,
 )
-from mapassoc.measurement import LinearMeasurement, RangeBearing, wrap_angle
-from mapassoc.motion import ConstantAcceleration, ConstantVelocity, CoordinatedTurn, RandomWalk
+from mapassoc.models.measurement import LinearMeasurement, RangeBearing, wrap_angle
+from mapassoc.models.motion import (
+    ConstantAcceleration,
+    ConstantVelocity,
+    CoordinatedTurn,
+    RandomWalk,
+)
 
 
 def numeric_jacobian(f, x: np.ndarray, eps: float = 1e-6) -> np.ndarray:

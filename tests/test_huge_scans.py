@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from test_window_model import SENSOR, make_config
 
-from mapassoc.motion import ConstantVelocity
-from mapassoc.pipeline import WindowEstimator
-from mapassoc.scans import Scan
+from mapassoc.data.scans import Scan
+from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.models.motion import ConstantVelocity
 
 
 @pytest.mark.slow
@@ -64,7 +64,7 @@ def test_a_huge_max_tracks_costs_nothing_per_window() -> None:
     """Kmax = 10^6 on the crossing scenario: every window reports p_k_length = 10^6 + 1
     but stores and writes only the K with p(K | Z) above 1e-300, with the same posterior
     as a Kmax that is just large enough."""
-    from mapassoc.scenarios import build_scenario, truncate_scenario
+    from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
 
     scenario = truncate_scenario(build_scenario("crossing", 0), 10)
 

@@ -1,4 +1,5 @@
-"""The node record of the track trees and the commit of a window (``mapassoc.hypotheses``).
+"""The node record of the track trees and the commit of a window
+(``mapassoc.estimator.hypotheses``).
 
 What is checked, against what:
 
@@ -23,16 +24,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
-from mapassoc.hypotheses import (
+from mapassoc.estimator.hypotheses import (
     CarriedTrack,
     HypothesisNodes,
     WindowDetections,
     WindowHypotheses,
 )
-from mapassoc.pipeline import WindowEstimator, _TrackRecord
-from mapassoc.scans import Scan
-from mapassoc.scenarios import build_scenario
+from mapassoc.estimator.pipeline import WindowEstimator, _TrackRecord
+from mapassoc.evaluation.scenarios import build_scenario
 
 # ---------------------------------------------------------------------------------- window
 #

@@ -1,4 +1,4 @@
-"""Tests of mapassoc.io: exact round trips, golden files and every malformed-input case."""
+"""Tests of mapassoc.data.io: exact round trips, golden files and every malformed-input case."""
 
 from __future__ import annotations
 
@@ -12,8 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from mapassoc.errors import DataFileError, InputError
-from mapassoc.io import (
+from mapassoc.data.io import (
     Origins,
     TrackTable,
     TruthTable,
@@ -27,10 +26,11 @@ from mapassoc.io import (
     write_tracks,
     write_truth,
 )
-from mapassoc.measurement import LinearMeasurement, RangeBearing
-from mapassoc.motion import ConstantVelocity
-from mapassoc.scans import Scan
-from mapassoc.sensor import Region, Sensor
+from mapassoc.data.scans import Scan
+from mapassoc.errors import DataFileError, InputError
+from mapassoc.models.measurement import LinearMeasurement, RangeBearing
+from mapassoc.models.motion import ConstantVelocity
+from mapassoc.models.sensor import Region, Sensor
 
 
 def _sensor(name: str, kind: str) -> Sensor:

@@ -20,13 +20,13 @@ import math
 import numpy as np
 import pytest
 
-from mapassoc.config import Config
-from mapassoc.measurement import LinearMeasurement
-from mapassoc.motion import ConstantVelocity
-from mapassoc.pipeline import WindowEstimator
-from mapassoc.scans import Scan
-from mapassoc.sensor import Region, Sensor
-from mapassoc.settings import BirthModel, EstimatorSettings
+from mapassoc.data.config import Config
+from mapassoc.data.scans import Scan
+from mapassoc.data.settings import BirthModel, EstimatorSettings
+from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.models.measurement import LinearMeasurement
+from mapassoc.models.motion import ConstantVelocity
+from mapassoc.models.sensor import Region, Sensor
 
 HALF_WIDTH = 50.0
 SCANS = 3

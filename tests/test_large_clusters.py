@@ -17,13 +17,13 @@ import pytest
 from test_cardinality import brute_force, random_problem
 from test_window_model import make_config, random_window
 
-from mapassoc.cluster_solving import ClusterSolver
+from mapassoc.estimator.cluster_solving import ClusterSolver
+from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.formulations.bounds import fixed_variable_bounds, log_mass_upper_bounds
 from mapassoc.formulations.cardinality import exact_cardinality_table
 from mapassoc.formulations.frontier import frontier_search
 from mapassoc.formulations.packing import set_packing_program
-from mapassoc.motion import ConstantVelocity
-from mapassoc.pipeline import WindowEstimator
+from mapassoc.models.motion import ConstantVelocity
 from mapassoc.solvers import HighsSolver, SolveStatus, enumerate_feasible
 
 TOLERANCE = 1e-9
@@ -322,7 +322,7 @@ def test_bounded_window_lines_carry_their_bounds() -> None:
         assert np.all(exact.table.best <= bounded.table.best_upper + TOLERANCE)
     assert len(checked) >= 3, "too few windows took the bounded path"
     # And a run's JSON lines carry the bounds.
-    from mapassoc.scenarios import build_scenario, truncate_scenario
+    from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
 
     scenario = truncate_scenario(build_scenario("crossing", 0), 8)
     estimator = WindowEstimator(config=scenario.config)

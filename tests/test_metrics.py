@@ -1,4 +1,4 @@
-"""Tests of mapassoc.metrics: GOSPA (alpha = 2), RMSE, cardinality error and the report."""
+"""Tests of mapassoc.evaluation.metrics: GOSPA (alpha = 2), RMSE, cardinality error, report."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mapassoc.errors import InputError
-from mapassoc.metrics import (
+from mapassoc.evaluation.metrics import (
     GospaResult,
     TimedPoints,
     cardinality_error,

@@ -9,11 +9,16 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from mapassoc import birth as birth_module
-from mapassoc.config import Config, config_to_toml, parse_config
+from mapassoc.models import birth as birth_module
+from mapassoc.data.config import Config, config_to_toml, parse_config
+from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
-from mapassoc.measurement import LinearMeasurement
-from mapassoc.motion import (
+from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.evaluation.oracle import oracle_tracks
+from mapassoc.evaluation.scenarios import birth_model_for
+from mapassoc.evaluation.simulate import TargetSpec, scan_plan_regular, simulate
+from mapassoc.models.measurement import LinearMeasurement
+from mapassoc.models.motion import (
     MOTION_REGISTRY,
     ConstantAcceleration,
     ConstantVelocity,
@@ -24,12 +29,7 @@ from mapassoc.motion import (
     motion_spec,
     register_motion_model,
 )
-from mapassoc.oracle import oracle_tracks
-from mapassoc.pipeline import WindowEstimator
-from mapassoc.scenarios import birth_model_for
-from mapassoc.sensor import Region, Sensor
-from mapassoc.settings import BirthModel, EstimatorSettings
-from mapassoc.simulate import TargetSpec, scan_plan_regular, simulate
+from mapassoc.models.sensor import Region, Sensor
 
 # One example of every registered model (a new registration without an example fails
 # test_every_registered_model_has_an_example).
@@ -168,7 +168,7 @@ def test_birth_prior_shapes_and_positive_definite(name: str, kwargs: dict[str, o
     assert np.all(mean == 0.0)
     if m:
         assert _is_positive_definite(cov)
-    # Through mapassoc.birth: position from the detection, the rest from the prior.
+    # Through mapassoc.models.birth: position from the detection, the rest from the prior.
     model = _model(name, kwargs)
     sensor = _position_sensor(model)
     z = np.arange(1.0, len(model.position_indices) + 1.0)

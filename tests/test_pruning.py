@@ -1,4 +1,4 @@
-"""Pruning of the track trees compares like with like (``mapassoc.hypotheses``).
+"""Pruning of the track trees compares like with like (``mapassoc.estimator.hypotheses``).
 
 What is checked, against what:
 
@@ -27,13 +27,13 @@ import math
 import numpy as np
 import pytest
 
+from mapassoc.data.scans import Scan
+from mapassoc.data.settings import BirthModel
 from mapassoc.errors import InputError
-from mapassoc.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
-from mapassoc.measurement import LinearMeasurement, RangeBearing
-from mapassoc.motion import ConstantVelocity
-from mapassoc.scans import Scan
-from mapassoc.sensor import Region, Sensor
-from mapassoc.settings import BirthModel
+from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
+from mapassoc.models.measurement import LinearMeasurement, RangeBearing
+from mapassoc.models.motion import ConstantVelocity
+from mapassoc.models.sensor import Region, Sensor
 
 TOLERANCE = 1e-9
 
@@ -471,10 +471,10 @@ def test_every_target_born_in_dense_clutter_gets_a_track() -> None:
     misses in a row can be rejected by the model itself, whatever the pruning: its best
     hypothesis scores below 0.  The seed fixes a realisation without such a target.)
     """
-    from mapassoc.config import Config
-    from mapassoc.pipeline import WindowEstimator
-    from mapassoc.settings import EstimatorSettings
-    from mapassoc.simulate import TargetSpec, scan_plan_regular, simulate
+    from mapassoc.data.config import Config
+    from mapassoc.data.settings import EstimatorSettings
+    from mapassoc.estimator.pipeline import WindowEstimator
+    from mapassoc.evaluation.simulate import TargetSpec, scan_plan_regular, simulate
 
     motion = ConstantVelocity(ndim=2, noise_intensity=0.002)
     sensor = position_sensor(
@@ -527,7 +527,7 @@ def test_birth_rate_zero_starts_tracks_only_from_the_initial_population() -> Non
     """rate = 0 is allowed: new trees are rooted only in targets present at the start,
     first detected at scan 0 (u_0 = initial_count) or later, when they were missed
     (u_1 = initial_count (1 - Pd) Ps^dt); with initial_count = 0 too, nowhere."""
-    from mapassoc.settings import BirthModel
+    from mapassoc.data.settings import BirthModel
 
     motion = ConstantVelocity(ndim=2, noise_intensity=0.1)
     sensor = Sensor(
@@ -574,8 +574,8 @@ def test_birth_rate_zero_runs_end_to_end() -> None:
     target gets its track."""
     from dataclasses import replace
 
-    from mapassoc.pipeline import WindowEstimator
-    from mapassoc.scenarios import build_scenario, truncate_scenario
+    from mapassoc.estimator.pipeline import WindowEstimator
+    from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
 
     scenario = truncate_scenario(build_scenario("crossing", 0), 12)
     assert len(np.unique(scenario.truth.target_ids)) == 3

@@ -8,9 +8,10 @@ from functools import cache
 import numpy as np
 import pytest
 
+from mapassoc.data.scans import check_scan_order
+from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import InputError
-from mapassoc.scans import check_scan_order
-from mapassoc.scenarios import (
+from mapassoc.evaluation.scenarios import (
     BURST_FALSE_ALARMS,
     BURST_SCAN,
     GENERIC_BIRTH_RATE,
@@ -25,8 +26,7 @@ from mapassoc.scenarios import (
     top_initial_speed,
     truncate_scenario,
 )
-from mapassoc.settings import BirthModel, EstimatorSettings
-from mapassoc.simulate import Scenario
+from mapassoc.evaluation.simulate import Scenario
 
 # name -> (targets, detection probability, false alarms per scan, region area)
 HARD = {

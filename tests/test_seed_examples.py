@@ -1,4 +1,5 @@
-"""Acceptance tests: the seeds' worked examples, reproduced exactly by mapassoc.association.
+"""Acceptance tests: the seeds' worked examples, reproduced exactly by
+mapassoc.reference.association.
 
 * seed 000, section 5.2, eq. 18-20 and Table 1: the association vectors and their
   object / clutter split;
@@ -20,7 +21,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import multivariate_normal
 
-from mapassoc.association import (
+from mapassoc.errors import InputError, NotPositiveDefiniteError
+from mapassoc.models.measurement import LinearMeasurement, RangeBearing
+from mapassoc.models.motion import ConstantVelocity, RandomWalk
+from mapassoc.reference.association import (
     AssociationRow,
     GaussianMixture,
     association_table,
@@ -28,9 +32,6 @@ from mapassoc.association import (
     n_object_posterior,
     single_object_sequences,
 )
-from mapassoc.errors import InputError, NotPositiveDefiniteError
-from mapassoc.measurement import LinearMeasurement, RangeBearing
-from mapassoc.motion import ConstantVelocity, RandomWalk
 
 SCALAR_MEASUREMENT_VAR = 0.2  # seeds 001 and 003
 

@@ -10,22 +10,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import chi2, kstest
 
-from mapassoc.config import Config, config_to_toml, load_config
+from mapassoc.data.config import Config, config_to_toml, load_config
+from mapassoc.data.io import Origins, read_detections, read_origins, read_truth
+from mapassoc.data.scans import Scan, check_scan_order
+from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import InputError, NotPositiveDefiniteError
-from mapassoc.io import Origins, read_detections, read_origins, read_truth
-from mapassoc.measurement import LinearMeasurement, RangeBearing
-from mapassoc.motion import ConstantVelocity, CoordinatedTurn, MotionModel, RandomWalk
-from mapassoc.oracle import oracle_tracks
-from mapassoc.scans import Scan, check_scan_order
-from mapassoc.scenarios import (
+from mapassoc.evaluation.oracle import oracle_tracks
+from mapassoc.evaluation.scenarios import (
     DEFAULT_SCENARIO,
     build_scenario,
     describe_scenario,
     scenario_names,
 )
-from mapassoc.sensor import Region, Sensor
-from mapassoc.settings import BirthModel, EstimatorSettings
-from mapassoc.simulate import (
+from mapassoc.evaluation.simulate import (
     Scenario,
     TargetSpec,
     gaussian_factor,
@@ -33,6 +30,9 @@ from mapassoc.simulate import (
     simulate,
     write_scenario,
 )
+from mapassoc.models.measurement import LinearMeasurement, RangeBearing
+from mapassoc.models.motion import ConstantVelocity, CoordinatedTurn, MotionModel, RandomWalk
+from mapassoc.models.sensor import Region, Sensor
 
 # --------------------------------------------------------------------------- helpers
 

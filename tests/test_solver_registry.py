@@ -23,16 +23,16 @@ import scipy.sparse as sp
 from scipy.optimize import linprog
 from test_cardinality import random_problem
 
-from mapassoc.cluster_solving import (
+from mapassoc.estimator.cluster_solving import (
     CLUSTER_STATUSES,
     ClusterReport,
     ClusterSolver,
     default_lp_solver,
 )
+from mapassoc.estimator.pipeline import WINDOW_STATUSES, WindowSolution
 from mapassoc.formulations.bounds import fixed_variable_bounds
 from mapassoc.formulations.packing import set_packing_program
 from mapassoc.formulations.program import Program
-from mapassoc.pipeline import WINDOW_STATUSES, WindowSolution
 from mapassoc.solvers import (
     SOLVER_NAMES,
     SOLVERS,
@@ -154,7 +154,7 @@ def test_importing_the_solvers_does_not_import_optional_libraries() -> None:
         """
         import sys
         import mapassoc.solvers
-        import mapassoc.cluster_solving
+        import mapassoc.estimator.cluster_solving
         from mapassoc.solvers import get_solver
         get_solver("highs"); get_solver("enumeration")
         print(sorted(m for m in ("networkx", "cvxpy") if m in sys.modules))

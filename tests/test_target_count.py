@@ -35,10 +35,10 @@ import pytest
 from test_window_model import make_config, make_scans, partitions
 
 from mapassoc.errors import InputError
-from mapassoc.motion import ConstantVelocity
-from mapassoc.pipeline import WindowEstimator
-from mapassoc.population import UndetectedTargets
-from mapassoc.posterior import COUNT_PRIORS, CountPrior, k_posterior
+from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.estimator.posterior import COUNT_PRIORS, CountPrior, k_posterior
+from mapassoc.models.motion import ConstantVelocity
+from mapassoc.models.population import UndetectedTargets
 
 
 @dataclass(frozen=True)
@@ -393,7 +393,7 @@ def test_solve_window_is_the_first_window_of_run() -> None:
     """No hidden flag: solve_window(scans[:N]) computes what run() computes for its first
     window (the recording starts there), and the undetected-target state run() carries
     is the one the window reports after its committed scan."""
-    from mapassoc.scenarios import build_scenario, truncate_scenario
+    from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
 
     scenario = truncate_scenario(build_scenario("crossing", 0), 8)
     estimator = WindowEstimator(config=scenario.config)
@@ -420,9 +420,9 @@ def test_undetected_targets_by_hand() -> None:
     u_1 = 2 + 1 = 3;  u_2 = 3 * 0.5 * 0.8 + 1 = 2.2;  u_3 = 2.2 * 0.5 * 0.64 + 1 = 1.704;
     q_3 = 0.5;  q_2 = 0.5 (0.36 + 0.64 * 0.5) = 0.34;  q_1 = 0.5 (0.2 + 0.8 * 0.34) = 0.236;
     nu = 3 * 0.236 + 1 * (0.34 + 0.5) = 1.548;  mu_new = 3 + 2 = 5."""
-    from mapassoc.population import recording_start, window_population
-    from mapassoc.scans import Scan
-    from mapassoc.settings import BirthModel
+    from mapassoc.data.scans import Scan
+    from mapassoc.data.settings import BirthModel
+    from mapassoc.models.population import recording_start, window_population
 
     birth = BirthModel(rate=1.0, initial_count=2.0, survival_probability=0.8)
     scans = [Scan(t, "s", np.zeros((0, 1)), np.zeros(0, dtype=np.int64)) for t in (0.0, 1.0, 3.0)]
@@ -470,7 +470,7 @@ def test_k_estimators_on_the_one_scan_case() -> None:
     the median is 2 (the marginal too); the birth prior's [1, 3, 3, 1] / 8 has CDF
     [1, 4, 7, 8] / 8, so the median is 1.  With Pd = 1 nothing goes undetected, so the
     committed track count equals K."""
-    from mapassoc.posterior import K_ESTIMATORS, MedianK
+    from mapassoc.estimator.posterior import K_ESTIMATORS, MedianK
 
     w = replace(random_window(0), times=(0.0,), detections=((-3.0, 0.0, 3.0),), pd=1.0,
                 false_alarms=1.0, rate=0.0, initial=1.0, previous_time=None, kmax=3,
@@ -499,8 +499,8 @@ def test_the_joint_map_set_is_the_map_set_given_its_k(seed: int) -> None:
 
 def test_every_registered_k_estimator_runs_end_to_end() -> None:
     """k_estimate names any registered estimator; the committed set has its T tracks."""
-    from mapassoc.posterior import K_ESTIMATORS
-    from mapassoc.scenarios import build_scenario, truncate_scenario
+    from mapassoc.estimator.posterior import K_ESTIMATORS
+    from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
 
     scenario = truncate_scenario(build_scenario("crossing", 0), 8)
     for name, estimator in K_ESTIMATORS.items():

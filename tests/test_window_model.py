@@ -1,4 +1,4 @@
-"""Acceptance tests of the MAP window track-set estimator (``mapassoc.pipeline``).
+"""Acceptance tests of the MAP window track-set estimator (``mapassoc.estimator.pipeline``).
 
 What is checked, against what:
 
@@ -11,7 +11,7 @@ What is checked, against what:
    with the literal formula (Poisson false-alarm and birth counts, shuffle factors, Pd/miss
    powers per scan, an inline Kalman filter) and compared with p(K | Z) and best[K].
 3. The reduction to seed 001: one scan, two carried tracks, weights and components equal
-   ``mapassoc.association.n_object_posterior``.
+   ``mapassoc.reference.association.n_object_posterior``.
 4. Invariances: detection order within a scan, normalisation, infeasible K.
 5. Deaths: a carried track whose target leaves is ended, and pruning never makes a window
    infeasible.
@@ -29,20 +29,20 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from mapassoc.association import n_object_posterior
-from mapassoc.config import Config, parse_config
+from mapassoc.data.config import Config, parse_config
+from mapassoc.data.scans import Scan
+from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import InputError
+from mapassoc.estimator.hypotheses import CarriedTrack
+from mapassoc.estimator.pipeline import WindowEstimator, WindowSolution
+from mapassoc.estimator.posterior import k_posterior
+from mapassoc.evaluation.metrics import gospa
+from mapassoc.evaluation.simulate import TargetSpec, scan_plan_regular, simulate
 from mapassoc.formulations.packing import PackingProblem, set_packing_program
-from mapassoc.hypotheses import CarriedTrack
-from mapassoc.measurement import LinearMeasurement
-from mapassoc.metrics import gospa
-from mapassoc.motion import ConstantVelocity, MotionModel, RandomWalk
-from mapassoc.pipeline import WindowEstimator, WindowSolution
-from mapassoc.posterior import k_posterior
-from mapassoc.scans import Scan
-from mapassoc.sensor import Region, Sensor
-from mapassoc.settings import BirthModel, EstimatorSettings
-from mapassoc.simulate import TargetSpec, scan_plan_regular, simulate
+from mapassoc.models.measurement import LinearMeasurement
+from mapassoc.models.motion import ConstantVelocity, MotionModel, RandomWalk
+from mapassoc.models.sensor import Region, Sensor
+from mapassoc.reference.association import n_object_posterior
 from mapassoc.solvers import SolveStatus, enumerate_feasible, get_solver
 
 SENSOR = "s"

@@ -1,7 +1,7 @@
 """Evaluate estimated tracks against truth: file tables in, metric summaries out.
 
-Adapts :class:`~mapassoc.io.TruthTable` and :class:`~mapassoc.io.TrackTable` to the
-point sets of :mod:`mapassoc.metrics`.  Positions are the ``x``, ``y`` (and ``z``)
+Adapts :class:`~mapassoc.data.io.TruthTable` and :class:`~mapassoc.data.io.TrackTable` to the
+point sets of :mod:`mapassoc.evaluation.metrics`.  Positions are the ``x``, ``y`` (and ``z``)
 state columns present in both tables.  A track written twice at one time (two sensors
 scanning at the same time) is counted once, with its last row.
 """
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from mapassoc.data.io import TrackTable, TruthTable
 from mapassoc.errors import InputError
-from mapassoc.io import TrackTable, TruthTable
-from mapassoc.metrics import TimedPoints, evaluate
+from mapassoc.evaluation.metrics import TimedPoints, evaluate
 
 __all__ = ["position_names", "truth_points", "track_points", "evaluate_tables"]
 

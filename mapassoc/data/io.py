@@ -75,9 +75,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import DataFileError, InputError
-from mapassoc.scans import Scan, check_scan_order
-from mapassoc.sensor import Sensor
+from mapassoc.models.sensor import Sensor
 
 __all__ = [
     "TruthTable",

@@ -6,10 +6,10 @@ alive in the window plus tracks started in it) give, for T = 0..Kmax,
 * ``best[T] = max over track sets with T tracks of sum of scores`` and
 * ``log_mass[T] = log sum over those track sets of exp(sum of scores)``.
 
-The scores are log-likelihood ratios under the birth model (``mapassoc.hypotheses``,
+The scores are log-likelihood ratios under the birth model (``mapassoc.estimator.hypotheses``,
 ``docs/model.md`` sections 2-3), whose targets form a Poisson process: given the
 data, the targets present in the window but never detected are Poisson with mean
-``nu`` (:class:`~mapassoc.population.WindowPopulation`), independent of the track
+``nu`` (:class:`~mapassoc.models.population.WindowPopulation`), independent of the track
 set.  So under the birth model
 
     p_birth(K, omega | Z)  ∝  exp(score(omega)) Po(K - T(omega); nu)              (1)
@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from scipy.special import gammaln
 
 from mapassoc.errors import InputError
-from mapassoc.population import WindowPopulation
+from mapassoc.models.population import WindowPopulation
 
 __all__ = [
     "COUNT_PRIORS",

@@ -10,12 +10,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mapassoc.cli import run_files
-from mapassoc.evaluation import evaluate_tables
-from mapassoc.io import read_tracks, write_tracks
-from mapassoc.oracle import oracle_tracks
-from mapassoc.scenarios import build_scenario, describe_scenario
-from mapassoc.simulate import write_scenario
+from mapassoc.apps.cli import run_files
+from mapassoc.data.io import read_tracks, write_tracks
+from mapassoc.evaluation.oracle import oracle_tracks
+from mapassoc.evaluation.scenarios import build_scenario, describe_scenario
+from mapassoc.evaluation.simulate import write_scenario
+from mapassoc.evaluation.tables import evaluate_tables
 
 __all__ = ["run_demo", "comparison_table"]
 
@@ -69,7 +69,7 @@ def run_demo(
     ratio = rows["mapassoc"]["gospa"]["mean_total"] / rows["oracle"]["gospa"]["mean_total"]  # type: ignore[index]
     print(f"mapassoc / oracle GOSPA: {ratio:.3f}")
     if plot:
-        from mapassoc.plotting import plot_tracks
+        from mapassoc.apps.plotting import plot_tracks
 
         png = plot_tracks(
             out_dir / "tracks.png",

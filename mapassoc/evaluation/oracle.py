@@ -7,29 +7,30 @@ against: its errors are estimation errors only, never association errors.
 For each target:
 
 1. The track starts at the target's first detection with the single-point initiation of
-   :func:`mapassoc.birth.birth_state` (the detection fixes the position; this is already the
+   :func:`mapassoc.models.birth.birth_state` (the detection fixes the position; this is already the
    posterior given that detection, so it is not updated with it again).
 2. Every later scan of *any* sensor up to the target's last detection is one step: a
-   prediction over ``dt`` through :func:`mapassoc.kalman.predict_motion` (skipped when
+   prediction over ``dt`` through :func:`mapassoc.filtering.kalman.predict_motion` (skipped when
    ``dt == 0``, two sensors scanning at the same time), then a Kalman/EKF update
-   (:func:`mapassoc.kalman.innovation`, :func:`mapassoc.kalman.update`) when the target was
-   detected in that scan; a scan without a detection of the target is a pure prediction.
-3. Rauch-Tung-Striebel smoothing (:func:`mapassoc.kalman.rts_smooth`).
+   (:func:`mapassoc.filtering.kalman.innovation`,
+   :func:`mapassoc.filtering.kalman.update`) when the target was detected in that scan;
+   a scan without a detection of the target is a pure prediction.
+3. Rauch-Tung-Striebel smoothing (:func:`mapassoc.filtering.kalman.rts_smooth`).
 
 Coordinated turn.  A coordinated-turn track starts in the constant-velocity initiation
-model (:func:`mapassoc.birth.initiation_model`; a position measurement's H is re-indexed
-onto that state) and is converted by :func:`mapassoc.birth.convert_initiated` right after
+model (:func:`mapassoc.models.birth.initiation_model`; a position measurement's H is re-indexed
+onto that state) and is converted by :func:`mapassoc.models.birth.convert_initiated` right after
 its first detection update at a time later than its first detection (normally its second
 detection).  Detections at the *same* time as the first one cannot reveal the velocity,
 whose mean is then still exactly zero and has no heading, so they do not trigger the
 conversion.  The whole track is smoothed: the turn-state part with
-:func:`~mapassoc.kalman.rts_smooth`; then, because the conversion is only a change of
+:func:`~mapassoc.filtering.kalman.rts_smooth`; then, because the conversion is only a change of
 variables plus an independent turn-rate prior (it adds no information), the smoothed
 turn state at the conversion step is mapped back to the constant-velocity state by the
 inverse change of variables (which is what the RTS step through a linear change of
 variables reduces to), and the backward pass continues through the constant-velocity
 part.  Those early smoothed states are reported in the turn state through
-:func:`~mapassoc.birth.convert_initiated` (linearised at the smoothed velocity), with the
+:func:`~mapassoc.models.birth.convert_initiated` (linearised at the smoothed velocity), with the
 smoothed turn rate (mean and variance) of the conversion step.  Reported turn states are
 canonical: speed >= 0 (an EKF can settle on the equivalent ``(-speed, heading + pi)``) and
 heading wrapped to (-pi, pi].  A coordinated-turn target detected at a single time has no
@@ -39,7 +40,7 @@ the birth model.
 
 The model-specific pieces of this (initiation model, conversion and its inverse,
 the turn rate taken from the conversion step, canonical form, states of unconverted tracks)
-are methods of the motion model (:class:`mapassoc.motion.MotionModel`); the code here
+are methods of the motion model (:class:`mapassoc.models.motion.MotionModel`); the code here
 works for any model that converts, with dimensions from ``state_dim``.
 """
 
@@ -50,20 +51,20 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.birth import (
+from mapassoc.data.config import Config
+from mapassoc.data.io import Origins, TrackTable
+from mapassoc.data.scans import Scan, check_scan_order
+from mapassoc.data.settings import BirthModel
+from mapassoc.errors import InputError
+from mapassoc.filtering.kalman import innovation, predict_motion, rts_smooth, update
+from mapassoc.models.birth import (
     birth_state,
     convert_initiated,
     initiation_measurement,
     initiation_model,
     needs_conversion,
 )
-from mapassoc.config import Config
-from mapassoc.errors import InputError
-from mapassoc.io import Origins, TrackTable
-from mapassoc.kalman import innovation, predict_motion, rts_smooth, update
-from mapassoc.motion import MotionModel
-from mapassoc.scans import Scan, check_scan_order
-from mapassoc.settings import BirthModel
+from mapassoc.models.motion import MotionModel
 
 __all__ = ["oracle_tracks"]
 
@@ -225,7 +226,7 @@ def oracle_tracks(scans: Sequence[Scan], origins: Origins, config: Config) -> Tr
     Parameters
     ----------
     scans : sequence of Scan
-        Sorted by (time, sensor) (:func:`mapassoc.scans.check_scan_order`).
+        Sorted by (time, sensor) (:func:`mapassoc.data.scans.check_scan_order`).
     origins : Origins
         Origin of every detection row of ``scans`` (``-1`` for a false alarm).
     config : Config

@@ -13,8 +13,8 @@ clutter), ``"scale20"`` / ``"scale50"`` / ``"scale100"`` (size at a fixed densit
 the configuration the benchmark runs them with, the same recipe for every family.
 
 Every scenario's configuration matches its simulation: the same motion model and noise,
-the simulated sensors, a :class:`~mapassoc.settings.BirthModel` derived from the targets
-(:func:`birth_model_for`) and default :class:`~mapassoc.settings.EstimatorSettings` except
+the simulated sensors, a :class:`~mapassoc.data.settings.BirthModel` derived from the targets
+(:func:`birth_model_for`) and default :class:`~mapassoc.data.settings.EstimatorSettings` except
 ``max_tracks`` (:func:`max_tracks_for`).  The one exception is ``"burst"``, whose
 configuration keeps the normal false-alarm rate: the burst is what it should survive.
 
@@ -32,15 +32,15 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.config import Config
+from mapassoc.data.config import Config
+from mapassoc.data.io import Origins, TruthTable, number_rows
+from mapassoc.data.scans import Scan
+from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import InputError
-from mapassoc.io import Origins, TruthTable, number_rows
-from mapassoc.measurement import LinearMeasurement, RangeBearing
-from mapassoc.motion import ConstantVelocity, CoordinatedTurn, MotionModel
-from mapassoc.scans import Scan
-from mapassoc.sensor import Region, Sensor
-from mapassoc.settings import BirthModel, EstimatorSettings
-from mapassoc.simulate import Scenario, TargetSpec, scan_plan_regular, simulate
+from mapassoc.evaluation.simulate import Scenario, TargetSpec, scan_plan_regular, simulate
+from mapassoc.models.measurement import LinearMeasurement, RangeBearing
+from mapassoc.models.motion import ConstantVelocity, CoordinatedTurn, MotionModel
+from mapassoc.models.sensor import Region, Sensor
 
 __all__ = [
     "SCENARIOS",
@@ -532,7 +532,7 @@ def add_false_alarms(scenario: Scenario, scan_index: int, count: int, *, seed: i
 
     The extra false alarms are uniform over the region of the scan's sensor and shuffled
     into the scan with its detections; every scan's rows are renumbered as the
-    detections file numbers them (:func:`~mapassoc.io.number_rows`) and the origins
+    detections file numbers them (:func:`~mapassoc.data.io.number_rows`) and the origins
     follow their detections (the new ones are ``-1``).  The truth and the configuration
     are unchanged.  ``count == 0`` returns the scenario as is.
 
@@ -689,7 +689,7 @@ def generic_config(
     ----------
     scenario : Scenario
     window_length : int, optional
-        Scans per window (default: the :class:`~mapassoc.settings.EstimatorSettings`
+        Scans per window (default: the :class:`~mapassoc.data.settings.EstimatorSettings`
         default).
     time_limit : float, optional
         Seconds per solve (default: the settings default).

@@ -1,13 +1,13 @@
 """The MAP window track-set estimator, end to end.
 
-With its per-cluster strategy (:mod:`mapassoc.cluster_solving`) this is the only
-module that wires the domain (:mod:`mapassoc.hypotheses`), the formulations
+With its per-cluster strategy (:mod:`mapassoc.estimator.cluster_solving`) this is the only
+module that wires the domain (:mod:`mapassoc.estimator.hypotheses`), the formulations
 (:mod:`mapassoc.formulations`) and the solvers (:mod:`mapassoc.solvers`).
 
 For each window of ``window_length`` consecutive scans:
 
 1. grow the track trees (carried tracks and tracks born in the window) and score every
-   hypothesis (:class:`~mapassoc.hypotheses.HypothesisGenerator`);
+   hypothesis (:class:`~mapassoc.estimator.hypotheses.HypothesisGenerator`);
 2. turn the choice of a track set into a packing problem (detections used at most
    once, carried tracks exactly once) and split it into independent clusters;
 3. per cluster, compute the best score and the log-mass of all track sets for every
@@ -16,9 +16,9 @@ For each window of ``window_length`` consecutive scans:
    per k, the integer program where a k can matter; :class:`ClusterSolver`), all
    within the window's ``time_limit``;
 4. combine the clusters (max-plus and sum-product convolution) into per-T tables (T the
-   number of tracks), add the targets never detected (:mod:`mapassoc.population`) and
+   number of tracks), add the targets never detected (:mod:`mapassoc.models.population`) and
    the prior on the number of targets K, and get p(K | Z), the joint MAP K and the
-   marginal K (:mod:`mapassoc.posterior`);
+   marginal K (:mod:`mapassoc.estimator.posterior`);
 5. take the best track set for the chosen K, commit its oldest ``stride`` scans and
    carry the tracks alive at the last committed scan, and the undetected-target
    intensity after it, into the next window.
@@ -37,9 +37,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.cluster_solving import CLUSTER_STATUSES, ClusterReport, ClusterSolver
-from mapassoc.config import Config
+from mapassoc.data.config import Config
+from mapassoc.data.io import Origins, TrackTable
+from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import InputError
+from mapassoc.estimator.cluster_solving import CLUSTER_STATUSES, ClusterReport, ClusterSolver
+from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
+from mapassoc.estimator.posterior import KPosterior, k_posterior
+from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.formulations.cardinality import (
     ClusterTable,
     CombinedTable,
@@ -53,12 +58,7 @@ from mapassoc.formulations.packing import (
     PackingProblem,
     merge_interchangeable,
 )
-from mapassoc.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
-from mapassoc.io import Origins, TrackTable
-from mapassoc.oracle import oracle_tracks
-from mapassoc.population import UndetectedTargets, WindowPopulation
-from mapassoc.posterior import KPosterior, k_posterior
-from mapassoc.scans import Scan, check_scan_order
+from mapassoc.models.population import UndetectedTargets, WindowPopulation
 from mapassoc.solvers import get_solver
 
 __all__ = [

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.errors import InputError
-from mapassoc.motion import MotionModel
+from mapassoc.models.motion import MotionModel
 from mapassoc.validation import check_covariance, check_finite_array
 
 __all__ = ["MeasurementModel", "LinearMeasurement", "RangeBearing", "wrap_angle"]

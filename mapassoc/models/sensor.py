@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.errors import InputError
-from mapassoc.measurement import MeasurementModel
+from mapassoc.models.measurement import MeasurementModel
 from mapassoc.validation import check_finite_array, check_nonnegative, check_probability
 
 __all__ = ["Region", "Sensor"]

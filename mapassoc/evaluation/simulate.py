@@ -23,7 +23,7 @@ shuffles).  So a target's true trajectory does not change when other targets are
 and the same seed reproduces the same scenario bit for bit.
 
 Target ids are ``1, 2, ..., len(targets)`` in the order of the ``targets`` list; ``-1``
-marks a false alarm in :class:`~mapassoc.io.Origins`.
+marks a false alarm in :class:`~mapassoc.data.io.Origins`.
 """
 
 from __future__ import annotations
@@ -36,9 +36,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mapassoc.config import Config, write_config
-from mapassoc.errors import InputError, NotPositiveDefiniteError
-from mapassoc.io import (
+from mapassoc.data.config import Config, write_config
+from mapassoc.data.io import (
     Origins,
     TruthTable,
     number_rows,
@@ -46,7 +45,8 @@ from mapassoc.io import (
     write_origins,
     write_truth,
 )
-from mapassoc.scans import Scan
+from mapassoc.data.scans import Scan
+from mapassoc.errors import InputError, NotPositiveDefiniteError
 from mapassoc.validation import check_finite_array, check_positive
 
 __all__ = [
@@ -130,7 +130,7 @@ class Scenario:
         Motion model, sensors, birth model and estimator settings matching the simulation.
     scans : list of Scan
         Scans sorted by (time, sensor), rows numbered as the detections file numbers them
-        (:func:`mapassoc.io.number_rows`).
+        (:func:`mapassoc.data.io.number_rows`).
     truth : TruthTable
         One row per (target, distinct scan time) at which the target is alive, sorted by
         (time, target id).

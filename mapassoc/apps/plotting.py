@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mapassoc.data.io import TrackTable, TruthTable
+from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
-from mapassoc.io import TrackTable, TruthTable
-from mapassoc.scans import Scan
-from mapassoc.sensor import Sensor
+from mapassoc.models.sensor import Sensor
 
 __all__ = ["plot_tracks"]
 

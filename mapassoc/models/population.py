@@ -1,6 +1,6 @@
 """The target population of a window: undetected targets and the prior on their number.
 
-The birth model (:class:`~mapassoc.settings.BirthModel`) is one generative model of the
+The birth model (:class:`~mapassoc.data.settings.BirthModel`) is one generative model of the
 targets (``docs/model.md``, section 3):
 
 * ``initial_count`` targets (Poisson) are present at the first scan of the recording;
@@ -17,11 +17,11 @@ taken uniform over the scanning sensor's region).  Just before scan ``j`` it is
 (``u_0`` at the recording's first scan; a later window starts from the state the
 previous windows left, :class:`UndetectedTargets`).  A new track's first detection at
 scan ``j`` is scored against this intensity: density ``u_j Pd_j / V`` against the
-clutter density ``lambda_bar / V`` (``mapassoc.hypotheses``), so a target missed at
+clutter density ``lambda_bar / V`` (``mapassoc.estimator.hypotheses``), so a target missed at
 first is still started when it is detected.
 
 For the posterior over the number of targets K present in a window
-(:mod:`mapassoc.posterior`) the window needs three more numbers:
+(:mod:`mapassoc.estimator.posterior`) the window needs three more numbers:
 
 * ``new_target_mean``: the expected number of targets present in the window (alive at
   one of its scans) that were never detected before it, ``u_0 + (N - 1) rate``;
@@ -53,11 +53,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
-from mapassoc.scans import Scan
 
 if TYPE_CHECKING:  # settings import the count prior, which needs this module
-    from mapassoc.settings import BirthModel
+    from mapassoc.data.settings import BirthModel
 
 __all__ = ["UndetectedTargets", "WindowPopulation", "recording_start", "window_population"]
 

@@ -23,9 +23,10 @@ State layout of the Cartesian models is positions first, then velocities, then
 accelerations: ``(x, y, vx, vy)`` for a 2-D constant-velocity model.
 
 Every model subclasses the :class:`MotionModel` protocol, which also says how a track of
-the model is initiated and smoothed (:mod:`mapassoc.birth`, :mod:`mapassoc.oracle`).
+the model is initiated and smoothed (:mod:`mapassoc.models.birth`,
+:mod:`mapassoc.evaluation.oracle`).
 :data:`MOTION_REGISTRY` maps configuration names to model classes and their settings
-(:mod:`mapassoc.config` reads and writes ``[motion]`` through it): a new model is one
+(:mod:`mapassoc.data.config` reads and writes ``[motion]`` through it): a new model is one
 class plus one :func:`register_motion_model` call.
 """
 
@@ -43,7 +44,7 @@ from mapassoc.errors import InputError
 from mapassoc.validation import check_positive
 
 if TYPE_CHECKING:
-    from mapassoc.settings import BirthModel
+    from mapassoc.data.settings import BirthModel
 
 __all__ = [
     "MotionModel",
@@ -75,12 +76,12 @@ class MotionModel(Protocol):
     differs.  A class that implements the protocol structurally, without subclassing it,
     must provide every member.
 
-    Track initiation (:mod:`mapassoc.birth`): a track starts at one detection in the state
+    Track initiation (:mod:`mapassoc.models.birth`): a track starts at one detection in the state
     space of :meth:`initiation_model` (the detection fixes the position components; the
     other components are drawn from :meth:`birth_prior` of the initiation model).  If
     :meth:`needs_conversion`, the track is mapped into this model's space with
     :meth:`convert_initiated` after its first detection update at a later time (normally
-    its second detection).  The smoother (:mod:`mapassoc.oracle`) undoes that conversion
+    its second detection).  The smoother (:mod:`mapassoc.evaluation.oracle`) undoes that conversion
     with :meth:`revert_conversion`, carries the components in
     :attr:`conversion_prior_indices` over from the converted state, reports a track never
     converted through :meth:`unconverted_state` and canonicalises states with
@@ -785,7 +786,7 @@ class CoordinatedTurn(MotionModel):
         flips the signs of the speed's covariances with the other components; the shift
         of the heading by pi and its wrapping change no covariance.
         """
-        from mapassoc.measurement import wrap_angle  # measurement imports this module
+        from mapassoc.models.measurement import wrap_angle  # measurement imports this module
 
         states = np.array(states, dtype=float, copy=True)
         covariances = np.array(covariances, dtype=float, copy=True)
@@ -870,7 +871,7 @@ def register_motion_model(
     name: str, cls: type, settings: tuple[MotionSetting, ...], *, context: str | None = None
 ) -> MotionSpec:
     """Register ``cls`` under the configuration name ``name`` (read and written by
-    :mod:`mapassoc.config`)."""
+    :mod:`mapassoc.data.config`)."""
     if not isinstance(name, str) or not name or name in MOTION_REGISTRY:
         raise InputError(f"name must be a new, non-empty string, got {name!r}")
     if any(spec.cls is cls for spec in MOTION_REGISTRY.values()):

@@ -52,7 +52,7 @@ def _json_dump(data: object, path: Path) -> None:
 
 
 def _cmd_scenarios(args: argparse.Namespace) -> int:
-    from mapassoc.scenarios import DEFAULT_SCENARIO, describe_scenario, scenario_names
+    from mapassoc.evaluation.scenarios import DEFAULT_SCENARIO, describe_scenario, scenario_names
 
     for name in scenario_names():
         mark = " (default)" if name == DEFAULT_SCENARIO else ""
@@ -61,8 +61,8 @@ def _cmd_scenarios(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from mapassoc.scenarios import build_scenario
-    from mapassoc.simulate import write_scenario
+    from mapassoc.evaluation.scenarios import build_scenario
+    from mapassoc.evaluation.simulate import write_scenario
 
     scenario = build_scenario(args.name, args.seed)
     paths = write_scenario(scenario, args.out)
@@ -84,9 +84,9 @@ def run_files(
     Writes ``windows.jsonl`` line by line while the run goes on, then ``tracks.csv``
     and ``summary.json``.  Returns the summary.
     """
-    from mapassoc.config import load_config
-    from mapassoc.io import read_detections, write_tracks
-    from mapassoc.pipeline import WindowEstimator
+    from mapassoc.data.config import load_config
+    from mapassoc.data.io import read_detections, write_tracks
+    from mapassoc.estimator.pipeline import WindowEstimator
 
     config = load_config(config_path)
     scans = read_detections(detections_path, config.sensors)
@@ -134,9 +134,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from mapassoc.evaluation import evaluate_tables
-    from mapassoc.io import read_tracks, read_truth
-    from mapassoc.metrics import format_report
+    from mapassoc.data.io import read_tracks, read_truth
+    from mapassoc.evaluation.metrics import format_report
+    from mapassoc.evaluation.tables import evaluate_tables
 
     summary = evaluate_tables(
         read_truth(args.truth), read_tracks(args.tracks), c=args.cutoff, p=args.order
@@ -148,14 +148,14 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from mapassoc.demo import run_demo
+    from mapassoc.apps.demo import run_demo
 
     run_demo(scenario=args.scenario, seed=args.seed, out_dir=Path(args.out), plot=not args.no_plot)
     return 0
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from mapassoc.bench import run_benchmark
+    from mapassoc.apps.bench import run_benchmark
 
     run_benchmark(
         families=args.families,
@@ -170,7 +170,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-# The bench defaults live here (not imported from mapassoc.bench) so that building the
+# The bench defaults live here (not imported from mapassoc.apps.bench) so that building the
 # parser does not import the estimator; tests check that they match.
 _BENCH_FAMILIES = (
     "crossing",
@@ -307,7 +307,8 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("generic", "scenario"),
         default="generic",
         help="generic: the same untuned configuration for every family "
-        "(mapassoc.scenarios.generic_config); scenario: each scenario's own (default generic)",
+        "(mapassoc.evaluation.scenarios.generic_config); scenario: each scenario's own "
+        "(default generic)",
     )
     p.add_argument(
         "--scans",

@@ -9,7 +9,7 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     noise_intensity = 0.5         # constant_velocity, constant_acceleration, random_walk
     # coordinated_turn instead: speed_noise_intensity = ..., turn_rate_noise_intensity = ...
     # singer instead: ndim, time_constant = ... (tau > 0), acceleration_std = ... (> 0)
-    # (the keys of each model: mapassoc.motion.MOTION_REGISTRY)
+    # (the keys of each model: mapassoc.models.motion.MOTION_REGISTRY)
 
     [[sensors]]                   # one table per sensor, at least one, distinct names
     name = "radar"
@@ -21,8 +21,9 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     false_alarms_per_scan = 10.0  # expected false alarms per scan, >= 0
     region = [[-100.0, 100.0], [-100.0, 100.0]]   # one [low, high] per measured component
 
-    [birth]        # optional; keys and defaults: the fields of mapassoc.settings.BirthModel
-    [estimator]    # optional; keys and defaults: the fields of mapassoc.settings.EstimatorSettings
+    [birth]        # optional; keys and defaults: the fields of mapassoc.data.settings.BirthModel
+    [estimator]    # optional; keys and defaults: the fields of
+                   # mapassoc.data.settings.EstimatorSettings
 
 Key paths in errors are dotted, with 0-based indices for arrays: ``sensors[1].region[0]`` is
 the first row of the region of the second ``[[sensors]]`` table.  Integer settings must be
@@ -45,11 +46,11 @@ from typing import TypeVar
 
 import numpy as np
 
+from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
-from mapassoc.measurement import LinearMeasurement, MeasurementModel, RangeBearing
-from mapassoc.motion import MOTION_REGISTRY, MotionModel, motion_spec
-from mapassoc.sensor import Region, Sensor
-from mapassoc.settings import BirthModel, EstimatorSettings
+from mapassoc.models.measurement import LinearMeasurement, MeasurementModel, RangeBearing
+from mapassoc.models.motion import MOTION_REGISTRY, MotionModel, motion_spec
+from mapassoc.models.sensor import Region, Sensor
 from mapassoc.validation import check_nonnegative, check_positive, check_probability
 
 __all__ = [
@@ -66,7 +67,7 @@ PathLike = str | os.PathLike[str]
 
 MOTION_MODELS = tuple(MOTION_REGISTRY)
 """Motion model names registered when this module was imported (see
-:data:`mapassoc.motion.MOTION_REGISTRY`, which the reader and writer use)."""
+:data:`mapassoc.models.motion.MOTION_REGISTRY`, which the reader and writer use)."""
 MEASUREMENTS = ("position", "range_bearing")
 
 _SECTIONS = ("motion", "sensors", "birth", "estimator")
@@ -587,7 +588,7 @@ def config_to_toml(config: Config) -> str:
     ------
     ConfigError
         A motion or measurement model outside the schema (e.g. a general
-        :class:`~mapassoc.measurement.LinearMeasurement`).
+        :class:`~mapassoc.models.measurement.LinearMeasurement`).
     """
     if not isinstance(config, Config):
         raise InputError(f"config must be a Config, got {config!r}")

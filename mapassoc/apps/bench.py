@@ -1,11 +1,11 @@
 """``mapassoc bench``: speed and accuracy over scenario families, seeds and priors on K.
 
-For every family (a built-in scenario, :mod:`mapassoc.scenarios`), every prior on the
+For every family (a built-in scenario, :mod:`mapassoc.evaluation.scenarios`), every prior on the
 number of targets in ``k_priors`` (``EstimatorSettings.k_prior``; default ``birth`` and
 ``uniform``) and every seed ``0..seeds-1`` the benchmark simulates the scenario, runs
 the window estimator and reports
 
-* throughput (scans per second of :meth:`~mapassoc.pipeline.WindowEstimator.run`) and
+* throughput (scans per second of :meth:`~mapassoc.estimator.pipeline.WindowEstimator.run`) and
   window time (hypothesis generation plus solving) p50 / p95 / max, with the number of
   windows that took longer than the time limit;
 * mean hypotheses and the largest cluster per window;
@@ -32,7 +32,7 @@ and which prior has the lower of each averaged over the families.  Numbers, not
 pass/fail: the project's goals are printed beside them.
 
 By default every family runs with the same untuned configuration,
-:func:`mapassoc.scenarios.generic_config`; ``config="scenario"`` uses each scenario's
+:func:`mapassoc.evaluation.scenarios.generic_config`; ``config="scenario"`` uses each scenario's
 own configuration (fitted to its truth) instead.  Either way only ``k_prior`` is set by
 the benchmark (``"poisson"`` keeps the configuration's ``k_prior_mean``; ``"weights"``
 needs weights per configuration and is not offered).  Lines are printed (and flushed) as
@@ -55,15 +55,20 @@ from typing import Protocol, TextIO
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mapassoc.config import Config
+from mapassoc.data.config import Config
+from mapassoc.data.io import TruthTable
+from mapassoc.data.settings import K_PRIORS
 from mapassoc.errors import InputError
-from mapassoc.evaluation import evaluate_tables
-from mapassoc.io import TruthTable
-from mapassoc.kalman import pairwise_gate_and_loglik
-from mapassoc.oracle import oracle_tracks
-from mapassoc.pipeline import WindowEstimator
-from mapassoc.scenarios import build_scenario, generic_config, scenario_names, truncate_scenario
-from mapassoc.settings import K_PRIORS
+from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.evaluation.oracle import oracle_tracks
+from mapassoc.evaluation.scenarios import (
+    build_scenario,
+    generic_config,
+    scenario_names,
+    truncate_scenario,
+)
+from mapassoc.evaluation.tables import evaluate_tables
+from mapassoc.filtering.kalman import pairwise_gate_and_loglik
 
 __all__ = [
     "DEFAULT_FAMILIES",
@@ -102,12 +107,12 @@ DEFAULT_FAMILIES: tuple[str, ...] = (
     "dense50",
 )
 #: Priors on the number of targets in a window (``EstimatorSettings.k_prior``) the
-#: benchmark can compare: every prior of :data:`mapassoc.settings.K_PRIORS` but
+#: benchmark can compare: every prior of :data:`mapassoc.data.settings.K_PRIORS` but
 #: ``"weights"``, which needs weights fitted to each configuration's Kmax.
 BENCH_K_PRIORS: tuple[str, ...] = tuple(name for name in K_PRIORS if name != "weights")
 #: Priors compared by default, in this order (the first is the one the goals judge).
 DEFAULT_K_PRIORS: tuple[str, ...] = ("birth", "uniform")
-#: ``generic``: :func:`~mapassoc.scenarios.generic_config`; ``scenario``: each
+#: ``generic``: :func:`~mapassoc.evaluation.scenarios.generic_config`; ``scenario``: each
 #: scenario's own configuration.
 CONFIG_CHOICES: tuple[str, ...] = ("generic", "scenario")
 #: GOSPA cut-off c (length units, noise standard deviations).
@@ -138,7 +143,7 @@ class GospaParts:
         Mean GOSPA over time (``mean_total``).
     localisation, missed, false : float
         Means over time of the localisation, missed-target and false-track parts of
-        GOSPA^p (:class:`mapassoc.metrics.GospaSeries`): they add up to the mean of
+        GOSPA^p (:class:`mapassoc.evaluation.metrics.GospaSeries`): they add up to the mean of
         GOSPA^2, not of GOSPA.
     """
 
@@ -149,7 +154,7 @@ class GospaParts:
 
     @classmethod
     def from_summary(cls, summary: dict[str, object]) -> GospaParts:
-        """From the ``"gospa"`` entry of :func:`mapassoc.evaluation.evaluate_tables`."""
+        """From the ``"gospa"`` entry of :func:`mapassoc.evaluation.tables.evaluate_tables`."""
         return cls(
             total=float(summary["mean_total"]),  # type: ignore[arg-type]
             localisation=float(summary["mean_localisation"]),  # type: ignore[arg-type]
@@ -533,7 +538,7 @@ def window_target_counts(truth: TruthTable, windows: Sequence[_WindowSpan]) -> N
         One record per (target, time) at which the target is alive.
     windows : sequence of window-like
         Anything with ``start_time`` and ``end_time`` (finite, ``start_time <=
-        end_time``), such as :class:`~mapassoc.pipeline.WindowReport`.
+        end_time``), such as :class:`~mapassoc.estimator.pipeline.WindowReport`.
 
     Returns
     -------
@@ -543,7 +548,7 @@ def window_target_counts(truth: TruthTable, windows: Sequence[_WindowSpan]) -> N
     Raises
     ------
     InputError
-        ``truth`` not a :class:`~mapassoc.io.TruthTable`, or a window without finite
+        ``truth`` not a :class:`~mapassoc.data.io.TruthTable`, or a window without finite
         times in order.
 
     Examples
@@ -586,7 +591,7 @@ def count_scores(windows: Sequence[_WindowCount], true_counts: ArrayLike) -> Cou
     ----------
     windows : sequence of window-like
         Anything with ``p_k`` (1-D, p(K | Z) for K = 0, 1, ...) and
-        ``marginal_k``, such as :class:`~mapassoc.pipeline.WindowReport`; at least one.
+        ``marginal_k``, such as :class:`~mapassoc.estimator.pipeline.WindowReport`; at least one.
     true_counts : array-like of int
         True K of each window (:func:`window_target_counts`), >= 0, one per window.
 
@@ -675,20 +680,21 @@ def bench_scenario(
     Parameters
     ----------
     name : str
-        Scenario name (:func:`mapassoc.scenarios.scenario_names`).
+        Scenario name (:func:`mapassoc.evaluation.scenarios.scenario_names`).
     seed : int
         Seed of the realisation.
     window_length : int or None
         Scans per window; ``None`` keeps the configuration's (the default of
-        :class:`~mapassoc.settings.EstimatorSettings` for ``config="generic"``).
+        :class:`~mapassoc.data.settings.EstimatorSettings` for ``config="generic"``).
     time_limit : float
         ``EstimatorSettings.time_limit`` in seconds, also the budget a window's time is
         compared with.
     config : {"generic", "scenario"}
-        :func:`~mapassoc.scenarios.generic_config` of the (truncated) scenario, or the
+        :func:`~mapassoc.evaluation.scenarios.generic_config` of the (truncated) scenario, or the
         scenario's own configuration.
     scans : int, optional
-        Keep only the first ``scans`` scans (:func:`~mapassoc.scenarios.truncate_scenario`),
+        Keep only the first ``scans`` scans
+        (:func:`~mapassoc.evaluation.scenarios.truncate_scenario`),
         for quick checks.
     k_prior : {"birth", "uniform", "poisson"}
         ``EstimatorSettings.k_prior`` of the run, set on either configuration

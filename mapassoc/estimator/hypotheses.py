@@ -5,7 +5,7 @@ A window is a run of consecutive scans.  Every track tree of the window is eithe
 * a **carried track**, committed by earlier windows, whose filtered state at its last
   committed scan is the prior; its hypotheses include ending before the window; or
 * a **new track**, born at one detection of the window (single-point initiation,
-  :mod:`mapassoc.birth`).
+  :mod:`mapassoc.models.birth`).
 
 Each alive leaf grows at each scan into: the track ended (alive at the previous scan,
 dead at this one), the track missed, or the track continued by one gated detection.
@@ -20,7 +20,7 @@ event at a scan of sensor s           term
 first detection z at scan j           ``log u_j + log Pd_s - log lambda_bar_s``
                                       (density ``u_j Pd_s / V_s`` of a target never
                                       detected before, ``u_j`` the undetected-target
-                                      mean of :mod:`mapassoc.population`, over the
+                                      mean of :mod:`mapassoc.models.population`, over the
                                       clutter density ``lambda_s = lambda_bar_s / V_s``)
 survival over dt                      ``dt log Ps``
 continued by detection z              ``log Pd_s + log N(nu; 0, S) - log lambda_s``
@@ -66,31 +66,31 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.birth import (
-    birth_states,
-    convert_initiated,
-    initiation_measurement,
-    initiation_model,
-    needs_conversion,
-)
+from mapassoc.data.scans import Scan
+from mapassoc.data.settings import BirthModel
 from mapassoc.errors import InputError
-from mapassoc.kalman import (
+from mapassoc.filtering.kalman import (
     gate_threshold,
     gated_pairs_and_loglik,
     pairwise_gate_and_loglik,
     predict_motion,
     update,
 )
-from mapassoc.motion import MotionModel
-from mapassoc.population import (
+from mapassoc.models.birth import (
+    birth_states,
+    convert_initiated,
+    initiation_measurement,
+    initiation_model,
+    needs_conversion,
+)
+from mapassoc.models.motion import MotionModel
+from mapassoc.models.population import (
     UndetectedTargets,
     WindowPopulation,
     recording_start,
     window_population,
 )
-from mapassoc.scans import Scan
-from mapassoc.sensor import Sensor
-from mapassoc.settings import BirthModel
+from mapassoc.models.sensor import Sensor
 
 __all__ = [
     "CarriedTrack",
@@ -1130,7 +1130,7 @@ class HypothesisGenerator:
 
         The first detection of a target not detected before has density
         ``u Pd / V`` (``u`` = ``undetected_mean``, the expected number of targets alive
-        at this scan and never detected, :mod:`mapassoc.population`) against the clutter
+        at this scan and never detected, :mod:`mapassoc.models.population`) against the clutter
         density ``lambda_bar / V``: score ``log u + log Pd - log lambda_bar``.
         """
         m = scan.size

@@ -3,7 +3,7 @@
 The detection fixes the position (``measurement.position_from_measurement``: the
 detection itself for a position measurement, the polar-to-Cartesian conversion with
 covariance ``J R J^T`` for range-bearing).  The unmeasured components start at zero
-with the prior standard deviations of :class:`~mapassoc.settings.BirthModel`.
+with the prior standard deviations of :class:`~mapassoc.data.settings.BirthModel`.
 
 The coordinated-turn state (speed, heading, turn rate) cannot be started from one
 position: a Gaussian over heading cannot express "any direction".  A coordinated-turn
@@ -14,7 +14,7 @@ is observed (first-order conversion through the polar Jacobian; turn rate
 ``N(0, turn_rate_std^2)``).  For every other model the initiation model is the motion
 model itself and the conversion is the identity.
 
-Each model says all this itself (:class:`~mapassoc.motion.MotionModel`:
+Each model says all this itself (:class:`~mapassoc.models.motion.MotionModel`:
 ``initiation_model``, ``needs_conversion``, ``birth_prior``, ``convert_initiated``); the
 functions here delegate to it.
 """
@@ -24,10 +24,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.data.settings import BirthModel
 from mapassoc.errors import InputError
-from mapassoc.measurement import LinearMeasurement, MeasurementModel
-from mapassoc.motion import MotionModel
-from mapassoc.settings import BirthModel
+from mapassoc.models.measurement import LinearMeasurement, MeasurementModel
+from mapassoc.models.motion import MotionModel
 
 __all__ = [
     "initiation_model",
@@ -47,7 +47,7 @@ def initiation_model(motion: MotionModel) -> MotionModel:
 
 
 def initiation_measurement(motion: MotionModel, measurement: MeasurementModel) -> MeasurementModel:
-    """The measurement model acting on :func:`~mapassoc.birth.initiation_model` states.
+    """The measurement model acting on :func:`~mapassoc.models.birth.initiation_model` states.
 
     Identical to ``measurement`` unless the motion model converts (coordinated turn).  Then
     a linear measurement's H, written for the turn state, is re-indexed onto the

@@ -29,8 +29,8 @@ from scipy.spatial import cKDTree
 from scipy.special import gammaincinv
 
 from mapassoc.errors import InputError, NotPositiveDefiniteError
-from mapassoc.measurement import MeasurementModel
-from mapassoc.motion import MotionModel
+from mapassoc.models.measurement import MeasurementModel
+from mapassoc.models.motion import MotionModel
 
 __all__ = [
     "cholesky",

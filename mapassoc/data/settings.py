@@ -2,7 +2,7 @@
 
 Plain frozen dataclasses, validated on construction; every field error names the
 field, the value and what was expected, and carries the field name in
-``InputError.key``.  :mod:`mapassoc.config` builds them from a
+``InputError.key``.  :mod:`mapassoc.data.config` builds them from a
 TOML file (section and key names equal the field names).
 """
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from mapassoc.errors import InputError
-from mapassoc.posterior import COUNT_PRIORS, K_ESTIMATORS, CountPrior, KEstimator
+from mapassoc.estimator.posterior import COUNT_PRIORS, K_ESTIMATORS, CountPrior, KEstimator
 from mapassoc.validation import check_nonnegative, check_positive, check_probability
 
 __all__ = ["BirthModel", "EstimatorSettings", "K_PRIORS", "K_ESTIMATES"]
@@ -36,11 +36,11 @@ class BirthModel:
     scan it is detected with the sensor's detection probability.  Positions are
     uniform over the scanning sensor's region.  The targets not detected so far are
     carried through the recording as an expected number (the undetected-target
-    intensity, :mod:`mapassoc.population`), so a target's first detection, at the
+    intensity, :mod:`mapassoc.models.population`), so a target's first detection, at the
     first scan or later, has density ``u * Pd / V`` with ``u`` that expected number.
     At its first detection a track starts (single-point initiation): the unmeasured
     state components start from zero mean with the standard deviations below (each
-    motion model picks its own: ``MotionModel.birth_prior``, :mod:`mapassoc.motion`).
+    motion model picks its own: ``MotionModel.birth_prior``, :mod:`mapassoc.models.motion`).
 
     Parameters
     ----------
@@ -113,7 +113,7 @@ class EstimatorSettings:
     k_prior : {"birth", "uniform", "poisson", "weights"}
         Prior p(K) on the number K of targets present in a window (detected or not),
         K = 0..Kmax; the reported p(K | Z) is the exact posterior under it
-        (:mod:`mapassoc.posterior`).  ``"birth"`` (default): the law the birth model
+        (:mod:`mapassoc.estimator.posterior`).  ``"birth"`` (default): the law the birth model
         implies (Poisson for a window that starts the recording), no extra factor;
         ``"uniform"``: uniform on 0..Kmax (seed 002); ``"poisson"``: Poisson with mean
         ``k_prior_mean``; ``"weights"``: ``k_prior_weights``.  The default was chosen by
@@ -123,7 +123,8 @@ class EstimatorSettings:
     k_prior_weights : tuple of float
         Unnormalised p(K) for K = 0..Kmax (used when ``k_prior == "weights"``).
     k_estimate : {"marginal", "joint", "median"}
-        Which estimate of K the committed track set uses (``mapassoc.posterior.K_ESTIMATORS``):
+        Which estimate of K the committed track set uses
+        (``mapassoc.estimator.posterior.K_ESTIMATORS``):
         ``argmax p(K | Z)`` (marginal, default), the K of the joint MAP (K, track set)
         (seed 002, eq. 14) with its set, or the posterior median; for the marginal and
         the median the set is the MAP track set given that K.

@@ -42,9 +42,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.errors import InputError
-from mapassoc.kalman import innovation, log_gaussian, predict_motion, update
-from mapassoc.measurement import MeasurementModel
-from mapassoc.motion import MotionModel
+from mapassoc.filtering.kalman import innovation, log_gaussian, predict_motion, update
+from mapassoc.models.measurement import MeasurementModel
+from mapassoc.models.motion import MotionModel
 from mapassoc.validation import (
     check_covariance,
     check_finite_array,
@@ -486,7 +486,7 @@ def n_object_posterior(
     measurements : array_like, shape (m, dz)
         The scan; ``m`` may be 0 (pass an array of shape ``(0, dz)``).
     measurement_model : MeasurementModel
-        For example :class:`~mapassoc.measurement.LinearMeasurement`.
+        For example :class:`~mapassoc.models.measurement.LinearMeasurement`.
     detection_probability : float
         Pd in (0, 1].
     clutter_intensity : float

@@ -1,0 +1,2 @@
+"""Applications: the command line, the benchmark, the demo and plots.
+"""

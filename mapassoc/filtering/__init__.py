@@ -1,0 +1,2 @@
+"""Kalman / extended Kalman filtering, gating and RTS smoothing.
+"""

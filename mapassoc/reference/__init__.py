@@ -1,0 +1,3 @@
+"""The seeds' exact references: association vectors, the n-object posterior, single-object
+hypothesis sequences.
+"""
