@@ -663,8 +663,32 @@ def _duplicate(keys: Sequence[tuple[object, ...]]) -> tuple[object, ...] | None:
     return None
 
 
+class _StateRecords:
+    """What truth and track tables share: one record per row, with ``times``, ``states``
+    of shape ``(N, n)`` and their ``state_names``."""
+
+    times: FloatArray
+    states: FloatArray
+    state_names: tuple[str, ...]
+
+    @property
+    def size(self) -> int:
+        """Number of records N."""
+        return int(self.times.shape[0])
+
+    def positions(self, position_names: Sequence[str] = ("x", "y", "z")) -> FloatArray:
+        """Position columns present among ``position_names``, shape ``(N, d)``.
+
+        Raises
+        ------
+        InputError
+            None of ``position_names`` is a state name.
+        """
+        return _positions(self.state_names, self.states, position_names)
+
+
 @dataclass(frozen=True, eq=False)
-class TruthTable:
+class TruthTable(_StateRecords):
     """True target states (truth file, format 2).
 
     Parameters
@@ -700,20 +724,6 @@ class TruthTable:
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "states", states)
 
-    @property
-    def size(self) -> int:
-        """Number of records N."""
-        return int(self.target_ids.shape[0])
-
-    def positions(self, position_names: Sequence[str] = ("x", "y", "z")) -> FloatArray:
-        """Position columns present among ``position_names``, shape ``(N, d)``.
-
-        Raises
-        ------
-        InputError
-            None of ``position_names`` is a state name.
-        """
-        return _positions(self.state_names, self.states, position_names)
 
 
 @dataclass(frozen=True, eq=False)
@@ -747,7 +757,7 @@ class Origins:
 
 
 @dataclass(frozen=True, eq=False)
-class TrackTable:
+class TrackTable(_StateRecords):
     """Estimated tracks (tracks file, format 4).
 
     Parameters
@@ -820,20 +830,6 @@ class TrackTable:
         object.__setattr__(self, "variances", variances)
         object.__setattr__(self, "detection_rows", rows)
 
-    @property
-    def size(self) -> int:
-        """Number of records N."""
-        return int(self.track_ids.shape[0])
-
-    def positions(self, position_names: Sequence[str] = ("x", "y", "z")) -> FloatArray:
-        """Position columns present among ``position_names``, shape ``(N, d)``.
-
-        Raises
-        ------
-        InputError
-            None of ``position_names`` is a state name.
-        """
-        return _positions(self.state_names, self.states, position_names)
 
 
 # --------------------------------------------------------------------------- truth
