@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from mapassoc.models import birth as birth_module
 from mapassoc.data.config import Config, config_to_toml, parse_config
 from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
@@ -17,6 +16,7 @@ from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.scenarios import birth_model_for
 from mapassoc.evaluation.simulate import TargetSpec, scan_plan_regular, simulate
+from mapassoc.models import birth as birth_module
 from mapassoc.models.measurement import LinearMeasurement
 from mapassoc.models.motion import (
     MOTION_REGISTRY,

@@ -190,7 +190,9 @@ def assert_tables_equal(a: np.ndarray, b: np.ndarray, what: str) -> None:
 # ------------------------------------------------------------------- 1. oracle agreement
 
 
-@pytest.mark.parametrize("seed", range(200))
+@pytest.mark.parametrize(
+    "seed", [pytest.param(s, marks=pytest.mark.slow) if s >= 60 else s for s in range(200)]
+)
 def test_window_tables_equal_integer_program_and_enumeration(seed: int) -> None:
     case = random_window(seed)
     solution = case.estimator.solve_window(case.scans, case.carried)
@@ -624,7 +626,9 @@ def best_value_by_rows(solution: WindowSolution, k: int) -> dict[TrackSetRows, f
     return out
 
 
-@pytest.mark.parametrize("seed", range(100))
+@pytest.mark.parametrize(
+    "seed", [pytest.param(s, marks=pytest.mark.slow) if s >= 40 else s for s in range(100)]
+)
 def test_detection_order_within_scans_does_not_matter(seed: int) -> None:
     case = random_window(seed)
     rng = np.random.default_rng(500 + seed)
