@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 from numpy.typing import NDArray
@@ -60,10 +61,30 @@ from mapassoc.solvers import (
     SolveStatus,
 )
 
-__all__ = ["ClusterReport", "ClusterSolver", "CLUSTER_STATUSES", "default_lp_solver"]
+__all__ = [
+    "ClusterReport",
+    "ClusterSolver",
+    "ClusterStatus",
+    "CLUSTER_STATUSES",
+    "default_lp_solver",
+]
 
-CLUSTER_STATUSES = ("exact", "bounded", "time_limit")
-"""From best to worst; a window reports the worst of its clusters."""
+
+class ClusterStatus(StrEnum):
+    """How a cluster's tables were obtained, from best to worst (a window reports the
+    worst of its clusters).  Members are strings, so they compare with and serialise as
+    ``"exact"``, ``"bounded"`` and ``"time_limit"``."""
+
+    EXACT = "exact"
+    """Exact tables (the frontier search within ``exact_work_limit``)."""
+    BOUNDED = "bounded"
+    """Certified bounds: beam lower bounds, LP / Lagrangian upper bounds."""
+    TIME_LIMIT = "time_limit"
+    """The window's deadline changed the answer: what was certified by then."""
+
+
+CLUSTER_STATUSES = tuple(ClusterStatus)
+"""From best to worst."""
 
 BOUND_PRUNE_MIN_HYPOTHESES = 100
 """Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of
@@ -97,7 +118,7 @@ class ClusterReport:
     ----------
     size : int
         Merged hypotheses in the cluster (after bound pruning).
-    status : {"exact", "bounded", "time_limit"}
+    status : ClusterStatus
     work : int
         Transitions of the frontier searches.
     solves : int
@@ -108,7 +129,7 @@ class ClusterReport:
     """
 
     size: int
-    status: str
+    status: ClusterStatus
     work: int
     solves: int
     log_captured: float
@@ -249,7 +270,7 @@ class ClusterSolver:
             return self._bounded(problem, kmax, deadline, stop.work, started)
         return table, ClusterReport(
             size=problem.num_hypotheses,
-            status="exact",
+            status=ClusterStatus.EXACT,
             work=0,
             solves=0,
             log_captured=0.0,
@@ -288,7 +309,7 @@ class ClusterSolver:
             table = CardinalityTable(beam.best, beam.log_mass, beam.best_sets, True)
             return table, ClusterReport(
                 size=problem.num_hypotheses,
-                status="time_limit" if limited else "exact",
+                status=ClusterStatus.TIME_LIMIT if limited else ClusterStatus.EXACT,
                 work=spent,
                 solves=0,
                 log_captured=0.0,
@@ -389,7 +410,7 @@ class ClusterSolver:
         found, bound = _log_sum(log_mass), _log_sum(mass_upper)
         return table, ClusterReport(
             size=problem.num_hypotheses,
-            status="time_limit" if limited else "bounded",
+            status=ClusterStatus.TIME_LIMIT if limited else ClusterStatus.BOUNDED,
             work=spent,
             solves=solves,
             log_captured=found - bound if math.isfinite(bound) else 0.0,

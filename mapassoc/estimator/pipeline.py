@@ -33,6 +33,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,7 +42,7 @@ from mapassoc.data.config import Config
 from mapassoc.data.io import Origins, TrackTable
 from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import InputError
-from mapassoc.estimator.cluster_solving import CLUSTER_STATUSES, ClusterReport, ClusterSolver
+from mapassoc.estimator.cluster_solving import ClusterReport, ClusterSolver, ClusterStatus
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
 from mapassoc.estimator.posterior import KPosterior, k_posterior
 from mapassoc.evaluation.oracle import oracle_tracks
@@ -62,6 +63,8 @@ from mapassoc.models.population import UndetectedTargets, WindowPopulation
 from mapassoc.solvers import get_solver
 
 __all__ = [
+    "WindowStatus",
+    "WINDOW_STATUSES",
     "ClusterReport",
     "WindowSolution",
     "WindowReport",
@@ -70,11 +73,27 @@ __all__ = [
     "packing_problem",
 ]
 
-WINDOW_STATUSES = ("exact", "capped", *CLUSTER_STATUSES[1:])
-"""Window statuses from best to worst: ``exact`` (nothing cut but the documented
-score-ratio, gate and LP-bound pruning), ``capped`` (the per-tree cap also cut nodes),
-``bounded`` (a cluster got certified bounds instead of exact tables), ``time_limit``
-(the deadline changed the answer: a cluster got what was certified by then)."""
+class WindowStatus(StrEnum):
+    """A window's status, from best to worst.  Members are strings: they compare with
+    and serialise as their values (``windows.jsonl``, ``summary.json``)."""
+
+    EXACT = "exact"
+    """Nothing cut but the documented score-ratio, gate and LP-bound pruning."""
+    CAPPED = "capped"
+    """The per-tree cap also cut nodes that passed the score tests."""
+    BOUNDED = "bounded"
+    """A cluster got certified bounds instead of exact tables."""
+    TIME_LIMIT = "time_limit"
+    """The deadline changed the answer: a cluster got what was certified by then."""
+
+    @classmethod
+    def of_cluster(cls, status: ClusterStatus) -> WindowStatus:
+        """The window status a cluster's status implies at least."""
+        return cls(ClusterStatus(status).value)
+
+
+WINDOW_STATUSES = tuple(WindowStatus)
+"""Window statuses from best to worst (:class:`WindowStatus`)."""
 
 P_K_FLOOR = 1e-300
 """Trailing p(K | Z) below this are left out of ``windows.jsonl`` (``p_k_length`` says
@@ -152,19 +171,17 @@ class WindowSolution:
     timed_out: bool = False
 
     @property
-    def status(self) -> str:
-        """The worst of :data:`WINDOW_STATUSES` that applies.
+    def status(self) -> WindowStatus:
+        """The worst of :class:`WindowStatus` that applies.
 
         ``time_limit`` means that the deadline changed the answer (a cluster got only
         what was certified by then).  A window that merely ran long, every cluster
         still solved, keeps its status and says so in :attr:`timed_out`.
         """
-        worst = 0
-        if self.hypotheses.nodes_capped:
-            worst = WINDOW_STATUSES.index("capped")
+        worst = WindowStatus.CAPPED if self.hypotheses.nodes_capped else WindowStatus.EXACT
         for report in self.bounded_clusters:
-            worst = max(worst, WINDOW_STATUSES.index(report.status))
-        return WINDOW_STATUSES[worst]
+            worst = max(worst, WindowStatus.of_cluster(report.status), key=WINDOW_STATUSES.index)
+        return worst
 
     @property
     def captured_mass(self) -> float:
@@ -238,7 +255,7 @@ class WindowReport:
     marginal_certain: bool
     joint_certain: bool
     captured_mass: float
-    status: str
+    status: WindowStatus
     hypotheses_kept: int
     nodes_generated: int
     nodes_pruned: int
@@ -345,7 +362,7 @@ class EstimateResult:
             "windows": len(w),
             "tracks": len(self.track_rows),
             "detections_in_tracks": int(sum(len(r) for r in self.track_rows.values())),
-            "windows_exact": int(sum(1 for r in w if r.status == "exact")),
+            "windows_exact": int(sum(1 for r in w if r.status is WindowStatus.EXACT)),
             "window_statuses": {
                 status: int(sum(1 for r in w if r.status == status)) for status in WINDOW_STATUSES
             },
@@ -475,7 +492,7 @@ class WindowEstimator:
                     tuple(merged.members[i] for i in kept),
                 )
             table, report = self.cluster_solver.solve(merged.problem, kmax, deadline)
-            if report.status != "exact":
+            if report.status is not ClusterStatus.EXACT:
                 reports.append(report)
             tables.append(table.remapped(members[merged.representative]))
         if independent:
