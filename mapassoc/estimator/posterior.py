@@ -51,7 +51,13 @@ from mapassoc.errors import InputError
 from mapassoc.models.population import WindowPopulation
 
 __all__ = [
+    "COUNT_LAWS",
     "COUNT_PRIORS",
+    "CountLaw",
+    "BirthLaw",
+    "UniformLaw",
+    "PoissonLaw",
+    "WeightsLaw",
     "K_ESTIMATORS",
     "KEstimator",
     "MarginalK",
@@ -66,9 +72,6 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-COUNT_PRIORS = ("birth", "uniform", "poisson", "weights")
-"""Priors on the number of targets in a window (:class:`CountPrior`)."""
-
 PILE_UP_THRESHOLD = 0.01
 """p(Kmax | Z) above this means Kmax probably cuts off the posterior."""
 
@@ -81,17 +84,111 @@ _BLOCK = 256
 """K values per block of the (T, K) weight matrix."""
 
 
+class CountLaw:
+    """A named prior law of the number of targets K (``EstimatorSettings.k_prior``).
+
+    A new prior is one subclass with a ``name``, :meth:`log_prior` and, if it has
+    parameters, :meth:`check`, registered in :data:`COUNT_LAWS`.
+    """
+
+    name: str = ""
+
+    def check(self, prior: CountPrior) -> None:
+        """Raise :class:`InputError` (with ``key``) if ``prior``'s parameters do not fit."""
+
+    def log_prior(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
+        """log pi(K) for K = 0..top (top <= kmax), up to an additive constant."""
+        raise NotImplementedError
+
+    def log_ratio(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
+        """``log pi(K) - log p_birth(K)`` for K = 0..top, up to a constant (eq. 2);
+        ``-inf`` where either law gives K no probability."""
+        law = self.log_prior(prior, population, top)
+        birth = population.log_count_prior(top)
+        possible = np.isfinite(law) & np.isfinite(birth)
+        out = np.full(top + 1, -math.inf)
+        out[possible] = law[possible] - birth[possible]
+        return out
+
+
+class BirthLaw(CountLaw):
+    """The law the birth model implies (initial population, births, survival, carried
+    tracks; :meth:`WindowPopulation.log_count_prior`), cut at kmax: no extra factor."""
+
+    name = "birth"
+
+    def log_prior(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
+        return population.log_count_prior(top)
+
+    def log_ratio(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
+        return np.where(np.isfinite(population.log_count_prior(top)), 0.0, -math.inf)
+
+
+class UniformLaw(CountLaw):
+    """Uniform on 0..kmax (seed 002)."""
+
+    name = "uniform"
+
+    def log_prior(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
+        return np.zeros(top + 1)
+
+
+class PoissonLaw(CountLaw):
+    """Poisson with mean ``CountPrior.mean``, cut at kmax."""
+
+    name = "poisson"
+
+    def log_prior(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
+        k = np.arange(top + 1, dtype=float)
+        return k * math.log(prior.mean) - gammaln(k + 1.0)
+
+
+class WeightsLaw(CountLaw):
+    """Proportional to ``CountPrior.weights`` (kmax + 1 non-negative numbers)."""
+
+    name = "weights"
+
+    def check(self, prior: CountPrior) -> None:
+        if len(prior.weights) != prior.kmax + 1:
+            raise InputError(
+                f"k_prior_weights must have max_tracks + 1 = {prior.kmax + 1} entries, "
+                f"got {len(prior.weights)}",
+                key="k_prior_weights",
+            )
+        for i, v in enumerate(prior.weights):
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise InputError(
+                    f"k_prior_weights[{i}] must be a number >= 0, got {v!r}",
+                    key=f"k_prior_weights[{i}]",
+                )
+        if not any(v > 0 for v in prior.weights):
+            raise InputError(
+                "k_prior_weights must have at least one positive entry", key="k_prior_weights"
+            )
+
+    def log_prior(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
+        with np.errstate(divide="ignore"):
+            return np.log(np.asarray(prior.weights[: top + 1], dtype=float))
+
+
+COUNT_LAWS: dict[str, CountLaw] = {
+    law.name: law for law in (BirthLaw(), UniformLaw(), PoissonLaw(), WeightsLaw())
+}
+"""Priors on the number of targets by the name ``EstimatorSettings.k_prior`` uses."""
+
+COUNT_PRIORS = tuple(COUNT_LAWS)
+"""Their names."""
+
+
 @dataclass(frozen=True)
 class CountPrior:
     """The prior on the number K of targets present in a window, K = 0..kmax.
 
     Parameters
     ----------
-    kind : {"birth", "uniform", "poisson", "weights"}
-        ``"birth"``: the law the birth model implies (initial population, births,
-        survival, carried tracks; :meth:`WindowPopulation.log_count_prior`), cut at
-        kmax.  ``"uniform"``: uniform on 0..kmax (seed 002).  ``"poisson"``: Poisson
-        with mean ``mean``, cut at kmax.  ``"weights"``: proportional to ``weights``.
+    kind : str
+        A name of :data:`COUNT_LAWS`: ``"birth"`` (the law the birth model implies),
+        ``"uniform"`` (seed 002), ``"poisson"`` (mean ``mean``) or ``"weights"``.
     kmax : int
         Largest K, >= 0.
     mean : float
@@ -106,9 +203,9 @@ class CountPrior:
     weights: tuple[float, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
-        if self.kind not in COUNT_PRIORS:
+        if self.kind not in COUNT_LAWS:
             raise InputError(
-                f"k_prior must be one of {COUNT_PRIORS}, got {self.kind!r}", key="k_prior"
+                f"k_prior must be one of {tuple(COUNT_LAWS)}, got {self.kind!r}", key="k_prior"
             )
         if isinstance(self.kmax, bool) or not isinstance(self.kmax, int) or self.kmax < 0:
             raise InputError(
@@ -118,49 +215,23 @@ class CountPrior:
             raise InputError(
                 f"k_prior_mean must be a finite number > 0, got {self.mean!r}", key="k_prior_mean"
             )
-        if self.kind == "weights":
-            if len(self.weights) != self.kmax + 1:
-                raise InputError(
-                    f"k_prior_weights must have max_tracks + 1 = {self.kmax + 1} entries, "
-                    f"got {len(self.weights)}",
-                    key="k_prior_weights",
-                )
-            for i, v in enumerate(self.weights):
-                if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                    raise InputError(
-                        f"k_prior_weights[{i}] must be a number >= 0, got {v!r}",
-                        key=f"k_prior_weights[{i}]",
-                    )
-            if not any(v > 0 for v in self.weights):
-                raise InputError(
-                    "k_prior_weights must have at least one positive entry", key="k_prior_weights"
-                )
+        self.law.check(self)
+
+    @property
+    def law(self) -> CountLaw:
+        """The registered law this prior names."""
+        return COUNT_LAWS[self.kind]
 
     def log_prior(self, population: WindowPopulation, top: int) -> FloatArray:
         """log pi(K) for K = 0..top (top <= kmax), up to an additive constant."""
-        k = np.arange(top + 1, dtype=float)
-        if self.kind == "birth":
-            return population.log_count_prior(top)
-        if self.kind == "uniform":
-            return np.zeros(top + 1)
-        if self.kind == "poisson":
-            return k * math.log(self.mean) - gammaln(k + 1.0)
-        with np.errstate(divide="ignore"):
-            return np.log(np.asarray(self.weights[: top + 1], dtype=float))
+        return self.law.log_prior(self, population, top)
 
     def log_ratio(self, population: WindowPopulation, top: int) -> FloatArray:
         """``log pi(K) - log p_birth(K)`` for K = 0..top, up to a constant (eq. 2).
 
         ``-inf`` where either law gives K no probability.
         """
-        if self.kind == "birth":
-            return np.where(np.isfinite(population.log_count_prior(top)), 0.0, -math.inf)
-        prior = self.log_prior(population, top)
-        birth = population.log_count_prior(top)
-        possible = np.isfinite(prior) & np.isfinite(birth)
-        out = np.full(top + 1, -math.inf)
-        out[possible] = prior[possible] - birth[possible]
-        return out
+        return self.law.log_ratio(self, population, top)
 
 
 @dataclass(frozen=True, eq=False)
