@@ -97,3 +97,46 @@ def test_the_installed_package_exposes_no_generic_top_level_name() -> None:
         "assert u.find_spec('solvers') is None, 'solvers'"
     )
     subprocess.run([sys.executable, "-c", code], check=True, cwd="/")
+
+
+def _conftest_shared_names(conftest: Path) -> set[str]:
+    """The classes, type aliases and ``@pytest.fixture`` functions that conftest defines."""
+    names: set[str] = set()
+    for node in ast.parse(conftest.read_text(encoding="utf-8")).body:
+        if isinstance(node, ast.ClassDef):
+            names.add(node.name)
+        elif isinstance(node, ast.FunctionDef) and any(
+            "fixture" in ast.unparse(d) for d in node.decorator_list
+        ):
+            names.add(node.name)
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            if "TypeAlias" in ast.unparse(node.annotation):
+                names.add(node.target.id)
+        elif isinstance(node, getattr(ast, "TypeAlias", ())):
+            names.add(node.name.id)
+    return names
+
+
+def test_test_modules_import_no_other_test_module() -> None:
+    """Shared builders live in ``tests/support.py``: no file under ``tests/`` imports a
+    ``test_*`` module, and ``conftest`` is imported only for its fixtures and types."""
+    tests = ROOT / "tests"
+    allowed = _conftest_shared_names(tests / "conftest.py")
+    bad: list[str] = []
+    for path in sorted(tests.rglob("*.py")):
+        where = path.relative_to(tests).as_posix()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                for alias in node.names:
+                    top = alias.name.split(".")[0]
+                    if top.startswith("test_") or top == "conftest":
+                        bad.append(f"{where}: import {alias.name}")
+            elif isinstance(node, ast.ImportFrom):
+                top = (node.module or "").split(".")[0]
+                if node.level or top.startswith("test_"):
+                    bad.append(f"{where}: from {'.' * node.level}{node.module or ''} import ...")
+                elif top == "conftest":
+                    names = [a.name for a in node.names if a.name not in allowed]
+                    if names:
+                        bad.append(f"{where}: from conftest import {', '.join(names)}")
+    assert not bad, "test modules must import shared code from support:\n" + "\n".join(bad)

@@ -527,7 +527,7 @@ class Singer(_LinearKinematic):
     Notes
     -----
     The closed form of Q was checked against Van Loan's matrix-exponential computation
-    (``tests/test_motion_models.py``) to 1e-10 over ``x`` from 1e-6 to 50.
+    (``tests/models/test_motion_models.py``) to 1e-10 over ``x`` from 1e-6 to 50.
 
     References
     ----------

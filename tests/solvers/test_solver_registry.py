@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from scipy.optimize import linprog
-from test_cardinality import random_problem
+from support import random_problem
 
 from mapassoc.estimator.cluster_solving import (
     CLUSTER_STATUSES,

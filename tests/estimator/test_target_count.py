@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
-from test_window_model import make_config, make_scans, partitions
+from support import make_config, make_scans, partitions
 
 from mapassoc.errors import InputError
 from mapassoc.estimator.pipeline import WindowEstimator

@@ -14,8 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from test_cardinality import brute_force, random_problem
-from test_window_model import make_config, random_window
+from support import brute_force_tables, make_config, random_problem, random_window
 
 from mapassoc.estimator.cluster_solving import ClusterSolver
 from mapassoc.estimator.pipeline import WindowEstimator
@@ -65,7 +64,7 @@ def test_bounded_path_bounds_hold_against_brute_force(seed: int) -> None:
     rng = np.random.default_rng(700 + seed)
     problem = random_problem(rng, int(rng.integers(6, 14)), D=int(rng.integers(3, 7)), G=2)
     kmax = int(rng.integers(1, 8))
-    best, mass = brute_force(problem, kmax)
+    best, mass = brute_force_tables(problem, kmax)
     table, report = cluster_solver().solve(problem, kmax, deadline=math.inf)
     assert report.status in ("bounded", "exact")
     assert_bounds_hold(table, best, mass)
@@ -81,7 +80,7 @@ def test_time_limited_cluster_still_gives_valid_bounds(seed: int) -> None:
     """A deadline already past: no LP runs, a narrow beam and the LP-free mass bound."""
     rng = np.random.default_rng(900 + seed)
     problem = random_problem(rng, int(rng.integers(6, 14)), D=int(rng.integers(3, 7)), G=2)
-    best, mass = brute_force(problem, 6)
+    best, mass = brute_force_tables(problem, 6)
     table, report = cluster_solver().solve(problem, 6, deadline=time.perf_counter() - 1.0)
     assert report.status == "time_limit"
     assert report.solves == 0
@@ -92,7 +91,7 @@ def test_time_limited_cluster_still_gives_valid_bounds(seed: int) -> None:
 def test_beam_sums_distinct_feasible_sets(seed: int) -> None:
     rng = np.random.default_rng(1100 + seed)
     problem = random_problem(rng, int(rng.integers(6, 14)), D=int(rng.integers(3, 7)), G=2)
-    best, mass = brute_force(problem, 8)
+    best, mass = brute_force_tables(problem, 8)
     for width in (1, 3, 10**6):
         beam = frontier_search(problem, 8, max_frontiers=width)
         n = beam.best.shape[0]
@@ -111,7 +110,7 @@ def test_beam_sums_distinct_feasible_sets(seed: int) -> None:
 def test_mass_upper_bound_holds_for_any_multipliers(seed: int) -> None:
     rng = np.random.default_rng(1300 + seed)
     problem = random_problem(rng, int(rng.integers(3, 12)), D=int(rng.integers(2, 6)), G=2)
-    _, mass = brute_force(problem, problem.num_hypotheses)
+    _, mass = brute_force_tables(problem, problem.num_hypotheses)
     ks = np.arange(mass.shape[0])
     for _ in range(5):
         y = rng.normal(0.0, 2.0, size=problem.num_resources)
@@ -292,7 +291,7 @@ def test_relaxed_problem_bounds_every_k(seed: int) -> None:
     rng = np.random.default_rng(1500 + seed)
     problem = random_problem(rng, int(rng.integers(4, 12)), D=int(rng.integers(2, 6)), G=2)
     kmax = problem.num_hypotheses
-    best, mass = brute_force(problem, kmax)
+    best, mass = brute_force_tables(problem, kmax)
     for _ in range(4):
         relax = (rng.random(problem.num_resources) < 0.5) & ~problem.exactly_one
         y = np.abs(rng.normal(0.0, 2.0, size=problem.num_resources))

@@ -6,7 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from test_window_model import SENSOR, make_config
+from support import SENSOR, make_config
 
 from mapassoc.data.scans import Scan
 from mapassoc.estimator.pipeline import WindowEstimator

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
 import pytest
+from support import brute_force_tables, random_problem
 
 from mapassoc.formulations.cardinality import (
     SearchLimitExceeded,
@@ -17,43 +17,6 @@ from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.packing import PackingProblem
 
 
-def random_problem(rng: np.random.Generator, H: int, D: int, G: int) -> PackingProblem:
-    """H hypotheses over D detections and G exactly-one groups (each group keeps a free member)."""
-    lists = []
-    group_of = rng.integers(-1, G, size=H) if G else np.full(H, -1)
-    for g in range(G):  # every group gets a member that uses no detection
-        group_of[g % H] = g
-    for h in range(H):
-        k = 0 if (G and h < G) else int(rng.integers(1, min(3, D) + 1))
-        dets = sorted(rng.choice(D, size=k, replace=False).tolist()) if k else []
-        res = dets + ([D + int(group_of[h])] if group_of[h] >= 0 else [])
-        lists.append(res)
-    indptr = np.concatenate([[0], np.cumsum([len(r) for r in lists])])
-    indices = np.concatenate([np.asarray(r, dtype=np.int64) for r in lists])
-    exactly_one = np.r_[np.zeros(D, bool), np.ones(G, bool)]
-    counts = rng.random(H) < 0.9
-    scores = rng.normal(0.0, 3.0, size=H)
-    return PackingProblem(scores, indptr, indices, exactly_one, counts)
-
-
-def brute_force(problem: PackingProblem, kmax: int) -> tuple[np.ndarray, np.ndarray]:
-    best = np.full(kmax + 1, -math.inf)
-    terms: list[list[float]] = [[] for _ in range(kmax + 1)]
-    H = problem.num_hypotheses
-    for r in range(H + 1):
-        for sel in itertools.combinations(range(H), r):
-            if not problem.is_feasible(np.array(sel, dtype=np.int64)):
-                continue
-            k = int(np.count_nonzero(problem.counts[list(sel)]))
-            if k > kmax:
-                continue
-            v = problem.value(np.array(sel, dtype=np.int64))
-            best[k] = max(best[k], v)
-            terms[k].append(v)
-    mass = np.array([np.logaddexp.reduce(t) if t else -math.inf for t in terms])
-    return best, mass
-
-
 @pytest.mark.parametrize("seed", range(60))
 def test_exact_table_matches_brute_force(seed: int) -> None:
     rng = np.random.default_rng(seed)
@@ -61,7 +24,7 @@ def test_exact_table_matches_brute_force(seed: int) -> None:
     problem = random_problem(rng, H, D=int(rng.integers(1, 8)), G=int(rng.integers(0, 3)))
     kmax = int(rng.integers(1, 6))
     table = exact_cardinality_table(problem, kmax)
-    best, mass = brute_force(problem, kmax)
+    best, mass = brute_force_tables(problem, kmax)
     np.testing.assert_allclose(table.best, best, rtol=0, atol=1e-9)
     np.testing.assert_allclose(table.log_mass, mass, rtol=0, atol=1e-9)
     for k in range(kmax + 1):
@@ -216,7 +179,7 @@ def test_hypotheses_without_resources_are_added_exactly(seed: int) -> None:
     indptr = np.r_[base.resource_indptr, np.full(extra, base.resource_indptr[-1])]
     problem = PackingProblem(scores, indptr, base.resource_indices, base.exactly_one, counts)
     kmax = int(rng.integers(0, problem.num_hypotheses + 1))
-    best, mass = brute_force(problem, kmax)
+    best, mass = brute_force_tables(problem, kmax)
     table = exact_cardinality_table(problem, kmax)
     np.testing.assert_allclose(table.best, best, atol=1e-9)
     np.testing.assert_allclose(table.log_mass, mass, atol=1e-9)

@@ -23,15 +23,14 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from support import SENSOR, make_config, make_scans, partitions, random_window
 
 from mapassoc.data.config import Config, parse_config
 from mapassoc.data.scans import Scan
-from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import InputError
 from mapassoc.estimator.hypotheses import CarriedTrack
 from mapassoc.estimator.pipeline import WindowEstimator, WindowSolution
@@ -39,145 +38,14 @@ from mapassoc.estimator.posterior import k_posterior
 from mapassoc.evaluation.metrics import gospa
 from mapassoc.evaluation.simulate import TargetSpec, scan_plan_regular, simulate
 from mapassoc.formulations.packing import PackingProblem, set_packing_program
-from mapassoc.models.measurement import LinearMeasurement
-from mapassoc.models.motion import ConstantVelocity, MotionModel, RandomWalk
-from mapassoc.models.sensor import Region, Sensor
+from mapassoc.models.motion import ConstantVelocity, RandomWalk
 from mapassoc.reference.association import n_object_posterior
 from mapassoc.solvers import SolveStatus, enumerate_feasible, get_solver
 
-SENSOR = "s"
 TOLERANCE = 1e-9
-MAX_ENUMERATED_HYPOTHESES = 40  # EnumerationSolver's default max_variables
 
 
 # ---------------------------------------------------------------------------------- helpers
-
-
-def make_config(
-    *,
-    motion: MotionModel,
-    noise_std: float,
-    detection_probability: float,
-    false_alarms_per_scan: float,
-    region: list[list[float]],
-    rate: float = 0.1,
-    initial_count: float = 0.0,
-    velocity_std: float = 1.0,
-    survival_probability: float = 0.95,
-    max_tracks: int = 5,
-    window_length: int = 3,
-    stride: int = 1,
-    gate_probability: float = 1.0,
-    prune_log_ratio: float = math.inf,
-    max_hypotheses_per_tree: int = 10**6,
-    solver: str = "highs",
-) -> Config:
-    """A one-sensor configuration (sensor ``"s"`` with a position measurement).
-
-    The defaults switch every pruning off (no gate, infinite score ratio, no cap), so
-    that the window's hypotheses are all the model allows.
-    """
-    sensor = Sensor(
-        name=SENSOR,
-        measurement=LinearMeasurement.position(motion, noise_std=noise_std),
-        detection_probability=detection_probability,
-        false_alarms_per_scan=false_alarms_per_scan,
-        region=Region.from_bounds(region),
-    )
-    return Config(
-        motion=motion,
-        sensors={SENSOR: sensor},
-        birth=BirthModel(
-            rate=rate,
-            initial_count=initial_count,
-            velocity_std=velocity_std,
-            survival_probability=survival_probability,
-        ),
-        estimator=EstimatorSettings(
-            window_length=window_length,
-            stride=stride,
-            max_tracks=max_tracks,
-            gate_probability=gate_probability,
-            prune_log_ratio=prune_log_ratio,
-            max_hypotheses_per_tree=max_hypotheses_per_tree,
-            solver=solver,
-        ),
-    )
-
-
-def make_scans(times: list[float], detections: list[list[list[float]]], dz: int) -> list[Scan]:
-    """Scans of sensor ``"s"`` with rows numbered 2, 3, ... in scan order."""
-    scans = []
-    row = 2
-    for time, dets in zip(times, detections, strict=True):
-        z = np.asarray(dets, dtype=float).reshape(len(dets), dz)
-        scans.append(Scan(time, SENSOR, z, np.arange(row, row + len(dets), dtype=np.int64)))
-        row += len(dets)
-    return scans
-
-
-def random_spd(rng: np.random.Generator, n: int) -> np.ndarray:
-    """A random symmetric positive-definite matrix, shape (n, n)."""
-    a = rng.normal(0.0, 0.5, size=(n, n))
-    return a @ a.T + np.diag(rng.uniform(0.2, 2.0, size=n))
-
-
-@dataclass(frozen=True, eq=False)
-class RandomWindow:
-    estimator: WindowEstimator
-    scans: list[Scan]
-    carried: list[CarriedTrack]
-
-
-def random_window(seed: int) -> RandomWindow:
-    """A random small window whose unmerged program has at most 40 hypotheses.
-
-    1-3 scans at irregular times, 0-3 detections per scan, 0-2 carried tracks, random Pd,
-    clutter, birth rate and survival (sometimes exactly 1: no deaths), 1-D or 2-D constant
-    velocity.  Draws again (same generator) until the window fits the enumerator.
-    """
-    rng = np.random.default_rng(seed)
-    while True:
-        ndim = int(rng.choice([1, 1, 2]))
-        motion = ConstantVelocity(ndim=ndim, noise_intensity=float(rng.uniform(0.1, 1.0)))
-        num_scans = int(rng.integers(1, 4))
-        counts = [int(rng.integers(0, 4)) for _ in range(num_scans)]
-        num_carried = int(rng.integers(0, 3))
-        times = np.cumsum(np.r_[0.0, rng.uniform(0.5, 2.0, size=num_scans - 1)]).tolist()
-        detections = [rng.uniform(-6.0, 6.0, size=(c, ndim)).tolist() for c in counts]
-        survival = 1.0 if rng.random() < 0.2 else float(rng.uniform(0.5, 0.99))
-        config = make_config(
-            motion=motion,
-            noise_std=float(rng.uniform(0.3, 1.5)),
-            detection_probability=float(rng.uniform(0.4, 0.95)),
-            false_alarms_per_scan=float(rng.uniform(0.2, 3.0)),
-            region=[[-8.0, 8.0]] * ndim,
-            rate=float(rng.uniform(0.05, 1.0)),
-            velocity_std=float(rng.uniform(0.3, 2.0)),
-            survival_probability=survival,
-            max_tracks=sum(counts) + num_carried + 1,  # the top K is always infeasible
-        )
-        carried = []
-        for i in range(num_carried):
-            n = motion.state_dim
-            mean = np.r_[rng.uniform(-6.0, 6.0, size=ndim), rng.uniform(-1.0, 1.0, size=ndim)]
-            time = -float(rng.uniform(0.3, 1.5))
-            carried.append(
-                CarriedTrack(
-                    track_id=10 + i,
-                    mean=mean,
-                    covariance=random_spd(rng, n),
-                    time=time,
-                    initiated=True,
-                    num_detections=2,
-                    first_detection_time=time - 1.0,
-                )
-            )
-        estimator = WindowEstimator(config=config)
-        scans = make_scans(times, detections, ndim)
-        hypotheses = estimator.generator.generate(scans, carried)
-        if hypotheses.count <= MAX_ENUMERATED_HYPOTHESES:
-            return RandomWindow(estimator, scans, carried)
 
 
 def assert_tables_equal(a: np.ndarray, b: np.ndarray, what: str) -> None:
@@ -275,33 +143,6 @@ class TinyModel:
     velocity_std: float
     noise_intensity: float  # q of the CWNA model
     measurement_variance: float  # R
-
-
-def partitions(scan_of: list[int]) -> Iterator[list[tuple[int, ...]]]:
-    """Every partition of the detections into tracks and false alarms.
-
-    Detections are indexed in scan order; a track is a tuple of detections of strictly
-    increasing scans (at most one detection per scan).  Each partition appears once:
-    a detection is a false alarm, starts a track, or extends a track whose last
-    detection is in an earlier scan.
-    """
-    tracks: list[list[int]] = []
-
-    def place(d: int) -> Iterator[list[tuple[int, ...]]]:
-        if d == len(scan_of):
-            yield [tuple(t) for t in tracks]
-            return
-        yield from place(d + 1)  # false alarm
-        tracks.append([d])  # new track
-        yield from place(d + 1)
-        tracks.pop()
-        for t in tracks:
-            if scan_of[t[-1]] < scan_of[d]:
-                t.append(d)
-                yield from place(d + 1)
-                t.pop()
-
-    yield from place(0)
 
 
 def cv_predict(x: np.ndarray, P: np.ndarray, dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
