@@ -13,7 +13,8 @@ Schema (unknown keys anywhere are an error; every value is checked)::
 
     [[sensors]]                   # one table per sensor, at least one, distinct names
     name = "radar"
-    measurement = "position"      # position | range_bearing
+    measurement = "position"      # position | range_bearing (the keys of each:
+                                  # mapassoc.models.measurement.MEASUREMENT_REGISTRY)
     noise_std = 1.0               # position: a number, or one std per position component
     # range_bearing instead: position = [x, y], range_std = ..., bearing_std = ... (radians);
     # needs a motion model with a 2-D position (ndim = 2, or coordinated_turn)
@@ -48,7 +49,12 @@ import numpy as np
 
 from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
-from mapassoc.models.measurement import LinearMeasurement, MeasurementModel, RangeBearing
+from mapassoc.models.measurement import (
+    MEASUREMENT_REGISTRY,
+    MeasurementModel,
+    SettingValue,
+    measurement_spec,
+)
 from mapassoc.models.motion import MOTION_REGISTRY, MotionModel, motion_spec
 from mapassoc.models.sensor import Region, Sensor
 from mapassoc.validation import check_nonnegative, check_positive, check_probability
@@ -68,7 +74,9 @@ PathLike = str | os.PathLike[str]
 MOTION_MODELS = tuple(MOTION_REGISTRY)
 """Motion model names registered when this module was imported (see
 :data:`mapassoc.models.motion.MOTION_REGISTRY`, which the reader and writer use)."""
-MEASUREMENTS = ("position", "range_bearing")
+MEASUREMENTS = tuple(MEASUREMENT_REGISTRY)
+"""Measurement model names registered when this module was imported (see
+:data:`mapassoc.models.measurement.MEASUREMENT_REGISTRY`, which the reader and writer use)."""
 
 _SECTIONS = ("motion", "sensors", "birth", "estimator")
 _SENSOR_COMMON_KEYS = (
@@ -78,10 +86,6 @@ _SENSOR_COMMON_KEYS = (
     "false_alarms_per_scan",
     "region",
 )
-_SENSOR_MEASUREMENT_KEYS = {
-    "position": ("noise_std",),
-    "range_bearing": ("position", "range_std", "bearing_std"),
-}
 _DOCUMENT_KEY = "<file>"
 """Key reported for problems with the whole document (unreadable file, TOML syntax)."""
 
@@ -138,19 +142,9 @@ class Config:
 def _check_measurement_fits_motion(
     measurement: MeasurementModel, motion: MotionModel, sensor_name: str
 ) -> None:
-    if isinstance(measurement, LinearMeasurement):
-        if measurement.H.shape[1] != motion.state_dim:
-            raise InputError(
-                f"sensor {sensor_name!r}: measurement matrix H has {measurement.H.shape[1]} "
-                f"columns but the motion model {motion!r} has {motion.state_dim} states"
-            )
-    elif isinstance(measurement, RangeBearing):
-        if max(measurement.position_indices) >= motion.state_dim:
-            raise InputError(
-                f"sensor {sensor_name!r}: range-bearing position indices "
-                f"{measurement.position_indices} exceed the motion model's "
-                f"{motion.state_dim} states"
-            )
+    problem = measurement.motion_mismatch(motion)
+    if problem is not None:
+        raise InputError(f"sensor {sensor_name!r}: {problem}")
 
 
 # --------------------------------------------------------------------------- parsing
@@ -299,25 +293,72 @@ def _parse_region(
     return Region(lower=np.array(lower), upper=np.array(upper))
 
 
-def _parse_noise_std(parser: _Parser, value: object, key: str, count: int) -> list[float]:
-    if isinstance(value, list):
-        if len(value) != count:
-            raise parser.fail(
-                key,
-                f"has {len(value)} entries {value!r}; expected a number or one standard "
-                f"deviation per position component ({count})",
-            )
-        return [parser.positive(item, f"{key}[{i}]") for i, item in enumerate(value)]
-    return [parser.positive(value, key)] * count
+class _SensorSettings:
+    """The :class:`~mapassoc.models.measurement.SettingsReader` of one ``[[sensors]]`` table."""
+
+    def __init__(self, parser: _Parser, table: Mapping[str, object], prefix: str) -> None:
+        self._parser = parser
+        self._table = table
+        self._prefix = prefix
+
+    def _key(self, key: str) -> str:
+        return f"{self._prefix}.{key}"
+
+    def _raw(self, key: str) -> object:
+        return self._parser.required(self._table, self._prefix, key)
+
+    def fail(self, key: str, message: str) -> ConfigError:
+        return self._parser.fail(self._key(key), message)
+
+    def number(self, key: str) -> float:
+        return self._parser.number(self._raw(key), self._key(key))
+
+    def integer(self, key: str) -> int:
+        return self._parser.integer(self._raw(key), self._key(key))
+
+    def string(self, key: str) -> str:
+        return self._parser.string(self._raw(key), self._key(key))
+
+    def positive(self, key: str) -> float:
+        return self._parser.positive(self._raw(key), self._key(key))
+
+    def nonnegative(self, key: str) -> float:
+        return self._parser.nonnegative(self._raw(key), self._key(key))
+
+    def finite(self, key: str) -> float:
+        return self._parser.finite(self._raw(key), self._key(key))
+
+    def finite_vector(self, key: str, names: tuple[str, ...]) -> list[float]:
+        full = self._key(key)
+        values = self._parser.array(self._raw(key), full)
+        if len(values) != len(names):
+            raise self._parser.fail(full, f"must be [{', '.join(names)}], got {values!r}")
+        return [self._parser.finite(v, f"{full}[{i}]") for i, v in enumerate(values)]
+
+    def positive_per_component(self, key: str, count: int) -> list[float]:
+        full = self._key(key)
+        value = self._raw(key)
+        if isinstance(value, list):
+            if len(value) != count:
+                raise self._parser.fail(
+                    full,
+                    f"has {len(value)} entries {value!r}; expected a number or one standard "
+                    f"deviation per position component ({count})",
+                )
+            return [self._parser.positive(item, f"{full}[{i}]") for i, item in enumerate(value)]
+        return [self._parser.positive(value, full)] * count
 
 
 def _parse_sensor(parser: _Parser, item: object, index: int, motion: MotionModel) -> Sensor:
     prefix = f"sensors[{index}]"
     table = parser.table(item, prefix)
     kind = parser.choice(
-        parser.required(table, prefix, "measurement"), f"{prefix}.measurement", MEASUREMENTS
+        parser.required(table, prefix, "measurement"),
+        f"{prefix}.measurement",
+        tuple(MEASUREMENT_REGISTRY),
     )
-    allowed = _SENSOR_COMMON_KEYS + _SENSOR_MEASUREMENT_KEYS[kind]
+    spec = MEASUREMENT_REGISTRY[kind]
+    allowed = _SENSOR_COMMON_KEYS + spec.keys
     parser.only_keys(table, prefix, allowed, f"for a {kind} sensor")
     name = parser.string(parser.required(table, prefix, "name"), f"{prefix}.name")
     if not name or name != name.strip() or "," in name:
@@ -325,39 +366,10 @@ def _parse_sensor(parser: _Parser, item: object, index: int, motion: MotionModel
             f"{prefix}.name",
             f"must be a non-empty name without commas or surrounding spaces, got {name!r}",
         )
-    position_indices = tuple(motion.position_indices)
-    measurement: MeasurementModel
-    if kind == "position":
-        std = _parse_noise_std(
-            parser,
-            parser.required(table, prefix, "noise_std"),
-            f"{prefix}.noise_std",
-            len(position_indices),
-        )
-        measurement = LinearMeasurement.position(motion, noise_std=np.array(std))
-    else:
-        if len(position_indices) != 2:
-            raise parser.fail(
-                f"{prefix}.measurement",
-                f"'range_bearing' needs a motion model with a 2-D position (ndim = 2 or "
-                f"coordinated_turn); the motion model {motion!r} has "
-                f"{len(position_indices)} position components",
-            )
-        position_key = f"{prefix}.position"
-        position = parser.array(parser.required(table, prefix, "position"), position_key)
-        if len(position) != 2:
-            raise parser.fail(position_key, f"must be [x, y], got {position!r}")
-        xy = [parser.finite(v, f"{position_key}[{i}]") for i, v in enumerate(position)]
-        measurement = RangeBearing(
-            sensor_position=np.array(xy),
-            range_std=parser.positive(
-                parser.required(table, prefix, "range_std"), f"{prefix}.range_std"
-            ),
-            bearing_std=parser.positive(
-                parser.required(table, prefix, "bearing_std"), f"{prefix}.bearing_std"
-            ),
-            position_indices=(position_indices[0], position_indices[1]),
-        )
+    try:
+        measurement = spec.read(_SensorSettings(parser, table, prefix), motion)
+    except InputError as exc:  # a model's own cross-checks of its settings
+        raise parser.fail(prefix, str(exc)) from None
     detection_probability = parser.probability(
         parser.required(table, prefix, "detection_probability"),
         f"{prefix}.detection_probability",
@@ -542,31 +554,32 @@ def _motion_lines(motion: MotionModel) -> list[str]:
     return lines
 
 
+def _toml_value(value: SettingValue) -> str:
+    """A measurement setting as TOML: boolean, integer, float, string or array of floats."""
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return _toml_float(value)
+    if isinstance(value, str):
+        return _toml_string(value)
+    return _toml_floats(value)
+
+
 def _measurement_lines(measurement: MeasurementModel, motion: MotionModel, key: str) -> list[str]:
-    if isinstance(measurement, RangeBearing):
-        return [
-            'measurement = "range_bearing"',
-            f"position = {_toml_floats(measurement.sensor_position)}",
-            f"range_std = {_toml_float(math.sqrt(measurement.R[0, 0]))}",
-            f"bearing_std = {_toml_float(math.sqrt(measurement.R[1, 1]))}",
-        ]
-    if isinstance(measurement, LinearMeasurement):
-        variances = np.diag(measurement.R)
-        if np.all(variances > 0):
-            std = np.sqrt(variances)
-            rebuilt = LinearMeasurement.position(motion, noise_std=std)
-            if (
-                np.array_equal(rebuilt.H, measurement.H)
-                and np.array_equal(rebuilt.R, measurement.R)
-                and rebuilt.component_names == measurement.component_names
-            ):
-                written = _toml_float(std[0]) if np.all(std == std[0]) else _toml_floats(std)
-                return ['measurement = "position"', f"noise_std = {written}"]
-    raise ConfigError(
-        f"{key}.measurement",
-        f"cannot write {measurement!r} as TOML: only position measurements of the motion "
-        "model with independent noise, and range-bearing measurements, are in the schema",
-    )
+    spec = measurement_spec(measurement)
+    settings = None if spec is None else spec.write(measurement, motion)
+    if spec is None or settings is None:
+        raise ConfigError(
+            f"{key}.measurement",
+            f"cannot write {measurement!r} as TOML: only position measurements of the motion "
+            "model with independent noise, and range-bearing measurements, are in the schema",
+        )
+    lines = [f"measurement = {_toml_string(spec.name)}"]
+    for name in spec.keys:
+        lines.append(f"{name} = {_toml_value(settings[name])}")
+    return lines
 
 
 def config_to_toml(config: Config) -> str:

@@ -15,8 +15,9 @@ is observed (first-order conversion through the polar Jacobian; turn rate
 model itself and the conversion is the identity.
 
 Each model says all this itself (:class:`~mapassoc.models.motion.MotionModel`:
-``initiation_model``, ``needs_conversion``, ``birth_prior``, ``convert_initiated``); the
-functions here delegate to it.
+``initiation_model``, ``needs_conversion``, ``birth_prior``, ``convert_initiated``;
+:class:`~mapassoc.models.measurement.MeasurementModel`: ``position_from_measurement``,
+``on_initiation_state``, ``measures_position_directly``); the functions here delegate to it.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from numpy.typing import NDArray
 
 from mapassoc.data.settings import BirthModel
 from mapassoc.errors import InputError
-from mapassoc.models.measurement import LinearMeasurement, MeasurementModel
+from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
 
 __all__ = [
@@ -54,26 +55,12 @@ def initiation_measurement(motion: MotionModel, measurement: MeasurementModel) -
     constant-velocity initiation state: both spaces share the position components, and a
     measurement of anything but position cannot act on the initiation state.  A
     range-bearing measurement reads only the position components and is used as it is.
+    The measurement model does this itself
+    (:meth:`~mapassoc.models.measurement.MeasurementModel.on_initiation_state`).
     """
-    if not needs_conversion(motion) or not isinstance(measurement, LinearMeasurement):
+    if not needs_conversion(motion):
         return measurement
-    model = initiation_model(motion)
-    source = list(motion.position_indices)
-    others = [i for i in range(motion.state_dim) if i not in source]
-    if np.any(measurement.H[:, others] != 0.0):
-        raise InputError(
-            f"the linear measurement H={measurement.H.tolist()} reads state components other "
-            f"than the position {[motion.state_names[i] for i in source]}, so it cannot be "
-            f"applied to a {type(model).__name__} initiation state"
-        )
-    H = np.zeros((measurement.measurement_dim, model.state_dim))
-    H[:, list(model.position_indices)] = measurement.H[:, source]
-    return LinearMeasurement(
-        H=H,
-        R=measurement.R,
-        component_names=measurement.component_names,
-        position_indices=measurement.position_indices,
-    )
+    return measurement.on_initiation_state(motion, initiation_model(motion))
 
 
 def needs_conversion(motion: MotionModel) -> bool:
@@ -131,15 +118,17 @@ def birth_states(
 ) -> tuple[FloatArray, FloatArray]:
     """:func:`birth_state` for every row of ``Z`` (shape (m, dz)): means (m, n0), covs (m, n0, n0).
 
-    A linear position measurement gives every birth the same covariance, so the batch
-    is built without a loop; other measurements fall back to one call per detection.
+    A measurement that measures the position directly (a linear position measurement,
+    ``measurement.measures_position_directly``) gives every birth the same covariance, so
+    the batch is built without a loop; other measurements fall back to one call per
+    detection.
     """
     Z = np.asarray(Z, dtype=float)
     model = initiation_model(motion)
     n = model.state_dim
     if Z.shape[0] == 0:
         return np.zeros((0, n)), np.zeros((0, n, n))
-    if isinstance(measurement, LinearMeasurement) and measurement.position_indices is not None:
+    if measurement.measures_position_directly:
         _, P0 = birth_state(motion, measurement, Z[0], birth)  # the same for every row
         x = np.zeros((Z.shape[0], n))
         x[:, list(model.position_indices)] = Z
