@@ -212,18 +212,20 @@ class WindowReport:
     """One line of ``windows.jsonl``.
 
     Two counts are reported.  K is the number of **targets** present in the window
-    (seed 002's K, detected or not): ``probabilities`` (``p_k`` in JSON) is p(K | Z)
-    under the configured ``k_prior``, and ``joint_map_k``, ``marginal_k`` and
+    (seed 002's K, detected or not): ``p_k`` is p(K | Z) under the configured
+    ``k_prior``, and ``joint_map_k``, ``marginal_k`` and
     ``chosen_k`` are estimates of it.  T is the number of **tracks** of a track set
     (carried tracks alive in the window plus tracks started in it; what the set packing
-    chooses): ``track_probabilities`` (``p_tracks``) is p(T | Z), ``best_objective`` the
+    chooses): ``p_tracks`` is p(T | Z), ``best_objective`` the
     best score per T, and ``chosen_tracks`` the T of the committed set (the MAP set
     given ``chosen_k``).  ``undetected_mean`` is the expected number of targets in the
     window that no track explains (never detected).
 
-    The vectors stop where they become exactly 0 (beyond the largest reachable T) or,
-    for p(K | Z), where its upper bound falls below :data:`P_K_FLOOR`; ``p_k_length`` is the full
-    length Kmax + 1, so a huge Kmax costs no memory.  The JSON line also leaves out
+    Every field is written under its own name (timings only with ``timings=True``;
+    ``p_k_lower``/``p_k_upper`` only where the mass is not exact).  The vectors stop
+    where they become exactly 0 (beyond the largest reachable T) or, for p(K | Z), where
+    its upper bound falls below :data:`P_K_FLOOR`; ``p_k_length`` is the full length
+    Kmax + 1, so a huge Kmax costs no memory.  The JSON line also leaves out
     trailing probabilities below :data:`P_K_FLOOR`.  ``best_objective_upper`` holds the
     proven upper bounds of the best objective per T; it is written only where it
     differs from ``best_objective`` (a bounded cluster), and ``null`` in
