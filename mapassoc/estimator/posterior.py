@@ -45,10 +45,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import gammaln
 
 from mapassoc.errors import InputError
-from mapassoc.models.population import WindowPopulation
+from mapassoc.models.population import WindowPopulation, poisson_log_pmf
 
 __all__ = [
     "COUNT_LAWS",
@@ -139,8 +138,7 @@ class PoissonLaw(CountLaw):
     name = "poisson"
 
     def log_prior(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
-        k = np.arange(top + 1, dtype=float)
-        return k * math.log(prior.mean) - gammaln(k + 1.0)
+        return poisson_log_pmf(np.arange(top + 1), prior.mean)
 
 
 class WeightsLaw(CountLaw):
@@ -385,22 +383,10 @@ def _probability_bounds(lower: FloatArray, upper: FloatArray) -> tuple[FloatArra
     return p_lo, np.minimum(p_hi, 1.0)
 
 
-def _log_poisson(u: NDArray[np.int64], nu: float) -> FloatArray:
-    """log Po(u; nu), ``-inf`` for u < 0 (and for u > 0 when nu = 0)."""
-    out = np.full(u.shape, -math.inf)
-    ok = u >= 0
-    if nu > 0:
-        uf = u[ok].astype(float)
-        out[ok] = uf * math.log(nu) - nu - gammaln(uf + 1.0)
-    else:
-        out[ok & (u == 0)] = 0.0
-    return out
-
-
 def _tracks_given(best: FloatArray, nu: float, k: int) -> int:
     """argmax over T <= k of ``best[T] + log Po(k - T; nu)`` (eq. 2), the smaller T on ties."""
     tracks = np.arange(min(k + 1, best.shape[0]), dtype=np.int64)
-    scores = best[: tracks.shape[0]] + _log_poisson(k - tracks, nu)
+    scores = best[: tracks.shape[0]] + poisson_log_pmf(k - tracks, nu)
     if not np.any(np.isfinite(scores)):
         raise InputError(f"no track set of this window has at most {k} tracks")
     return _argmax_first(scores)
@@ -480,7 +466,7 @@ def _sweep(
     best_upper: FloatArray,
 ) -> _Sweep:
     n = top + 1
-    log_po = _log_poisson(np.arange(n, dtype=np.int64), nu)
+    log_po = poisson_log_pmf(np.arange(n, dtype=np.int64), nu)
     rows = _relevant_rows(ratio, log_po, mass, mass_upper, best, best_upper)
     out = _Sweep(
         np.full(n, -math.inf),

@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.special import gammaln
 
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -59,7 +60,13 @@ from mapassoc.errors import InputError
 if TYPE_CHECKING:  # settings import the count prior, which needs this module
     from mapassoc.data.settings import BirthModel
 
-__all__ = ["UndetectedTargets", "WindowPopulation", "recording_start", "window_population"]
+__all__ = [
+    "UndetectedTargets",
+    "WindowPopulation",
+    "poisson_log_pmf",
+    "recording_start",
+    "window_population",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -141,13 +148,8 @@ class WindowPopulation:
         ndarray, shape (kmax + 1,)
             ``-inf`` where p(K) = 0.
         """
-        k = np.arange(kmax + 1, dtype=float)
-        mu = self.new_target_mean
+        log_poisson = poisson_log_pmf(np.arange(kmax + 1), self.new_target_mean)
         with np.errstate(divide="ignore", invalid="ignore"):
-            if mu > 0:
-                log_poisson = k * math.log(mu) - mu - _log_factorial(k)
-            else:
-                log_poisson = np.where(k == 0, 0.0, -math.inf)
             bern = np.full(min(kmax, self.carried_alive.size) + 1, -math.inf)
             bern[0] = 0.0
             for a in self.carried_alive:
@@ -162,10 +164,25 @@ class WindowPopulation:
         return out
 
 
-def _log_factorial(k: FloatArray) -> FloatArray:
-    from scipy.special import gammaln
+def poisson_log_pmf(counts: NDArray[np.int64], mean: float) -> FloatArray:
+    """``log Po(counts; mean)`` elementwise: ``-inf`` for a negative count, and for a
+    positive one when ``mean = 0``.
 
-    return np.asarray(gammaln(k + 1.0), dtype=float)
+    Parameters
+    ----------
+    counts : ndarray of int
+    mean : float
+        >= 0.
+    """
+    counts = np.asarray(counts)
+    out = np.full(counts.shape, -math.inf)
+    ok = counts >= 0
+    if mean > 0:
+        k = counts[ok].astype(float)
+        out[ok] = k * math.log(mean) - mean - gammaln(k + 1.0)
+    else:
+        out[ok & (counts == 0)] = 0.0
+    return out
 
 
 def window_population(
