@@ -55,6 +55,7 @@ from typing import Protocol, TextIO
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
 from mapassoc.data.config import Config
 from mapassoc.data.io import TruthTable
 from mapassoc.data.settings import K_PRIORS
@@ -94,24 +95,10 @@ __all__ = [
     "bench_gating",
 ]
 
-#: Families run by default, in this order.
-DEFAULT_FAMILIES: tuple[str, ...] = (
-    "crossing",
-    "parallel",
-    "dense_pd08",
-    "scale20",
-    "scale50",
-    "scale100",
-    "burst",
-    "dense",
-    "dense50",
-)
 #: Priors on the number of targets in a window (``EstimatorSettings.k_prior``) the
 #: benchmark can compare: every prior of :data:`mapassoc.data.settings.K_PRIORS` but
 #: ``"weights"``, which needs weights fitted to each configuration's Kmax.
 BENCH_K_PRIORS: tuple[str, ...] = tuple(name for name in K_PRIORS if name != "weights")
-#: Priors compared by default, in this order (the first is the one the goals judge).
-DEFAULT_K_PRIORS: tuple[str, ...] = ("birth", "uniform")
 #: ``generic``: :func:`~mapassoc.evaluation.scenarios.generic_config`; ``scenario``: each
 #: scenario's own configuration.
 CONFIG_CHOICES: tuple[str, ...] = ("generic", "scenario")

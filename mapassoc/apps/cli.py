@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import TextIO
 
 from mapassoc import __version__
+from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
 from mapassoc.errors import MapassocError
 
 __all__ = ["main", "build_parser"]
@@ -170,22 +171,6 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-# The bench defaults live here (not imported from mapassoc.apps.bench) so that building the
-# parser does not import the estimator; tests check that they match.
-_BENCH_FAMILIES = (
-    "crossing",
-    "parallel",
-    "dense_pd08",
-    "scale20",
-    "scale50",
-    "scale100",
-    "burst",
-    "dense",
-    "dense50",
-)
-_BENCH_K_PRIORS = "birth,uniform"
-
-
 def _comma_separated(text: str) -> list[str]:
     """``"birth, uniform"`` -> ``["birth", "uniform"]`` (names are checked by the bench)."""
     return [item.strip() for item in text.split(",")]
@@ -280,9 +265,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--families",
         "--scenarios",
         nargs="+",
-        default=list(_BENCH_FAMILIES),
+        default=list(DEFAULT_FAMILIES),
         metavar="NAME",
-        help=f"scenario families to run (default: {' '.join(_BENCH_FAMILIES)})",
+        help=f"scenario families to run (default: {' '.join(DEFAULT_FAMILIES)})",
     )
     p.add_argument(
         "--seeds", type=int, default=5, metavar="N", help="seeds 0..N-1 per family (default 5)"
@@ -320,12 +305,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--k-priors",
         type=_comma_separated,
-        default=_BENCH_K_PRIORS,
+        default=",".join(DEFAULT_K_PRIORS),
         metavar="PRIOR,...",
         help="comma-separated priors on the number of targets per window "
         "(EstimatorSettings.k_prior: birth, uniform, poisson with the configuration's "
         "k_prior_mean) to run every family with; the first is the one the goals judge "
-        f"(default {_BENCH_K_PRIORS})",
+        f"(default {','.join(DEFAULT_K_PRIORS)})",
     )
     p.add_argument("--json", metavar="PATH", help="also write the results to this JSON file")
     p.set_defaults(func=_cmd_bench)

@@ -1,0 +1,25 @@
+"""The benchmark's default families and priors, in a module that imports nothing else.
+
+``mapassoc.apps.bench`` runs them and ``mapassoc.apps.cli`` shows them in its help;
+keeping them here lets the command line build its parser without importing the
+estimator.
+"""
+
+from __future__ import annotations
+
+__all__ = ["DEFAULT_FAMILIES", "DEFAULT_K_PRIORS"]
+
+#: Families run by default, in this order.
+DEFAULT_FAMILIES: tuple[str, ...] = (
+    "crossing",
+    "parallel",
+    "dense_pd08",
+    "scale20",
+    "scale50",
+    "scale100",
+    "burst",
+    "dense",
+    "dense50",
+)
+#: Priors compared by default, in this order (the first is the one the goals judge).
+DEFAULT_K_PRIORS: tuple[str, ...] = ("birth", "uniform")
