@@ -39,13 +39,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.data.config import Config
-from mapassoc.data.io import Origins, TrackTable
+from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import InputError
 from mapassoc.estimator.cluster_solving import ClusterReport, ClusterSolver, ClusterStatus
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
 from mapassoc.estimator.posterior import KPosterior, k_posterior
-from mapassoc.evaluation.oracle import oracle_tracks
+from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.formulations.cardinality import (
     ClusterTable,
     CombinedTable,
@@ -680,7 +680,10 @@ class WindowEstimator:
 
     def _smooth(self, scans: Sequence[Scan], records: dict[int, _TrackRecord]) -> TrackTable:
         """RTS-smooth every track over the detections it used."""
-        all_rows = np.concatenate([s.rows for s in scans]).astype(np.int64)
-        owner = {row: tid for tid, rec in records.items() for row in rec.rows}
-        ids = np.array([owner.get(int(r), -1) for r in all_rows], dtype=np.int64)
-        return oracle_tracks(scans, Origins(rows=all_rows, target_ids=ids), self.config)
+        where = {
+            int(row): (k, j) for k, scan in enumerate(scans) for j, row in enumerate(scan.rows)
+        }
+        associations = {
+            tid: dict(where[row] for row in rec.rows) for tid, rec in records.items() if rec.rows
+        }
+        return smooth_tracks(scans, associations, self.config)

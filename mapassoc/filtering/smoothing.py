@@ -1,0 +1,292 @@
+"""Fixed-interval smoothing of tracks whose detections are known.
+
+Every tracker that ends with a set of detection sequences (the MAP window estimator, the
+oracle on true associations, the baselines of :mod:`mapassoc.trackers`) gets its reported
+states here, so all of them are smoothed the same way and compared on association alone.
+
+For each track:
+
+1. The track starts at its first detection with the single-point initiation of
+   :func:`mapassoc.models.birth.birth_state` (the detection fixes the position; this is already the
+   posterior given that detection, so it is not updated with it again).
+2. Every later scan of *any* sensor up to the track's last detection is one step: a
+   prediction over ``dt`` through :func:`mapassoc.filtering.kalman.predict_motion` (skipped when
+   ``dt == 0``, two sensors scanning at the same time), then a Kalman/EKF update
+   (:func:`mapassoc.filtering.kalman.innovation`,
+   :func:`mapassoc.filtering.kalman.update`) when the track has a detection in that scan;
+   a scan without one is a pure prediction.
+3. Rauch-Tung-Striebel smoothing (:func:`mapassoc.filtering.kalman.rts_smooth`).
+
+Coordinated turn.  A coordinated-turn track starts in the constant-velocity initiation
+model (:func:`mapassoc.models.birth.initiation_model`; a position measurement's H is re-indexed
+onto that state) and is converted by :func:`mapassoc.models.birth.convert_initiated` right after
+its first detection update at a time later than its first detection (normally its second
+detection).  Detections at the *same* time as the first one cannot reveal the velocity,
+whose mean is then still exactly zero and has no heading, so they do not trigger the
+conversion.  The whole track is smoothed: the turn-state part with
+:func:`~mapassoc.filtering.kalman.rts_smooth`; then, because the conversion is only a change of
+variables plus an independent turn-rate prior (it adds no information), the smoothed
+turn state at the conversion step is mapped back to the constant-velocity state by the
+inverse change of variables (which is what the RTS step through a linear change of
+variables reduces to), and the backward pass continues through the constant-velocity
+part.  Those early smoothed states are reported in the turn state through
+:func:`~mapassoc.models.birth.convert_initiated` (linearised at the smoothed velocity), with the
+smoothed turn rate (mean and variance) of the conversion step.  Reported turn states are
+canonical: speed >= 0 (an EKF can settle on the equivalent ``(-speed, heading + pi)``) and
+heading wrapped to (-pi, pi].  A coordinated-turn track detected at a single time has no
+velocity information: its rows report speed, heading and turn rate 0 with the variances
+``speed_std^2``, ``pi^2 / 3`` (a heading uniform on (-pi, pi]) and ``turn_rate_std^2`` of
+the birth model.
+
+The model-specific pieces of this (initiation model, conversion and its inverse,
+the turn rate taken from the conversion step, canonical form, states of unconverted tracks)
+are methods of the motion model (:class:`mapassoc.models.motion.MotionModel`); the code here
+works for any model that converts, with dimensions from ``state_dim``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapassoc.data.config import Config
+from mapassoc.data.io import TrackTable
+from mapassoc.data.scans import Scan
+from mapassoc.data.settings import BirthModel
+from mapassoc.errors import InputError
+from mapassoc.filtering.kalman import innovation, predict_motion, rts_smooth, update
+from mapassoc.models.birth import (
+    birth_state,
+    convert_initiated,
+    initiation_measurement,
+    initiation_model,
+    needs_conversion,
+)
+from mapassoc.models.motion import MotionModel
+
+__all__ = ["Associations", "smooth_track", "smooth_tracks"]
+
+FloatArray = NDArray[np.float64]
+
+#: Track id -> {scan index -> index of the track's detection in that scan}.
+Associations = Mapping[int, Mapping[int, int]]
+
+
+class _Segment:
+    """Filtered and predicted moments of consecutive steps in one state space.
+
+    Parameters
+    ----------
+    x, P : ndarray, shapes (n,), (n, n)
+        Filtered moments of the segment's first step.
+    """
+
+    def __init__(self, *, x: FloatArray, P: FloatArray) -> None:
+        # Entry 0 of the predicted moments and transitions is unused by rts_smooth.
+        self.x_filtered = [x]
+        self.P_filtered = [P]
+        self.x_predicted = [x]
+        self.P_predicted = [P]
+        self.transitions = [np.eye(x.shape[0])]
+
+    def append(
+        self, *, x: FloatArray, P: FloatArray, x_pred: FloatArray, P_pred: FloatArray, F: FloatArray
+    ) -> None:
+        """Add a step: filtered ``x, P``, predicted ``x_pred, P_pred``, transition ``F``."""
+        self.x_filtered.append(x)
+        self.P_filtered.append(P)
+        self.x_predicted.append(x_pred)
+        self.P_predicted.append(P_pred)
+        self.transitions.append(F)
+
+    def smooth(
+        self, last_x: FloatArray | None = None, last_P: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """RTS-smooth the segment; ``last_x, last_P`` replace the final filtered moments
+        by already smoothed ones (the segment then continues a smoothed later segment)."""
+        xf = np.array(self.x_filtered)
+        Pf = np.array(self.P_filtered)
+        if last_x is not None and last_P is not None:
+            xf[-1], Pf[-1] = last_x, last_P
+        return rts_smooth(
+            xf,
+            Pf,
+            np.array(self.x_predicted),
+            np.array(self.P_predicted),
+            np.array(self.transitions),
+        )
+
+
+def _to_model_space(
+    motion: MotionModel,
+    x0: FloatArray,
+    P0: FloatArray,
+    birth: BirthModel,
+    x_conv: FloatArray,
+    P_conv: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """A smoothed initiation-model state expressed in ``motion``'s space.
+
+    The components the conversion draws from the birth prior
+    (``motion.conversion_prior_indices``) are taken from the smoothed state ``x_conv,
+    P_conv`` at the conversion step instead.
+    """
+    x, P = convert_initiated(motion, x0, P0, birth)
+    x = np.array(x, copy=True)
+    P = np.array(P, copy=True)
+    idx = list(motion.conversion_prior_indices)
+    if idx:
+        x[idx] = x_conv[idx]
+        P[np.ix_(idx, idx)] = P_conv[np.ix_(idx, idx)]
+    return x, P
+
+
+def smooth_track(
+    scans: Sequence[Scan],
+    detections: Mapping[int, int],
+    config: Config,
+) -> tuple[list[int], FloatArray, FloatArray, list[int]]:
+    """Smoothed moments of one track over the scans from its first to its last detection.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+    detections : mapping of int to int
+        Scan index -> index of the track's detection in that scan.
+    config : Config
+
+    Returns
+    -------
+    scan_indices : list of int, length T
+    states : ndarray, shape (T, n)
+    covariances : ndarray, shape (T, n, n)
+    rows : list of int, length T (-1 for a miss)
+    """
+    motion = config.motion
+    birth = config.birth
+    converts = needs_conversion(motion)
+    model = initiation_model(motion)
+    first, last = min(detections), max(detections)
+    scan_indices = list(range(first, last + 1))
+    first_scan = scans[first]
+    z0 = first_scan.detections[detections[first]]
+    x, P = birth_state(motion, config.sensors[first_scan.sensor].measurement, z0, birth)
+    early = _Segment(x=x, P=P)
+    late: _Segment | None = None if converts else early
+
+    for k in scan_indices[1:]:
+        scan = scans[k]
+        dt = scan.time - scans[k - 1].time
+        current_model = motion if late is not None else model
+        if dt > 0.0:
+            x_pred, P_pred, F = predict_motion(current_model, x, P, dt)
+        else:
+            x_pred, P_pred, F = x, P, np.eye(x.shape[0])
+        if k in detections:
+            measurement = config.sensors[scan.sensor].measurement
+            if late is None:
+                measurement = initiation_measurement(motion, measurement)
+            z = scan.detections[detections[k]]
+            nu, S, H = innovation(measurement, x_pred, P_pred, z)
+            x, P = update(x_pred, P_pred, nu, S, H, measurement.noise_covariance)
+        else:
+            x, P = x_pred, P_pred
+        segment = early if late is None else late
+        segment.append(x=x, P=P, x_pred=x_pred, P_pred=P_pred, F=F)
+        if late is None and k in detections and scan.time > first_scan.time:
+            x, P = convert_initiated(motion, x, P, birth)
+            late = _Segment(x=x, P=P)
+
+    rows = [int(scans[k].rows[detections[k]]) if k in detections else -1 for k in scan_indices]
+    if not converts:
+        states, covariances = early.smooth()
+        return scan_indices, states, covariances, rows
+    if late is None:
+        # Never converted (detected at a single time): e.g. no velocity, hence no heading.
+        xs_0, Ps_0 = early.smooth()
+        pairs = [motion.unconverted_state(a, b, birth) for a, b in zip(xs_0, Ps_0, strict=True)]
+        return scan_indices, np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs]), rows
+    n = motion.state_dim
+    xs_late, Ps_late = late.smooth()
+    x_join, P_join = motion.revert_conversion(xs_late[0], Ps_late[0])
+    xs_0, Ps_0 = early.smooth(x_join, P_join)
+    early_states = [
+        _to_model_space(motion, a, b, birth, xs_late[0], Ps_late[0])
+        for a, b in zip(xs_0[:-1], Ps_0[:-1], strict=True)
+    ]
+    states = np.concatenate([np.array([s[0] for s in early_states]).reshape(-1, n), xs_late])
+    covariances = np.concatenate(
+        [np.array([s[1] for s in early_states]).reshape(-1, n, n), Ps_late]
+    )
+    states, covariances = motion.canonical_states(states, covariances)
+    return scan_indices, states, covariances, rows
+
+
+
+def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Config) -> TrackTable:
+    """Smoothed tracks of the given detection sequences.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+        Sorted by (time, sensor) (:func:`mapassoc.data.scans.check_scan_order`).
+    associations : mapping of int to mapping of int to int
+        Track id -> {scan index -> index of the track's detection in ``scans[scan index]``};
+        a track needs at least one detection and has at most one per scan.
+    config : Config
+        Motion model, sensors and birth model (single-point initiation priors).
+
+    Returns
+    -------
+    TrackTable
+        One row per track per scan from its first to its last detection (scans of every
+        sensor count): ``states`` the smoothed mean in the motion model's state space,
+        ``variances`` the smoothed covariance diagonal, ``detection_rows`` the row used or
+        ``-1``.  Sorted by (time, track_id), then scan order.
+
+    Raises
+    ------
+    InputError
+        A track without detections, or a scan or detection index out of range.
+    """
+    n = config.motion.state_dim
+    ids: list[int] = []
+    times: list[float] = []
+    sensors: list[str] = []
+    order_keys: list[int] = []
+    states: list[FloatArray] = []
+    variances: list[FloatArray] = []
+    rows: list[int] = []
+    for track_id in sorted(associations):
+        detections = associations[track_id]
+        if not detections:
+            raise InputError(f"track {track_id} has no detections to smooth")
+        for k, j in detections.items():
+            if not 0 <= k < len(scans) or not 0 <= j < scans[k].size:
+                raise InputError(
+                    f"track {track_id} names detection {j} of scan {k}, which does not exist "
+                    f"({len(scans)} scans)"
+                )
+        scan_indices, means, covariances, track_rows = smooth_track(scans, detections, config)
+        for k, mean, covariance, row in zip(
+            scan_indices, means, covariances, track_rows, strict=True
+        ):
+            ids.append(int(track_id))
+            times.append(scans[k].time)
+            sensors.append(scans[k].sensor)
+            order_keys.append(k)
+            states.append(mean)
+            variances.append(np.diagonal(covariance).copy())
+            rows.append(row)
+    order = np.lexsort((np.array(order_keys), np.array(ids), np.array(times)))
+    return TrackTable(
+        track_ids=np.array(ids, dtype=np.int64)[order],
+        times=np.array(times, dtype=float)[order],
+        sensors=tuple(sensors[i] for i in order),
+        states=np.array(states, dtype=float).reshape(len(ids), n)[order],
+        variances=np.array(variances, dtype=float).reshape(len(ids), n)[order],
+        detection_rows=np.array(rows, dtype=np.int64)[order],
+        state_names=tuple(config.motion.state_names),
+    )

@@ -1,0 +1,1 @@
+"""Tracking methods behind one interface (:class:`~mapassoc.trackers.base.Tracker`)."""
