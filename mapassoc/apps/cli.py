@@ -8,6 +8,7 @@ Subcommands::
     mapassoc evaluate TRACKS TRUTH [--json FILE]     GOSPA, RMSE, cardinality error
     mapassoc demo [--scenario NAME] [--out DIR]      simulate, run, evaluate, plot
     mapassoc bench [--families ...] [--seeds N]      speed and accuracy benchmark
+    mapassoc compare [--trackers ...] --out DIR      every method side by side
 
 Errors in the input (files, configuration) print one line naming what is wrong and
 exit with status 2; outputs already written stay on disk.
@@ -16,40 +17,16 @@ exit with status 2; outputs already written stay on disk.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
 
 from mapassoc import __version__
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
+from mapassoc.apps.runs import json_dump, run_files
 from mapassoc.errors import MapassocError
 
 __all__ = ["main", "build_parser"]
-
-
-class _Progress:
-    """A one-line progress bar on stderr (only when stderr is a terminal)."""
-
-    def __init__(self, stream: TextIO, enabled: bool) -> None:
-        self.stream = stream
-        self.enabled = enabled and stream.isatty()
-
-    def __call__(self, done: int, total: int) -> None:
-        if not self.enabled:
-            return
-        width = 30
-        filled = int(width * done / total) if total else width
-        self.stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} scans")
-        if done >= total:
-            self.stream.write("\n")
-        self.stream.flush()
-
-
-def _json_dump(data: object, path: Path) -> None:
-    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
 
 
 def _cmd_scenarios(args: argparse.Namespace) -> int:
@@ -70,53 +47,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     for kind, path in paths.items():
         print(f"{kind:10s} {path}")
     return 0
-
-
-def run_files(
-    config_path: str | Path,
-    detections_path: str | Path,
-    out_dir: str | Path,
-    *,
-    timings: bool = True,
-    progress: bool = True,
-) -> dict[str, object]:
-    """Read a configuration and a detections file, estimate tracks, write the outputs.
-
-    Writes ``windows.jsonl`` line by line while the run goes on, then ``tracks.csv``
-    and ``summary.json``.  Returns the summary.
-    """
-    from mapassoc.data.config import load_config
-    from mapassoc.data.io import read_detections, write_tracks
-    from mapassoc.estimator.pipeline import WindowEstimator
-
-    config = load_config(config_path)
-    scans = read_detections(detections_path, config.sensors)
-    estimator = WindowEstimator(config=config)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    with (
-        (out / "windows.jsonl").open("w", encoding="utf-8") as stream,
-        warnings.catch_warnings(record=True) as caught,
-    ):
-        warnings.simplefilter("always")
-
-        def on_window(report: object) -> None:
-            stream.write(json.dumps(report.to_json(timings=timings), allow_nan=False) + "\n")  # type: ignore[attr-defined]
-            stream.flush()
-
-        result = estimator.run(scans, progress=_Progress(sys.stderr, progress), on_window=on_window)
-    write_tracks(out / "tracks.csv", result.tracks)
-    summary: dict[str, object] = {
-        "mapassoc_version": __version__,
-        "config": str(config_path),
-        "detections": str(detections_path),
-        **result.summary(timings=timings),
-        "warnings": [str(w.message) for w in caught],
-    }
-    _json_dump(summary, out / "summary.json")
-    for w in caught:
-        print(f"mapassoc: warning: {w.message}", file=sys.stderr)
-    return summary
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -144,7 +74,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     )
     print(format_report(summary))
     if args.json:
-        _json_dump(summary, Path(args.json))
+        json_dump(summary, Path(args.json))
     return 0
 
 
@@ -168,6 +98,43 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         json_path=Path(args.json) if args.json else None,
         k_priors=args.k_priors,
     )
+    return 0
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from mapassoc.apps.compare import compare, format_summary, summarize
+
+    out = Path(args.out)
+
+    def progress(row: dict[str, object]) -> None:
+        note = "" if row["status"] == "ok" else f"  ({row['status']})"
+        print(
+            f"  {row['scenario']} seed {row['seed']} {row['tracker']}: "
+            f"{row['seconds']:.2f} s{note}",
+            file=sys.stderr,
+        )
+
+    table = compare(
+        args.trackers,
+        args.scenarios,
+        list(range(args.seeds)),
+        c=args.cutoff,
+        config=args.config,
+        scans=args.scans,
+        window_length=args.window_length,
+        on_row=progress,
+    )
+    summary = summarize(table)
+    out.mkdir(parents=True, exist_ok=True)
+    table.to_csv(out / "compare.csv", index=False)
+    summary.to_csv(out / "compare_summary.csv", index=False)
+    print(format_summary(summary))
+    written = [out / "compare.csv", out / "compare_summary.csv"]
+    if not args.no_plot:
+        from mapassoc.apps.plotting import plot_comparison
+
+        written.append(plot_comparison(out / "compare.png", summary))
+    print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
 
@@ -314,6 +281,50 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--json", metavar="PATH", help="also write the results to this JSON file")
     p.set_defaults(func=_cmd_bench)
+
+    from mapassoc.trackers.registry import DEFAULT_TRACKERS, tracker_names
+
+    p = sub.add_parser(
+        "compare",
+        help="every tracking method side by side: GOSPA, OSPA(2), CLEAR-MOT, p(K | Z), time",
+        description="Runs each tracker (the MAP estimator and the GNN, JPDA, MHT, network-flow "
+        "and LP-relaxation baselines, and the oracle) on the same simulated scenarios, seeds "
+        "and models, prints the means over seeds and writes compare.csv (one row per run), "
+        "compare_summary.csv and compare.png.",
+        allow_abbrev=False,
+    )
+    p.add_argument(
+        "--trackers",
+        type=_comma_separated,
+        default=",".join(DEFAULT_TRACKERS),
+        metavar="NAME,...",
+        help=f"trackers to compare, from {', '.join(tracker_names())} "
+        f"(default {','.join(DEFAULT_TRACKERS)})",
+    )
+    p.add_argument(
+        "--scenarios",
+        type=_comma_separated,
+        default="crossing",
+        metavar="NAME,...",
+        help="built-in scenarios (see `mapassoc scenarios`; default crossing)",
+    )
+    p.add_argument(
+        "--seeds", type=int, default=1, metavar="N", help="seeds 0..N-1 per scenario (default 1)"
+    )
+    p.add_argument("--cutoff", type=float, default=10.0, help="metric cut-off c (default 10)")
+    p.add_argument(
+        "--config",
+        choices=("scenario", "generic"),
+        default="scenario",
+        help="each scenario's own configuration or the untuned generic one (default scenario)",
+    )
+    p.add_argument("--scans", type=int, default=None, metavar="N", help="first N scans only")
+    p.add_argument(
+        "--window-length", type=int, default=None, metavar="N", help="scans per window"
+    )
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--no-plot", action="store_true", help="skip compare.png")
+    p.set_defaults(func=_cmd_compare)
     return parser
 
 

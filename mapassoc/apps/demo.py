@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mapassoc.apps.cli import run_files
+from mapassoc.apps.runs import run_files
 from mapassoc.data.io import read_tracks, write_tracks
 from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.scenarios import build_scenario, describe_scenario
