@@ -1,0 +1,193 @@
+"""Every metric of one tracker run as one typed, flat result.
+
+:func:`score_tracks` scores a :class:`~mapassoc.trackers.base.TrackerOutput` against a
+:class:`~mapassoc.data.io.TruthTable`: GOSPA (:mod:`mapassoc.evaluation.metrics`), OSPA and
+OSPA(2) (:mod:`mapassoc.evaluation.ospa`), CLEAR-MOT (:mod:`mapassoc.evaluation.clear_mot`,
+needs the optional extra ``metrics``) and, for trackers that report p(K | Z), the count
+scores of :mod:`mapassoc.evaluation.calibration`.  Positions are the ``x``, ``y`` (and
+``z``) columns both tables have, and a track written twice at one time keeps its last row
+(:mod:`mapassoc.evaluation.tables`).  :meth:`TrackingScores.as_row` gives a flat dictionary
+for one row of a pandas DataFrame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from mapassoc.data.io import TruthTable
+from mapassoc.errors import InputError
+from mapassoc.evaluation.calibration import DEFAULT_BINS, count_series_scores
+from mapassoc.evaluation.clear_mot import clear_mot
+from mapassoc.evaluation.metrics import _check_order, gospa_over_time
+from mapassoc.evaluation.ospa import ospa2, ospa2_over_time, ospa_over_time
+from mapassoc.evaluation.tables import position_names, track_points, truth_points
+from mapassoc.trackers.base import TrackerOutput
+from mapassoc.validation import check_positive
+
+__all__ = ["TrackingScores", "score_tracks"]
+
+
+@dataclass(frozen=True)
+class TrackingScores:
+    """Scores of one tracker run against the truth.
+
+    Parameters
+    ----------
+    c : float
+        Cut-off of GOSPA, OSPA and OSPA(2).
+    p : float
+        Order of GOSPA, OSPA and OSPA(2).
+    gospa : float
+        Mean over evaluation times of GOSPA (alpha = 2).
+    gospa_localisation, gospa_missed, gospa_false : float
+        Means over times of the three p-th power parts of GOSPA.
+    ospa : float
+        Mean over evaluation times of OSPA.
+    ospa2 : float
+        OSPA(2) over the whole run, or the mean over sliding windows when
+        ``ospa2_window`` is set.
+    ospa2_window : int or None
+        Evaluation times per OSPA(2) window; ``None`` for the whole run.
+    mota, motp : float or None
+        CLEAR-MOT accuracy and precision (``motp`` is a mean distance, ``nan`` without any
+        match); ``None`` when CLEAR-MOT was not computed.
+    id_switches, fragmentations, mostly_tracked, mostly_lost : int or None
+        CLEAR-MOT counts; ``None`` when CLEAR-MOT was not computed.
+    motp_threshold : float or None
+        Distance below which a truth and a track row may correspond in CLEAR-MOT.
+    k_brier, k_ece, k_hit_rate : float or None
+        Count scores of the tracker's p(K | Z); ``None`` when it reports none.
+    num_tracks : int
+        Distinct track ids of the output.
+    seconds : float
+        The tracker's wall time.
+    """
+
+    c: float
+    p: float
+    gospa: float
+    gospa_localisation: float
+    gospa_missed: float
+    gospa_false: float
+    ospa: float
+    ospa2: float
+    ospa2_window: int | None
+    mota: float | None
+    motp: float | None
+    id_switches: int | None
+    fragmentations: int | None
+    mostly_tracked: int | None
+    mostly_lost: int | None
+    motp_threshold: float | None
+    k_brier: float | None
+    k_ece: float | None
+    k_hit_rate: float | None
+    num_tracks: int
+    seconds: float
+
+    def as_row(self) -> dict[str, float | int | None]:
+        """The fields as a flat dictionary (one DataFrame row), in declaration order."""
+        return asdict(self)
+
+
+def score_tracks(
+    truth: TruthTable,
+    output: TrackerOutput,
+    *,
+    c: float,
+    p: float = 2.0,
+    motp_threshold: float | None = None,
+    clear_mot_scores: bool = True,
+    ospa2_window: int | None = None,
+    num_bins: int = DEFAULT_BINS,
+) -> TrackingScores:
+    """Score a tracker's output against the truth.
+
+    Parameters
+    ----------
+    truth : TruthTable
+        True states; at least one record.
+    output : TrackerOutput
+        The tracker's result; its ``counts`` (if any) are scored too.
+    c : float
+        Cut-off of GOSPA, OSPA and OSPA(2), > 0.
+    p : float
+        Their order, ``1 <= p < inf``.
+    motp_threshold : float, optional
+        CLEAR-MOT correspondence threshold (> 0); ``None`` uses ``c``.
+    clear_mot_scores : bool
+        Compute CLEAR-MOT (needs ``motmetrics``: ``pip install 'mapassoc[metrics]'``); with
+        ``False`` its fields are ``None``.
+    ospa2_window : int, optional
+        Evaluation times per OSPA(2) sliding window; ``None`` scores the whole run at once.
+    num_bins : int
+        Bins of the expected calibration error of p(K | Z).
+
+    Returns
+    -------
+    TrackingScores
+
+    Raises
+    ------
+    InputError
+        Bad arguments, no truth record, tables without a shared position column, or
+        ``clear_mot_scores`` without ``motmetrics`` installed.
+    """
+    if not isinstance(truth, TruthTable):
+        raise InputError(f"truth must be a TruthTable, got {type(truth).__name__}")
+    if not isinstance(output, TrackerOutput):
+        raise InputError(f"output must be a TrackerOutput, got {type(output).__name__}")
+    if truth.times.shape[0] == 0:
+        raise InputError("truth has no records: there is nothing to score against")
+    cutoff = check_positive("c", c)
+    order = _check_order(p)
+    threshold = cutoff if motp_threshold is None else check_positive(
+        "motp_threshold", motp_threshold
+    )
+    if not isinstance(clear_mot_scores, bool):
+        raise InputError(f"clear_mot_scores must be True or False, got {clear_mot_scores!r}")
+    names = position_names(truth, output.tracks)
+    truth_run = truth_points(truth, names)
+    track_run = track_points(output.tracks, names)
+
+    gospa_series = gospa_over_time(truth_run, track_run, c=cutoff, p=order)
+    ospa_series = ospa_over_time(truth_run, track_run, c=cutoff, p=order)
+    if ospa2_window is None:
+        ospa2_value = ospa2(truth_run, track_run, c=cutoff, p=order).total
+    else:
+        ospa2_value = ospa2_over_time(
+            truth_run, track_run, c=cutoff, p=order, window_length=ospa2_window
+        ).mean_total
+
+    mot = clear_mot(truth_run, track_run, threshold=threshold) if clear_mot_scores else None
+    counts = (
+        None
+        if output.counts is None
+        else count_series_scores(truth, output.counts, num_bins=num_bins)
+    )
+    return TrackingScores(
+        c=cutoff,
+        p=order,
+        gospa=gospa_series.mean_total,
+        gospa_localisation=gospa_series.mean_localisation,
+        gospa_missed=gospa_series.mean_missed,
+        gospa_false=gospa_series.mean_false,
+        ospa=ospa_series.mean_total,
+        ospa2=float(ospa2_value),
+        ospa2_window=None if ospa2_window is None else int(ospa2_window),
+        mota=None if mot is None else mot.mota,
+        motp=None if mot is None else mot.motp,
+        id_switches=None if mot is None else mot.num_switches,
+        fragmentations=None if mot is None else mot.num_fragmentations,
+        mostly_tracked=None if mot is None else mot.mostly_tracked,
+        mostly_lost=None if mot is None else mot.mostly_lost,
+        motp_threshold=None if mot is None else threshold,
+        k_brier=None if counts is None else counts.brier,
+        k_ece=None if counts is None else counts.ece,
+        k_hit_rate=None if counts is None else counts.hit_rate,
+        num_tracks=int(np.unique(output.tracks.track_ids).size),
+        seconds=float(output.seconds),
+    )
+
