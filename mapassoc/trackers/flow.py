@@ -1,0 +1,611 @@
+"""Min-cost network-flow tracking over sliding windows, for every number of tracks at once.
+
+Zhang, Li & Nevatia, "Global data association for multi-object tracking using network
+flows", CVPR 2008 (the graph and its costs, section 3); Berclaz, Fleuret, Türetken & Fua,
+"Multiple object tracking using k-shortest paths optimization", IEEE TPAMI 33(9), 2011
+(min-cost flow for every number of tracks K, whose cost is convex in K).
+
+**Windows.**  The recording is cut like the MAP estimator cuts it: windows of
+``window_length`` scans (default ``config.estimator.window_length``), of which the first
+``stride`` (default ``config.estimator.stride``) are committed before the window slides;
+the last window commits all its scans.  Each window is one flow program
+(:mod:`mapassoc.formulations.tracking_flow`) whose items are
+
+* the **carried tracks**, committed by earlier windows (forced: each lies on a path,
+  so a carried track continues, misses or ends but never vanishes), and
+* the window's **detections**, in scan order.
+
+**Costs** are the negated terms of the MAP estimator's track score
+(:mod:`mapassoc.estimator.hypotheses`, after Blackman & Popoli 1999, section 6.2, on the
+models of seed 000, eqs. 9-13), split over the edges so that a path's cost is minus its
+track's log-likelihood ratio against "its detections are false alarms":
+
+================================  ==========================================================
+edge                              cost
+================================  ==========================================================
+entry at a detection of scan j    ``-(log u_j - log V_s)``: the new-target density
+                                  ``u_j Pd_s / V_s`` (``u_j`` the undetected-target mean of
+                                  :mod:`mapassoc.models.population`) over the ``Pd_s`` of the
+                                  observation edge
+observation (a detection)         ``-(log Pd_s - log lambda_s)``, ``lambda_s`` the clutter
+                                  intensity ``lambda_bar_s / V_s`` (seed 000, eq. 13)
+link: detection i -> detection k  ``-(dt log Ps + sum of log(1 - Pd P_G) over the skipped
+                                  scans + log N(nu; 0, S))``: a track started at detection i
+                                  by single-point initiation
+                                  (:func:`~mapassoc.filtering.track_filter.start_track`),
+                                  predicted to scan k and scored by its innovation
+                                  likelihood (seed 000, eq. 3): the two-point Markov
+                                  term of Zhang et al., eq. 7; only for
+                                  ``k - i - 1 <= max_gap`` and ``d2 <=`` the chi-square
+                                  gate of ``config.estimator.gate_probability``
+link: carried track -> detection  the same with the carried track's filtered state
+                                  (all its committed detections) instead of a
+                                  two-point start; the gap counts its misses since its
+                                  last detection
+exit after scan j                 ``-max over endings``: either missed at every later scan
+                                  of the window (``dt log Ps + log(1 - Pd P_G)`` each) or
+                                  missed up to some scan then ended there
+                                  (``log(1 - Ps^dt)``), the best of the MAP estimator's
+                                  own tails of a track
+carried track entry / exit        entry 0 (plus the forcing bonus of the program); exit
+                                  as above from the carried state's time
+================================  ==========================================================
+
+**Pruning** (exact for the chosen K): detections whose cheapest path through them costs
+more than 0 and that no carried track can reach are dropped before solving
+(:func:`~mapassoc.formulations.tracking_flow.through_costs`); most false alarms go.
+
+**Number of tracks.**  One parametric pass (:meth:`NetworkxFlowSolver.solve_flow`)
+solves the min-cost flow for every K = 0..Kmax, with ``Kmax = min(kept items,
+max(C, config.estimator.max_tracks))`` (C carried tracks); the window's track set is the
+flow of the K >= C with the smallest total cost (ties: the smaller K).  Under these costs
+that is the most likely track set of the window over every K with the birth model's own
+prior on K (seed 002's joint MAP without a separate count prior).  The cost is convex
+in K, so the minimum is global unless it sits at Kmax (reported, ``at_max_flow``).
+
+**Carrying tracks across windows.**  The chosen paths are committed up to the window's
+last committed scan: a path that starts at a committed scan, or at a carried track, keeps
+its detections at committed scans.  It is carried into the next window iff its path also
+uses a detection after the committed scans (its state: the Kalman filter over all its
+committed detections, predicted to the last committed scan); otherwise the track ends at
+its last detection.  Paths born after the committed scans are left to a later window.
+The undetected-target intensity is carried as the MAP estimator carries it.
+
+The output tracks are the committed associations smoothed by
+:func:`~mapassoc.filtering.smoothing.smooth_tracks`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import coo_array
+from scipy.sparse.csgraph import connected_components
+
+from mapassoc.data.config import Config
+from mapassoc.data.scans import Scan
+from mapassoc.errors import InputError
+from mapassoc.filtering.kalman import gate_threshold
+from mapassoc.filtering.smoothing import smooth_tracks
+from mapassoc.filtering.track_filter import (
+    FilteredTrack,
+    innovations,
+    predict_track,
+    start_track,
+    update_track,
+)
+from mapassoc.formulations.tracking_flow import (
+    combine_convex_costs,
+    reachable_items,
+    through_costs,
+    tracking_flow_program,
+)
+from mapassoc.models.population import UndetectedTargets, recording_start, window_population
+from mapassoc.solvers.networkx_flow import NetworkxFlowSolver
+from mapassoc.solvers.results import SolveStatus
+from mapassoc.trackers.base import TrackerOutput, check_scans
+
+__all__ = ["FlowTracker", "FlowWindowReport", "window_tails"]
+
+FloatArray = NDArray[np.float64]
+
+_FIRST_NEW_TRACKS = 2
+"""New tracks per component of the first parametric pass; the pass is repeated with twice
+as many while the minimum cost sits at its largest K (convexity in K)."""
+
+
+@dataclass(frozen=True, eq=False)
+class FlowWindowReport:
+    """One window of :class:`FlowTracker`.
+
+    Attributes
+    ----------
+    window : int
+    first_scan, last_scan : int
+        Scan indices (into the recording) of the window's first and last scans.
+    committed_scans : int
+    carried_tracks : int
+        C, the forced items.
+    detections : int
+        Detections in the window.
+    items_kept : int
+        Items (carried tracks and detections) left after the exact pruning.
+    components : int
+        Independent parts of the kept graph (no link between them), solved apart.
+    links : int
+        Links between kept items.
+    track_costs : ndarray, shape (max_flow + 1,)
+        Minimum total cost of K tracks of the pruned graph, K = 0..max_flow (``inf`` for
+        K < C and infeasible K); convex in K.
+    chosen_tracks : int
+        The K of the committed flow (smallest total cost).
+    at_max_flow : bool
+        Whether the chosen K is max_flow while more items were kept (the minimum over
+        all K may lie beyond).
+    seconds : float
+        Wall time of the window (scoring, pruning, solving).
+    """
+
+    window: int
+    first_scan: int
+    last_scan: int
+    committed_scans: int
+    carried_tracks: int
+    detections: int
+    items_kept: int
+    components: int
+    links: int
+    track_costs: FloatArray = field(repr=False)
+    chosen_tracks: int
+    at_max_flow: bool
+    seconds: float
+
+
+@dataclass(frozen=True)
+class _Path:
+    """A chosen path: the carried track it starts at (or None) and its detections as
+    (scan index, detection index) pairs in scan order."""
+
+    carried: int | None
+    detections: tuple[tuple[int, int], ...]
+
+
+@dataclass
+class _Track:
+    """A committed track while the run goes on."""
+
+    track_id: int
+    associations: dict[int, int]
+    state: FilteredTrack
+    misses: int  # scans since its last detection, up to the last committed scan
+
+
+def _log_end(dt: float, log_survival: float) -> float:
+    """``log(1 - Ps^dt)``: ended within dt; ``-inf`` when impossible (dt = 0 or Ps = 1)."""
+    value = -math.expm1(dt * log_survival)
+    return math.log(value) if value > 0.0 else -math.inf
+
+
+def window_tails(
+    times: FloatArray, log_miss: FloatArray, log_survival: float
+) -> FloatArray:
+    """Best score of "no further detection in the window" after each scan.
+
+    The MAP estimator's tails of a track alive at scan ``j`` of an ``N``-scan window
+    (:mod:`mapassoc.estimator.hypotheses`, module table): missed at each later scan
+    (``dt log Ps + log(1 - Pd P_G)``) up to the end, or missed up to a scan and ended
+    before it (``log(1 - Ps^dt)``); the best of them, by the backward recursion
+
+        tail_{N-1} = 0,
+        tail_j = max(log(1 - Ps^dt_j), dt_j log Ps + log_miss_{j+1} + tail_{j+1}),
+
+    ``dt_j = t_{j+1} - t_j``.
+
+    Parameters
+    ----------
+    times : ndarray, shape (N,)
+        Scan times of the window.
+    log_miss : ndarray, shape (N,)
+        ``log(1 - Pd P_G)`` of each scan's sensor (``-inf`` when a miss is impossible).
+    log_survival : float
+        ``log Ps`` per unit time.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        ``tail_j``; ``-inf`` when every continuation is impossible.
+    """
+    n = len(times)
+    tails = np.zeros(n)
+    for j in range(n - 2, -1, -1):
+        dt = float(times[j + 1] - times[j])
+        tails[j] = max(
+            _log_end(dt, log_survival),
+            dt * log_survival + float(log_miss[j + 1]) + tails[j + 1],
+        )
+    return tails
+
+
+class FlowTracker:
+    """Sliding-window min-cost network-flow tracker (module docstring).
+
+    Parameters
+    ----------
+    config : Config
+        Models; ``estimator.gate_probability`` (gate of the links), ``max_tracks``
+        (largest K solved per window), ``window_length`` and ``stride`` (defaults).
+    max_gap : int, default 2
+        Most consecutive scans a link may skip (0: links join consecutive scans only).
+    window_length : int, optional
+        Scans per window (default ``config.estimator.window_length``).
+    stride : int, optional
+        Scans committed per window, 1..window_length (default ``config.estimator.stride``).
+    name : str, default "flow"
+
+    Raises
+    ------
+    InputError
+        Bad ``max_gap``, ``window_length`` or ``stride``, or a sensor without false
+        alarms (the observation cost needs ``log lambda``).
+    """
+
+    def __init__(
+        self,
+        *,
+        config: Config,
+        max_gap: int = 2,
+        window_length: int | None = None,
+        stride: int | None = None,
+        name: str = "flow",
+    ) -> None:
+        if not isinstance(config, Config):
+            raise InputError(f"config must be a Config, got {config!r}")
+        if isinstance(max_gap, bool) or not isinstance(max_gap, int) or max_gap < 0:
+            raise InputError(f"max_gap must be an integer >= 0, got {max_gap!r}")
+        length = config.estimator.window_length if window_length is None else window_length
+        if isinstance(length, bool) or not isinstance(length, int) or length < 1:
+            raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
+        step = config.estimator.stride if stride is None else stride
+        if isinstance(step, bool) or not isinstance(step, int) or not 1 <= step <= length:
+            raise InputError(
+                f"stride must be an integer in 1..window_length ({length}), got {step!r}"
+            )
+        for sensor_name, sensor in config.sensors.items():
+            if not sensor.false_alarms_per_scan > 0:
+                raise InputError(
+                    f"sensor '{sensor_name}' has false_alarms_per_scan = "
+                    f"{sensor.false_alarms_per_scan}; the flow costs score detections against "
+                    "the false-alarm density and need a positive rate (use a small value such "
+                    "as 1e-6 for nearly clutter-free data)"
+                )
+        self.config = config
+        self.max_gap = max_gap
+        self.window_length = length
+        self.stride = step
+        self.name = name
+        self.solver = NetworkxFlowSolver()
+        self._log_survival = math.log(config.birth.survival_probability)
+        self._pg = config.estimator.gate_probability
+
+    # -- per-scan terms --------------------------------------------------------------
+    def _log_miss(self, scan: Scan) -> float:
+        """``log(1 - Pd P_G)`` of the scan's sensor (Blackman & Popoli 1999, eq. 6.13)."""
+        p = self.config.sensors[scan.sensor].detection_probability * self._pg
+        return math.log1p(-p) if p < 1.0 else -math.inf
+
+    def _gated(self, track: FilteredTrack, scan: Scan) -> tuple[NDArray[np.int64], FloatArray]:
+        """Detections of ``scan`` in the gate of ``track`` and their ``log N(nu; 0, S)``."""
+        if scan.size == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        innov = innovations(self.config, predict_track(self.config, track, scan.time), scan)
+        dz = self.config.sensors[scan.sensor].measurement.measurement_dim
+        inside = np.flatnonzero(innov.d2 <= gate_threshold(self._pg, dz))
+        return inside.astype(np.int64), innov.log_likelihood[inside]
+
+    # -- run -------------------------------------------------------------------------
+    def track(self, scans: Sequence[Scan]) -> TrackerOutput:
+        """Track over ``scans``; ``details`` is a tuple of :class:`FlowWindowReport`."""
+        scans = check_scans(scans, self.config)
+        started = time.perf_counter()
+        total = len(scans)
+        log_miss = np.array([self._log_miss(s) for s in scans])
+        two_point: dict[tuple[int, int, int], tuple[NDArray[np.int64], FloatArray]] = {}
+        carried: list[_Track] = []
+        finished: list[_Track] = []
+        undetected = recording_start(self.config.birth, scans[0].time)
+        reports: list[FlowWindowReport] = []
+        next_id = 1
+        start = 0
+        while start < total:
+            end = min(start + self.window_length, total)
+            commit = self.stride if end < total else end - start
+            for key in [k for k in two_point if k[0] < start]:
+                del two_point[key]
+            window_started = time.perf_counter()
+            paths, report_parts, undetected_after = self._solve_window(
+                scans, start, end, commit, carried, undetected, log_miss, two_point
+            )
+            undetected = undetected_after
+            carried, next_id, ended = self._commit(scans, start, commit, paths, carried, next_id)
+            finished.extend(ended)
+            reports.append(
+                FlowWindowReport(
+                    window=len(reports),
+                    first_scan=start,
+                    last_scan=end - 1,
+                    committed_scans=commit,
+                    seconds=time.perf_counter() - window_started,
+                    **report_parts,
+                )
+            )
+            start += commit
+        finished.extend(carried)
+        associations = {
+            t.track_id: dict(sorted(t.associations.items()))
+            for t in sorted(finished, key=lambda t: t.track_id)
+        }
+        tracks = smooth_tracks(scans, associations, self.config)
+        return TrackerOutput(
+            tracks=tracks,
+            seconds=time.perf_counter() - started,
+            associations=associations,
+            details=tuple(reports),
+        )
+
+    # -- one window ------------------------------------------------------------------
+    def _solve_window(
+        self,
+        scans: list[Scan],
+        start: int,
+        end: int,
+        commit: int,
+        carried: list[_Track],
+        undetected: UndetectedTargets,
+        log_miss: FloatArray,
+        two_point: dict[tuple[int, int, int], tuple[NDArray[np.int64], FloatArray]],
+    ) -> tuple[list[_Path], dict[str, object], UndetectedTargets]:
+        """Score, prune and solve one window.
+
+        Returns the chosen paths, the report fields and the undetected targets after
+        the last committed scan.
+        """
+        config = self.config
+        window = scans[start:end]
+        n_scans = len(window)
+        times = np.array([s.time for s in window])
+        population = window_population(
+            window,
+            [config.sensors[s.sensor].detection_probability for s in window],
+            config.birth,
+            undetected,
+            [t.state.time for t in carried],
+        )
+        tails = window_tails(times, log_miss[start:end], self._log_survival)
+        # Items: carried tracks 0..C-1, then detections in scan order.
+        C = len(carried)
+        det_scan = np.concatenate(
+            [np.full(s.size, start + p, dtype=np.int64) for p, s in enumerate(window)]
+            + [np.zeros(0, dtype=np.int64)]
+        )
+        det_index = np.concatenate(
+            [np.arange(s.size, dtype=np.int64) for s in window] + [np.zeros(0, dtype=np.int64)]
+        )
+        first_item = C + np.concatenate([[0], np.cumsum([s.size for s in window])])
+        D = int(det_scan.size)
+        n = C + D
+        entry = np.full(n, math.inf)
+        observation = np.zeros(n)
+        exits = np.full(n, math.inf)
+        entry[:C] = 0.0
+        for p, scan in enumerate(window):
+            sensor = config.sensors[scan.sensor]
+            sl = slice(first_item[p], first_item[p + 1])
+            u = float(population.first_detection_means[p])
+            if u > 0.0:
+                entry[sl] = -(math.log(u) - math.log(sensor.region.volume))
+            observation[sl] = -(math.log(sensor.detection_probability)
+                                - sensor.log_clutter_density)
+            if math.isfinite(tails[p]):
+                exits[sl] = -tails[p]
+        tails_list: list[int] = []
+        heads_list: list[int] = []
+        costs_list: list[float] = []
+
+        def add_links(tail: int, p_from: int, t_from: float, track: FilteredTrack | None,
+                      first_p: int, last_p: int, key: tuple[int, int] | None) -> None:
+            """Links from item ``tail`` (state ``track`` at position ``p_from``) to the
+            detections of positions ``first_p..last_p``; two-point links are cached under
+            ``key`` (``track`` may be None when every one of them is cached)."""
+            for q in range(first_p, min(last_p, n_scans - 1) + 1):
+                # log(1 - Pd P_G) of the scans skipped between the two (p_from -1: the
+                # carried state, before the window).
+                misses = float(np.sum(log_miss[start + p_from + 1 : start + q]))
+                if not math.isfinite(misses):
+                    break
+                cache_key = None if key is None else (key[0], key[1], start + q)
+                if cache_key is not None and cache_key in two_point:
+                    inside, loglik = two_point[cache_key]
+                else:
+                    assert track is not None
+                    inside, loglik = self._gated(track, window[q])
+                    if cache_key is not None:
+                        two_point[cache_key] = (inside, loglik)
+                base = (times[q] - t_from) * self._log_survival + misses
+                tails_list.extend([tail] * inside.size)
+                heads_list.extend((first_item[q] + inside).tolist())
+                costs_list.extend((-(base + loglik)).tolist())
+
+        for c, track in enumerate(carried):
+            # The carried state is at the scan before the window; exit = its tail then.
+            t_c = track.state.time
+            dt0 = float(times[0] - t_c)
+            tail0 = max(_log_end(dt0, self._log_survival),
+                        dt0 * self._log_survival + float(log_miss[start]) + tails[0])
+            if math.isfinite(tail0):
+                exits[c] = -tail0
+            add_links(c, -1, t_c, track.state, 0, self.max_gap - track.misses, None)
+        for p, scan in enumerate(window):
+            for a in range(scan.size):
+                item = int(first_item[p] + a)
+                key = (start + p, a)
+                if all((key[0], a, start + q) in two_point
+                       for q in range(p + 1, min(p + 1 + self.max_gap, n_scans - 1) + 1)):
+                    born = None
+                else:
+                    born = start_track(config, scan, a)
+                add_links(item, p, float(times[p]), born, p + 1, p + 1 + self.max_gap, key)
+        link_tails = np.asarray(tails_list, dtype=np.int64)
+        link_heads = np.asarray(heads_list, dtype=np.int64)
+        link_costs = np.asarray(costs_list, dtype=float)
+
+        # Exact pruning (formulations.tracking_flow.through_costs).
+        forced = np.zeros(n, dtype=bool)
+        forced[:C] = True
+        through = through_costs(
+            entry_costs=entry, observation_costs=observation, exit_costs=exits,
+            link_tails=link_tails, link_heads=link_heads, link_costs=link_costs,
+        )
+        keep = (through <= 0.0) | reachable_items(forced, link_tails, link_heads)
+        kept = np.flatnonzero(keep)
+        remap = np.full(n, -1, dtype=np.int64)
+        remap[kept] = np.arange(kept.size)
+        inside_links = keep[link_tails] & keep[link_heads]
+        # Independent components (no link between them) are solved apart and their
+        # convex costs combined (formulations.tracking_flow.combine_convex_costs).
+        sub_tails = remap[link_tails[inside_links]]
+        sub_heads = remap[link_heads[inside_links]]
+        sub_costs = link_costs[inside_links]
+        kmax = max(C, config.estimator.max_tracks)
+        count, label = connected_components(
+            coo_array(
+                (np.ones(sub_tails.size), (sub_tails, sub_heads)),
+                shape=(kept.size, kept.size),
+            ),
+            directed=True,
+            connection="weak",
+        )
+        flows = []
+        results = []
+        per_component = []
+        for comp in range(count):
+            members = np.flatnonzero(label == comp)
+            local = np.full(kept.size, -1, dtype=np.int64)
+            local[members] = np.arange(members.size)
+            mine = label[sub_tails] == comp
+            items = kept[members]
+            forced_here = int(np.count_nonzero(forced[items]))
+            limit = min(int(members.size), forced_here + kmax - C)
+            cap = min(limit, forced_here + _FIRST_NEW_TRACKS)
+            while True:
+                flow = tracking_flow_program(
+                    entry_costs=entry[items],
+                    observation_costs=observation[items],
+                    exit_costs=exits[items],
+                    link_tails=local[sub_tails[mine]],
+                    link_heads=local[sub_heads[mine]],
+                    link_costs=sub_costs[mine],
+                    max_flow=cap,
+                    forced=forced[items],
+                )
+                result = self.solver.solve_flow(flow.program)
+                comp_costs = flow.track_costs(result.costs)
+                optimal = np.array([s is SolveStatus.OPTIMAL for s in result.statuses])
+                comp_costs[~optimal] = math.inf
+                # Convex in K: a minimum below the cap is the minimum over every K.
+                if cap >= limit or int(np.argmin(comp_costs)) < cap:
+                    break
+                cap = min(limit, forced_here + 2 * (cap - forced_here))
+            flows.append((flow, items))
+            results.append(result)
+            per_component.append(comp_costs)
+        if per_component:
+            costs, split = combine_convex_costs(per_component, kmax)
+        else:
+            costs, split = np.r_[0.0, np.full(kmax, math.inf)], np.zeros((kmax + 1, 0), int)
+        if not np.any(np.isfinite(costs)):
+            raise RuntimeError(
+                f"flow window at scans {start}..{end - 1}: no flow of K >= {C} tracks was found"
+            )
+        chosen = int(np.argmin(costs))
+        paths: list[_Path] = []
+        for (flow, items), result, k in zip(flows, results, split[chosen], strict=True):
+            for path in flow.decode_paths(result.edge_flows[k]):
+                ids = [int(items[i]) for i in path]
+                paths.append(
+                    _Path(
+                        carried=ids[0] if ids[0] < C else None,
+                        detections=tuple(
+                            (int(det_scan[i - C]), int(det_index[i - C])) for i in ids if i >= C
+                        ),
+                    )
+                )
+        report = {
+            "carried_tracks": C,
+            "detections": D,
+            "items_kept": int(kept.size),
+            "components": int(count),
+            "links": int(np.count_nonzero(inside_links)),
+            "track_costs": costs,
+            "chosen_tracks": chosen,
+            "at_max_flow": chosen == kmax and kmax < kept.size,
+        }
+        return paths, report, population.after_scan[commit - 1]
+
+    # -- commit ----------------------------------------------------------------------
+    def _commit(
+        self,
+        scans: list[Scan],
+        start: int,
+        commit: int,
+        paths: list[_Path],
+        carried: list[_Track],
+        next_id: int,
+    ) -> tuple[list[_Track], int, list[_Track]]:
+        """Commit the window's first ``commit`` scans (module docstring); return the
+        tracks carried on, the next free id and the tracks that ended."""
+        config = self.config
+        last = start + commit - 1
+        last_time = scans[last].time
+        new_carried: list[_Track] = []
+        ended: list[_Track] = []
+        on_path: set[int] = set()
+        for path in paths:
+            detections = list(path.detections)
+            if path.carried is not None:
+                track = carried[path.carried]
+                on_path.add(path.carried)
+                state = track.state
+                last_detection: int | None = None
+            else:
+                k0, j0 = detections.pop(0)
+                if k0 > last:
+                    continue  # born after the committed scans: a later window decides
+                state = start_track(config, scans[k0], j0)
+                track = _Track(next_id, {k0: j0}, state, 0)
+                next_id += 1
+                last_detection = k0
+            for k, j in detections:
+                if k > last:
+                    break
+                state = update_track(
+                    config, predict_track(config, state, scans[k].time), scans[k], j
+                )
+                track.associations[k] = j
+                last_detection = k
+            if any(k > last for k, _ in detections):
+                track.state = predict_track(config, state, last_time)
+                track.misses = track.misses + commit if last_detection is None else (
+                    last - last_detection
+                )
+                new_carried.append(track)
+            else:
+                track.state = state
+                ended.append(track)
+        ended.extend(t for c, t in enumerate(carried) if c not in on_path)
+        new_carried.sort(key=lambda t: t.track_id)
+        return new_carried, next_id, ended
