@@ -1,0 +1,218 @@
+"""Method comparison: every tracker on the same scenarios, seeds and models, one table.
+
+:func:`compare` simulates each (scenario, seed), builds every tracker of
+:data:`~mapassoc.trackers.registry.TRACKERS` named, on the same configuration, runs it and
+scores its tracks against the truth (:func:`mapassoc.evaluation.scoring.score_tracks`:
+GOSPA and its parts, OSPA, OSPA(2), CLEAR-MOT, and for methods that report p(K | Z) its
+Brier score and calibration).  The result is a pandas DataFrame with one row per
+(scenario, seed, tracker); :func:`summarize` averages it over seeds.  ``mapassoc compare``
+prints that summary and writes both tables as CSV and a figure.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+
+from mapassoc.data.config import Config
+from mapassoc.errors import InputError, MapassocError
+from mapassoc.evaluation.scenarios import (
+    build_scenario,
+    generic_config,
+    scenario_names,
+    truncate_scenario,
+)
+from mapassoc.evaluation.scoring import score_tracks
+from mapassoc.evaluation.simulate import Scenario
+from mapassoc.trackers.registry import DEFAULT_TRACKERS, TRACKERS, build_tracker
+
+__all__ = ["COMPARE_COLUMNS", "compare", "format_summary", "summarize"]
+
+COMPARE_COLUMNS = ("scenario", "seed", "tracker", "status", "seconds", "scans_per_second")
+"""The columns of every row, before the scores (``TrackingScores.as_row()``)."""
+
+_SUMMARY_KEYS = ("scenario", "tracker")
+
+
+def _check_names(kind: str, names: Sequence[str], known: Sequence[str]) -> list[str]:
+    if isinstance(names, str):
+        raise InputError(f"{kind} must be a sequence of names, got the string {names!r}")
+    names = list(names)
+    if not names:
+        raise InputError(f"{kind} is empty: name at least one of {', '.join(known)}")
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise InputError(f"unknown {kind} {unknown}; known: {', '.join(known)}")
+    if len(set(names)) != len(names):
+        raise InputError(f"{kind} names a method twice: {names}")
+    return names
+
+
+def _config_for(scenario: Scenario, choice: str) -> Config:
+    if choice == "scenario":
+        return scenario.config
+    return generic_config(scenario)
+
+
+def compare(
+    trackers: Sequence[str] = DEFAULT_TRACKERS,
+    scenarios: Sequence[str] = ("crossing",),
+    seeds: Sequence[int] = (0,),
+    *,
+    c: float = 10.0,
+    config: str = "scenario",
+    scans: int | None = None,
+    window_length: int | None = None,
+    on_row: Callable[[dict[str, object]], None] | None = None,
+) -> pd.DataFrame:
+    """Run every tracker on every (scenario, seed) and score it against the truth.
+
+    Parameters
+    ----------
+    trackers : sequence of str
+        Names from :data:`~mapassoc.trackers.registry.TRACKERS`.
+    scenarios : sequence of str
+        Built-in scenario names (:func:`~mapassoc.evaluation.scenarios.scenario_names`).
+    seeds : sequence of int
+        Seeds of the realisations; every tracker sees the same realisation.
+    c : float
+        Cut-off of GOSPA, OSPA and OSPA(2) (and the CLEAR-MOT match threshold).
+    config : {"scenario", "generic"}
+        The scenario's own configuration (models matching the simulation), or the
+        benchmark's untuned :func:`~mapassoc.evaluation.scenarios.generic_config`.  Every
+        tracker gets the same one.
+    scans : int, optional
+        Keep only the first ``scans`` scans of each realisation.
+    window_length : int, optional
+        Replace the configuration's window length (the MAP estimator, LP relaxation and
+        network flow use it).
+    on_row : callable, optional
+        Called with each row (a dict) as soon as it is computed, e.g. to print progress.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (scenario, seed, tracker): :data:`COMPARE_COLUMNS` then the scores.
+        ``status`` is ``"ok"``, or the one-line error of a tracker that refused the
+        data (the other trackers still run; that row's scores are missing).
+
+    Raises
+    ------
+    InputError
+        An unknown tracker or scenario, a bad seed, cut-off or configuration choice
+        (checked before anything runs).
+    """
+    names = _check_names("trackers", trackers, list(TRACKERS))
+    families = _check_names("scenarios", scenarios, scenario_names())
+    if isinstance(seeds, (str, int)) or not all(
+        isinstance(s, (int, np.integer)) and s >= 0 for s in seeds
+    ):
+        raise InputError(f"seeds must be a sequence of integers >= 0, got {seeds!r}")
+    if not seeds:
+        raise InputError("seeds is empty: give at least one seed")
+    if not (isinstance(c, (int, float)) and np.isfinite(c) and c > 0):
+        raise InputError(f"c must be a finite cut-off > 0, got {c!r}")
+    if config not in ("scenario", "generic"):
+        raise InputError(f"config must be 'scenario' or 'generic', got {config!r}")
+    if scans is not None and (not isinstance(scans, int) or scans < 1):
+        raise InputError(f"scans must be an integer >= 1, got {scans!r}")
+    if window_length is not None and (not isinstance(window_length, int) or window_length < 1):
+        raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
+
+    rows: list[dict[str, object]] = []
+    for family in families:
+        for seed in seeds:
+            scenario = build_scenario(family, int(seed))
+            if scans is not None:
+                scenario = truncate_scenario(scenario, scans)
+            run_config = _config_for(scenario, config)
+            if window_length is not None:
+                run_config = replace(
+                    run_config,
+                    estimator=replace(run_config.estimator, window_length=window_length),
+                )
+            for name in names:
+                row: dict[str, object] = {
+                    "scenario": family,
+                    "seed": int(seed),
+                    "tracker": name,
+                    "status": "ok",
+                    "seconds": float("nan"),
+                    "scans_per_second": float("nan"),
+                }
+                try:
+                    tracker = build_tracker(
+                        name, config=run_config, origins=scenario.origins
+                    )
+                    start = time.perf_counter()
+                    output = tracker.track(scenario.scans)
+                    seconds = time.perf_counter() - start
+                    scores = score_tracks(scenario.truth, output, c=c)
+                except MapassocError as exc:
+                    row["status"] = f"{type(exc).__name__}: {exc}"
+                else:
+                    row["seconds"] = seconds
+                    row["scans_per_second"] = len(scenario.scans) / seconds if seconds else None
+                    row.update(scores.as_row())
+                rows.append(row)
+                if on_row is not None:
+                    on_row(row)
+    return pd.DataFrame(rows)
+
+
+def summarize(table: pd.DataFrame) -> pd.DataFrame:
+    """Means over seeds per (scenario, tracker) of every numeric column, in input order.
+
+    Rows of failed runs (``status != "ok"``) are left out of the means; the column
+    ``runs`` counts the runs averaged and ``failed`` those left out.
+    """
+    missing = [k for k in (*_SUMMARY_KEYS, "status", "seed") if k not in table.columns]
+    if missing:
+        raise InputError(f"table lacks the columns {missing}: pass the result of compare()")
+    ok = table[table["status"] == "ok"]
+    numeric = [
+        col for col in ok.columns
+        if col not in (*_SUMMARY_KEYS, "seed", "status") and pd.api.types.is_numeric_dtype(ok[col])
+    ]
+    means = ok.groupby(list(_SUMMARY_KEYS), sort=False)[numeric].mean()
+    counts = table.groupby(list(_SUMMARY_KEYS), sort=False).agg(
+        runs=("status", lambda s: int((s == "ok").sum())),
+        failed=("status", lambda s: int((s != "ok").sum())),
+    )
+    return counts.join(means).reset_index()
+
+
+_FORMAT_COLUMNS = (
+    ("gospa", "GOSPA", "{:7.2f}"),
+    ("gospa_localisation", "loc.", "{:6.2f}"),
+    ("gospa_missed", "missed", "{:6.2f}"),
+    ("gospa_false", "false", "{:6.2f}"),
+    ("ospa2", "OSPA2", "{:6.2f}"),
+    ("mota", "MOTA", "{:6.3f}"),
+    ("id_switches", "IDsw", "{:5.1f}"),
+    ("k_brier", "Brier", "{:6.3f}"),
+    ("seconds", "seconds", "{:8.2f}"),
+)
+
+
+def format_summary(summary: pd.DataFrame) -> str:
+    """An aligned text table of the main columns of :func:`summarize` (blank if missing)."""
+    header = f"{'scenario':12s} {'tracker':8s} {'runs':>4s}"
+    widths = []
+    for _, label, fmt in _FORMAT_COLUMNS:
+        width = len(fmt.format(0.0))
+        widths.append(width)
+        header += " " + label.rjust(width)
+    lines = [header, "-" * len(header)]
+    for _, row in summary.iterrows():
+        line = f"{row['scenario']:12s} {row['tracker']:8s} {int(row['runs']):4d}"
+        for (column, _, fmt), width in zip(_FORMAT_COLUMNS, widths, strict=True):
+            value = row.get(column)
+            ok = value is not None and not pd.isna(value)
+            line += " " + (fmt.format(float(value)) if ok else "-".rjust(width))
+        lines.append(line)
+    return "\n".join(lines)
