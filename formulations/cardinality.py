@@ -30,6 +30,7 @@ from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.special import logsumexp
 
 from mapassoc.formulations.convolution import max_plus, sum_product
 from mapassoc.formulations.frontier import (
@@ -130,13 +131,6 @@ class CardinalityTable:
         )
 
 
-def _log_sum(terms: list[float]) -> float:
-    if len(terms) == 1:
-        return terms[0]
-    top = max(terms)
-    return top + math.log(math.fsum(math.exp(t - top) for t in terms))
-
-
 def _better(
     score: float, chosen: tuple[int, ...], best: float, best_set: tuple[int, ...] | None
 ) -> bool:
@@ -170,7 +164,7 @@ def _convolve(a: _Table, b: _Table, kmax: int) -> _Table:
                 cand = aset + bset  # type: ignore[operator]
                 if _better(score, cand, best[k], sets[k]):
                     best[k], sets[k] = score, cand
-    mass = [_log_sum(t) if t else _NEG_INF for t in terms]
+    mass = [float(logsumexp(t)) if t else _NEG_INF for t in terms]
     return best, mass, sets
 
 
@@ -189,7 +183,7 @@ def _merge(options: list[_Table]) -> _Table:
             terms[k].append(tm)
             if _better(tb, ts, best[k], sets[k]):  # type: ignore[arg-type]
                 best[k], sets[k] = tb, ts
-    mass = [_log_sum(t) if t else _NEG_INF for t in terms]
+    mass = [float(logsumexp(t)) if t else _NEG_INF for t in terms]
     return best, mass, sets
 
 

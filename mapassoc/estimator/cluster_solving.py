@@ -38,6 +38,7 @@ from enum import StrEnum
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.special import logsumexp
 
 from mapassoc.formulations.bounds import (
     exclusive_groups,
@@ -139,13 +140,6 @@ class ClusterReport:
 def _remaining(deadline: float) -> float | None:
     """Seconds left before ``deadline`` for a solver's time limit (``None``: no limit)."""
     return None if math.isinf(deadline) else max(deadline - time.perf_counter(), 1e-3)
-
-
-def _log_sum(values: NDArray[np.float64]) -> float:
-    finite = values[np.isfinite(values)]
-    if finite.size == 0:
-        return -math.inf
-    return float(np.logaddexp.reduce(finite))
 
 
 def default_lp_solver(solver: ProgramSolver) -> RelaxationSolver:
@@ -383,7 +377,7 @@ class ClusterSolver:
                 if np.all(lp.objective + mu * (ahead - k) < found_best - self.map_margin) and (
                     np.all(
                         mass_bound(multipliers, mu, ahead)
-                        < _log_sum(log_mass) - _NEGLIGIBLE_LOG_MASS
+                        < float(logsumexp(log_mass)) - _NEGLIGIBLE_LOG_MASS
                     )
                 ):
                     break
@@ -407,7 +401,7 @@ class ClusterSolver:
         best_upper = np.maximum(best_upper, best)
         mass_upper = np.maximum(mass_upper, log_mass)
         table = CardinalityTable(best, log_mass, tuple(sets), False, best_upper, mass_upper)
-        found, bound = _log_sum(log_mass), _log_sum(mass_upper)
+        found, bound = float(logsumexp(log_mass)), float(logsumexp(mass_upper))
         return table, ClusterReport(
             size=problem.num_hypotheses,
             status=ClusterStatus.TIME_LIMIT if limited else ClusterStatus.BOUNDED,

@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.special import logsumexp
 
 from mapassoc.errors import InputError
 from mapassoc.models.population import WindowPopulation, poisson_log_pmf
@@ -404,15 +405,6 @@ def _poisson_reach(nu: float) -> int:
     return u
 
 
-def _log_sum(a: FloatArray, axis: int) -> FloatArray:
-    """``log sum exp`` along ``axis``; ``-inf`` where every entry is ``-inf``."""
-    top = np.max(a, axis=axis, keepdims=True)
-    safe = np.where(np.isfinite(top), top, 0.0)
-    with np.errstate(divide="ignore"):
-        out = np.log(np.sum(np.exp(a - safe), axis=axis, keepdims=True)) + safe
-    return np.squeeze(np.where(np.isfinite(top), out, -math.inf), axis=axis)
-
-
 @dataclass
 class _Sweep:
     """Per-K reductions of the (T, K) weight matrix over K = 0..top."""
@@ -492,13 +484,13 @@ def _sweep(
         ks = np.arange(k0, min(n, k0 + _BLOCK), dtype=np.int64)
         weight = weights(ks)
         lower = m[:, None] + weight
-        out.mass_lower[ks] = _log_sum(lower, 0)
-        out.mass_upper[ks] = _log_sum(mu[:, None] + weight, 0)
+        out.mass_lower[ks] = logsumexp(lower, axis=0)
+        out.mass_upper[ks] = logsumexp(mu[:, None] + weight, axis=0)
         scored = b[:, None] + weight
         out.joint[ks] = np.max(scored, axis=0)
         out.joint_tracks[ks] = rows[np.argmax(scored, axis=0)]
         out.joint_upper[ks] = np.max(bu[:, None] + weight, axis=0)
-        tracks = np.logaddexp(tracks, _log_sum(lower, 1))
+        tracks = np.logaddexp(tracks, logsumexp(lower, axis=1))
     out.tracks[rows] = tracks
     if top >= 1:
         # Whether every term's weight falls from top - 1 to top (each is concave in K
