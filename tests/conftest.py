@@ -33,7 +33,7 @@ class ScenarioRun:
 
     @property
     def gospa_ratio(self) -> float:
-        return self.estimate["gospa"]["mean_total"] / self.oracle["gospa"]["mean_total"]
+        return self.estimate.gospa.mean_total / self.oracle.gospa.mean_total
 
 
 @functools.cache

@@ -61,6 +61,7 @@ from mapassoc.data.io import TruthTable
 from mapassoc.data.settings import K_PRIORS
 from mapassoc.errors import InputError
 from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.evaluation.metrics import GospaSeries
 from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.scenarios import (
     build_scenario,
@@ -140,13 +141,13 @@ class GospaParts:
     false: float
 
     @classmethod
-    def from_summary(cls, summary: dict[str, object]) -> GospaParts:
-        """From the ``"gospa"`` entry of :func:`mapassoc.evaluation.tables.evaluate_tables`."""
+    def from_series(cls, series: GospaSeries) -> GospaParts:
+        """The means of a GOSPA series (from :func:`~.tables.evaluate_tables`)."""
         return cls(
-            total=float(summary["mean_total"]),  # type: ignore[arg-type]
-            localisation=float(summary["mean_localisation"]),  # type: ignore[arg-type]
-            missed=float(summary["mean_missed"]),  # type: ignore[arg-type]
-            false=float(summary["mean_false"]),  # type: ignore[arg-type]
+            total=series.mean_total,
+            localisation=series.mean_localisation,
+            missed=series.mean_missed,
+            false=series.mean_false,
         )
 
 
@@ -719,15 +720,15 @@ def bench_scenario(
     windows = result.windows
     window_seconds = np.array([w.generate_seconds + w.solve_seconds for w in windows])
     statuses = Counter(str(w.status) for w in windows)
-    estimate = GospaParts.from_summary(
-        evaluate_tables(scenario.truth, result.tracks, c=GOSPA_CUTOFF)["gospa"]  # type: ignore[arg-type]
+    estimate = GospaParts.from_series(
+        evaluate_tables(scenario.truth, result.tracks, c=GOSPA_CUTOFF).gospa
     )
-    oracle = GospaParts.from_summary(
+    oracle = GospaParts.from_series(
         evaluate_tables(
             scenario.truth,
             oracle_tracks(scenario.scans, scenario.origins, scenario.config),
             c=GOSPA_CUTOFF,
-        )["gospa"]  # type: ignore[arg-type]
+        ).gospa
     )
     counts = count_scores(windows, window_target_counts(scenario.truth, windows))
     sizes = [scan.size for scan in scenario.scans]

@@ -74,7 +74,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     )
     print(format_report(summary))
     if args.json:
-        json_dump(summary, Path(args.json))
+        json_dump(summary.to_json(), Path(args.json))
     return 0
 
 

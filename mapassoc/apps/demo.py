@@ -12,6 +12,7 @@ from pathlib import Path
 
 from mapassoc.apps.runs import run_files
 from mapassoc.data.io import read_tracks, write_tracks
+from mapassoc.evaluation.metrics import RunEvaluation
 from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.scenarios import build_scenario, describe_scenario
 from mapassoc.evaluation.simulate import write_scenario
@@ -22,7 +23,7 @@ __all__ = ["run_demo", "comparison_table"]
 GOSPA_CUTOFF = 10.0
 
 
-def comparison_table(rows: dict[str, dict[str, object]]) -> str:
+def comparison_table(rows: dict[str, RunEvaluation]) -> str:
     """Aligned text table of GOSPA parts, RMSE and cardinality error per method."""
     header = (
         f"{'method':10s} {'GOSPA':>8s} {'local.':>8s} {'missed':>8s} {'false':>8s} "
@@ -30,13 +31,13 @@ def comparison_table(rows: dict[str, dict[str, object]]) -> str:
     )
     lines = [header, "-" * len(header)]
     for name, ev in rows.items():
-        g = ev["gospa"]
-        rmse = ev["position_rmse"]
+        g = ev.gospa
+        rmse = ev.position_rmse
         lines.append(
-            f"{name:10s} {g['mean_total']:8.3f} {g['mean_localisation']:8.3f} "  # type: ignore[index]
-            f"{g['mean_missed']:8.3f} {g['mean_false']:8.3f} "  # type: ignore[index]
+            f"{name:10s} {g.mean_total:8.3f} {g.mean_localisation:8.3f} "
+            f"{g.mean_missed:8.3f} {g.mean_false:8.3f} "
             f"{(rmse if rmse is not None else float('nan')):8.3f} "
-            f"{ev['mean_abs_cardinality_error']:6.3f}"
+            f"{ev.mean_abs_cardinality_error:6.3f}"
         )
     return "\n".join(lines)
 
@@ -47,7 +48,7 @@ def run_demo(
     seed: int = 0,
     out_dir: Path = Path("demo-out"),
     plot: bool = True,
-) -> dict[str, dict[str, object]]:
+) -> dict[str, RunEvaluation]:
     """Run the demo; returns the metrics of the estimator and of the oracle."""
     built = build_scenario(scenario, seed)
     print(f"scenario {scenario!r} (seed {seed}): {describe_scenario(scenario)}")
@@ -66,7 +67,7 @@ def run_demo(
     )
     print(f"GOSPA (c = {GOSPA_CUTOFF}, p = 2, alpha = 2), mean over scans:")
     print(comparison_table(rows))
-    ratio = rows["mapassoc"]["gospa"]["mean_total"] / rows["oracle"]["gospa"]["mean_total"]  # type: ignore[index]
+    ratio = rows["mapassoc"].gospa.mean_total / rows["oracle"].gospa.mean_total
     print(f"mapassoc / oracle GOSPA: {ratio:.3f}")
     if plot:
         from mapassoc.apps.plotting import plot_tracks

@@ -41,6 +41,7 @@ __all__ = [
     "GospaSeries",
     "TimedPoints",
     "CardinalityError",
+    "RunEvaluation",
     "gospa",
     "gospa_over_time",
     "position_rmse",
@@ -627,10 +628,54 @@ def cardinality_error(truth: TimedPoints, estimates: TimedPoints) -> Cardinality
     )
 
 
+@dataclass(frozen=True, eq=False)
+class RunEvaluation:
+    """Every metric of one run against the truth (what :func:`evaluate` returns).
+
+    Parameters
+    ----------
+    gospa : GospaSeries
+        GOSPA per evaluation time, with its parts and means.
+    position_rmse : float or None
+        Position RMSE over the pairs GOSPA assigned; ``None`` when no pair was assigned.
+    num_assigned_pairs : int
+        Pairs the RMSE is taken over.
+    cardinality : CardinalityError
+        Per-time ``#estimates - #truth``.
+    """
+
+    gospa: GospaSeries
+    position_rmse: float | None
+    num_assigned_pairs: int
+    cardinality: CardinalityError
+
+    @property
+    def num_times(self) -> int:
+        """Number of evaluation times."""
+        return self.gospa.num_times
+
+    @property
+    def mean_abs_cardinality_error(self) -> float:
+        """Mean over times of ``|#estimates - #truth|``."""
+        return self.cardinality.mean_absolute
+
+    def to_json(self) -> dict[str, object]:
+        """The means as a JSON-ready dictionary of plain numbers (``mapassoc evaluate --json``):
+        ``{"num_times", "gospa": GospaSeries.summary(), "position_rmse" (null without pairs),
+        "num_assigned_pairs", "mean_abs_cardinality_error"}``."""
+        return {
+            "num_times": self.num_times,
+            "gospa": self.gospa.summary(),
+            "position_rmse": self.position_rmse,
+            "num_assigned_pairs": self.num_assigned_pairs,
+            "mean_abs_cardinality_error": self.mean_abs_cardinality_error,
+        }
+
+
 def evaluate(
     truth: TimedPoints, estimates: TimedPoints, *, c: float, p: float = 2.0
-) -> dict[str, object]:
-    """All metrics of a run as a JSON-ready dictionary.
+) -> RunEvaluation:
+    """All metrics of a run: GOSPA over time, position RMSE, cardinality error.
 
     Parameters
     ----------
@@ -643,11 +688,8 @@ def evaluate(
 
     Returns
     -------
-    dict
-        ``{"num_times": int, "gospa": GospaSeries.summary(), "position_rmse": float or None,
-        "num_assigned_pairs": int, "mean_abs_cardinality_error": float}``.  ``position_rmse``
-        is ``None`` (JSON ``null``) when no pair was assigned, so that the dictionary stays
-        strict JSON.  All values are plain Python numbers.
+    RunEvaluation
+        Typed; :meth:`RunEvaluation.to_json` gives the dictionary the command line writes.
     """
     cutoff = check_positive("c", c)
     order = _check_order(p)
@@ -655,14 +697,12 @@ def evaluate(
     times, results = _per_time_gospa(truth, estimates, cutoff, order)
     series = _series(times, results, cutoff, order)
     rmse, num_pairs = _rmse(results)
-    cardinality = cardinality_error(truth, estimates)
-    return {
-        "num_times": series.num_times,
-        "gospa": series.summary(),
-        "position_rmse": None if math.isnan(rmse) else rmse,
-        "num_assigned_pairs": num_pairs,
-        "mean_abs_cardinality_error": cardinality.mean_absolute,
-    }
+    return RunEvaluation(
+        gospa=series,
+        position_rmse=None if math.isnan(rmse) else rmse,
+        num_assigned_pairs=num_pairs,
+        cardinality=cardinality_error(truth, estimates),
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -696,13 +736,13 @@ def _number(value: object) -> str:
     return f"{float(value):.4f}"  # type: ignore[arg-type]
 
 
-def format_report(summary: dict) -> str:
-    """Format the dictionary returned by :func:`evaluate` as an aligned plain-text table.
+def format_report(summary: RunEvaluation | dict) -> str:
+    """Format an evaluation as an aligned plain-text table.
 
     Parameters
     ----------
-    summary : dict
-        Output of :func:`evaluate`.
+    summary : RunEvaluation or dict
+        Output of :func:`evaluate`, or its :meth:`~RunEvaluation.to_json` dictionary.
 
     Returns
     -------
@@ -714,8 +754,10 @@ def format_report(summary: dict) -> str:
     InputError
         A required key is missing.
     """
+    if isinstance(summary, RunEvaluation):
+        summary = summary.to_json()
     if not isinstance(summary, dict):
-        raise InputError(f"summary must be the dict returned by evaluate, got {summary!r}")
+        raise InputError(f"summary must be what evaluate returns, got {summary!r}")
     missing = [key for key in _REQUIRED_KEYS if key not in summary]
     gospa_summary = summary.get("gospa")
     if isinstance(gospa_summary, dict):

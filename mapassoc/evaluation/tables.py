@@ -12,7 +12,7 @@ import numpy as np
 
 from mapassoc.data.io import TrackTable, TruthTable
 from mapassoc.errors import InputError
-from mapassoc.evaluation.metrics import TimedPoints, evaluate
+from mapassoc.evaluation.metrics import RunEvaluation, TimedPoints, evaluate
 
 __all__ = ["position_names", "truth_points", "track_points", "evaluate_tables"]
 
@@ -55,8 +55,8 @@ def track_points(tracks: TrackTable, names: tuple[str, ...]) -> TimedPoints:
 
 def evaluate_tables(
     truth: TruthTable, tracks: TrackTable, *, c: float, p: float = 2.0
-) -> dict[str, object]:
-    """GOSPA (mean and parts), position RMSE and cardinality error of tracks vs truth.
+) -> RunEvaluation:
+    """GOSPA (over time, with its parts), position RMSE and cardinality error of tracks vs truth.
 
     Evaluated at every time that has a truth or a track row (both files are written at
     scan times): a truth time without tracks counts its targets as missed, a track time

@@ -40,8 +40,8 @@ def test_demo_crossing_scenario_is_close_to_the_oracle(scenario_run: Runner) -> 
     ratio, info = gospa_ratio(scenario_run, "crossing", 0)
     assert ratio <= 1.2, f"crossing GOSPA ratio {ratio:.3f} (measured 1.055)"
     # Every target is tracked by exactly one track, with no false or missed part.
-    gospa = info["estimate"]["gospa"]
-    assert gospa["mean_missed"] == 0.0 and gospa["mean_false"] == 0.0
+    gospa = info["estimate"].gospa
+    assert gospa.mean_missed == 0.0 and gospa.mean_false == 0.0
     assert len(info["result"].track_rows) == 4
     # Every window was solved exactly.
     assert all(w.status == "exact" for w in info["result"].windows)

@@ -400,21 +400,28 @@ def test_position_rmse_and_cardinality_hand_worked() -> None:
     assert cardinality.mean_absolute == pytest.approx(0.75)
 
 
-def test_evaluate_is_json_ready_and_consistent() -> None:
+def test_evaluate_is_typed_json_ready_and_consistent() -> None:
     truth, estimates = hand_run()
-    result = evaluate(truth, estimates, c=5.0, p=2.0)
+    evaluation = evaluate(truth, estimates, c=5.0, p=2.0)
+    assert evaluation.num_times == 4
+    assert evaluation.num_assigned_pairs == 2
+    assert evaluation.position_rmse == pytest.approx(math.sqrt(0.625))
+    assert evaluation.mean_abs_cardinality_error == pytest.approx(0.75)
+    series = gospa_over_time(truth, estimates, c=5.0, p=2.0)
+    np.testing.assert_array_equal(evaluation.gospa.total, series.total)
+    result = evaluation.to_json()
     text = json.dumps(result, allow_nan=False)
     assert json.loads(text) == result
     assert result["num_times"] == 4
     assert result["num_assigned_pairs"] == 2
     assert result["position_rmse"] == pytest.approx(math.sqrt(0.625))
     assert result["mean_abs_cardinality_error"] == pytest.approx(0.75)
-    series = gospa_over_time(truth, estimates, c=5.0, p=2.0)
     assert result["gospa"] == series.summary()
     # No assigned pair: RMSE is null, and the dictionary is still strict JSON.
     far = evaluate(truth, estimates, c=0.1, p=2.0)
-    assert far["position_rmse"] is None
-    json.dumps(far, allow_nan=False)
+    assert far.position_rmse is None
+    assert far.to_json()["position_rmse"] is None
+    json.dumps(far.to_json(), allow_nan=False)
 
 
 def test_format_report_is_aligned_and_complete() -> None:
@@ -435,12 +442,12 @@ def test_format_report_is_aligned_and_complete() -> None:
 
 def test_format_report_rejects_incomplete_summary() -> None:
     truth, estimates = hand_run()
-    summary = evaluate(truth, estimates, c=5.0, p=2.0)
+    summary = evaluate(truth, estimates, c=5.0, p=2.0).to_json()
     del summary["position_rmse"]
     del summary["gospa"]["mean_total"]
     with pytest.raises(InputError, match=r"position_rmse.*gospa\.mean_total"):
         format_report(summary)
-    with pytest.raises(InputError, match="summary must be the dict"):
+    with pytest.raises(InputError, match="summary must be what evaluate returns"):
         format_report([1, 2])  # type: ignore[arg-type]
 
 

@@ -254,9 +254,9 @@ def test_stonesoup_gospa_of_our_tracks_equals_ours_time_by_time(
         ("false", series.false),
     ):
         np.testing.assert_allclose([m.value[key] for m in metrics], ours, rtol=1e-12, atol=1e-12)
-    summary = evaluate_tables(simulation.truth, map_tracks, c=CUTOFF, p=ORDER)["gospa"]
+    summary = evaluate_tables(simulation.truth, map_tracks, c=CUTOFF, p=ORDER).gospa
     mean = float(np.mean([m.value["distance"] for m in metrics]))
-    assert mean == pytest.approx(summary["mean_total"], rel=1e-12)
+    assert mean == pytest.approx(summary.mean_total, rel=1e-12)
 
 
 def test_map_tracker_on_stonesoup_data_is_close_to_the_oracle(
@@ -266,11 +266,11 @@ def test_map_tracker_on_stonesoup_data_is_close_to_the_oracle(
     oracle = OracleTracker(config=simulation.config, origins=origins).track(
         simulation.imported.scans
     )
-    ours = evaluate_tables(simulation.truth, map_tracks, c=CUTOFF, p=ORDER)["gospa"]
-    best = evaluate_tables(simulation.truth, oracle.tracks, c=CUTOFF, p=ORDER)["gospa"]
-    assert ours["mean_num_false"] <= 0.1
-    assert ours["mean_num_missed"] <= 0.2
-    assert ours["mean_total"] <= 1.05 * best["mean_total"]  # equal on seeds 0-4
+    ours = evaluate_tables(simulation.truth, map_tracks, c=CUTOFF, p=ORDER).gospa
+    best = evaluate_tables(simulation.truth, oracle.tracks, c=CUTOFF, p=ORDER).gospa
+    assert ours.mean_num_false <= 0.1
+    assert ours.mean_num_missed <= 0.2
+    assert ours.mean_total <= 1.05 * best.mean_total  # equal on seeds 0-4
 
 
 def test_ospa_through_simple_manager_relates_to_gospa_at_equal_cardinality(
