@@ -71,6 +71,7 @@ __all__ = [
     "EstimateResult",
     "WindowEstimator",
     "packing_problem",
+    "SelectionRule",
 ]
 
 class WindowStatus(StrEnum):
@@ -101,6 +102,12 @@ how many entries the full vector has)."""
 
 ProgressCallback = Callable[[int, int], None]
 WindowCallback = Callable[["WindowReport"], None]
+SelectionRule = Callable[["WindowSolution", int, int], NDArray[np.int64]]
+"""Chooses the track set a window commits: called as ``rule(solution, chosen_k,
+chosen_tracks)`` with the estimator's estimate of K and the T of its MAP set given K,
+it returns hypothesis indices of ``solution.hypotheses`` forming a feasible set of
+``solution.problem``.  :meth:`WindowEstimator.run` commits, carries and smooths that set
+exactly as its own (``solution.selection(chosen_tracks)``, the default)."""
 
 
 def packing_problem(hypotheses: WindowHypotheses) -> PackingProblem:
@@ -538,6 +545,7 @@ class WindowEstimator:
         *,
         progress: ProgressCallback | None = None,
         on_window: WindowCallback | None = None,
+        select: SelectionRule | None = None,
     ) -> EstimateResult:
         """Estimate tracks over all scans.
 
@@ -551,6 +559,10 @@ class WindowEstimator:
             Called with each :class:`WindowReport` as soon as its window is committed
             (the command line writes ``windows.jsonl`` line by line with it, so a run
             that fails later keeps what it computed).
+        select : SelectionRule, optional
+            Replaces the MAP set given the estimate of K as the set each window commits
+            (for comparisons, e.g. the LP relaxation tracker); the window's report then
+            gives that set's T as ``chosen_tracks``.  Default: the estimator's own set.
         """
         scans = list(scans)
         if not scans:
@@ -579,7 +591,11 @@ class WindowEstimator:
             solution = self.solve_window(scans[start:end], carried, undetected=undetected)
             post = solution.posterior
             chosen_k, chosen_tracks = self.k_estimator.choose(post)
-            selection = solution.selection(chosen_tracks)
+            if select is None:
+                selection = solution.selection(chosen_tracks)
+            else:
+                selection = np.asarray(select(solution, chosen_k, chosen_tracks), dtype=np.int64)
+                chosen_tracks = int(np.count_nonzero(solution.problem.counts[selection]))
             carried, next_id = self._commit(
                 solution.hypotheses, selection, commit, records, next_id
             )

@@ -120,7 +120,7 @@ TRACKERS: dict[str, TrackerSpec] = {
 }
 
 
-DEFAULT_TRACKERS: tuple[str, ...] = ("map", "gnn", "jpda", "mht", "flow", "oracle")
+DEFAULT_TRACKERS: tuple[str, ...] = ("map", "gnn", "jpda", "mht", "flow", "lp", "oracle")
 """The methods ``mapassoc compare`` runs when none are named."""
 
 
