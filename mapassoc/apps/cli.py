@@ -122,6 +122,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         config=args.config,
         scans=args.scans,
         window_length=args.window_length,
+        ospa2_window=args.ospa2_window,
         on_row=progress,
     )
     summary = summarize(table)
@@ -321,6 +322,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scans", type=int, default=None, metavar="N", help="first N scans only")
     p.add_argument(
         "--window-length", type=int, default=None, metavar="N", help="scans per window"
+    )
+    p.add_argument(
+        "--ospa2-window",
+        type=int,
+        default=None,
+        metavar="N",
+        help="OSPA(2) as the mean over sliding windows of N scan times (default: the whole "
+        "run at once, where every unpaired track, however short, costs the cut-off)",
     )
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--no-plot", action="store_true", help="skip compare.png")

@@ -12,7 +12,7 @@ prints that summary and writes both tables as CSV and a figure.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -20,6 +20,7 @@ import pandas as pd
 
 from mapassoc.data.config import Config
 from mapassoc.errors import InputError, MapassocError
+from mapassoc.evaluation.clear_mot import motmetrics_available
 from mapassoc.evaluation.scenarios import (
     build_scenario,
     generic_config,
@@ -33,7 +34,9 @@ from mapassoc.trackers.registry import DEFAULT_TRACKERS, TRACKERS, build_tracker
 __all__ = ["COMPARE_COLUMNS", "compare", "format_summary", "summarize"]
 
 COMPARE_COLUMNS = ("scenario", "seed", "tracker", "status", "seconds", "scans_per_second")
-"""The columns of every row, before the scores (``TrackingScores.as_row()``)."""
+"""The columns of every row, before the scores (``TrackingScores.as_row()`` without its
+``seconds``: the row's ``seconds`` is the wall time of ``tracker.track`` measured here, the
+same for every method, and ``scans_per_second`` is the number of scans over it)."""
 
 _SUMMARY_KEYS = ("scenario", "tracker")
 
@@ -48,8 +51,12 @@ def _check_names(kind: str, names: Sequence[str], known: Sequence[str]) -> list[
     if unknown:
         raise InputError(f"unknown {kind} {unknown}; known: {', '.join(known)}")
     if len(set(names)) != len(names):
-        raise InputError(f"{kind} names a method twice: {names}")
+        raise InputError(f"{kind} names one entry twice: {names}")
     return names
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
 def _config_for(scenario: Scenario, choice: str) -> Config:
@@ -67,6 +74,7 @@ def compare(
     config: str = "scenario",
     scans: int | None = None,
     window_length: int | None = None,
+    ospa2_window: int | None = None,
     on_row: Callable[[dict[str, object]], None] | None = None,
 ) -> pd.DataFrame:
     """Run every tracker on every (scenario, seed) and score it against the truth.
@@ -90,15 +98,22 @@ def compare(
     window_length : int, optional
         Replace the configuration's window length (the MAP estimator, LP relaxation and
         network flow use it).
+    ospa2_window : int, optional
+        Score OSPA(2) as the mean over sliding windows of this many evaluation times
+        (:func:`~mapassoc.evaluation.ospa.ospa2_over_time`); ``None`` (default) scores the
+        whole run at once, where every unpaired trajectory, however short, costs ``c``.
     on_row : callable, optional
         Called with each row (a dict) as soon as it is computed, e.g. to print progress.
 
     Returns
     -------
     pandas.DataFrame
-        One row per (scenario, seed, tracker): :data:`COMPARE_COLUMNS` then the scores.
+        One row per (scenario, seed, tracker): :data:`COMPARE_COLUMNS` then the scores
+        (the fields of :class:`~mapassoc.evaluation.scoring.TrackingScores` but
+        ``seconds``).
         ``status`` is ``"ok"``, or the one-line error of a tracker that refused the
-        data (the other trackers still run; that row's scores are missing).
+        data (the other trackers still run; that row's scores are missing).  The
+        CLEAR-MOT columns are empty (``None``) when ``motmetrics`` is not installed.
 
     Raises
     ------
@@ -108,32 +123,38 @@ def compare(
     """
     names = _check_names("trackers", trackers, list(TRACKERS))
     families = _check_names("scenarios", scenarios, scenario_names())
-    if isinstance(seeds, (str, int)) or not all(
-        isinstance(s, (int, np.integer)) and s >= 0 for s in seeds
-    ):
+    if isinstance(seeds, (str, int)) or not isinstance(seeds, Iterable):
+        raise InputError(f"seeds must be a sequence of integers >= 0, got {seeds!r}")
+    seeds = list(seeds)  # a generator or an array is read once, here
+    if not all(_is_int(s) and s >= 0 for s in seeds):
         raise InputError(f"seeds must be a sequence of integers >= 0, got {seeds!r}")
     if not seeds:
         raise InputError("seeds is empty: give at least one seed")
-    if not (isinstance(c, (int, float)) and np.isfinite(c) and c > 0):
+    if isinstance(c, bool) or not (isinstance(c, (int, float)) and np.isfinite(c) and c > 0):
         raise InputError(f"c must be a finite cut-off > 0, got {c!r}")
     if config not in ("scenario", "generic"):
         raise InputError(f"config must be 'scenario' or 'generic', got {config!r}")
-    if scans is not None and (not isinstance(scans, int) or scans < 1):
+    if scans is not None and (not _is_int(scans) or scans < 1):
         raise InputError(f"scans must be an integer >= 1, got {scans!r}")
-    if window_length is not None and (not isinstance(window_length, int) or window_length < 1):
+    if window_length is not None and (not _is_int(window_length) or window_length < 1):
         raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
+    if ospa2_window is not None and (not _is_int(ospa2_window) or ospa2_window < 1):
+        raise InputError(f"ospa2_window must be an integer >= 1, got {ospa2_window!r}")
+    # CLEAR-MOT needs the optional motmetrics; without it its columns are empty instead of
+    # every run failing on it.
+    with_clear_mot = motmetrics_available()
 
     rows: list[dict[str, object]] = []
     for family in families:
         for seed in seeds:
             scenario = build_scenario(family, int(seed))
             if scans is not None:
-                scenario = truncate_scenario(scenario, scans)
+                scenario = truncate_scenario(scenario, int(scans))
             run_config = _config_for(scenario, config)
             if window_length is not None:
                 run_config = replace(
                     run_config,
-                    estimator=replace(run_config.estimator, window_length=window_length),
+                    estimator=replace(run_config.estimator, window_length=int(window_length)),
                 )
             for name in names:
                 row: dict[str, object] = {
@@ -151,13 +172,23 @@ def compare(
                     start = time.perf_counter()
                     output = tracker.track(scenario.scans)
                     seconds = time.perf_counter() - start
-                    scores = score_tracks(scenario.truth, output, c=c)
+                    scores = score_tracks(
+                        scenario.truth,
+                        output,
+                        c=float(c),
+                        clear_mot_scores=with_clear_mot,
+                        ospa2_window=None if ospa2_window is None else int(ospa2_window),
+                    )
                 except MapassocError as exc:
                     row["status"] = f"{type(exc).__name__}: {exc}"
                 else:
                     row["seconds"] = seconds
-                    row["scans_per_second"] = len(scenario.scans) / seconds if seconds else None
-                    row.update(scores.as_row())
+                    row["scans_per_second"] = (
+                        len(scenario.scans) / seconds if seconds > 0 else float("nan")
+                    )
+                    scored = scores.as_row()
+                    del scored["seconds"]  # the tracker's own timing; the row keeps ours
+                    row.update(scored)
                 rows.append(row)
                 if on_row is not None:
                     on_row(row)

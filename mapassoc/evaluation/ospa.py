@@ -409,6 +409,12 @@ def ospa2(truth: TimedPoints, estimates: TimedPoints, *, c: float, p: float = 2.
     -----
     Memory and time grow as ``n m T`` (trajectory pairs times evaluation times).
 
+    Over a whole run every unpaired trajectory costs ``c`` whatever its duration: one
+    false track of a few scans among ``n - 1`` well-tracked targets adds ``c^p / n`` to
+    ``total ** p``, as much as a target missed for the whole run.  A method that starts one
+    short false track can therefore score a much larger OSPA(2) than a method with worse
+    per-time errors; :func:`ospa2_over_time` weighs such a track by the windows it is in.
+
     Examples
     --------
     One true trajectory at 4 times, estimated 1 away at every time: OSPA(2) = 1.  The same

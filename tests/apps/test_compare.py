@@ -1,0 +1,220 @@
+"""Tests of mapassoc.apps.compare (compare, summarize, format_summary), the
+``mapassoc compare`` command and its figure."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mapassoc.apps.cli import main
+from mapassoc.apps.compare import COMPARE_COLUMNS, compare, format_summary, summarize
+from mapassoc.errors import InputError
+from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
+from mapassoc.evaluation.scoring import TrackingScores, score_tracks
+from mapassoc.trackers.oracle import OracleTracker
+
+# The scores' own "seconds" (the tracker's timing) gives way to the row's measured one.
+SCORE_COLUMNS = tuple(f.name for f in dataclasses.fields(TrackingScores) if f.name != "seconds")
+# Columns that differ between two runs of the same comparison: wall times.
+TIMING_COLUMNS = ("seconds", "scans_per_second")
+
+
+@pytest.fixture(scope="module")
+def two_seeds() -> pd.DataFrame:
+    return compare(["gnn", "oracle"], ["crossing"], [0, 1], scans=15)
+
+
+def test_one_row_per_run_with_the_documented_columns() -> None:
+    table = compare(["gnn", "oracle"], ["crossing"], [0], scans=15)
+    assert tuple(table.columns) == COMPARE_COLUMNS + SCORE_COLUMNS
+    assert table[["scenario", "seed", "tracker"]].values.tolist() == [
+        ["crossing", 0, "gnn"],
+        ["crossing", 0, "oracle"],
+    ]
+    assert (table["status"] == "ok").all()
+    assert (table["c"] == 10.0).all() and (table["motp_threshold"] == 10.0).all()
+    assert (table["seconds"] > 0).all()
+    assert np.allclose(table["scans_per_second"], 15 / table["seconds"])
+    by_tracker = table.set_index("tracker")
+    # The oracle smooths on the true associations: the lowest GOSPA and OSPA(2).
+    assert by_tracker.loc["oracle", "gospa"] < by_tracker.loc["gnn", "gospa"]
+    assert by_tracker.loc["oracle", "ospa2"] < by_tracker.loc["gnn", "ospa2"]
+    # The oracle row is score_tracks of the oracle on the same truncated realisation.
+    scenario = truncate_scenario(build_scenario("crossing", 0), 15)
+    output = OracleTracker(config=scenario.config, origins=scenario.origins).track(scenario.scans)
+    expected = score_tracks(scenario.truth, output, c=10.0).as_row()
+    for column, value in expected.items():
+        if column in TIMING_COLUMNS:
+            continue
+        got = by_tracker.loc["oracle", column]
+        if value is None:
+            assert got is None or pd.isna(got), column
+        else:
+            assert got == pytest.approx(value, rel=1e-12), column
+
+
+def test_summarize_averages_over_seeds(two_seeds: pd.DataFrame) -> None:
+    assert len(two_seeds) == 4 and sorted(set(two_seeds["seed"])) == [0, 1]
+    summary = summarize(two_seeds)
+    assert summary[["scenario", "tracker"]].values.tolist() == [
+        ["crossing", "gnn"],
+        ["crossing", "oracle"],
+    ]
+    assert (summary["runs"] == 2).all() and (summary["failed"] == 0).all()
+    for tracker in ("gnn", "oracle"):
+        rows = two_seeds[two_seeds["tracker"] == tracker]
+        assert rows["gospa"].iloc[0] != rows["gospa"].iloc[1]  # the seeds differ
+        got = summary.set_index("tracker").loc[tracker]
+        for column in ("gospa", "ospa2", "mota", "id_switches", "seconds", "num_tracks"):
+            hand = (float(rows[column].iloc[0]) + float(rows[column].iloc[1])) / 2.0
+            assert got[column] == pytest.approx(hand, rel=1e-12), column
+    assert "seed" not in summary.columns and "status" not in summary.columns
+
+
+def test_summarize_leaves_failed_runs_out_of_the_means() -> None:
+    table = pd.DataFrame(
+        [
+            {"scenario": "a", "seed": 0, "tracker": "x", "status": "ok", "gospa": 1.0},
+            {"scenario": "a", "seed": 1, "tracker": "x", "status": "ok", "gospa": 3.0},
+            {"scenario": "a", "seed": 2, "tracker": "x", "status": "ok", "gospa": 8.0},
+            {"scenario": "a", "seed": 3, "tracker": "x", "status": "InputError: no",
+             "gospa": math.nan},
+            {"scenario": "a", "seed": 0, "tracker": "y", "status": "InputError: no",
+             "gospa": math.nan},
+        ]
+    )
+    summary = summarize(table).set_index("tracker")
+    assert summary.loc["x", "gospa"] == 4.0  # the mean (the median would be 3)
+    assert (summary.loc["x", "runs"], summary.loc["x", "failed"]) == (3, 1)
+    assert (summary.loc["y", "runs"], summary.loc["y", "failed"]) == (0, 1)
+    assert math.isnan(summary.loc["y", "gospa"])
+    with pytest.raises(InputError, match="status"):
+        summarize(table.drop(columns="status"))
+
+
+def test_format_summary_shows_the_means(two_seeds: pd.DataFrame) -> None:
+    summary = summarize(two_seeds)
+    text = format_summary(summary)
+    lines = text.splitlines()
+    assert lines[0].split() == [
+        "scenario", "tracker", "runs", "GOSPA", "loc.", "missed", "false", "OSPA2", "MOTA",
+        "IDsw", "Brier", "seconds",
+    ]
+    assert set(lines[1]) == {"-"}
+    for line, (_, row) in zip(lines[2:], summary.iterrows(), strict=True):
+        cells = line.split()
+        assert cells[:3] == [row["scenario"], row["tracker"], "2"]
+        assert float(cells[3]) == pytest.approx(row["gospa"], abs=0.005)
+        assert float(cells[7]) == pytest.approx(row["ospa2"], abs=0.005)
+        assert cells[10] == "-"  # neither tracker reports p(K | Z)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"trackers": ["gnn", "nosuch"]}, r"unknown trackers \['nosuch'\]"),
+        ({"scenarios": ["crossing", "atlantis"]}, r"unknown scenarios \['atlantis'\]"),
+        ({"trackers": "gnn"}, "sequence of names"),
+        ({"trackers": []}, "trackers is empty"),
+        ({"trackers": ["gnn", "gnn"]}, "twice"),
+        ({"seeds": [-1]}, "seeds"),
+        ({"seeds": [True]}, "seeds"),
+        ({"seeds": []}, "seeds is empty"),
+        ({"c": 0.0}, "c must be"),
+        ({"config": "tuned"}, "config"),
+        ({"scans": 0}, "scans"),
+        ({"window_length": 0}, "window_length"),
+        ({"ospa2_window": 0}, "ospa2_window"),
+    ],
+)
+def test_bad_arguments_raise_before_running(kwargs: dict, message: str) -> None:
+    arguments = {"trackers": ["gnn"], "scenarios": ["crossing"], "seeds": [0], **kwargs}
+    trackers = arguments.pop("trackers")
+    scenarios = arguments.pop("scenarios")
+    seeds = arguments.pop("seeds")
+    with pytest.raises(InputError, match=message):
+        compare(trackers, scenarios, seeds, **arguments)
+
+
+def test_windowed_ospa2_option() -> None:
+    table = compare(["oracle"], ["crossing"], [0], scans=15, ospa2_window=3)
+    scenario = truncate_scenario(build_scenario("crossing", 0), 15)
+    output = OracleTracker(config=scenario.config, origins=scenario.origins).track(scenario.scans)
+    expected = score_tracks(scenario.truth, output, c=10.0, ospa2_window=3)
+    assert table["ospa2_window"].tolist() == [3]
+    assert table["ospa2"].iloc[0] == pytest.approx(expected.ospa2, rel=1e-12)
+    whole = score_tracks(scenario.truth, output, c=10.0)
+    assert expected.ospa2 != pytest.approx(whole.ospa2)  # the option changes the score
+
+
+def test_seeds_may_be_any_iterable_of_integers() -> None:
+    table = compare(["oracle"], ["crossing"], np.array([0, 1]), scans=5)
+    assert table["seed"].tolist() == [0, 1]
+    again = compare(["oracle"], ["crossing"], (s for s in (0, 1)), scans=5)
+    assert again["gospa"].tolist() == table["gospa"].tolist()
+
+
+def test_draw_comparison_bars_are_the_summary(two_seeds: pd.DataFrame) -> None:
+    pytest.importorskip("matplotlib")
+    from matplotlib.figure import Figure
+
+    from mapassoc.apps.plotting import draw_comparison
+
+    summary = summarize(two_seeds)
+    fig = Figure()
+    axes = [fig.add_subplot(2, 2, i + 1) for i in range(4)]
+    draw_comparison(axes, summary)
+    for ax, column in zip(axes, ("gospa", "ospa2", "id_switches", "seconds"), strict=True):
+        heights = [patch.get_height() for patch in ax.patches]
+        np.testing.assert_allclose(heights, summary[column].to_numpy(dtype=float))
+
+
+def test_cli_writes_consistent_tables_and_figure(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "cmp"
+    status = main(
+        ["compare", "--trackers", "gnn,oracle", "--scenarios", "crossing", "--scans", "15",
+         "--out", str(out)]
+    )
+    assert status == 0
+    printed = capsys.readouterr()
+    table = pd.read_csv(out / "compare.csv")
+    summary = pd.read_csv(out / "compare_summary.csv")
+    assert tuple(table.columns) == COMPARE_COLUMNS + SCORE_COLUMNS
+    assert table["tracker"].tolist() == ["gnn", "oracle"] and (table["seed"] == 0).all()
+    # The same comparison in-process gives the same scores (the runs are deterministic).
+    direct = compare(["gnn", "oracle"], ["crossing"], [0], scans=15)
+    for column in ("gospa", "ospa", "ospa2", "mota", "motp", "id_switches", "num_tracks"):
+        np.testing.assert_allclose(table[column], direct[column].astype(float), rtol=1e-9)
+    # The summary file is the summary of the table file (one seed: the rows themselves).
+    assert summary["tracker"].tolist() == ["gnn", "oracle"] and (summary["runs"] == 1).all()
+    for column in ("gospa", "ospa2", "mota", "seconds"):
+        np.testing.assert_allclose(summary[column], table[column], rtol=1e-12)
+    # What it printed is format_summary of that summary, then the files written.
+    assert format_summary(summarize(direct)).splitlines()[0] in printed.out
+    for _, row in summary.iterrows():
+        assert f"{row['gospa']:7.2f}" in printed.out
+    assert "compare.png" in printed.out.splitlines()[-1]
+    assert "crossing seed 0 gnn" in printed.err
+    png = (out / "compare.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    from matplotlib.image import imread
+
+    assert imread(out / "compare.png").shape[:2] == (800, 1200)  # 12 x 8 in at 100 dpi
+
+
+def test_cli_reports_unknown_names(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    status = main(
+        ["compare", "--trackers", "gnn,nosuch", "--scenarios", "crossing", "--out",
+         str(tmp_path / "x"), "--no-plot"]
+    )
+    assert status == 2
+    assert "nosuch" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
