@@ -219,9 +219,9 @@ def summarize(table: pd.DataFrame) -> pd.DataFrame:
 
 _FORMAT_COLUMNS = (
     ("gospa", "GOSPA", "{:7.2f}"),
-    ("gospa_localisation", "loc.", "{:6.2f}"),
-    ("gospa_missed", "missed", "{:6.2f}"),
-    ("gospa_false", "false", "{:6.2f}"),
+    ("gospa_localisation", "loc^p", "{:7.2f}"),
+    ("gospa_missed", "miss^p", "{:7.2f}"),
+    ("gospa_false", "false^p", "{:7.2f}"),
     ("ospa2", "OSPA2", "{:6.2f}"),
     ("mota", "MOTA", "{:6.3f}"),
     ("id_switches", "IDsw", "{:5.1f}"),
@@ -231,7 +231,11 @@ _FORMAT_COLUMNS = (
 
 
 def format_summary(summary: pd.DataFrame) -> str:
-    """An aligned text table of the main columns of :func:`summarize` (blank if missing)."""
+    """An aligned text table of the main columns of :func:`summarize` (blank if missing).
+
+    ``loc^p``, ``miss^p`` and ``false^p`` are the means of GOSPA's p-th power parts (at
+    each time they add up to GOSPA^p), so they are not on the scale of the GOSPA column.
+    """
     header = f"{'scenario':12s} {'tracker':8s} {'runs':>4s}"
     widths = []
     for _, label, fmt in _FORMAT_COLUMNS:

@@ -102,7 +102,7 @@ def test_format_summary_shows_the_means(two_seeds: pd.DataFrame) -> None:
     text = format_summary(summary)
     lines = text.splitlines()
     assert lines[0].split() == [
-        "scenario", "tracker", "runs", "GOSPA", "loc.", "missed", "false", "OSPA2", "MOTA",
+        "scenario", "tracker", "runs", "GOSPA", "loc^p", "miss^p", "false^p", "OSPA2", "MOTA",
         "IDsw", "Brier", "seconds",
     ]
     assert set(lines[1]) == {"-"}
