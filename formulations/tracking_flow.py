@@ -16,23 +16,32 @@ path costs.  With costs that are negated log-likelihood ratios, the min-cost flo
 value K is the most likely set of K tracks (Zhang et al., eq. 9).
 
 *Forced* items (a carried track: it continues, misses or ends, but never vanishes) must
-lie on a path of every flow with K >= (number of forced items).  Their entry edge gets a
-bonus ``-M`` with ``M = 1 + sum of |cost|`` over every other edge, larger than any
-difference between two path costs; so every min-cost flow of value K >= C uses all C
-forced items, and :meth:`TrackingFlow.track_costs` adds ``C M`` back.
+each *start* a path of every flow, so a flow has K >= C (the number of forced items)
+paths.  Their entry edge gets a bonus ``-M`` with ``M = 1 + 2 S``, ``S`` the sum of
+``|cost|`` over every edge (bonus excluded).  Edges have capacity 1, so the cost of any
+flow without the bonus lies in ``[-S, S]``, and two flows differ by at most ``S < M``:
+every min-cost flow of value K starts a path at all C forced items whenever some flow of
+value K does, and :meth:`TrackingFlow.track_costs` adds ``C M`` back.  A flow that leaves
+a forced entry unused costs at least ``M - S - C M > M / 2 - C M`` while one that uses
+them all costs at most ``S - C M < M / 2 - C M``, so the costs alone tell which K admit
+no such flow (``track_costs`` reports ``inf`` there).  The bonus rewards entries only: a
+path that runs *through* a forced item (a link into it) does not count, which is why
+carried tracks get no incoming links.
 
 Nodes: ``0`` source, ``1`` sink, ``2 + 2 i`` and ``3 + 2 i`` the in and out nodes of
 item ``i``.  Items are numbered in a topological order: every link goes from a lower to
 a higher item index (for tracking, scan order), which makes the graph acyclic.
 
-This module imports no solver library and no domain code.
+This module imports no solver library and no domain code; so bad arguments raise
+``ValueError`` naming the argument (``mapassoc.errors.InputError``, which callers raise,
+is a subclass).
 """
 
 from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +59,7 @@ __all__ = [
     "through_costs",
     "reachable_items",
     "combine_convex_costs",
+    "successive_shortest_paths",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -92,7 +102,8 @@ class TrackingFlow:
         The item of an entry, observation or exit edge; the tail item of a link.
     forced : ndarray of bool, shape (num_items,)
     bonus : float
-        ``M``, subtracted from each forced item's entry cost (0 without forced items).
+        ``M = 1 + 2 S`` (module docstring), subtracted from each forced item's entry cost
+        (0 without forced items).
     """
 
     program: FlowProgram
@@ -118,14 +129,15 @@ class TrackingFlow:
         Returns
         -------
         ndarray, shape (max_flow + 1,)
-            ``flow_costs[K] + C M`` for K >= C (a min-cost flow of such a K uses every
-            forced item, module docstring); ``inf`` for K < C, where some forced item
-            would go unused.
+            ``flow_costs[K] + C M`` where a flow of value K starts a path at every forced
+            item (then the min-cost one does, module docstring); ``inf`` where none does
+            (every K < C among them), which the cost shows (above ``M / 2 - C M``).
         """
         costs = np.asarray(flow_costs, dtype=float)
-        out = np.full(costs.shape, math.inf)
         c = self.num_forced
-        out[c:] = costs[c:] + c * self.bonus
+        out = costs + c * self.bonus
+        if c:
+            out[out > 0.5 * self.bonus] = math.inf  # nan (not solved) stays nan
         return out
 
     def decode_paths(self, edge_flows: IntArray) -> tuple[tuple[int, ...], ...]:
@@ -181,7 +193,7 @@ def _check_items(name: str, values: FloatArray, n: int, allow_inf: bool) -> Floa
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
         allowed = "finite or +inf (no edge)" if allow_inf else "finite"
-        raise ValueError(f"{name}[{i}] = {a[i]!r}; expected {allowed}")
+        raise ValueError(f"{name}[{i}] = {float(a[i])!r}; expected {allowed}")
     return a
 
 
@@ -196,16 +208,22 @@ def _check_links(
             f"link_tails, link_heads and link_costs must have equal lengths, got "
             f"{tails.shape}, {heads.shape} and {costs.shape}"
         )
-    if tails.size and (tails.min() < 0 or heads.max() >= n):
-        raise ValueError(f"link endpoints must be item indices in 0..{n - 1}")
+    for name, ends in (("link_tails", tails), ("link_heads", heads)):
+        outside = (ends < 0) | (ends >= n)
+        if np.any(outside):
+            e = int(np.flatnonzero(outside)[0])
+            raise ValueError(
+                f"{name}[{e}] = {int(ends[e])}; expected an item index in 0..{n - 1}"
+            )
     if np.any(tails >= heads):
         e = int(np.flatnonzero(tails >= heads)[0])
         raise ValueError(
-            f"link {e} goes from item {tails[e]} to item {heads[e]}; links must go from a "
-            "lower to a higher item index (a topological order)"
+            f"link_tails[{e}] = {int(tails[e])} and link_heads[{e}] = {int(heads[e])}; links "
+            "must go from a lower to a higher item index (a topological order)"
         )
     if not np.all(np.isfinite(costs)):
-        raise ValueError("link_costs must be finite")
+        e = int(np.flatnonzero(~np.isfinite(costs))[0])
+        raise ValueError(f"link_costs[{e}] = {float(costs[e])!r}; expected finite")
     return tails, heads, costs
 
 
@@ -237,8 +255,8 @@ def tracking_flow_program(
     max_flow : int
         Largest number of tracks K to solve for (>= 0).
     forced : ndarray of bool, shape (n,), optional
-        Items every flow with K >= (their number) must use; each needs a finite entry
-        cost.
+        Items at which every flow (of K >= their number) must start a path; each needs a
+        finite entry cost.
 
     Returns
     -------
@@ -262,7 +280,11 @@ def tracking_flow_program(
     if must.shape != (n,):
         raise ValueError(f"forced must have shape ({n},), got {must.shape}")
     if np.any(must & ~np.isfinite(entry)):
-        raise ValueError("every forced item needs a finite entry cost")
+        i = int(np.flatnonzero(must & ~np.isfinite(entry))[0])
+        raise ValueError(
+            f"forced[{i}] is set but entry_costs[{i}] = {float(entry[i])!r}; every forced item "
+            "needs a finite entry cost"
+        )
     if isinstance(max_flow, bool) or not isinstance(max_flow, (int, np.integer)) or max_flow < 0:
         raise ValueError(f"max_flow must be an integer >= 0, got {max_flow!r}")
 
@@ -284,7 +306,7 @@ def tracking_flow_program(
     edge_cost = np.concatenate([p[4] for p in parts]).astype(float)
     bonus = 0.0
     if np.any(must):
-        bonus = 1.0 + math.fsum(np.abs(edge_cost).tolist())
+        bonus = 1.0 + 2.0 * math.fsum(np.abs(edge_cost).tolist())
         forced_entry = (kind == EDGE_ENTRY) & must[edge_item]
         edge_cost = edge_cost.copy()
         edge_cost[forced_entry] -= bonus
@@ -328,9 +350,11 @@ def through_costs(
     **Use: exact pruning.**  In a min-cost flow over every flow value K >= C, removing a
     path that holds no forced item leaves a flow of value K - 1 >= C, so such a path of
     an overall min-cost flow costs <= 0.  An item whose cheapest through-path costs
-    more than 0, and that no path from a forced item can reach, therefore lies on no
-    path of some overall min-cost flow, and may be deleted without changing the
-    minimum over K (the costs of other K may rise).
+    more than 0, and that is joined by no path of links to a forced item (neither
+    reachable from one nor reaching one; :func:`reachable_items` gives the first, which
+    suffices when no link enters a forced item), therefore lies on no path of some
+    overall min-cost flow, and may be deleted without changing the minimum over K (the
+    costs of other K may rise).
 
     Parameters
     ----------
@@ -344,7 +368,10 @@ def through_costs(
         ``inf`` for an item on no source-to-sink path.
     """
     observation = np.asarray(observation_costs, dtype=float)
+    if observation.ndim != 1:
+        raise ValueError(f"observation_costs must be 1-D, got shape {observation.shape}")
     n = observation.shape[0]
+    observation = _check_items("observation_costs", observation, n, allow_inf=False)
     entry = _check_items("entry_costs", entry_costs, n, allow_inf=True)
     exits = _check_items("exit_costs", exit_costs, n, allow_inf=True)
     tails, heads, costs = _check_links(n, link_tails, link_heads, link_costs)
@@ -468,3 +495,111 @@ def combine_convex_costs(
         k += 1
         push(i)
     return total, counts
+
+
+def successive_shortest_paths(flow: TrackingFlow) -> Iterator[tuple[float, IntArray]]:
+    """Min-cost flows of value K = 0, 1, 2, ... of a tracking flow program, one at a time.
+
+    Successive shortest paths (Ahuja, Magnanti & Orlin, *Network Flows*, 1993, section
+    9.7; the k-shortest-paths view of Berclaz et al. 2011): node potentials start as the
+    shortest distances from the source, computed by one pass over the acyclic graph in
+    item order (so negative costs, the forcing bonus included, need no Bellman-Ford);
+    each further unit of flow follows a shortest source-to-sink path of the residual
+    graph under the reduced costs (Dijkstra), and the potentials then add the distances.
+    Every flow so obtained is a min-cost flow of its value, on the program's float costs
+    (no rounding: the residual graph has no negative reduced cost, up to float error,
+    which is clamped at 0).  The cost increments are non-decreasing: the cost is convex
+    in K.
+
+    Parameters
+    ----------
+    flow : TrackingFlow
+        Its ``program.max_flow`` is the largest K yielded.
+
+    Yields
+    ------
+    cost : float
+        ``fsum`` of ``cost_e * flow_e`` over the edges (the program's costs, forcing
+        bonus included, like ``FlowResult.costs``; see :meth:`TrackingFlow.track_costs`).
+    edge_flows : ndarray of int, shape (E,)
+        A min-cost flow of value K (a fresh array each time).
+
+    Stops after ``program.max_flow`` or when no further unit of flow is feasible.
+    """
+    prog = flow.program
+    tails = prog.tails.tolist()
+    heads = prog.heads.tolist()
+    costs = prog.costs.tolist()
+    num_nodes, num_edges = prog.num_nodes, prog.num_edges
+    out_edges: list[list[int]] = [[] for _ in range(num_nodes)]
+    in_edges: list[list[int]] = [[] for _ in range(num_nodes)]
+    for e in range(num_edges):
+        out_edges[tails[e]].append(e)
+        in_edges[heads[e]].append(e)
+    # Shortest distances from the source: nodes in a topological order (source, then the
+    # in and out node of each item in item order, then the sink).
+    potential = [math.inf] * num_nodes
+    potential[SOURCE] = 0.0
+    for node in [SOURCE, *range(2, num_nodes), SINK]:
+        here = potential[node]
+        if here == math.inf:
+            continue
+        for e in out_edges[node]:
+            there = here + costs[e]
+            if there < potential[heads[e]]:
+                potential[heads[e]] = there
+    used = [0] * num_edges
+    yield 0.0, np.zeros(num_edges, dtype=np.int64)
+    for _ in range(prog.max_flow):
+        if potential[SINK] == math.inf:
+            return
+        # Dijkstra on the residual graph: forward edges without flow, backward edges with.
+        dist = [math.inf] * num_nodes
+        via = [-1] * num_nodes  # edge reaching the node: e forward, ~e backward
+        dist[SOURCE] = 0.0
+        heap = [(0.0, SOURCE)]
+        done = [False] * num_nodes
+        while heap:
+            d, node = heapq.heappop(heap)
+            if done[node]:
+                continue
+            done[node] = True
+            pu = potential[node]
+            for e in out_edges[node]:
+                if used[e]:
+                    continue
+                v = heads[e]
+                if done[v]:
+                    continue
+                nd = d + max(costs[e] + pu - potential[v], 0.0)
+                if nd < dist[v]:
+                    dist[v] = nd
+                    via[v] = e
+                    heapq.heappush(heap, (nd, v))
+            for e in in_edges[node]:
+                if not used[e]:
+                    continue
+                v = tails[e]
+                if done[v]:
+                    continue
+                nd = d + max(-costs[e] + pu - potential[v], 0.0)
+                if nd < dist[v]:
+                    dist[v] = nd
+                    via[v] = ~e
+                    heapq.heappush(heap, (nd, v))
+        if not done[SINK]:
+            return
+        node = SINK
+        while node != SOURCE:
+            e = via[node]
+            if e >= 0:
+                used[e] = 1
+                node = tails[e]
+            else:
+                used[~e] = 0
+                node = heads[~e]
+        # Nodes not reached stay unreachable (new residual edges join reached nodes only).
+        for node in range(num_nodes):
+            potential[node] = potential[node] + dist[node] if done[node] else math.inf
+        total = math.fsum(costs[e] for e in range(num_edges) if used[e])
+        yield total, np.array(used, dtype=np.int64)
