@@ -124,6 +124,7 @@ from mapassoc.models.population import UndetectedTargets, recording_start, windo
 from mapassoc.solvers.networkx_flow import NetworkxFlowSolver
 from mapassoc.solvers.results import SolveStatus
 from mapassoc.trackers.base import TrackerOutput, check_scans
+from mapassoc.trackers.management import check_tracker_config
 
 __all__ = ["FlowTracker", "FlowWindowReport", "window_tails"]
 
@@ -305,14 +306,7 @@ class FlowTracker:
             )
         if solver not in _SOLVERS:
             raise InputError(f"solver must be one of {', '.join(_SOLVERS)}, got {solver!r}")
-        for sensor_name, sensor in config.sensors.items():
-            if not sensor.false_alarms_per_scan > 0:
-                raise InputError(
-                    f"sensor '{sensor_name}' has false_alarms_per_scan = "
-                    f"{sensor.false_alarms_per_scan}; the flow costs score detections against "
-                    "the false-alarm density and need a positive rate (use a small value such "
-                    "as 1e-6 for nearly clutter-free data)"
-                )
+        check_tracker_config(config)  # lambda > 0 and Pd * P_G < 1, as for GNN and JPDA
         self.config = config
         self.max_gap = max_gap
         self.window_length = length

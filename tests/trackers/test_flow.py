@@ -332,3 +332,11 @@ def test_crossing_every_target_is_tracked_and_gospa_is_near_the_oracle() -> None
     )
     assert scores.gospa <= 1.2 * oracle.gospa
     assert scores.gospa_missed == 0.0 and scores.gospa_false == 0.0
+
+
+def test_detection_that_cannot_be_missed_is_refused_up_front() -> None:
+    """Pd * P_G = 1 leaves a carried track no miss (log(1 - Pd P_G) = -inf): refused with
+    the same message as GNN and JPDA, not a solver failure in some later window."""
+    config = _config(detection_probability=1.0, gate_probability=1.0)
+    with pytest.raises(InputError, match="Pd \\* P_G = 1"):
+        FlowTracker(config=config)
