@@ -78,6 +78,7 @@ __all__ = [
     "check_tracker_config",
     "gated_log_ratios",
     "management_rule",
+    "new_target_log_ratio",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -305,6 +306,39 @@ def check_tracker_config(config: Config) -> None:
             )
 
 
+def new_target_log_ratio(
+    config: Config, scan: Scan, undetected: UndetectedTargets | None
+) -> tuple[float, UndetectedTargets]:
+    """The score of a track that starts at a detection of ``scan``, and the undetected
+    targets after the scan.
+
+    ``log(beta_NT / beta_FT) = log u + log Pd - log lambda_bar`` (Blackman & Popoli 1999,
+    eq. 6.8, with the new-target density ``beta_NT = u Pd / V`` and the false-alarm density
+    ``beta_FT = lambda_bar / V``; the window estimator's first-detection score,
+    :mod:`mapassoc.estimator.hypotheses`), where ``u`` is the expected number of targets
+    not detected before the scan (:func:`~mapassoc.models.population.window_population`);
+    ``-inf`` when ``u = 0``.
+
+    Parameters
+    ----------
+    config : Config
+    scan : Scan
+    undetected : UndetectedTargets or None
+        The undetected targets after the previous scan; ``None`` at the recording's start.
+    """
+    sensor = config.sensors[scan.sensor]
+    start = recording_start(config.birth, scan.time) if undetected is None else undetected
+    population = window_population([scan], [sensor.detection_probability], config.birth, start)
+    u = float(population.first_detection_means[0])
+    log_new = (
+        math.log(u) + math.log(sensor.detection_probability)
+        - math.log(sensor.false_alarms_per_scan)
+        if u > 0.0
+        else -math.inf
+    )
+    return log_new, population.after_scan[0]
+
+
 def gated_log_ratios(
     config: Config, tracks: Sequence[FilteredTrack], scan: Scan
 ) -> tuple[FloatArray, list[Innovations]]:
@@ -458,22 +492,8 @@ class TrackManager:
                 f"got {scan_index}"
             )
         self._scan_index = scan_index
-        sensor = self.config.sensors[scan.sensor]
-        start = self._undetected
-        if start is None:
-            start = recording_start(self.config.birth, scan.time)
-        population = window_population(
-            [scan], [sensor.detection_probability], self.config.birth, start
-        )
-        self._undetected = population.after_scan[0]
-        u = float(population.first_detection_means[0])
-        # Blackman & Popoli (1999) eq. 6.8: log(beta_NT / beta_FT) with beta_NT = u Pd / V
-        # and beta_FT = lambda_bar / V (hypotheses.py, "first detection").
-        self._log_new_target = (
-            math.log(u) + math.log(sensor.detection_probability)
-            - math.log(sensor.false_alarms_per_scan)
-            if u > 0.0
-            else -math.inf
+        self._log_new_target, self._undetected = new_target_log_ratio(
+            self.config, scan, self._undetected
         )
         self.live = [
             replace(track, filtered=predict_track(self.config, track.filtered, scan.time))
