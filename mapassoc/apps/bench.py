@@ -48,19 +48,17 @@ import time
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
-from numbers import Real
 from pathlib import Path
-from typing import Protocol, TextIO
+from typing import TextIO
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
 from mapassoc.data.config import Config
-from mapassoc.data.io import TruthTable
 from mapassoc.data.settings import K_PRIORS
 from mapassoc.errors import InputError
 from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.evaluation.calibration import count_scores, window_target_counts
 from mapassoc.evaluation.metrics import GospaSeries
 from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.scenarios import (
@@ -82,13 +80,10 @@ __all__ = [
     "SPEED_GOALS",
     "SCALE_FAMILIES",
     "GospaParts",
-    "CountScores",
     "RunResult",
     "FamilySummary",
     "ScaleGrowth",
     "BenchmarkResult",
-    "window_target_counts",
-    "count_scores",
     "bench_scenario",
     "summarize_family",
     "scale_growth",
@@ -149,27 +144,6 @@ class GospaParts:
             missed=series.mean_missed,
             false=series.mean_false,
         )
-
-
-@dataclass(frozen=True)
-class CountScores:
-    """How well p(K | Z) predicted the true number of targets, averaged over windows.
-
-    Parameters
-    ----------
-    brier : float
-        Mean over windows of the Brier score ``sum_K (p(K | Z) - 1[K = true K])^2``, in
-        [0, 2] for a probability vector: 0 for certainty on the true K, 2 for certainty
-        on a wrong one.
-    hit_rate : float
-        Fraction of windows whose ``marginal_k`` (argmax p(K | Z)) is the true K.
-    mean_p_true : float
-        Mean over windows of p(true K | Z).
-    """
-
-    brier: float
-    hit_rate: float
-    mean_p_true: float
 
 
 @dataclass(frozen=True)
@@ -491,149 +465,6 @@ def _check_k_priors(k_priors: Sequence[str]) -> list[str]:
 
 
 # --------------------------------------------------------------------------- p(K | Z)
-
-
-class _WindowSpan(Protocol):
-    """What :func:`window_target_counts` reads of a window (e.g. a ``WindowReport``)."""
-
-    @property
-    def start_time(self) -> float: ...
-
-    @property
-    def end_time(self) -> float: ...
-
-
-class _WindowCount(Protocol):
-    """What :func:`count_scores` reads of a window (e.g. a ``WindowReport``)."""
-
-    @property
-    def p_k(self) -> ArrayLike: ...
-
-    @property
-    def marginal_k(self) -> int: ...
-
-
-def window_target_counts(truth: TruthTable, windows: Sequence[_WindowSpan]) -> NDArray[np.int64]:
-    """The true number of targets in each window.
-
-    A target is in a window when the truth has a record of it at a time in
-    ``[start_time, end_time]`` of the window (both ends included), which is when it is
-    alive at one of the window's scans, detected or not: the K of p(K | Z).
-
-    Parameters
-    ----------
-    truth : TruthTable
-        One record per (target, time) at which the target is alive.
-    windows : sequence of window-like
-        Anything with ``start_time`` and ``end_time`` (finite, ``start_time <=
-        end_time``), such as :class:`~mapassoc.estimator.pipeline.WindowReport`.
-
-    Returns
-    -------
-    ndarray of int64, shape (len(windows),)
-        Distinct ``truth.target_ids`` with a record in each window.
-
-    Raises
-    ------
-    InputError
-        ``truth`` not a :class:`~mapassoc.data.io.TruthTable`, or a window without finite
-        times in order.
-
-    Examples
-    --------
-    Target 0 alive at t = 0, 1, 2 and target 1 at t = 2, 3: the window [0, 1] holds one
-    target, [1, 2] two and [3, 4] one.
-    """
-    if not isinstance(truth, TruthTable):
-        raise InputError(f"truth must be a TruthTable, got {type(truth).__name__}")
-    ids = np.asarray(truth.target_ids)
-    times = np.asarray(truth.times, dtype=float)
-    counts = np.empty(len(windows), dtype=np.int64)
-    for i, window in enumerate(windows):
-        start, end = window.start_time, window.end_time
-        if not (
-            isinstance(start, Real)
-            and isinstance(end, Real)
-            and math.isfinite(start)
-            and math.isfinite(end)
-            and start <= end
-        ):
-            raise InputError(
-                f"windows[{i}] must have finite start_time <= end_time, got start_time "
-                f"{start!r} and end_time {end!r}"
-            )
-        inside = (times >= start) & (times <= end)
-        counts[i] = np.unique(ids[inside]).size
-    return counts
-
-
-def count_scores(windows: Sequence[_WindowCount], true_counts: ArrayLike) -> CountScores:
-    """Score the windows' p(K | Z) against the true numbers of targets.
-
-    Per window, with ``p = p_k`` padded with zeros up to the true K (its
-    trailing zeros are implicit) and ``k`` the true K: the Brier score
-    ``sum_K (p[K] - 1[K = k])^2``, whether ``marginal_k == k`` and ``p[k]``; each is
-    averaged over the windows.
-
-    Parameters
-    ----------
-    windows : sequence of window-like
-        Anything with ``p_k`` (1-D, p(K | Z) for K = 0, 1, ...) and
-        ``marginal_k``, such as :class:`~mapassoc.estimator.pipeline.WindowReport`; at least one.
-    true_counts : array-like of int
-        True K of each window (:func:`window_target_counts`), >= 0, one per window.
-
-    Returns
-    -------
-    CountScores
-
-    Raises
-    ------
-    InputError
-        No window, ``true_counts`` not one integer >= 0 per window, or ``p_k``
-        not a 1-D vector of finite numbers in [0, 1].
-
-    Examples
-    --------
-    Windows with p = (0.2, 0.8), marginal K 1, true K 1, and p = (0.5, 0.5), marginal
-    K 0, true K 2: Brier scores 0.04 + 0.04 = 0.08 and 0.25 + 0.25 + 1 = 1.5, mean 0.79;
-    hit rate 0.5; mean p(true K) (0.8 + 0) / 2 = 0.4.
-    """
-    windows = list(windows)
-    if not windows:
-        raise InputError("windows must contain at least one window, got none")
-    truth_k = np.asarray(true_counts)
-    if (
-        truth_k.shape != (len(windows),)
-        or not np.issubdtype(truth_k.dtype, np.integer)
-        or np.any(truth_k < 0)
-    ):
-        raise InputError(
-            f"true_counts must hold one integer >= 0 per window ({len(windows)}), got "
-            f"{true_counts!r}"
-        )
-    brier = np.empty(len(windows))
-    p_true = np.empty(len(windows))
-    hits = np.empty(len(windows), dtype=bool)
-    for i, (window, k) in enumerate(zip(windows, truth_k.tolist(), strict=True)):
-        p = np.asarray(window.p_k, dtype=float)
-        if p.ndim != 1 or not np.all(np.isfinite(p)) or np.any((p < 0) | (p > 1)):
-            raise InputError(
-                f"windows[{i}].p_k must be a 1-D vector of probabilities in "
-                f"[0, 1], got {window.p_k!r}"
-            )
-        full = np.zeros(max(p.size, k + 1))
-        full[: p.size] = p
-        indicator = np.zeros_like(full)
-        indicator[k] = 1.0
-        brier[i] = float(np.sum((full - indicator) ** 2))
-        p_true[i] = full[k]
-        hits[i] = int(window.marginal_k) == k
-    return CountScores(
-        brier=float(brier.mean()),
-        hit_rate=float(hits.mean()),
-        mean_p_true=float(p_true.mean()),
-    )
 
 
 # --------------------------------------------------------------------------- one run

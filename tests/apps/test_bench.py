@@ -22,15 +22,14 @@ from mapassoc.apps.bench import (
     RunResult,
     _comparison_text,
     bench_scenario,
-    count_scores,
     run_benchmark,
     scale_growth,
     summarize_family,
-    window_target_counts,
 )
 from mapassoc.apps.cli import build_parser, main
 from mapassoc.data.io import TruthTable
 from mapassoc.errors import InputError
+from mapassoc.evaluation.calibration import count_scores, window_target_counts
 from mapassoc.evaluation.scenarios import build_scenario, scenario_names, truncate_scenario
 
 # A few scans of the crossing scenario: enough for several 3-scan windows, fast.
