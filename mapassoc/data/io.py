@@ -830,6 +830,45 @@ class TrackTable(_StateRecords):
         object.__setattr__(self, "variances", variances)
         object.__setattr__(self, "detection_rows", rows)
 
+    @classmethod
+    def from_steps(
+        cls,
+        *,
+        track_ids: Sequence[int],
+        times: Sequence[float],
+        sensors: Sequence[str],
+        scan_indices: Sequence[int],
+        states: Sequence[FloatArray],
+        variances: Sequence[FloatArray],
+        detection_rows: Sequence[int],
+        state_names: tuple[str, ...],
+    ) -> TrackTable:
+        """A table from one record per (track, scan) in any order, sorted by (time, track
+        id, scan index): the order every tracker writes.
+
+        ``states`` and ``variances`` hold one ``(n,)`` vector per record, ``n =
+        len(state_names)``; ``scan_indices`` only breaks ties between the scans of two
+        sensors at one time.
+        """
+        n = len(state_names)
+        count = len(track_ids)
+        order = np.lexsort(
+            (
+                np.asarray(scan_indices, dtype=np.int64),
+                np.asarray(track_ids, dtype=np.int64),
+                np.asarray(times, dtype=float),
+            )
+        )
+        return cls(
+            track_ids=np.asarray(track_ids, dtype=np.int64)[order],
+            times=np.asarray(times, dtype=float)[order],
+            sensors=tuple(sensors[i] for i in order),
+            states=np.asarray(states, dtype=float).reshape(count, n)[order],
+            variances=np.asarray(variances, dtype=float).reshape(count, n)[order],
+            detection_rows=np.asarray(detection_rows, dtype=np.int64)[order],
+            state_names=tuple(state_names),
+        )
+
 
 
 # --------------------------------------------------------------------------- truth

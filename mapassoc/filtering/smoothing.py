@@ -251,7 +251,6 @@ def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Con
     InputError
         A track without detections, or a scan or detection index out of range.
     """
-    n = config.motion.state_dim
     ids: list[int] = []
     times: list[float] = []
     sensors: list[str] = []
@@ -280,13 +279,13 @@ def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Con
             states.append(mean)
             variances.append(np.diagonal(covariance).copy())
             rows.append(row)
-    order = np.lexsort((np.array(order_keys), np.array(ids), np.array(times)))
-    return TrackTable(
-        track_ids=np.array(ids, dtype=np.int64)[order],
-        times=np.array(times, dtype=float)[order],
-        sensors=tuple(sensors[i] for i in order),
-        states=np.array(states, dtype=float).reshape(len(ids), n)[order],
-        variances=np.array(variances, dtype=float).reshape(len(ids), n)[order],
-        detection_rows=np.array(rows, dtype=np.int64)[order],
+    return TrackTable.from_steps(
+        track_ids=ids,
+        times=times,
+        sensors=sensors,
+        scan_indices=order_keys,
+        states=states,
+        variances=variances,
+        detection_rows=rows,
         state_names=tuple(config.motion.state_names),
     )

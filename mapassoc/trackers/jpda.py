@@ -280,7 +280,6 @@ def _track_table(
 ) -> TrackTable:
     """Filtered moments of each confirmed track up to its last step with a detection."""
     motion = config.motion
-    n = motion.state_dim
     ids: list[int] = []
     times: list[float] = []
     sensors: list[str] = []
@@ -307,14 +306,14 @@ def _track_table(
             states.append(x)
             variances.append(np.diagonal(P).copy())
             rows.append(int(scan.rows[step.detection]) if step.detection >= 0 else -1)
-    order = np.lexsort((np.array(keys), np.array(ids), np.array(times)))
-    return TrackTable(
-        track_ids=np.array(ids, dtype=np.int64)[order],
-        times=np.array(times, dtype=float)[order],
-        sensors=tuple(sensors[i] for i in order),
-        states=np.array(states, dtype=float).reshape(len(ids), n)[order],
-        variances=np.array(variances, dtype=float).reshape(len(ids), n)[order],
-        detection_rows=np.array(rows, dtype=np.int64)[order],
+    return TrackTable.from_steps(
+        track_ids=ids,
+        times=times,
+        sensors=sensors,
+        scan_indices=keys,
+        states=states,
+        variances=variances,
+        detection_rows=rows,
         state_names=tuple(motion.state_names),
     )
 
