@@ -76,8 +76,166 @@ def _check_k_estimates(ns: dict) -> None:  # type: ignore[type-arg]
         assert longest.loc[prior, "brier"] < one.loc[prior, "brier"]
 
 
+def _check_solver_comparison(ns: dict) -> None:  # type: ignore[type-arg]
+    """What the notebook's text claims: every ILP is optimal and equals enumeration
+    wherever both ran (1e-9) and the frontier search on exact windows; the LP (simplex
+    and Clarabel) is >= the ILP everywhere; the relaxation is tight on the crossing and
+    dense windows and not on the parallel ones; Clarabel's fractional points with an
+    integral simplex vertex are ties (gap 0); the flow's cost is convex, its chosen set
+    scored by the Kalman model is no better than the ILP optimum for its K, and equals
+    it where the text says so; the tracks' true origins are as the text describes them
+    (the flow's extra paths, the hops on parallel, the swap at the crossing)."""
+    import numpy as np
+
+    results, windows = ns["results"], ns["windows"]
+    assert len(results) == len(windows) * len(ns["T_VALUES"])
+    assert (results["ilp_status"] == "optimal").all()
+    assert (results["lp_simplex"] >= results["ilp"] - 1e-7).all()
+    assert (results["lp_clarabel"] >= results["ilp"] - 1e-7).all()
+    np.testing.assert_allclose(results["lp_clarabel"], results["lp_simplex"], atol=1e-5)
+    share = results["simplex_integral"].mean()
+    assert 0.5 < share < 1.0
+    tight = results["window"].str.startswith(("crossing", "dense"))
+    assert results.loc[tight, "gap"].abs().max() <= 1e-7
+    assert results.loc[tight, "simplex_integral"].all()
+    assert (results.loc[~tight].groupby("window")["gap"].max() > 1e-3).all()
+    # A fractional simplex vertex exactly where the LP is not tight.
+    assert ((results["gap"] > 1e-7) == ~results["simplex_integral"]).all()
+    ties = results[results["simplex_integral"] & ~results["clarabel_integral"]]
+    assert len(ties) > 0 and ties["gap"].abs().max() <= 1e-7
+    exact = results["window"].map(lambda n: windows[n][2].status == "exact")
+    np.testing.assert_allclose(
+        results.loc[exact, "ilp"], results.loc[exact, "table_best"], atol=1e-9
+    )
+    assert (results["ilp"] <= results["table_upper"] + 1e-7).all()
+    finite = np.isfinite(results["table_best"])
+    assert (results.loc[finite, "ilp"] >= results.loc[finite, "table_best"] - 1e-7).all()
+
+    enum_table = ns["enum_table"]
+    assert len(enum_table) > 100
+    assert (enum_table["enum_status"] == enum_table["ilp_status"]).all()
+    both = enum_table[enum_table["enum_status"] == "optimal"]
+    assert len(both) > 100
+    np.testing.assert_allclose(both["ilp"], both["enumeration"], atol=1e-9, rtol=0)
+
+    flow = ns["flow_table"]
+    assert flow["flow_convex"].all() and flow["ilp_concave"].all()
+    assert (flow["flow_K"] >= 1).all()
+    kalman = flow["flow_set_kalman"].dropna()
+    assert (kalman <= flow.loc[kalman.index, "ilp_best_at_flow_K"] + 1e-9).all()
+    for name in ("crossing@0", "crossing@28", "dense@10"):
+        assert abs(flow.loc[name, "flow_set_kalman"] - flow.loc[name, "ilp_best_at_flow_K"]) < 1e-9
+        assert flow.loc[name, "flow_K"] == flow.loc[name, "map_joint_T"]
+        assert flow.loc[name, "max_flow_minus_ilp"] < 0
+    for name in ("parallel@20", "parallel@30"):
+        assert flow.loc[name, "flow_K"] == flow.loc[name, "map_joint_T"] + 1
+        assert np.isnan(flow.loc[name, "flow_set_kalman"])
+    assert flow.loc["parallel@30", "max_flow_minus_ilp"] > 0
+    for name in ("crossing@0", "crossing@28", "dense@10"):
+        assert flow.loc[name, "shared_with_map"] == flow.loc[name, "flow_K"]
+    assert flow.loc["parallel@20", "shared_with_map"] == 4
+    assert flow.loc["crossing@0", "flow_K"] < flow.loc["crossing@0", "targets"]
+    assert flow.loc["dense@10", "flow_K"] < flow.loc["dense@10", "targets"]
+
+    origins = ns["track_origins"]
+    extra = origins[(origins["method"] == "flow") & ~origins["hypothesis"]]
+    assert extra.groupby("window").size().to_dict() == {"parallel@20": 1, "parallel@30": 1}
+    assert extra.set_index("window").loc["parallel@20", "false_alarms_only"]
+    assert set(extra.set_index("window").loc["parallel@30", "origins"]) == {-1, 3, 4}
+    hop = origins[(origins["window"] == "parallel@20")]
+    assert not hop["one_target"].any()
+    swapped = origins[origins["window"] == "crossing@28"]["origins"].map(tuple)
+    assert swapped.value_counts()[(4, 4, 3, 4, 4)] == 2  # MAP and flow
+
+
+def _check_compare_methods(ns: dict) -> None:  # type: ignore[type-arg]
+    """What the notebook prints and claims: one run per (scenario, seed, tracker), all
+    ok and all with tracks; one summary row per (scenario, tracker); the printed table
+    is the summary's numbers; the oracle has the lowest GOSPA in every scenario; MAP and
+    LP agree where the text says so; the per-scenario claims of the reading hold; the
+    drawn tracks are the ones scored in the table."""
+    import math
+
+    import numpy as np
+
+    from mapassoc.apps.compare import _FORMAT_COLUMNS
+
+    table, summary = ns["table"], ns["summary"]
+    names, scenarios, seeds = ns["TRACKER_NAMES"], list(ns["SCENARIOS"]), ns["SEEDS"]
+    assert {"map", "gnn", "jpda", "flow", "oracle"} <= set(names)
+    assert len(table) == len(scenarios) * len(seeds) * len(names)
+    assert (table["status"] == "ok").all() and (table["num_tracks"] > 0).all()
+    assert len(summary) == len(scenarios) * len(names)
+    assert not summary.duplicated(["scenario", "tracker"]).any()
+    assert (summary["runs"] == len(seeds)).all()
+
+    # The printed table: every number is the summary's, at the printed precision.
+    lines = ns["text"].splitlines()[2:]
+    assert len(lines) == len(summary)
+    for line, (_, row) in zip(lines, summary.iterrows(), strict=True):
+        tokens = line.split()
+        assert tokens[:3] == [row["scenario"], row["tracker"], str(int(row["runs"]))]
+        for token, (column, _, fmt) in zip(tokens[3:], _FORMAT_COLUMNS, strict=True):
+            value = row.get(column)
+            if token == "-":
+                assert value is None or math.isnan(value)
+            else:
+                decimals = int(fmt.split(".")[1][0])
+                assert abs(float(token) - float(value)) <= 0.5 * 10.0**-decimals + 1e-12
+
+    gospa = summary.set_index(["scenario", "tracker"])["gospa"].unstack("tracker")
+    for family in scenarios:
+        others = gospa.loc[family].drop("oracle")
+        assert gospa.loc[family, "oracle"] < others.min()
+        assert sorted(ns["best"][family]) == sorted(others.index[others == others.min()])
+
+    per_scan = ns["per_scan"]
+    ratio = per_scan["GOSPA / oracle"]
+    missed = per_scan["missed targets / scan"]
+    false = per_scan["false tracks / scan"]
+    loc = summary.set_index(["scenario", "tracker"])["gospa_localisation"].unstack("tracker")
+    assert ratio.loc["map", "crossing"] < 1.04 and ratio.loc["flow", "crossing"] < 1.07
+    assert (false.loc[["gnn", "jpda", "mht"], "crossing"] > 0).all()
+    assert false.loc["map", "crossing"] == 0
+    assert loc.loc["crossing"].drop("oracle").idxmax() == "jpda"
+    assert ratio["dense"].drop("oracle").idxmin() == "mht"
+    assert missed["dense"].drop("oracle").idxmin() == "mht"
+    assert round(missed.loc["map", "dense"], 2) == 0.33
+    assert round(false.loc["map", "dense"], 2) == 0.18
+    assert (missed.loc[["gnn", "jpda"], "dense"].round(2) == 0.47).all()
+    assert (false.loc[["gnn", "jpda"], "dense"] == 0).all()
+    assert (missed.loc[["gnn", "jpda"], "dense"] > missed.loc["map", "dense"]).all()
+    assert (ratio["parallel"].drop("oracle") >= 4.5).all()
+    assert missed["parallel"].drop("oracle").idxmin() == "jpda"
+    assert loc.loc["parallel"].drop("oracle").idxmax() == "jpda"
+    assert (missed.loc[["map", "gnn", "mht", "flow"], "parallel"] >= 0.75).all()
+    brier = summary.set_index(["scenario", "tracker"])["k_brier"]
+    assert round(brier[("parallel", "map")], 2) == 1.57
+    assert round(brier[("crossing", "map")], 2) == 0.25
+    switches = summary.set_index(["scenario", "tracker"])["id_switches"]
+    assert switches[("parallel", "map")] == 0.5
+    assert (switches.drop(("parallel", "map")) == 0).all()
+    if "lp" in names:
+        rows = summary.set_index(["scenario", "tracker"])
+        for family in ("crossing", "dense"):
+            for column in ("gospa", "gospa_localisation", "ospa2", "mota", "k_brier"):
+                assert rows.loc[(family, "map"), column] == rows.loc[(family, "lp"), column]
+        assert rows.loc[("parallel", "map"), "gospa"] != rows.loc[("parallel", "lp"), "gospa"]
+        assert (rows.xs("lp", level="tracker")["seconds"]
+                > rows.xs("map", level="tracker")["seconds"]).all()
+    seconds = summary.set_index("tracker")["seconds"]
+    assert (seconds.loc[["gnn", "jpda"]] < 1.0).all()
+
+    # The drawn tracks are the table's seed-0 crossing runs.
+    first = table[(table["scenario"] == "crossing") & (table["seed"] == 0)].set_index("tracker")
+    for name, value in ns["replayed"].items():
+        np.testing.assert_allclose(value, first.loc[name, "gospa"], rtol=0, atol=1e-9)
+
+
 RESULT_CHECKS = {
+    "compare_methods.ipynb": _check_compare_methods,
     "window_posterior.ipynb": _check_window_posterior,
     "hard_window.ipynb": _check_hard_window,
     "k_estimates.ipynb": _check_k_estimates,
+    "solver_comparison.ipynb": _check_solver_comparison,
 }
