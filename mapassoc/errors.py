@@ -1,4 +1,4 @@
-"""Exceptions raised by mapassoc for bad input.
+"""Exceptions raised by mapassoc for bad input and for outputs that cannot be written.
 
 Every error names what is wrong: the argument, file, row, column or configuration
 key, the offending value and what was expected.  Solver failures live in
@@ -13,6 +13,7 @@ __all__ = [
     "ConfigError",
     "DataFileError",
     "NotPositiveDefiniteError",
+    "OutputError",
 ]
 
 
@@ -90,3 +91,19 @@ class DataFileError(MapassocError, ValueError):
 
 class NotPositiveDefiniteError(MapassocError, ValueError):
     """A covariance matrix that must be symmetric positive-definite is not."""
+
+
+class OutputError(MapassocError):
+    """An output (a file, a run folder, standard output) cannot be written.
+
+    Parameters
+    ----------
+    path : str
+        The file or folder (``"<stdout>"`` for standard output).
+    message : str
+        What is wrong (the operating system's reason) and what to do.
+    """
+
+    def __init__(self, path: str, message: str) -> None:
+        self.path = path
+        super().__init__(f"{path}: {message}")

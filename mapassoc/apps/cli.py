@@ -17,14 +17,15 @@ exit with status 2; outputs already written stay on disk.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 from mapassoc import __version__
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
-from mapassoc.apps.runs import json_dump, run_files
-from mapassoc.errors import MapassocError
+from mapassoc.apps.runs import RunInterrupted, StopFlag, json_dump, run_files, stop_on_signals
+from mapassoc.errors import MapassocError, OutputError
 
 __all__ = ["main", "build_parser"]
 
@@ -43,23 +44,40 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from mapassoc.evaluation.simulate import write_scenario
 
     scenario = build_scenario(args.name, args.seed)
-    paths = write_scenario(scenario, args.out)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(str(out), "is a file, not a folder; choose another --out")
+    if out.is_dir() and any(out.iterdir()) and not args.overwrite:
+        raise OutputError(
+            str(out), "is not empty; pass --overwrite to replace its scenario files"
+        )
+    paths = write_scenario(scenario, out)
     for kind, path in paths.items():
         print(f"{kind:10s} {path}")
     return 0
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    summary = run_files(
-        args.config,
-        args.detections,
-        args.out,
-        timings=not args.no_timings,
-        progress=not args.no_progress,
-    )
+    with stop_on_signals(StopFlag()) as stop:
+        outcome = run_files(
+            args.config,
+            args.detections,
+            args.out,
+            timings=not args.no_timings,
+            progress=not args.no_progress,
+            overwrite=args.overwrite,
+            resume=args.resume,
+            checkpoint_seconds=args.checkpoint_seconds,
+            stop=stop,
+        )
+    summary = outcome.summary
+    if outcome.status == "skipped":
+        print(f"{args.out} is complete already ({summary['tracks']} tracks); nothing to resume")
+        return 0
+    resumed = f" (resumed at scan {outcome.resumed_at})" if outcome.resumed_at else ""
     print(
         f"{summary['tracks']} tracks over {summary['scans']} scans in {summary['windows']} "
-        f"windows -> {args.out}/tracks.csv, windows.jsonl, summary.json"
+        f"windows{resumed} -> {args.out}/tracks.csv, windows.jsonl, summary.json, manifest.json"
     )
     return 0
 
@@ -166,6 +184,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("name", help="scenario name (see `mapassoc scenarios`)")
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument(
+        "--overwrite", action="store_true", help="write into a non-empty --out (replacing)"
+    )
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser(
@@ -184,7 +205,30 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="leave run times out of the outputs, so that equal inputs give byte-identical files",
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress (else a bar on a terminal, a log line every 30 s otherwise)",
+    )
+    again = p.add_mutually_exclusive_group()
+    again.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace what --out holds (once the new run is complete)",
+    )
+    again.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the interrupted run of --out (OUT.partial) from its last checkpoint; "
+        "nothing to do when --out is complete",
+    )
+    p.add_argument(
+        "--checkpoint-seconds",
+        type=float,
+        default=10.0,
+        metavar="SECONDS",
+        help="least time between two checkpoints (default 10; 0: after every window)",
+    )
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser(
@@ -337,14 +381,48 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+EXIT_INTERRUPTED = 130
+"""Exit status of a run stopped by SIGINT or SIGTERM (128 + SIGINT, the shell's convention)."""
+
+
+def _close_stdout_quietly() -> None:
+    """Point stdout at /dev/null so that Python's exit flush does not fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # stdout is no file: nothing to flush at exit either
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``mapassoc`` command; returns the exit status."""
+    """Entry point of the ``mapassoc`` command; returns the exit status.
+
+    Input errors and output errors print one line naming the file (or ``<stdout>``) and
+    return 2; a run stopped by a signal prints one line and returns 130.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.func(args))
-    except (MapassocError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        status = int(args.func(args))
+        sys.stdout.flush()
+        return status
+    except RunInterrupted as exc:
+        print(f"mapassoc: {exc}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        _close_stdout_quietly()
+        error = OutputError("<stdout>", "broken pipe: the reader closed it before the end")
+        print(f"mapassoc: error: {error}", file=sys.stderr)
+        return 2
+    except MapassocError as exc:
         print(f"mapassoc: error: {exc}", file=sys.stderr)
+        for note in getattr(exc, "__notes__", ()):
+            print(f"mapassoc: error: {note}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        where = exc.filename if exc.filename is not None else "mapassoc"
+        print(f"mapassoc: error: {where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
 
 

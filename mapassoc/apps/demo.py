@@ -1,7 +1,7 @@
 """``mapassoc demo``: a built-in scenario end to end, next to the oracle.
 
 Simulates the scenario into ``OUT/scenario/``, runs the estimator on those files
-exactly as ``mapassoc run`` would (outputs in ``OUT/``), smooths the true
+exactly as ``mapassoc run`` would (the run folder ``OUT/run/``), smooths the true
 associations (the oracle, ``OUT/oracle_tracks.csv``), prints GOSPA of both and
 plots detections, truth and tracks (``OUT/tracks.png``).
 """
@@ -53,8 +53,11 @@ def run_demo(
     built = build_scenario(scenario, seed)
     print(f"scenario {scenario!r} (seed {seed}): {describe_scenario(scenario)}")
     paths = write_scenario(built, out_dir / "scenario")
-    summary = run_files(paths["config"], paths["detections"], out_dir, progress=True)
-    tracks = read_tracks(out_dir / "tracks.csv")
+    run_dir = out_dir / "run"
+    summary = run_files(
+        paths["config"], paths["detections"], run_dir, progress=True, overwrite=True
+    ).summary
+    tracks = read_tracks(run_dir / "tracks.csv")
     oracle = oracle_tracks(built.scans, built.origins, built.config)
     write_tracks(out_dir / "oracle_tracks.csv", oracle)
     rows = {
@@ -81,5 +84,8 @@ def run_demo(
             title=f"mapassoc on '{scenario}' (seed {seed}): GOSPA {ratio:.2f} x oracle",
         )
         print(f"plot: {png}")
-    print(f"outputs: {out_dir}/tracks.csv, windows.jsonl, summary.json, oracle_tracks.csv")
+    print(
+        f"outputs: {run_dir}/ (tracks.csv, windows.jsonl, summary.json, manifest.json), "
+        f"{out_dir}/oracle_tracks.csv, {out_dir}/scenario/"
+    )
     return rows

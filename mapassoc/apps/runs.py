@@ -1,82 +1,394 @@
-"""Running the estimator on files: what ``mapassoc run`` and ``mapassoc demo`` share."""
+"""Running the estimator on files: what ``mapassoc run``, ``batch`` and ``demo`` share.
+
+:func:`run_files` reads a configuration and a detections file and writes one run folder
+(:mod:`mapassoc.apps.run_folders`): ``windows.jsonl`` line by line while the run goes
+on, then ``tracks.csv``, ``summary.json`` and ``manifest.json``.  It checkpoints the
+estimator's state every ``checkpoint_seconds`` and whenever it is asked to stop (at a
+window boundary), and ``resume=True`` continues from the last checkpoint, so that the
+final files are byte-identical (with ``timings=False``) to those of a run that never
+stopped.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import json
+import os
+import signal
 import sys
+import threading
+import time
 import warnings
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from types import FrameType
+from typing import Any, BinaryIO
 
-from mapassoc import __version__
+from mapassoc.apps.progress import Progress
+from mapassoc.apps.run_folders import RunFolder, file_identity, new_manifest, now_text, os_reason
+from mapassoc.errors import InputError, MapassocError, OutputError
 
-__all__ = ["json_dump", "run_files"]
+__all__ = [
+    "RunOutcome",
+    "RunInterrupted",
+    "StopFlag",
+    "json_dump",
+    "run_files",
+    "stop_on_signals",
+]
+
+WINDOWS_NAME = "windows.jsonl"
+TRACKS_NAME = "tracks.csv"
+SUMMARY_NAME = "summary.json"
 
 
-class _Progress:
-    """A one-line progress bar on stderr (only when stderr is a terminal)."""
+class RunInterrupted(MapassocError):
+    """A run stopped on request (SIGINT, SIGTERM) at a window boundary, checkpointed.
 
-    def __init__(self, stream: TextIO, enabled: bool) -> None:
-        self.stream = stream
-        self.enabled = enabled and stream.isatty()
+    Attributes
+    ----------
+    partial : Path
+        The run folder holding the checkpoint (``OUT.partial``).
+    scans_committed, scans_total : int
+    """
 
-    def __call__(self, done: int, total: int) -> None:
-        if not self.enabled:
-            return
-        width = 30
-        filled = int(width * done / total) if total else width
-        self.stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} scans")
-        if done >= total:
-            self.stream.write("\n")
-        self.stream.flush()
+    def __init__(self, partial: Path, scans_committed: int, scans_total: int) -> None:
+        self.partial = partial
+        self.scans_committed = scans_committed
+        self.scans_total = scans_total
+        super().__init__(
+            f"interrupted after {scans_committed} of {scans_total} scans; the run so far is "
+            f"in {partial} (continue it with --resume)"
+        )
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What :func:`run_files` did.
+
+    Attributes
+    ----------
+    out : Path
+        The run folder.
+    status : str
+        ``"complete"`` (ran to the end now) or ``"skipped"`` (``resume`` found the run
+        complete already).
+    summary : dict
+        The run's ``summary.json``.
+    resumed_at : int
+        Scans committed before this session (0 for a run from the start).
+    seconds : float
+        Wall time of this session.
+    """
+
+    out: Path
+    status: str
+    summary: dict[str, Any]
+    resumed_at: int
+    seconds: float
+
+
+class StopFlag:
+    """A stop request, set by a signal handler (or by hand) and read at window boundaries."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+        self.signal_name: str | None = None
+
+    def set(self, signal_name: str = "request") -> None:
+        self.signal_name = signal_name
+        self._event.set()
+
+    def __call__(self) -> bool:
+        return self._event.is_set()
+
+
+@contextlib.contextmanager
+def stop_on_signals(flag: StopFlag, *, notice: bool = True) -> Iterator[StopFlag]:
+    """Turn SIGINT and SIGTERM into ``flag.set()`` while the block runs.
+
+    The first signal asks the run to stop after the current window (and says so on
+    stderr when ``notice``); a second SIGINT raises KeyboardInterrupt at once.  Outside
+    the main thread (signal handlers cannot be installed there) the block runs unchanged.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield flag
+        return
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        name = signal.Signals(signum).name
+        if flag() and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        flag.set(name)
+        if notice:
+            print(
+                f"mapassoc: {name}: stopping after the current window "
+                "(Ctrl-C again to stop at once)",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield flag
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def json_dump(data: object, path: Path) -> None:
-    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    """Write ``data`` as indented JSON; an OSError becomes an OutputError naming ``path``."""
+    try:
+        path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
+
+
+def _settings_record(config: Any, timings: bool) -> dict[str, object]:
+    """The settings a resumed run must share with its first session."""
+    return {
+        "timings": timings,
+        "estimator": dataclasses.asdict(config.estimator),
+        "birth": dataclasses.asdict(config.birth),
+    }
+
+
+def _same_run(manifest: dict[str, Any], inputs: dict[str, Any], settings: dict[str, Any],
+              folder: Path) -> None:
+    """Raise InputError unless ``manifest`` is of a run over the same inputs and settings."""
+    for kind in ("config", "detections"):
+        before = manifest["inputs"][kind]
+        if before["sha256"] != inputs[kind]["sha256"]:
+            raise InputError(
+                f"cannot resume {folder}: the {kind} file {inputs[kind]['path']} differs from "
+                f"the one the run started with ({before['path']}, sha256 "
+                f"{before['sha256'][:12]}...); pass --overwrite to start again"
+            )
+    if manifest["settings"] != json.loads(json.dumps(settings)):
+        changed = sorted(
+            key for key in settings if manifest["settings"].get(key) != settings[key]
+        )
+        raise InputError(
+            f"cannot resume {folder}: settings {changed} differ from those the run started "
+            "with (for example --no-timings); resume with the same options, or --overwrite"
+        )
 
 
 def run_files(
-    config_path: str | Path,
-    detections_path: str | Path,
-    out_dir: str | Path,
+    config_path: str | os.PathLike[str],
+    detections_path: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
     *,
     timings: bool = True,
     progress: bool = True,
-) -> dict[str, object]:
-    """Read a configuration and a detections file, estimate tracks, write the outputs.
+    overwrite: bool = False,
+    resume: bool = False,
+    checkpoint_seconds: float = 10.0,
+    stop: Callable[[], bool] | None = None,
+    log_seconds: float = 30.0,
+) -> RunOutcome:
+    """Read a configuration and a detections file, estimate tracks, write a run folder.
 
-    Writes ``windows.jsonl`` line by line while the run goes on, then ``tracks.csv``
-    and ``summary.json``.  Returns the summary.
+    Parameters
+    ----------
+    config_path, detections_path : path
+        The TOML configuration and the detections file (CSV, or Parquet by suffix).
+    out_dir : path
+        The run folder ``OUT`` (see :mod:`mapassoc.apps.run_folders`).
+    timings : bool
+        False leaves run times out of ``windows.jsonl`` and ``summary.json``.
+    progress : bool
+        Progress on stderr (a bar on a terminal, else a line every ``log_seconds``).
+    overwrite : bool
+        Replace what ``OUT`` holds (only once the new run is complete).
+    resume : bool
+        Continue the unfinished run in ``OUT.partial``; skip when ``OUT`` is complete
+        over the same inputs; start afresh when there is nothing to continue.
+    checkpoint_seconds : float
+        Least interval between two checkpoints (>= 0; 0 checkpoints after every window).
+    stop : callable, optional
+        Polled at every window boundary; when it returns True the run checkpoints and
+        raises :class:`RunInterrupted`.
+
+    Raises
+    ------
+    InputError, DataFileError, ConfigError
+        Bad inputs (nothing is created then).
+    OutputError
+        ``OUT`` is unusable or a write failed (the manifest says ``failed`` where it can
+        be written; the last checkpoint stays, so ``resume`` continues after the fix).
+    RunInterrupted
+        ``stop`` returned True.
     """
     from mapassoc.data.config import load_config
-    from mapassoc.data.io import read_detections, write_tracks
+    from mapassoc.data.io import read_detections as read_detections_file
+    from mapassoc.data.io import write_tracks as write_tracks_file
     from mapassoc.estimator.pipeline import WindowEstimator
 
+    if overwrite and resume:
+        raise InputError("--overwrite and --resume exclude each other; choose one")
+    if not (checkpoint_seconds >= 0):
+        raise InputError(f"checkpoint_seconds must be >= 0, got {checkpoint_seconds!r}")
+    t_session = time.perf_counter()
+    folder = RunFolder(out_dir)
+    folder.check_writable_place()
+    if not (overwrite or resume):
+        folder.refuse_existing()
+
     config = load_config(config_path)
-    scans = read_detections(detections_path, config.sensors)
+    scans = read_detections_file(detections_path, config.sensors)
+    inputs = {"config": file_identity(config_path), "detections": file_identity(detections_path)}
+    settings = _settings_record(config, timings)
+
+    checkpoint: dict[str, Any] | None = None
+    manifest: dict[str, Any] | None = None
+    if resume:
+        partial = folder.partial_manifest()
+        final = folder.final_manifest()
+        if partial is not None:
+            _same_run(partial, inputs, settings, folder.partial)
+            if partial["status"] == "complete":  # stopped between its last two renames
+                folder.complete()
+                summary = json.loads((folder.path / SUMMARY_NAME).read_text(encoding="utf-8"))
+                return RunOutcome(folder.path, "complete", summary, int(partial["scans_total"]),
+                                  time.perf_counter() - t_session)
+            checkpoint = folder.read_checkpoint()  # type: ignore[assignment]
+            if checkpoint is not None:
+                manifest = partial
+        elif final is not None and final["status"] == "complete":
+            _same_run(final, inputs, settings, folder.path)
+            summary = json.loads((folder.path / SUMMARY_NAME).read_text(encoding="utf-8"))
+            return RunOutcome(folder.path, "skipped", summary, int(final["scans_total"]), 0.0)
+        elif folder.path.exists() and final is None and any(folder.path.iterdir()):
+            raise OutputError(
+                str(folder.path), "is not empty and holds no mapassoc run; choose another --out"
+            )
+
     estimator = WindowEstimator(config=config)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    with (
-        (out / "windows.jsonl").open("w", encoding="utf-8") as stream,
-        warnings.catch_warnings(record=True) as caught,
-    ):
+    with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        state = estimator.start(scans)
+        folder.begin(fresh=checkpoint is None)
+        if checkpoint is None:
+            manifest = new_manifest(inputs=inputs, settings=settings, scans_total=len(scans))
+            messages = [str(w.message) for w in caught]
+            windows_bytes = 0
+        else:
+            assert manifest is not None
+            manifest.update(status="running", sessions=int(manifest["sessions"]) + 1, error=None)
+            state = checkpoint["state"]
+            messages = list(checkpoint["warnings"])
+            windows_bytes = int(checkpoint["windows_bytes"])
+        seen = len(caught)
+        folder.write_manifest(manifest)
+        resumed_at = state.next_scan
+        windows_path = folder.partial / WINDOWS_NAME
+        ticker = Progress(
+            sys.stderr,
+            label="run",
+            unit="scans",
+            enabled=progress,
+            log_seconds=log_seconds,
+            initial=resumed_at,
+        )
+        writing = windows_path
 
-        def on_window(report: object) -> None:
-            stream.write(json.dumps(report.to_json(timings=timings), allow_nan=False) + "\n")  # type: ignore[attr-defined]
+        def save(status: str, error: BaseException | None = None) -> None:
+            manifest.update(
+                status=status,
+                scans_committed=state.next_scan,
+                windows_committed=state.tally.windows,
+                error=None if error is None else str(error),
+            )
+            if status != "running":
+                manifest["ended"] = now_text()
+            folder.write_manifest(manifest)
+
+        def save_checkpoint(stream: BinaryIO) -> None:
             stream.flush()
+            os.fsync(stream.fileno())
+            folder.write_checkpoint(
+                {"state": state, "windows_bytes": stream.tell(), "warnings": list(messages)}
+            )
+            save("running")
 
-        result = estimator.run(scans, progress=_Progress(sys.stderr, progress), on_window=on_window)
-    write_tracks(out / "tracks.csv", result.tracks)
-    summary: dict[str, object] = {
-        "mapassoc_version": __version__,
-        "config": str(config_path),
-        "detections": str(detections_path),
-        **result.summary(timings=timings),
-        "warnings": [str(w.message) for w in caught],
-    }
-    json_dump(summary, out / "summary.json")
-    for w in caught:
-        print(f"mapassoc: warning: {w.message}", file=sys.stderr)
-    return summary
+        try:
+            stream = _open_windows(windows_path, windows_bytes)
+            with stream:
+                last_checkpoint = time.monotonic()
+                while not state.done:
+                    if stop is not None and stop():
+                        save_checkpoint(stream)
+                        save("interrupted")
+                        raise RunInterrupted(folder.partial, state.next_scan, len(scans))
+                    report = estimator.step(scans, state)
+                    line = json.dumps(report.to_json(timings=timings), allow_nan=False) + "\n"
+                    stream.write(line.encode("utf-8"))
+                    stream.flush()
+                    messages.extend(str(w.message) for w in caught[seen:])
+                    seen = len(caught)
+                    ticker(state.next_scan, state.total_scans)
+                    if time.monotonic() - last_checkpoint >= checkpoint_seconds:
+                        save_checkpoint(stream)
+                        last_checkpoint = time.monotonic()
+                save_checkpoint(stream)
+            result = estimator.finish(scans, state)
+            messages.extend(str(w.message) for w in caught[seen:])
+            summary: dict[str, object] = {
+                "mapassoc_version": manifest["mapassoc_version"],
+                "config": manifest["inputs"]["config"]["path"],
+                "detections": manifest["inputs"]["detections"]["path"],
+                **result.summary(timings=timings),
+                "warnings": messages,
+            }
+            writing = folder.partial / TRACKS_NAME
+            write_tracks_file(writing, result.tracks)
+            writing = folder.partial / SUMMARY_NAME
+            json_dump(summary, writing)
+            save("complete")
+            folder.complete()
+        except RunInterrupted:
+            raise
+        except KeyboardInterrupt:
+            _mark(save, "interrupted")
+            raise RunInterrupted(folder.partial, state.next_scan, len(scans)) from None
+        except OSError as exc:
+            error = OutputError(str(writing), f"cannot write: {os_reason(exc)}")
+            _mark(save, "failed", error)
+            raise error from None
+        except MapassocError as exc:
+            _mark(save, "failed", exc)
+            raise
+        finally:
+            ticker.close()
+    for message in messages:
+        print(f"mapassoc: warning: {message}", file=sys.stderr)
+    return RunOutcome(folder.path, "complete", summary, resumed_at, time.perf_counter() - t_session)
+
+
+def _open_windows(path: Path, keep_bytes: int) -> BinaryIO:
+    """``windows.jsonl`` for appending, cut back to ``keep_bytes`` (the checkpoint's)."""
+    try:
+        if keep_bytes == 0:
+            return open(path, "wb")
+        stream = open(path, "r+b")
+        stream.truncate(keep_bytes)
+        stream.seek(keep_bytes)
+        return stream
+    except OSError as exc:
+        raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
+
+
+def _mark(
+    save: Callable[[str, BaseException | None], None],
+    status: str,
+    error: BaseException | None = None,
+) -> None:
+    """Record a run's end in its manifest; a failure to do so joins the error's notes."""
+    try:
+        save(status, error)
+    except MapassocError as exc:
+        if error is not None:
+            error.add_note(f"the manifest could not be marked {status}: {exc}")

@@ -69,6 +69,8 @@ __all__ = [
     "WindowSolution",
     "WindowReport",
     "EstimateResult",
+    "RunState",
+    "WindowTally",
     "WindowEstimator",
     "packing_problem",
     "SelectionRule",
@@ -342,20 +344,101 @@ class _TrackRecord:
     rows: list[int] = field(default_factory=list)
 
 
+@dataclass
+class WindowTally:
+    """Running totals of a run's windows: what ``summary.json`` reports of them.
+
+    Kept window by window (constant size, so a checkpoint of a long run stays small), and
+    equal to the totals over :attr:`EstimateResult.windows`.
+    """
+
+    windows: int = 0
+    status_counts: dict[str, int] = field(
+        default_factory=lambda: {status.value: 0 for status in WindowStatus}
+    )
+    marginal_certain: int = 0
+    marginal_exact: int = 0
+    nodes_capped: int = 0
+    piling_up_at_kmax: int = 0
+    hypotheses: int = 0
+    max_cluster: int = 0
+    min_captured_mass: float = 1.0
+    over_time_limit: int = 0
+    seconds: float = 0.0
+
+    def add(self, report: WindowReport) -> None:
+        """Count one committed window."""
+        self.windows += 1
+        self.status_counts[report.status.value] += 1
+        self.marginal_certain += int(report.marginal_certain)
+        self.marginal_exact += int(report.marginal_exact)
+        self.nodes_capped += int(report.nodes_capped)
+        self.piling_up_at_kmax += int(report.piles_up_at_kmax)
+        self.hypotheses += int(report.hypotheses_kept)
+        self.max_cluster = max(self.max_cluster, int(report.largest_cluster))
+        self.min_captured_mass = min(self.min_captured_mass, float(report.captured_mass))
+        self.over_time_limit += int(report.over_time_limit)
+
+
+@dataclass
+class RunState:
+    """Everything a run carries from one window to the next.
+
+    :meth:`WindowEstimator.start` makes it, :meth:`WindowEstimator.step` advances it by
+    one window and :meth:`WindowEstimator.finish` turns it into the result.  It holds no
+    scans, only numbers, so it pickles: a checkpoint of it, restored and stepped on with
+    the same scans and configuration, continues the run exactly as if it had never
+    stopped (``mapassoc run --resume``).
+
+    Attributes
+    ----------
+    total_scans : int
+        Number of scans of the run.
+    next_scan : int
+        Index of the first scan not committed yet (``== total_scans`` when done).
+    next_track_id : int
+        Id the next new track gets.
+    carried : list of CarriedTrack
+        Tracks alive at the last committed scan.
+    undetected : UndetectedTargets or None
+        Targets never detected after the last committed scan (None: the recording starts).
+    records : dict of int to _TrackRecord
+        Committed detection ids of every track.
+    tally : WindowTally
+        Totals of the committed windows.
+    """
+
+    total_scans: int
+    next_scan: int = 0
+    next_track_id: int = 1
+    carried: list[CarriedTrack] = field(default_factory=list)
+    undetected: UndetectedTargets | None = None
+    records: dict[int, _TrackRecord] = field(default_factory=dict)
+    tally: WindowTally = field(default_factory=WindowTally)
+
+    @property
+    def done(self) -> bool:
+        """Whether every scan is committed."""
+        return self.next_scan >= self.total_scans
+
+
 @dataclass(frozen=True, eq=False)
 class EstimateResult:
-    """Output of :meth:`WindowEstimator.run`.
+    """Output of :meth:`WindowEstimator.run` (and :meth:`WindowEstimator.finish`).
 
     Attributes
     ----------
     tracks : TrackTable
         Smoothed tracks, one row per track per scan from its first to its last detection.
     windows : tuple of WindowReport
+        Every window's report (empty from :meth:`WindowEstimator.finish` unless given).
     track_rows : dict of int to tuple of int
-        Detection rows used by each track.
+        Detection ids used by each track.
     seconds : float
-        Wall time of the run.
+        Wall time of the run (summed over the sessions of a resumed run).
     num_scans : int
+    tally : WindowTally
+        Totals over the windows (what :meth:`summary` reports).
     """
 
     tracks: TrackTable
@@ -363,32 +446,29 @@ class EstimateResult:
     track_rows: dict[int, tuple[int, ...]]
     seconds: float
     num_scans: int
+    tally: WindowTally
 
     def summary(self, *, timings: bool = True) -> dict[str, object]:
-        w = self.windows
+        t = self.tally
         out: dict[str, object] = {
             "scans": self.num_scans,
-            "windows": len(w),
+            "windows": t.windows,
             "tracks": len(self.track_rows),
             "detections_in_tracks": int(sum(len(r) for r in self.track_rows.values())),
-            "windows_exact": int(sum(1 for r in w if r.status is WindowStatus.EXACT)),
-            "window_statuses": {
-                status: int(sum(1 for r in w if r.status == status)) for status in WINDOW_STATUSES
-            },
-            "windows_marginal_certain": int(sum(1 for r in w if r.marginal_certain)),
-            "nodes_capped": int(sum(r.nodes_capped for r in w)),
-            "windows_marginal_exact": int(sum(1 for r in w if r.marginal_exact)),
-            "windows_piling_up_at_kmax": int(sum(1 for r in w if r.piles_up_at_kmax)),
-            "mean_hypotheses_per_window": (
-                float(np.mean([r.hypotheses_kept for r in w])) if w else 0.0
-            ),
-            "max_cluster": int(max((r.largest_cluster for r in w), default=0)),
-            "min_captured_mass": float(min((r.captured_mass for r in w), default=1.0)),
+            "windows_exact": t.status_counts[WindowStatus.EXACT.value],
+            "window_statuses": {status: t.status_counts[status] for status in WINDOW_STATUSES},
+            "windows_marginal_certain": t.marginal_certain,
+            "nodes_capped": t.nodes_capped,
+            "windows_marginal_exact": t.marginal_exact,
+            "windows_piling_up_at_kmax": t.piling_up_at_kmax,
+            "mean_hypotheses_per_window": t.hypotheses / t.windows if t.windows else 0.0,
+            "max_cluster": t.max_cluster,
+            "min_captured_mass": t.min_captured_mass,
         }
         if timings:
             out["seconds"] = self.seconds
             out["scans_per_second"] = self.num_scans / self.seconds if self.seconds > 0 else None
-            out["windows_over_time_limit"] = int(sum(1 for r in w if r.over_time_limit))
+            out["windows_over_time_limit"] = t.over_time_limit
         return out
 
 
@@ -549,6 +629,9 @@ class WindowEstimator:
     ) -> EstimateResult:
         """Estimate tracks over all scans.
 
+        Equal to :meth:`start`, then :meth:`step` until the state is done, then
+        :meth:`finish` (what ``mapassoc run`` does, with checkpoints in between).
+
         Parameters
         ----------
         scans : sequence of Scan
@@ -565,6 +648,30 @@ class WindowEstimator:
             gives that set's T as ``chosen_tracks``.  Default: the estimator's own set.
         """
         scans = list(scans)
+        state = self.start(scans)
+        reports: list[WindowReport] = []
+        while not state.done:
+            reports.append(self.step(scans, state, select=select))
+            if on_window is not None:
+                on_window(reports[-1])
+            if progress is not None:
+                progress(state.next_scan, state.total_scans)
+        return self.finish(scans, state, windows=reports)
+
+    def start(self, scans: Sequence[Scan]) -> RunState:
+        """Check the scans and return the state of a run that has committed nothing.
+
+        Parameters
+        ----------
+        scans : sequence of Scan
+            Sorted by (time, sensor); may include empty scans.
+
+        Raises
+        ------
+        InputError
+            No scans, scans out of order, an unknown sensor, or a time step so large that
+            the motion model's matrices are not finite.
+        """
         if not scans:
             raise InputError("scans is empty: there is nothing to estimate")
         check_scan_order(scans)
@@ -574,100 +681,177 @@ class WindowEstimator:
                     f"scan at time {scan.time} names sensor '{scan.sensor}', which the "
                     f"configuration does not define (known: {sorted(self.config.sensors)})"
                 )
-        t_start = time.perf_counter()
-        N = self.settings.window_length
-        stride = self.settings.stride
-        records: dict[int, _TrackRecord] = {}
-        carried: list[CarriedTrack] = []
-        undetected: UndetectedTargets | None = None  # the recording starts here
-        reports: list[WindowReport] = []
-        next_id = 1
-        start = 0
-        total = len(scans)
-        piled = 0
-        while start < total:
-            end = min(start + N, total)
-            commit = stride if end < total else end - start
-            solution = self.solve_window(scans[start:end], carried, undetected=undetected)
-            post = solution.posterior
-            chosen_k, chosen_tracks = self.k_estimator.choose(post)
-            if select is None:
-                selection = solution.selection(chosen_tracks)
-            else:
-                selection = np.asarray(select(solution, chosen_k, chosen_tracks), dtype=np.int64)
-                chosen_tracks = int(np.count_nonzero(solution.problem.counts[selection]))
-            carried, next_id = self._commit(
-                solution.hypotheses, selection, commit, records, next_id
-            )
-            undetected = solution.population.after_scan[commit - 1]
-            piled += post.piles_up_at_kmax
-            possible = np.flatnonzero(np.isfinite(solution.table.log_mass_upper))
-            reach = int(possible[-1]) + 1 if possible.size else 1
-            positive = np.flatnonzero(post.probabilities_upper >= P_K_FLOOR)
-            k_reach = int(positive[-1]) + 1 if positive.size else 1
-            reports.append(
-                WindowReport(
-                    window=len(reports),
-                    first_scan=start,
-                    last_scan=end - 1,
-                    start_time=scans[start].time,
-                    end_time=scans[end - 1].time,
-                    committed_scans=commit,
-                    p_k_length=post.max_tracks + 1,
-                    p_k=post.probabilities[:k_reach].copy(),
-                    p_k_lower=post.probabilities_lower[:k_reach].copy(),
-                    p_k_upper=post.probabilities_upper[:k_reach].copy(),
-                    p_tracks=post.track_probabilities[:reach].copy(),
-                    best_objective=post.best_log_score[:reach].copy(),
-                    best_objective_upper=solution.table.best_upper[:reach].copy(),
-                    joint_map_k=post.joint_map_k,
-                    marginal_k=post.marginal_k,
-                    chosen_k=chosen_k,
-                    joint_map_tracks=post.joint_map_tracks,
-                    marginal_tracks=post.marginal_tracks,
-                    chosen_tracks=chosen_tracks,
-                    undetected_mean=post.undetected_mean,
-                    k_prior=post.count_prior.kind,
-                    marginal_exact=post.exact,
-                    marginal_certain=post.marginal_certain,
-                    joint_certain=post.joint_certain,
-                    captured_mass=solution.captured_mass,
-                    status=solution.status,
-                    hypotheses_kept=solution.hypotheses.count,
-                    nodes_generated=solution.hypotheses.nodes_generated,
-                    nodes_pruned=solution.hypotheses.nodes_pruned,
-                    nodes_capped=solution.hypotheses.nodes_capped,
-                    hypotheses_pruned_by_bound=solution.bound_pruned,
-                    clusters=len(solution.cluster_sizes),
-                    largest_cluster=max(solution.cluster_sizes, default=0),
-                    bounded_clusters=len(solution.bounded_clusters),
-                    carried_tracks=int(np.count_nonzero(solution.hypotheses.tree_track_ids >= 0)),
-                    piles_up_at_kmax=post.piles_up_at_kmax,
-                    over_time_limit=solution.timed_out,
-                    generate_seconds=solution.generate_seconds,
-                    solve_seconds=solution.solve_seconds,
-                )
-            )
-            start += commit
-            if on_window is not None:
-                on_window(reports[-1])
-            if progress is not None:
-                progress(start, total)
-        if piled:
+        self._check_time_steps(scans)
+        if self.settings.max_tracks == 0:
             warnings.warn(
-                f"p(K = Kmax | Z) exceeded 1% in {piled} of {len(reports)} windows: "
-                f"max_tracks = {self.settings.max_tracks} probably cuts off the posterior; "
-                "raise it",
+                "max_tracks = 0: every detection is a false alarm and p(K = 0 | Z) = 1 by "
+                "construction, so no window can show that Kmax cuts the posterior off; "
+                "raise max_tracks to estimate tracks",
                 RuntimeWarning,
                 stacklevel=2,
             )
-        tracks = self._smooth(scans, records)
+        return RunState(total_scans=len(scans))
+
+    def _check_time_steps(self, scans: Sequence[Scan]) -> None:
+        """Raise unless the motion model's F and Q are finite for the largest time step."""
+        times = np.unique([scan.time for scan in scans])
+        if times.size < 2:
+            return
+        gaps = np.diff(times)
+        widest = int(np.argmax(gaps))
+        dt = float(gaps[widest])
+        problem = None
+        try:
+            with np.errstate(over="raise", invalid="raise"):
+                matrices = (self.config.motion.process_noise(dt),)
+                if self.config.motion.is_linear:
+                    matrices += (self.config.motion.transition_matrix(dt),)  # type: ignore[attr-defined]
+            if not all(np.all(np.isfinite(m)) for m in matrices):
+                problem = "its matrices are not finite"
+        except (OverflowError, FloatingPointError) as exc:
+            problem = f"computing them overflows ({exc})"
+        if problem is not None:
+            raise InputError(
+                f"scans at times {times[widest]!r} and {times[widest + 1]!r} are {dt!r} apart: "
+                f"too long a step for the motion model {self.config.motion!r}, {problem}; "
+                "check the unit of the detections' time column"
+            )
+
+    def step(
+        self, scans: Sequence[Scan], state: RunState, *, select: SelectionRule | None = None
+    ) -> WindowReport:
+        """Solve and commit the next window, advancing ``state`` in place.
+
+        Parameters
+        ----------
+        scans : sequence of Scan
+            The run's scans (the same as given to :meth:`start`).
+        state : RunState
+            Not done; advanced past the committed scans.
+        select : SelectionRule, optional
+            As in :meth:`run`.
+
+        Returns
+        -------
+        WindowReport
+        """
+        if len(scans) != state.total_scans:
+            raise InputError(
+                f"state is of a run over {state.total_scans} scans, got {len(scans)} scans"
+            )
+        if state.done:
+            raise InputError("state is done: every scan is committed already")
+        t_start = time.perf_counter()
+        N = self.settings.window_length
+        total = state.total_scans
+        start = state.next_scan
+        end = min(start + N, total)
+        commit = self.settings.stride if end < total else end - start
+        solution = self.solve_window(scans[start:end], state.carried, undetected=state.undetected)
+        post = solution.posterior
+        chosen_k, chosen_tracks = self.k_estimator.choose(post)
+        if select is None:
+            selection = solution.selection(chosen_tracks)
+        else:
+            selection = np.asarray(select(solution, chosen_k, chosen_tracks), dtype=np.int64)
+            chosen_tracks = int(np.count_nonzero(solution.problem.counts[selection]))
+        state.carried, state.next_track_id = self._commit(
+            solution.hypotheses, selection, commit, state.records, state.next_track_id
+        )
+        state.undetected = solution.population.after_scan[commit - 1]
+        possible = np.flatnonzero(np.isfinite(solution.table.log_mass_upper))
+        reach = int(possible[-1]) + 1 if possible.size else 1
+        positive = np.flatnonzero(post.probabilities_upper >= P_K_FLOOR)
+        k_reach = int(positive[-1]) + 1 if positive.size else 1
+        report = WindowReport(
+            window=state.tally.windows,
+            first_scan=start,
+            last_scan=end - 1,
+            start_time=scans[start].time,
+            end_time=scans[end - 1].time,
+            committed_scans=commit,
+            p_k_length=post.max_tracks + 1,
+            p_k=post.probabilities[:k_reach].copy(),
+            p_k_lower=post.probabilities_lower[:k_reach].copy(),
+            p_k_upper=post.probabilities_upper[:k_reach].copy(),
+            p_tracks=post.track_probabilities[:reach].copy(),
+            best_objective=post.best_log_score[:reach].copy(),
+            best_objective_upper=solution.table.best_upper[:reach].copy(),
+            joint_map_k=post.joint_map_k,
+            marginal_k=post.marginal_k,
+            chosen_k=chosen_k,
+            joint_map_tracks=post.joint_map_tracks,
+            marginal_tracks=post.marginal_tracks,
+            chosen_tracks=chosen_tracks,
+            undetected_mean=post.undetected_mean,
+            k_prior=post.count_prior.kind,
+            marginal_exact=post.exact,
+            marginal_certain=post.marginal_certain,
+            joint_certain=post.joint_certain,
+            captured_mass=solution.captured_mass,
+            status=solution.status,
+            hypotheses_kept=solution.hypotheses.count,
+            nodes_generated=solution.hypotheses.nodes_generated,
+            nodes_pruned=solution.hypotheses.nodes_pruned,
+            nodes_capped=solution.hypotheses.nodes_capped,
+            hypotheses_pruned_by_bound=solution.bound_pruned,
+            clusters=len(solution.cluster_sizes),
+            largest_cluster=max(solution.cluster_sizes, default=0),
+            bounded_clusters=len(solution.bounded_clusters),
+            carried_tracks=int(np.count_nonzero(solution.hypotheses.tree_track_ids >= 0)),
+            piles_up_at_kmax=post.piles_up_at_kmax,
+            over_time_limit=solution.timed_out,
+            generate_seconds=solution.generate_seconds,
+            solve_seconds=solution.solve_seconds,
+        )
+        state.next_scan = start + commit
+        state.tally.add(report)
+        state.tally.seconds += time.perf_counter() - t_start
+        return report
+
+    def finish(
+        self,
+        scans: Sequence[Scan],
+        state: RunState,
+        *,
+        windows: Sequence[WindowReport] = (),
+    ) -> EstimateResult:
+        """Smooth every track of a done run and return the result.
+
+        Warns (RuntimeWarning) when p(K = Kmax | Z) exceeded 1% in some window.
+
+        Parameters
+        ----------
+        scans : sequence of Scan
+            The run's scans.
+        state : RunState
+            Done.
+        windows : sequence of WindowReport, optional
+            The reports to keep in the result (:meth:`run` passes all of them).
+        """
+        if not state.done:
+            raise InputError(
+                f"state is not done: {state.next_scan} of {state.total_scans} scans committed"
+            )
+        t_start = time.perf_counter()
+        tally = state.tally
+        if tally.piling_up_at_kmax:
+            warnings.warn(
+                f"p(K = Kmax | Z) exceeded 1% in {tally.piling_up_at_kmax} of {tally.windows} "
+                f"windows: max_tracks = {self.settings.max_tracks} probably cuts off the "
+                "posterior; raise it",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        tracks = self._smooth(scans, state.records)
+        tally.seconds += time.perf_counter() - t_start
         return EstimateResult(
             tracks=tracks,
-            windows=tuple(reports),
-            track_rows={tid: tuple(r.rows) for tid, r in sorted(records.items()) if r.rows},
-            seconds=time.perf_counter() - t_start,
-            num_scans=total,
+            windows=tuple(windows),
+            track_rows={tid: tuple(r.rows) for tid, r in sorted(state.records.items()) if r.rows},
+            seconds=tally.seconds,
+            num_scans=state.total_scans,
+            tally=tally,
         )
 
     def _commit(

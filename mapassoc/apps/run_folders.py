@@ -1,0 +1,270 @@
+"""Run folders that never mix runs: a temporary sibling, a manifest, checkpoints.
+
+A run into ``OUT`` works in the sibling folder ``OUT.partial`` and renames it to ``OUT``
+only when every output is written, so ``OUT`` holds either nothing, or one complete run
+(or, with ``--overwrite``, the previous complete run until the new one is done).  Both
+folders hold ``manifest.json``::
+
+    {"format": "mapassoc-run/1", "status": "running" | "complete" | "interrupted" | "failed",
+     "mapassoc_version": ..., "inputs": {"config": {"path", "sha256", "bytes"},
+     "detections": {...}}, "settings": {...}, "started": ..., "ended": ..., "sessions": n,
+     "scans_committed": ..., "scans_total": ..., "windows_committed": ..., "error": ...}
+
+While a run goes on, ``OUT.partial/checkpoint.pickle`` holds the estimator's state after
+the last checkpointed window and the length ``windows.jsonl`` had then; ``--resume``
+cuts ``windows.jsonl`` back to that length and steps on from that state, so a resumed
+run writes exactly the files an uninterrupted one would.  The checkpoint is a pickle:
+resume only run folders you (or your own batch) wrote.
+
+Writes of the manifest and the checkpoint go to a temporary file that is renamed over
+the old one (atomic on POSIX), so a kill at any moment leaves the previous version whole.
+"""
+
+from __future__ import annotations
+
+import datetime
+import errno
+import hashlib
+import json
+import os
+import pickle
+import shutil
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from mapassoc import __version__
+from mapassoc.errors import InputError, OutputError
+
+__all__ = [
+    "MANIFEST_NAME",
+    "CHECKPOINT_NAME",
+    "RUN_STATUSES",
+    "RunFolder",
+    "file_identity",
+    "os_reason",
+    "write_atomically",
+    "read_manifest",
+]
+
+MANIFEST_NAME = "manifest.json"
+CHECKPOINT_NAME = "checkpoint.pickle"
+FORMAT = "mapassoc-run/1"
+RUN_STATUSES = ("running", "complete", "interrupted", "failed")
+"""A run's ``manifest.json`` status."""
+
+
+def now_text() -> str:
+    """The current UTC time, ISO 8601 to the second."""
+    return datetime.datetime.now(datetime.UTC).replace(microsecond=0).isoformat()
+
+
+def os_reason(exc: OSError) -> str:
+    """The operating system's reason, as the user knows it ("No space left on device")."""
+    if exc.errno is not None:
+        return os.strerror(exc.errno)
+    return str(exc)
+
+
+def file_identity(path: str | os.PathLike[str]) -> dict[str, object]:
+    """``{"path", "bytes", "sha256"}`` of an input file (read in 1 MiB blocks)."""
+    digest = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as handle:
+        while block := handle.read(1 << 20):
+            digest.update(block)
+            size += len(block)
+    return {"path": os.fspath(path), "bytes": size, "sha256": digest.hexdigest()}
+
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file renamed over it.
+
+    Raises
+    ------
+    OutputError
+        The folder is not writable, the disk is full, ...: names ``path``.
+    """
+    temporary = path.with_name(path.name + ".tmp")
+    try:
+        with open(temporary, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temporary, path)
+    except OSError as exc:
+        raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
+
+
+def read_manifest(folder: Path) -> dict[str, Any] | None:
+    """The manifest of a run folder, or None when it has none.
+
+    Raises
+    ------
+    InputError
+        The manifest exists but is not a mapassoc run manifest.
+    """
+    path = folder / MANIFEST_NAME
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise OutputError(str(path), f"cannot read: {os_reason(exc)}") from None
+    try:
+        manifest = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not a mapassoc run manifest (invalid JSON: {exc})") from None
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
+        raise InputError(f"{path}: not a mapassoc run manifest (expected format {FORMAT!r})")
+    if manifest.get("status") not in RUN_STATUSES:
+        raise InputError(
+            f"{path}: status {manifest.get('status')!r} is not one of {list(RUN_STATUSES)}"
+        )
+    return manifest
+
+
+def _is_empty_folder(path: Path) -> bool:
+    return path.is_dir() and not any(path.iterdir())
+
+
+class RunFolder:
+    """The output folder ``OUT`` of one run and its working sibling ``OUT.partial``.
+
+    Parameters
+    ----------
+    path : path
+        ``OUT``, as given to ``--out``.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        if self.path.name in ("", ".", ".."):
+            raise InputError(f"--out must name a folder, got {os.fspath(path)!r}")
+        self.partial = self.path.with_name(self.path.name + ".partial")
+
+    # -- checks before anything is computed ------------------------------------------
+    def check_writable_place(self) -> None:
+        """Raise OutputError when ``OUT`` cannot be a folder (a file, below a file)."""
+        for candidate in (self.path, self.partial):
+            if candidate.exists() and not candidate.is_dir():
+                raise OutputError(
+                    str(candidate), "is a file, not a folder; choose another --out"
+                )
+        parent = self.path.parent
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
+        if parent.exists() and not parent.is_dir():
+            raise OutputError(str(parent), f"is a file, so {self.path} cannot be a folder")
+
+    def final_manifest(self) -> dict[str, Any] | None:
+        """The manifest of ``OUT`` (None: no run there)."""
+        return read_manifest(self.path) if self.path.is_dir() else None
+
+    def partial_manifest(self) -> dict[str, Any] | None:
+        """The manifest of ``OUT.partial`` (None: no unfinished run)."""
+        return read_manifest(self.partial) if self.partial.is_dir() else None
+
+    def refuse_existing(self) -> None:
+        """Raise OutputError unless both ``OUT`` and ``OUT.partial`` are absent or empty."""
+        if self.partial.exists() and not _is_empty_folder(self.partial):
+            manifest = self.partial_manifest()
+            status = manifest["status"] if manifest else "unknown"
+            raise OutputError(
+                str(self.partial),
+                f"holds an unfinished run (status {status}); pass --resume to continue it "
+                "or --overwrite to start again",
+            )
+        if self.path.exists() and not _is_empty_folder(self.path):
+            manifest = self.final_manifest()
+            what = (
+                f"holds a {manifest['status']} run" if manifest else "is not empty"
+            )
+            raise OutputError(
+                str(self.path),
+                f"{what}; pass --overwrite to replace it (or --resume to finish or skip it), "
+                "or choose another --out",
+            )
+
+    # -- the working folder ----------------------------------------------------------
+    def begin(self, *, fresh: bool) -> None:
+        """Create ``OUT.partial`` (emptied first when ``fresh``)."""
+        try:
+            if fresh and self.partial.exists():
+                shutil.rmtree(self.partial)
+            self.partial.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(
+                str(self.partial), f"cannot create the run folder: {os_reason(exc)}"
+            ) from None
+
+    def write_manifest(self, manifest: Mapping[str, object]) -> None:
+        """Write ``OUT.partial/manifest.json`` atomically."""
+        text = json.dumps(dict(manifest), indent=2, allow_nan=False) + "\n"
+        write_atomically(self.partial / MANIFEST_NAME, text.encode("utf-8"))
+
+    def write_checkpoint(self, checkpoint: object) -> None:
+        """Write ``OUT.partial/checkpoint.pickle`` atomically."""
+        data = pickle.dumps(checkpoint, protocol=pickle.HIGHEST_PROTOCOL)
+        write_atomically(self.partial / CHECKPOINT_NAME, data)
+
+    def read_checkpoint(self) -> object | None:
+        """The checkpoint of ``OUT.partial`` (None: none written yet)."""
+        path = self.partial / CHECKPOINT_NAME
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            return None
+        except OSError as exc:
+            raise OutputError(str(path), f"cannot read: {os_reason(exc)}") from None
+        try:
+            return pickle.loads(data)  # noqa: S301 - our own checkpoint (module docstring)
+        except Exception as exc:  # a checkpoint of another version, or a damaged file
+            raise InputError(
+                f"{path}: cannot restore the checkpoint ({type(exc).__name__}: {exc}); "
+                "pass --overwrite to start the run again"
+            ) from None
+
+    def complete(self) -> None:
+        """Drop the checkpoint and move ``OUT.partial`` into place as ``OUT``.
+
+        A previous ``OUT`` (``--overwrite``) is moved aside first and deleted after the
+        rename, so ``OUT`` always holds one whole run.
+        """
+        try:
+            (self.partial / CHECKPOINT_NAME).unlink(missing_ok=True)
+            aside = None
+            if self.path.exists():
+                aside = self.path.with_name(f"{self.path.name}.old-{os.getpid()}")
+                os.replace(self.path, aside)
+            os.replace(self.partial, self.path)
+            if aside is not None:
+                shutil.rmtree(aside)
+        except OSError as exc:
+            where = exc.filename if isinstance(exc.filename, str) else str(self.path)
+            if exc.errno in (errno.ENOTEMPTY, errno.EEXIST):
+                raise OutputError(where, "cannot replace the folder: not empty") from None
+            raise OutputError(where, f"cannot finish the run folder: {os_reason(exc)}") from None
+
+
+def new_manifest(
+    *,
+    inputs: Mapping[str, object],
+    settings: Mapping[str, object],
+    scans_total: int,
+) -> dict[str, object]:
+    """The manifest of a run that starts now (status ``running``, first session)."""
+    return {
+        "format": FORMAT,
+        "status": "running",
+        "mapassoc_version": __version__,
+        "inputs": dict(inputs),
+        "settings": dict(settings),
+        "started": now_text(),
+        "ended": None,
+        "sessions": 1,
+        "scans_total": scans_total,
+        "scans_committed": 0,
+        "windows_committed": 0,
+        "error": None,
+    }

@@ -1,0 +1,263 @@
+"""Run folders: refusing to mix runs, manifests, stop and resume, output failures.
+
+The resumed runs are compared byte for byte with a run that never stopped (timings off).
+"""
+
+from __future__ import annotations
+
+import errno
+import io
+import json
+from pathlib import Path
+
+import pytest
+
+from mapassoc.apps import runs
+from mapassoc.apps.cli import main
+from mapassoc.apps.run_folders import CHECKPOINT_NAME, MANIFEST_NAME, read_manifest
+from mapassoc.apps.runs import RunInterrupted, run_files
+from mapassoc.errors import InputError, OutputError
+
+RESULT_FILES = ("tracks.csv", "windows.jsonl", "summary.json")
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("scen") / "crossing"
+    assert main(["simulate", "crossing", "--out", str(out), "--seed", "2"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def reference(scenario: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An uninterrupted run with timings off."""
+    out = tmp_path_factory.mktemp("ref") / "run"
+    run_files(scenario / "config.toml", scenario / "detections.csv", out, timings=False,
+              progress=False)
+    return out
+
+
+def _run(scenario: Path, out: Path, **options: object) -> runs.RunOutcome:
+    return run_files(
+        scenario / "config.toml",
+        scenario / "detections.csv",
+        out,
+        timings=False,
+        progress=False,
+        **options,  # type: ignore[arg-type]
+    )
+
+
+def _same_results(a: Path, b: Path) -> None:
+    for name in RESULT_FILES:
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+
+
+def test_complete_folder_holds_results_and_manifest(reference: Path, scenario: Path) -> None:
+    assert sorted(p.name for p in reference.iterdir()) == sorted([*RESULT_FILES, MANIFEST_NAME])
+    manifest = read_manifest(reference)
+    assert manifest is not None and manifest["status"] == "complete"
+    assert manifest["sessions"] == 1
+    summary = json.loads((reference / "summary.json").read_text())
+    assert manifest["scans_committed"] == manifest["scans_total"] == summary["scans"]
+    assert manifest["windows_committed"] == summary["windows"]
+    import hashlib
+
+    digest = hashlib.sha256((scenario / "detections.csv").read_bytes()).hexdigest()
+    assert manifest["inputs"]["detections"]["sha256"] == digest
+    assert manifest["settings"]["timings"] is False
+    assert manifest["ended"] >= manifest["started"]
+    assert not reference.with_name("run.partial").exists()
+
+
+def test_a_non_empty_out_is_refused_then_overwritten(
+    scenario: Path, reference: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "mine.txt").write_text("keep me")
+    args = ["run", str(scenario / "config.toml"), str(scenario / "detections.csv"),
+            "--out", str(out), "--no-progress", "--no-timings"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(out) in err and "--overwrite" in err
+    assert (out / "mine.txt").read_text() == "keep me"
+    assert main([*args, "--overwrite"]) == 0
+    assert not (out / "mine.txt").exists()
+    _same_results(out, reference)
+    # A complete run is refused too, naming its status.
+    assert main(args) == 2
+    assert "holds a complete run" in capsys.readouterr().err
+
+
+def test_a_failed_overwrite_keeps_the_previous_run(
+    scenario: Path, reference: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "out"
+    _run(scenario, out)
+    before = {name: (out / name).read_bytes() for name in RESULT_FILES}
+    _fail_windows_after(monkeypatch, lines=3, code=errno.ENOSPC)
+    with pytest.raises(OutputError, match="windows.jsonl: cannot write: No space left"):
+        _run(scenario, out, overwrite=True)
+    assert {name: (out / name).read_bytes() for name in RESULT_FILES} == before
+    manifest = read_manifest(out.with_name("out.partial"))
+    assert manifest is not None and manifest["status"] == "failed"
+    assert "No space left" in manifest["error"]
+
+
+class _FailingStream(io.BufferedIOBase):
+    """A windows.jsonl stream whose write fails after ``lines`` lines."""
+
+    def __init__(self, inner: io.BufferedRandom, lines: int, code: int) -> None:
+        self.inner, self.left, self.code = inner, lines, code
+
+    def write(self, data: bytes) -> int:  # type: ignore[override]
+        if self.left == 0:
+            raise OSError(self.code, "injected")
+        self.left -= 1
+        return self.inner.write(data)
+
+    def flush(self) -> None:
+        self.inner.flush()
+
+    def fileno(self) -> int:
+        return self.inner.fileno()
+
+    def tell(self) -> int:
+        return self.inner.tell()
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def _fail_windows_after(monkeypatch: pytest.MonkeyPatch, *, lines: int, code: int) -> None:
+    real = runs._open_windows
+    monkeypatch.setattr(
+        runs, "_open_windows", lambda path, keep: _FailingStream(real(path, keep), lines, code)
+    )
+
+
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EROFS, errno.EACCES])
+def test_a_write_failure_is_one_line_and_resumable(
+    scenario: Path,
+    reference: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    code: int,
+) -> None:
+    out = tmp_path / "out"
+    args = ["run", str(scenario / "config.toml"), str(scenario / "detections.csv"),
+            "--out", str(out), "--no-progress", "--no-timings", "--checkpoint-seconds", "0"]
+    with monkeypatch.context() as patch:
+        _fail_windows_after(patch, lines=7, code=code)
+        assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert "windows.jsonl" in err and __import__("os").strerror(code) in err
+    assert not out.exists()
+    partial = out.with_name("out.partial")
+    assert (read_manifest(partial) or {})["status"] == "failed"
+    assert main([*args, "--resume"]) == 0
+    _same_results(out, reference)
+
+
+def test_out_that_is_a_file_or_below_one_is_one_line(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    for out in (afile, afile / "below"):
+        args = ["run", str(scenario / "config.toml"), str(scenario / "detections.csv"),
+                "--out", str(out), "--no-progress"]
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and str(afile) in err and "is a file" in err
+        assert main(["simulate", "crossing", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and str(afile) in err
+
+
+@pytest.mark.parametrize("after", [0, 1, 9, 30, 55])
+def test_stop_then_resume_is_byte_identical(
+    scenario: Path, reference: Path, tmp_path: Path, after: int
+) -> None:
+    """Stop at a window boundary after ``after`` windows, resume, compare bytes."""
+    out = tmp_path / "out"
+    polls = iter(range(10**6))
+    with pytest.raises(RunInterrupted) as stopped:
+        _run(scenario, out, checkpoint_seconds=3600.0, stop=lambda: next(polls) >= after)
+    partial = out.with_name("out.partial")
+    manifest = read_manifest(partial)
+    assert manifest is not None and manifest["status"] == "interrupted"
+    assert (partial / CHECKPOINT_NAME).exists()
+    assert stopped.value.scans_committed == manifest["scans_committed"]
+    lines = (partial / "windows.jsonl").read_text().splitlines()
+    assert len(lines) == after == manifest["windows_committed"]
+    outcome = _run(scenario, out, resume=True)
+    assert outcome.resumed_at == stopped.value.scans_committed
+    _same_results(out, reference)
+    manifest = read_manifest(out)
+    assert manifest is not None and manifest["status"] == "complete"
+    assert manifest["sessions"] == 2
+    assert not partial.exists() and not (out / CHECKPOINT_NAME).exists()
+    # Resuming a complete run does nothing.
+    assert _run(scenario, out, resume=True).status == "skipped"
+
+
+def test_resume_cuts_windows_written_after_the_checkpoint(
+    scenario: Path, reference: Path, tmp_path: Path
+) -> None:
+    """Lines written after the last checkpoint (a kill) are cut and written again once."""
+    out = tmp_path / "out"
+    polls = iter(range(10**6))
+    with pytest.raises(RunInterrupted):
+        _run(scenario, out, stop=lambda: next(polls) >= 12)
+    partial = out.with_name("out.partial")
+    with (partial / "windows.jsonl").open("a") as stream:
+        stream.write('{"window": 12, "half a line')  # what a kill leaves
+    _run(scenario, out, resume=True)
+    _same_results(out, reference)
+
+
+def test_resume_refuses_other_inputs_or_settings(
+    scenario: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "out"
+    polls = iter(range(10**6))
+    with pytest.raises(RunInterrupted):
+        _run(scenario, out, stop=lambda: next(polls) >= 3)
+    changed = tmp_path / "detections.csv"
+    lines = (scenario / "detections.csv").read_text().splitlines()
+    changed.write_text("\n".join(lines[:-1]) + "\n")
+    with pytest.raises(InputError, match="detections file .* differs"):
+        run_files(scenario / "config.toml", changed, out, timings=False, progress=False,
+                  resume=True)
+    with pytest.raises(InputError, match="timings"):
+        run_files(scenario / "config.toml", scenario / "detections.csv", out, timings=True,
+                  progress=False, resume=True)
+    with pytest.raises(InputError, match="exclude each other"):
+        _run(scenario, out, resume=True, overwrite=True)
+
+
+def test_bad_input_creates_nothing(scenario: Path, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,sensor,x,y\n0.0,radar,1.0,nan\n")
+    out = tmp_path / "out"
+    with pytest.raises(Exception, match="bad.csv"):
+        run_files(scenario / "config.toml", bad, out, progress=False)
+    assert not out.exists() and not out.with_name("out.partial").exists()
+
+
+def test_broken_pipe_is_one_line(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    class Closed(io.StringIO):
+        def write(self, text: str) -> int:
+            raise BrokenPipeError(errno.EPIPE, "Broken pipe")
+
+    monkeypatch.setattr("sys.stdout", Closed())
+    monkeypatch.setattr("mapassoc.apps.cli._close_stdout_quietly", lambda: None)
+    assert main(["scenarios"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "<stdout>" in err and "broken pipe" in err
