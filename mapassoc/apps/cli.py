@@ -5,6 +5,7 @@ Subcommands::
     mapassoc scenarios                               list the built-in scenarios
     mapassoc simulate NAME --out DIR [--seed N]      write a scenario folder
     mapassoc run CONFIG DETECTIONS --out DIR         estimate tracks
+    mapassoc batch SOURCE --out DIR [--config C]     many recordings, in parallel
     mapassoc evaluate TRACKS TRUTH [--json FILE]     GOSPA, RMSE, cardinality error
     mapassoc demo [--scenario NAME] [--out DIR]      simulate, run, evaluate, plot
     mapassoc bench [--families ...] [--seeds N]      speed and accuracy benchmark
@@ -80,6 +81,44 @@ def _cmd_run(args: argparse.Namespace) -> int:
         f"windows{resumed} -> {args.out}/tracks.csv, windows.jsonl, summary.json, manifest.json"
     )
     return 0
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from mapassoc.apps.batch import BATCH_SUMMARY_NAME, BatchOptions, find_recordings, run_batch
+
+    recordings = find_recordings(args.source)
+    options = BatchOptions(
+        timings=not args.no_timings,
+        overwrite=args.overwrite,
+        resume=args.resume,
+        checkpoint_seconds=args.checkpoint_seconds,
+    )
+
+    def report(row: dict[str, object]) -> None:
+        if args.no_progress:
+            return
+        detail = {
+            "complete": f"{row['tracks']} tracks, {row['scans_per_second']} scans/s",
+            "skipped": "complete already",
+        }.get(str(row["status"]), str(row["error"]))
+        print(f"  {row['name']}: {row['status']} ({detail})", file=sys.stderr)
+
+    rows = run_batch(
+        recordings,
+        args.out,
+        shared_config=args.config,
+        options=options,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        progress=not args.no_progress,
+        on_row=report,
+    )
+    counts: dict[str, int] = {}
+    for row in rows:
+        counts[str(row["status"])] = counts.get(str(row["status"]), 0) + 1
+    told = ", ".join(f"{n} {status}" for status, n in sorted(counts.items()))
+    print(f"{len(rows)} recordings: {told} -> {Path(args.out) / BATCH_SUMMARY_NAME}")
+    return 1 if counts.get("failed") else 0
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
@@ -230,6 +269,47 @@ def build_parser() -> argparse.ArgumentParser:
         help="least time between two checkpoints (default 10; 0: after every window)",
     )
     p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser(
+        "batch",
+        help="run many recordings, each into its own run folder, in parallel",
+        description="Runs every recording of SOURCE (a folder of NAME/detections.csv "
+        "[+ NAME/config.toml] sub-folders or NAME.csv [+ NAME.toml] files, or a CSV list "
+        "with the columns name,detections[,config]) into OUT/NAME/ and writes "
+        "OUT/batch_summary.csv. A failing recording is reported and the batch goes on "
+        "(exit status 1 when any failed). Local process pool by default; --scheduler runs "
+        "on a Dask cluster.",
+        allow_abbrev=False,
+    )
+    p.add_argument("source", help="folder of recordings, or a CSV list of them")
+    p.add_argument("--out", required=True, help="batch folder (one run folder per recording)")
+    p.add_argument(
+        "--config", help="shared TOML configuration, for recordings without their own"
+    )
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="worker processes (default: every usable core; 1: one after the other here)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="Dask distributed scheduler (tcp://host:8786) to run the recordings on "
+        "(extra 'dask'); workers with one thread each",
+    )
+    again = p.add_mutually_exclusive_group()
+    again.add_argument(
+        "--resume", action="store_true", help="skip complete recordings, resume interrupted ones"
+    )
+    again.add_argument("--overwrite", action="store_true", help="run every recording again")
+    p.add_argument("--no-timings", action="store_true", help="as for `run`")
+    p.add_argument("--no-progress", action="store_true", help="no progress on stderr")
+    p.add_argument(
+        "--checkpoint-seconds", type=float, default=10.0, metavar="SECONDS", help="as for `run`"
+    )
+    p.set_defaults(func=_cmd_batch)
 
     p = sub.add_parser(
         "evaluate",

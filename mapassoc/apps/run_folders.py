@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from mapassoc import __version__
-from mapassoc.errors import InputError, OutputError
+from mapassoc.errors import DataFileError, InputError, OutputError
 
 __all__ = [
     "MANIFEST_NAME",
@@ -70,10 +70,13 @@ def file_identity(path: str | os.PathLike[str]) -> dict[str, object]:
     """``{"path", "bytes", "sha256"}`` of an input file (read in 1 MiB blocks)."""
     digest = hashlib.sha256()
     size = 0
-    with open(path, "rb") as handle:
-        while block := handle.read(1 << 20):
-            digest.update(block)
-            size += len(block)
+    try:
+        with open(path, "rb") as handle:
+            while block := handle.read(1 << 20):
+                digest.update(block)
+                size += len(block)
+    except OSError as exc:
+        raise DataFileError(os.fspath(path), f"cannot read the file: {os_reason(exc)}") from None
     return {"path": os.fspath(path), "bytes": size, "sha256": digest.hexdigest()}
 
 

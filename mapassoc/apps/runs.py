@@ -238,7 +238,6 @@ def run_files(
         folder.refuse_existing()
 
     config = load_config(config_path)
-    scans = read_detections_file(detections_path, config.sensors)
     inputs = {"config": file_identity(config_path), "detections": file_identity(detections_path)}
     settings = _settings_record(config, timings)
 
@@ -266,6 +265,7 @@ def run_files(
                 str(folder.path), "is not empty and holds no mapassoc run; choose another --out"
             )
 
+    scans = read_detections_file(detections_path, config.sensors)
     estimator = WindowEstimator(config=config)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

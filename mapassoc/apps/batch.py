@@ -1,0 +1,539 @@
+"""``mapassoc batch``: many recordings, each in its own run folder, in parallel.
+
+Recordings come from a folder or from a recordings list:
+
+* a **folder** holding, for each recording, either a sub-folder ``NAME/`` with
+  ``detections.csv`` (or ``detections.parquet``) and optionally its own ``config.toml``
+  (what ``mapassoc simulate`` writes), or a file ``NAME.csv`` / ``NAME.parquet`` with
+  optionally ``NAME.toml`` beside it;
+* a **recordings list**: a CSV file with the columns ``name,detections`` and optionally
+  ``config`` (paths relative to the list's folder; an empty ``config`` cell means the
+  shared one).
+
+A recording without its own configuration uses the shared ``--config``.  Each recording
+is one :func:`~mapassoc.apps.runs.run_files` run into ``OUT/NAME/`` (a run folder with its
+manifest and status); a recording that fails is reported in its row and the batch goes
+on.  ``OUT/batch_summary.csv`` gets one row per recording (status, scans, windows,
+tracks, seconds, scans per second, warnings, error).
+
+Recordings run on a local process pool (one process per core by default) or, given a
+scheduler address, on a Dask distributed cluster (``pip install 'mapassoc[dask]'``).
+Resuming a batch resumes every recording: complete ones are skipped, interrupted ones
+continue from their checkpoints.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import csv
+import multiprocessing
+import os
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mapassoc.apps.progress import Progress
+from mapassoc.apps.run_folders import os_reason
+from mapassoc.apps.runs import RunInterrupted, StopFlag, run_files, stop_on_signals
+from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
+
+__all__ = [
+    "Recording",
+    "BatchOptions",
+    "BATCH_SUMMARY_NAME",
+    "SUMMARY_COLUMNS",
+    "find_recordings",
+    "run_batch",
+]
+
+BATCH_SUMMARY_NAME = "batch_summary.csv"
+SUMMARY_COLUMNS = (
+    "name",
+    "status",
+    "scans",
+    "windows",
+    "tracks",
+    "seconds",
+    "scans_per_second",
+    "resumed_at",
+    "warnings",
+    "warning_messages",
+    "error",
+    "out",
+    "detections",
+    "config",
+)
+DETECTION_SUFFIXES = (".csv", ".parquet", ".pq")
+LIST_COLUMNS = ("name", "detections", "config")
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One recording of a batch.
+
+    Attributes
+    ----------
+    name : str
+        Unique within the batch; its run folder is ``OUT/name``.
+    detections : Path
+    config : Path or None
+        Its own configuration; None: the batch's shared one.
+    """
+
+    name: str
+    detections: Path
+    config: Path | None
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """Settings every recording of a batch runs with (see :func:`run_files`)."""
+
+    timings: bool = True
+    overwrite: bool = False
+    resume: bool = False
+    checkpoint_seconds: float = 10.0
+
+
+def _check_name(name: str, where: str) -> str:
+    if not name or name in (".", "..") or "/" in name or os.sep in name:
+        raise InputError(f"{where}: recording name {name!r} is not a plain folder name")
+    return name
+
+
+def _detections_in(folder: Path) -> Path | None:
+    found = [folder / f"detections{suffix}" for suffix in DETECTION_SUFFIXES]
+    existing = [path for path in found if path.is_file()]
+    if len(existing) > 1:
+        raise InputError(f"{folder}: holds {len(existing)} detections files; keep one")
+    return existing[0] if existing else None
+
+
+def _from_folder(source: Path) -> list[Recording]:
+    recordings: list[Recording] = []
+    for entry in sorted(source.iterdir()):
+        if entry.name.startswith("."):
+            continue
+        if entry.is_dir():
+            detections = _detections_in(entry)
+            if detections is None:
+                continue
+            config = entry / "config.toml"
+            recordings.append(
+                Recording(entry.name, detections, config if config.is_file() else None)
+            )
+        elif entry.suffix in DETECTION_SUFFIXES:
+            config = entry.with_suffix(".toml")
+            recordings.append(
+                Recording(entry.stem, entry, config if config.is_file() else None)
+            )
+    return recordings
+
+
+def _from_list(source: Path) -> list[Recording]:
+    base = source.parent
+    try:
+        with open(source, encoding="utf-8-sig", newline="") as handle:
+            rows = list(csv.reader(handle, strict=True))
+    except (OSError, csv.Error, UnicodeDecodeError) as exc:
+        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        raise DataFileError(str(source), f"cannot read the recordings list: {reason}") from None
+    if not rows:
+        raise DataFileError(str(source), "empty; expected a header name,detections[,config]")
+    header = [cell.strip() for cell in rows[0]]
+    if header[:2] != ["name", "detections"] or not set(header) <= set(LIST_COLUMNS):
+        raise DataFileError(
+            str(source),
+            f"header {','.join(header)}; expected name,detections[,config]",
+            row=1,
+        )
+    recordings: list[Recording] = []
+    for line, cells in enumerate(rows[1:], start=2):
+        if len(cells) != len(header):
+            raise DataFileError(
+                str(source), f"{len(cells)} cells, expected {len(header)}", row=line
+            )
+        record = dict(zip(header, (cell.strip() for cell in cells), strict=True))
+        name = _check_name(record["name"], f"{source}, line {line}")
+        config = record.get("config", "")
+        recordings.append(
+            Recording(name, base / record["detections"], base / config if config else None)
+        )
+    return recordings
+
+
+def find_recordings(source: str | os.PathLike[str]) -> list[Recording]:
+    """The recordings of a folder or a recordings list (module docstring).
+
+    Raises
+    ------
+    InputError, DataFileError
+        No recordings, repeated names, a missing detections file.
+    """
+    path = Path(source)
+    if path.is_dir():
+        recordings = _from_folder(path)
+    elif path.is_file():
+        recordings = _from_list(path)
+    else:
+        raise InputError(f"recordings source {str(path)!r} is neither a folder nor a file")
+    if not recordings:
+        raise InputError(
+            f"{path}: no recordings found; expected sub-folders with detections.csv, "
+            "files NAME.csv / NAME.parquet, or a list with the columns name,detections[,config]"
+        )
+    names: dict[str, Recording] = {}
+    for recording in recordings:
+        if recording.name in names:
+            raise InputError(
+                f"{path}: recording name {recording.name!r} appears twice "
+                f"({names[recording.name].detections} and {recording.detections})"
+            )
+        names[recording.name] = recording
+    return recordings
+
+
+# ------------------------------------------------------------------------- one recording
+
+_WORKER_STOP: Callable[[], bool] | None = None
+"""The stop request a pool worker polls (set by :func:`_init_worker`)."""
+_ONE_AT_A_TIME = threading.Lock()
+"""Runs in one process go one at a time (warnings capture is process-wide)."""
+
+
+def _init_worker(event: Any) -> None:
+    """Pool worker start: BLAS on one thread, SIGINT/SIGTERM only ask to stop."""
+    import signal
+
+    for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(variable, "1")
+    local = StopFlag()
+
+    def handler(signum: int, frame: object) -> None:
+        local.set(signal.Signals(signum).name)
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    global _WORKER_STOP
+    _WORKER_STOP = lambda: local() or event.is_set()  # noqa: E731
+
+
+def run_recording(
+    recording: Recording,
+    shared_config: Path | None,
+    out: Path,
+    options: BatchOptions,
+    stop: Callable[[], bool] | None = None,
+) -> dict[str, object]:
+    """Run one recording into ``out / recording.name``; return its summary row.
+
+    Every failure of the recording (bad input, a write error, even a bug) becomes its
+    row's ``status = "failed"`` and ``error``, so that the batch goes on.
+    """
+    if stop is None:
+        stop = _WORKER_STOP
+    config = recording.config or shared_config
+    row: dict[str, object] = {column: "" for column in SUMMARY_COLUMNS}
+    row.update(
+        name=recording.name,
+        out=str(out / recording.name),
+        detections=str(recording.detections),
+        config="" if config is None else str(config),
+    )
+    started = time.perf_counter()
+    try:
+        if config is None:
+            raise InputError(
+                f"recording {recording.name!r} has no config.toml of its own and the batch "
+                "has no shared --config"
+            )
+        with _ONE_AT_A_TIME:
+            outcome = run_files(
+                config,
+                recording.detections,
+                out / recording.name,
+                timings=options.timings,
+                progress=False,
+                overwrite=options.overwrite,
+                resume=options.resume,
+                checkpoint_seconds=options.checkpoint_seconds,
+                stop=stop,
+            )
+    except RunInterrupted as exc:
+        row.update(status="interrupted", scans=exc.scans_committed, error=str(exc))
+    except MapassocError as exc:
+        row.update(status="failed", error=str(exc))
+    except Exception as exc:  # a bug: reported in the row, the batch goes on
+        row.update(status="failed", error=f"{type(exc).__name__}: {exc}")
+    else:
+        summary = outcome.summary
+        seconds = time.perf_counter() - started
+        warnings_list = [str(w) for w in summary.get("warnings", [])]  # type: ignore[union-attr]
+        row.update(
+            status=outcome.status,
+            scans=summary["scans"],
+            windows=summary["windows"],
+            tracks=summary["tracks"],
+            resumed_at=outcome.resumed_at,
+            warnings=len(warnings_list),
+            warning_messages=" | ".join(warnings_list),
+        )
+        if outcome.status == "complete":
+            done = int(summary["scans"]) - outcome.resumed_at  # type: ignore[call-overload]
+            row.update(seconds=round(seconds, 3),
+                       scans_per_second=round(done / seconds, 2) if seconds > 0 else "")
+    return row
+
+
+# ------------------------------------------------------------------------- the batch
+
+
+def _write_summary(path: Path, rows: Iterable[dict[str, object]]) -> None:
+    try:
+        with open(path, "w", encoding="utf-8", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=SUMMARY_COLUMNS, lineterminator="\n")
+            writer.writeheader()
+            writer.writerows(rows)
+    except OSError as exc:
+        raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
+
+
+def _check_out(out: Path, options: BatchOptions) -> None:
+    if out.exists() and not out.is_dir():
+        raise OutputError(str(out), "is a file, not a folder; choose another --out")
+    if out.is_dir() and any(out.iterdir()) and not (options.overwrite or options.resume):
+        raise OutputError(
+            str(out),
+            "is not empty; pass --resume to finish the batch (complete recordings are "
+            "skipped) or --overwrite to run every recording again",
+        )
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(str(out), f"cannot create the folder: {os_reason(exc)}") from None
+
+
+def _jobs(jobs: int | None) -> int:
+    if jobs is None:
+        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
+            os.cpu_count() or 1
+        )
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise InputError(f"jobs must be an integer >= 1, got {jobs!r}")
+    return jobs
+
+
+def run_batch(
+    recordings: Sequence[Recording],
+    out: str | os.PathLike[str],
+    *,
+    shared_config: str | os.PathLike[str] | None = None,
+    options: BatchOptions = BatchOptions(),
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    progress: bool = True,
+    on_row: Callable[[dict[str, object]], None] | None = None,
+) -> list[dict[str, object]]:
+    """Run every recording into ``out/NAME/`` and write ``out/batch_summary.csv``.
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+        From :func:`find_recordings` (names unique).
+    out : path
+        The batch folder.
+    shared_config : path, optional
+        Configuration of the recordings without their own.
+    options : BatchOptions
+    jobs : int, optional
+        Worker processes of the local pool (default: the usable cores); 1 runs in this
+        process, one recording after the other.
+    scheduler : str, optional
+        Address of a Dask distributed scheduler (``tcp://host:8786``); the recordings
+        run as tasks there instead of on the local pool (``jobs`` is then ignored).
+        Workers with one thread each suit this CPU-bound work best.
+    progress : bool
+        Progress over recordings on stderr.
+    on_row : callable, optional
+        Called with each recording's row as it finishes.
+
+    Returns
+    -------
+    list of dict
+        One row per recording, in the order of ``recordings`` (the CSV's rows).
+
+    Raises
+    ------
+    RunInterrupted
+        SIGINT or SIGTERM: the running recordings stopped at a window boundary with a
+        checkpoint; the summary written says which are ``interrupted`` or ``pending``.
+    """
+    recordings = list(recordings)
+    if not recordings:
+        raise InputError("recordings is empty: there is nothing to run")
+    out_path = Path(out)
+    config = None if shared_config is None else Path(shared_config)
+    workers = _jobs(jobs)
+    _check_out(out_path, options)
+    rows: dict[str, dict[str, object]] = {}
+    ticker = Progress(sys.stderr, label="batch", unit="recordings", enabled=progress)
+
+    def finished(row: dict[str, object]) -> None:
+        rows[str(row["name"])] = row
+        if on_row is not None:
+            on_row(row)
+        ticker(len(rows), len(recordings))
+
+    with stop_on_signals(StopFlag(), notice=progress) as stop:
+        try:
+            if scheduler is not None:
+                _on_dask(scheduler, recordings, config, out_path, options, stop, finished)
+            elif workers == 1:
+                for recording in recordings:
+                    if stop():
+                        break
+                    finished(run_recording(recording, config, out_path, options, stop))
+            else:
+                _on_pool(workers, recordings, config, out_path, options, stop, finished)
+        finally:
+            ticker.close()
+            ordered = [
+                rows.get(r.name)
+                or {**{c: "" for c in SUMMARY_COLUMNS}, "name": r.name, "status": "pending",
+                    "out": str(out_path / r.name), "detections": str(r.detections)}
+                for r in recordings
+            ]
+            _write_summary(out_path / BATCH_SUMMARY_NAME, ordered)
+    if stop() or any(row["status"] in ("interrupted", "pending") for row in ordered):
+        done = sum(1 for row in ordered if row["status"] in ("complete", "skipped"))
+        raise RunInterrupted(out_path, done, len(recordings)) from None
+    return ordered
+
+
+def _on_pool(
+    workers: int,
+    recordings: Sequence[Recording],
+    config: Path | None,
+    out: Path,
+    options: BatchOptions,
+    stop: StopFlag,
+    finished: Callable[[dict[str, object]], None],
+) -> None:
+    """The recordings on a local process pool; a stop request reaches every worker."""
+    context = multiprocessing.get_context("spawn")
+    event = context.Event()
+    with concurrent.futures.ProcessPoolExecutor(
+        max_workers=min(workers, len(recordings)),
+        mp_context=context,
+        initializer=_init_worker,
+        initargs=(event,),
+    ) as pool:
+        futures = {
+            pool.submit(run_recording, recording, config, out, options): recording
+            for recording in recordings
+        }
+        pending = set(futures)
+        while pending:
+            done, pending = concurrent.futures.wait(
+                pending, timeout=0.2, return_when=concurrent.futures.FIRST_COMPLETED
+            )
+            for future in done:
+                if future.cancelled():
+                    continue
+                finished(_row_of(future, futures[future], out))
+            if stop() and not event.is_set():
+                event.set()
+                for future in pending:
+                    future.cancel()
+
+
+def _row_of(future: concurrent.futures.Future[Any], recording: Recording, out: Path) -> dict:
+    """The row of a finished task; a crashed worker process becomes a failed row."""
+    try:
+        return future.result()  # type: ignore[no-any-return]
+    except Exception as exc:  # e.g. BrokenProcessPool: the worker died
+        row: dict[str, object] = {column: "" for column in SUMMARY_COLUMNS}
+        row.update(name=recording.name, status="failed", out=str(out / recording.name),
+                   detections=str(recording.detections),
+                   error=f"worker failed: {type(exc).__name__}: {exc}")
+        return row
+
+
+def _dask_stop(event_name: str) -> Callable[[], bool]:
+    """A stop request read from a Dask ``Event`` at most once a second."""
+    from distributed import Event
+
+    event = Event(event_name)
+    last = [0.0, False]
+
+    def stop() -> bool:
+        now = time.monotonic()
+        if now - float(last[0]) >= 1.0:
+            last[0], last[1] = now, event.is_set()
+        return bool(last[1])
+
+    return stop
+
+
+def _dask_task(
+    recording: Recording, config: Path | None, out: Path, options: BatchOptions, event_name: str
+) -> dict[str, object]:
+    return run_recording(recording, config, out, options, _dask_stop(event_name))
+
+
+def _on_dask(
+    scheduler: str,
+    recordings: Sequence[Recording],
+    config: Path | None,
+    out: Path,
+    options: BatchOptions,
+    stop: StopFlag,
+    finished: Callable[[dict[str, object]], None],
+) -> None:
+    """The recordings as tasks of a Dask distributed cluster."""
+    try:
+        from distributed import Client, Event, wait
+    except ImportError:
+        raise InputError(
+            "--scheduler needs Dask distributed: pip install 'mapassoc[dask]'"
+        ) from None
+    import uuid
+
+    try:
+        client = Client(scheduler, timeout=30)
+    except (OSError, TimeoutError) as exc:
+        raise InputError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from None
+    event_name = f"mapassoc-stop-{uuid.uuid4().hex}"
+    with client:
+        event = Event(event_name, client=client)
+        futures = {
+            client.submit(
+                _dask_task, recording, config, out.resolve(), options, event_name,
+                key=f"mapassoc-{recording.name}-{uuid.uuid4().hex[:8]}", pure=False,
+            ): recording
+            for recording in recordings
+        }  # fmt: skip
+        pending = set(futures)
+        while pending:
+            try:
+                done, pending = wait(list(pending), timeout=0.5, return_when="FIRST_COMPLETED")
+            except TimeoutError:  # distributed.wait's timeout
+                done = set()
+            pending = set(pending)
+            for future in done:
+                recording = futures[future]
+                try:
+                    row = future.result()
+                except Exception as exc:  # the task raised past run_recording, or was lost
+                    row = {column: "" for column in SUMMARY_COLUMNS}
+                    row.update(name=recording.name, status="failed",
+                               out=str(out / recording.name),
+                               detections=str(recording.detections),
+                               error=f"task failed: {type(exc).__name__}: {exc}")
+                finished(row)
+            if stop() and not event.is_set():
+                event.set()  # running tasks stop at their next window, waiting ones at once

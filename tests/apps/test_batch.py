@@ -1,0 +1,212 @@
+"""``mapassoc batch``: recordings found, failures isolated, resume skips, pool and Dask."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from mapassoc.apps.batch import (
+    BATCH_SUMMARY_NAME,
+    SUMMARY_COLUMNS,
+    BatchOptions,
+    Recording,
+    find_recordings,
+    run_batch,
+)
+from mapassoc.apps.cli import main
+from mapassoc.apps.run_folders import read_manifest
+from mapassoc.apps.runs import run_files
+from mapassoc.errors import InputError, OutputError
+
+RESULT_FILES = ("tracks.csv", "windows.jsonl", "summary.json")
+QUIET = BatchOptions(timings=False)
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two simulated recordings with their own configs, one on the shared config, one broken."""
+    root = tmp_path_factory.mktemp("recordings")
+    assert main(["simulate", "crossing", "--out", str(root / "alpha"), "--seed", "0"]) == 0
+    assert main(["simulate", "turning", "--out", str(root / "beta"), "--seed", "1"]) == 0
+    for name in ("truth.csv", "origins.csv"):
+        (root / "alpha" / name).unlink()
+    # A flat file on the shared config (crossing's), and a broken one beside it.
+    shutil.copy(root / "alpha" / "detections.csv", root / "gamma.csv")
+    lines = (root / "alpha" / "detections.csv").read_text().splitlines()
+    cells = lines[3].split(",")
+    cells[2] = "nan"
+    lines[3] = ",".join(cells)
+    (root / "broken.csv").write_text("\n".join(lines) + "\n")
+    (root / "notes.txt").write_text("not a recording")
+    return root
+
+
+def _summary(out: Path) -> list[dict[str, str]]:
+    with open(out / BATCH_SUMMARY_NAME, newline="") as handle:
+        reader = csv.DictReader(handle)
+        assert tuple(reader.fieldnames or ()) == SUMMARY_COLUMNS
+        return list(reader)
+
+
+def _no_time_limit(config: Path) -> None:
+    """A time limit no window reaches: the windows the wall clock cuts short (status
+    time_limit) differ from run to run under load, and these tests compare bytes."""
+    text = config.read_text()
+    assert "time_limit = 2.0" in text
+    config.write_text(text.replace("time_limit = 2.0", "time_limit = 600.0"))
+
+
+def test_find_recordings_of_a_folder(recordings: Path) -> None:
+    found = find_recordings(recordings)
+    assert [r.name for r in found] == ["alpha", "beta", "broken", "gamma"]
+    by_name = {r.name: r for r in found}
+    assert by_name["alpha"].config == recordings / "alpha" / "config.toml"
+    assert by_name["gamma"].config is None and by_name["gamma"].detections.name == "gamma.csv"
+
+
+def test_find_recordings_of_a_list(recordings: Path, tmp_path: Path) -> None:
+    listing = tmp_path / "list.csv"
+    listing.write_text(
+        f"name,detections,config\none,{recordings}/alpha/detections.csv,\n"
+        f"two,{recordings}/beta/detections.csv,{recordings}/beta/config.toml\n"
+    )
+    found = find_recordings(listing)
+    assert found == [
+        Recording("one", recordings / "alpha" / "detections.csv", None),
+        Recording("two", recordings / "beta" / "detections.csv",
+                  recordings / "beta" / "config.toml"),
+    ]
+    listing.write_text("name,detections\none,a.csv\none,b.csv\n")
+    with pytest.raises(InputError, match="'one' appears twice"):
+        find_recordings(listing)
+    listing.write_text("name,path\none,a.csv\n")
+    with pytest.raises(Exception, match="expected name,detections"):
+        find_recordings(listing)
+
+
+def test_a_failing_recording_is_isolated_and_resume_skips_the_rest(
+    recordings: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "batch"
+    shared = recordings / "alpha" / "config.toml"
+    rows = run_batch(find_recordings(recordings), out, shared_config=shared, options=QUIET,
+                     jobs=2, progress=False)
+    status = {row["name"]: row["status"] for row in rows}
+    assert status == {"alpha": "complete", "beta": "complete", "broken": "failed",
+                      "gamma": "complete"}
+    broken = next(row for row in rows if row["name"] == "broken")
+    assert "broken.csv" in str(broken["error"]) and "nan" in str(broken["error"]).lower()
+    assert not (out / "broken").exists()
+    # Each recording's folder is what a run of it alone writes.
+    alone = tmp_path / "alone"
+    run_files(shared, recordings / "gamma.csv", alone, timings=False, progress=False)
+    for name in RESULT_FILES:
+        assert (out / "gamma" / name).read_bytes() == (alone / name).read_bytes()
+    # alpha and gamma are the same recording with the same config.
+    tracks = {name: (out / name / "tracks.csv").read_bytes() for name in ("alpha", "gamma")}
+    assert tracks["alpha"] == tracks["gamma"]
+    table = _summary(out)
+    assert [row["name"] for row in table] == ["alpha", "beta", "broken", "gamma"]
+    beta = next(row for row in table if row["name"] == "beta")
+    assert int(beta["scans"]) == 60 and int(beta["tracks"]) >= 1 and float(beta["seconds"]) > 0
+    assert float(beta["scans_per_second"]) > 0
+
+    # Without --resume or --overwrite a used batch folder is refused.
+    with pytest.raises(OutputError, match="not empty; pass --resume"):
+        run_batch(find_recordings(recordings), out, shared_config=shared, options=QUIET,
+                  jobs=1, progress=False)
+    stamps = {name: (out / name / "manifest.json").stat().st_mtime_ns
+              for name in ("alpha", "beta", "gamma")}
+    rows = run_batch(find_recordings(recordings), out, shared_config=shared,
+                     options=BatchOptions(timings=False, resume=True), jobs=1, progress=False)
+    status = {row["name"]: row["status"] for row in rows}
+    assert status == {"alpha": "skipped", "beta": "skipped", "broken": "failed",
+                      "gamma": "skipped"}
+    assert stamps == {name: (out / name / "manifest.json").stat().st_mtime_ns
+                      for name in ("alpha", "beta", "gamma")}
+
+
+def test_a_recording_without_any_config_fails_alone(recordings: Path, tmp_path: Path) -> None:
+    rows = run_batch(
+        [Recording("gamma", recordings / "gamma.csv", None),
+         Recording("alpha", recordings / "alpha" / "detections.csv",
+                   recordings / "alpha" / "config.toml")],
+        tmp_path / "b", options=QUIET, jobs=1, progress=False,
+    )  # fmt: skip
+    assert [row["status"] for row in rows] == ["failed", "complete"]
+    assert "no shared --config" in str(rows[0]["error"])
+
+
+def test_cli_batch_exits_1_when_a_recording_failed(
+    recordings: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cli"
+    code = main(["batch", str(recordings), "--out", str(out), "--config",
+                 str(recordings / "alpha" / "config.toml"), "--jobs", "1", "--no-timings"])
+    assert code == 1
+    captured = capsys.readouterr()
+    assert "4 recordings: 3 complete, 1 failed" in captured.out
+    assert "broken: failed" in captured.err
+
+
+@pytest.mark.slow
+def test_batch_on_a_dask_local_cluster(recordings: Path, tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        out = tmp_path / "dask"
+        rows = run_batch(find_recordings(recordings), out,
+                         shared_config=recordings / "alpha" / "config.toml", options=QUIET,
+                         scheduler=cluster.scheduler_address, progress=False)
+    status = {row["name"]: row["status"] for row in rows}
+    assert status == {"alpha": "complete", "beta": "complete", "broken": "failed",
+                      "gamma": "complete"}
+    local = tmp_path / "local"
+    run_batch(find_recordings(recordings), local,
+              shared_config=recordings / "alpha" / "config.toml", options=QUIET, jobs=1,
+              progress=False)
+    for name in ("alpha", "beta", "gamma"):
+        for file in RESULT_FILES:
+            assert (out / name / file).read_bytes() == (local / name / file).read_bytes()
+
+
+@pytest.mark.slow
+def test_an_interrupted_batch_resumes_to_the_same_folders(tmp_path: Path) -> None:
+    """SIGINT stops every worker at a window boundary (exit 130); --resume finishes."""
+    source = tmp_path / "source"
+    for seed in range(3):
+        assert main(["simulate", "parallel", "--out", str(source / f"p{seed}"),
+                     "--seed", str(seed)]) == 0
+        _no_time_limit(source / f"p{seed}" / "config.toml")
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "mapassoc.apps.cli", "batch", str(source), "--out",
+               str(out), "--jobs", "2", "--no-timings", "--checkpoint-seconds", "0"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    time.sleep(4.0)
+    assert process.poll() is None, process.communicate()
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 130, err
+    table = _summary(out)
+    assert {row["status"] for row in table} <= {"interrupted", "pending", "complete"}
+    assert any(row["status"] != "complete" for row in table)
+    assert main(["batch", str(source), "--out", str(out), "--jobs", "2", "--no-timings",
+                 "--resume", "--no-progress"]) == 0
+    assert {row["status"] for row in _summary(out)} <= {"complete", "skipped"}
+    for seed in range(3):
+        alone = tmp_path / f"alone{seed}"
+        run_files(source / f"p{seed}" / "config.toml", source / f"p{seed}" / "detections.csv",
+                  alone, timings=False, progress=False)
+        manifest = read_manifest(out / f"p{seed}")
+        assert manifest is not None and manifest["status"] == "complete"
+        for name in RESULT_FILES:
+            assert (out / f"p{seed}" / name).read_bytes() == (alone / name).read_bytes()
