@@ -1,13 +1,20 @@
 """Data files: detections, truth, origins and tracks, as CSV.
 
+The same tables as Parquet are in :mod:`mapassoc.data.parquet`; :mod:`mapassoc.data.formats`
+picks the format by the file suffix; :mod:`mapassoc.data.tables` builds scans in memory.
+
 Common rules
 ------------
 * UTF-8 text (a leading byte-order mark is ignored on reading), comma separated, read and
   written with the standard :mod:`csv` module.
-* Line 1 is the header naming the columns; every further line is one record.  Records are
-  identified by their 1-based line number ("row"), so the first data line is row 2.  These
-  row numbers are how the detections file, the origins file and the tracks file refer to
-  one detection.
+* Line 1 is the header naming the columns; every further line is one record.  Line numbers
+  are 1-based, so the first data line is line 2.
+* Detections are named by their detection id (``Scan.rows``; see :mod:`mapassoc.data.scans`):
+  a unique non-negative int64 key.  The detections CSV has no id column: a detection's id
+  is its line number (so CSV ids start at 2).  The origins file (``row``) and the tracks
+  file (``detection_row``) refer to detections by these ids; they accept any id >= 0, so
+  that they also serve detections read from Parquet or built in memory, whose ids start
+  at 0 (:mod:`mapassoc.data.parquet`, :mod:`mapassoc.data.tables`).
 * Every line has exactly as many cells as the header.  Blank lines are errors.  Spaces
   around a cell are ignored.
 * Floats are decimal numbers (``1``, ``-0.5``, ``2.5e-3``); writers use ``repr``, the
@@ -29,10 +36,12 @@ sensor is configured.  Readers accept the columns in any order; writers always w
 
 One line per detection.  The lines with the same ``(sensor, time)`` form one scan.  A scan
 without detections is one line with ``time`` and ``sensor`` and every measurement cell
-empty (so that empty scans are not lost).  Times never decrease down the file (lines of
-different sensors may interleave at equal times), so a scan cannot reappear once a later
-scan of its sensor has started.  :func:`read_detections` returns the scans sorted by
-``(time, sensor name)``; ``Scan.rows`` holds the line numbers of the scan's detections.
+empty (so that empty scans are not lost).  A file needs at least one line after the
+header.  Times never decrease down the file (lines of different sensors may interleave at
+equal times), so a scan cannot reappear once a later scan of its sensor has started.
+:func:`read_detections` returns the scans sorted by ``(time, sensor name)``; ``Scan.rows``
+holds the detection ids, which for this file are the line numbers of the scan's
+detections.
 
 Example::
 
@@ -50,16 +59,17 @@ Example::
 
 3. Origins file
 ---------------
-``row,target_id``: for each detection line ``row`` of the detections file, the id of the
-target that produced it, or an empty cell for a false alarm.  Read into :class:`Origins`
-(false alarms get target id -1).
+``row,target_id``: for each detection id ``row`` (for a detections CSV file, the detection's
+line), the id of the target that produced it, or an empty cell for a false alarm.  Read
+into :class:`Origins` (false alarms get target id -1).
 
 4. Tracks file
 --------------
 ``track_id,time,sensor,<state names>,<var_ + state name, for each>,detection_row``: one line
 per track per scan (``time``, ``sensor``) at which the track is alive; ``var_*`` are the
-marginal variances (diagonal of the covariance); ``detection_row`` is the detections-file
-line the track used at that scan, empty when the track missed.  Read into
+marginal variances (diagonal of the covariance); ``detection_row`` is the id of the
+detection the track used at that scan (for a detections CSV file, its line), empty when
+the track missed.  Read into
 :class:`TrackTable`.
 """
 
@@ -80,6 +90,7 @@ from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
 
 __all__ = [
+    "FIRST_DATA_LINE",
     "TruthTable",
     "Origins",
     "TrackTable",
@@ -99,7 +110,9 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 FIRST_DATA_LINE = 2
-"""Line number of the first record (line 1 is the header)."""
+"""Line number of the first record (line 1 is the header): the first detection id that
+:func:`number_rows` and :func:`read_detections` give.  Other sources number detections from
+0, and every table accepts any id >= 0."""
 
 _TRUTH_FIXED = ("target_id", "time")
 _ORIGINS_HEADER = ("row", "target_id")
@@ -176,6 +189,34 @@ def _float_text(value: float) -> str:
 # --------------------------------------------------------------------------- files
 
 
+def _decode_error_line(path: str, fallback: int) -> tuple[int, str]:
+    """Line number and description of the first byte of ``path`` that is not UTF-8.
+
+    The text reader decodes ahead of the csv module in blocks, so the line it is at when
+    decoding fails is not the line of the bad byte.  Only on that error path, this reads
+    the whole file as bytes (for a 100 MB file, about twice that in memory once, at the
+    moment the read is failing anyway; the normal path streams) and counts the line breaks
+    before the bad byte: ``\\r\\n``, ``\\r`` and ``\\n``, the breaks the text reader
+    recognises, so a quoted cell spanning lines counts them as the csv module's line
+    numbers do.  ``fallback`` is
+    returned if the bytes cannot be read again or now decode (the file changed).
+    """
+    try:
+        with open(path, "rb") as handle:
+            data = handle.read()
+    except OSError:
+        return fallback, "undecodable bytes"
+    try:
+        data.decode("utf-8")  # a leading byte-order mark is valid UTF-8
+    except UnicodeDecodeError as exc:
+        start = exc.start
+        breaks = data.count(b"\n", 0, start) + data.count(b"\r", 0, start)
+        breaks -= data.count(b"\r\n", 0, start)
+        byte = data[start : start + 1].hex()
+        return breaks + 1, f"{exc.reason}: byte 0x{byte} at byte offset {start}"
+    return fallback, "undecodable bytes"
+
+
 def _lines(path: str) -> Iterator[tuple[int, list[str]]]:
     """Yield ``(line number, stripped cells)`` for every CSV line of ``path``."""
     try:
@@ -189,10 +230,9 @@ def _lines(path: str) -> Iterator[tuple[int, list[str]]]:
                     return
                 except csv.Error as exc:
                     raise DataFileError(path, f"malformed CSV: {exc}", row=last_line + 1) from None
-                except UnicodeDecodeError as exc:
-                    raise DataFileError(
-                        path, f"not UTF-8 text ({exc.reason})", row=last_line + 1
-                    ) from None
+                except UnicodeDecodeError:
+                    line, what = _decode_error_line(path, last_line + 1)
+                    raise DataFileError(path, f"not UTF-8 text ({what})", row=line) from None
                 line = last_line + 1
                 last_line = reader.line_num
                 yield line, [cell.strip() for cell in cells]
@@ -326,13 +366,15 @@ def read_detections(path: PathLike, sensors: Mapping[str, Sensor]) -> list[Scan]
     Returns
     -------
     list of Scan
-        Sorted by ``(time, sensor name)``; ``detections`` of shape ``(m, dz)`` with the
-        columns in the sensor's ``component_names`` order, ``rows`` the line numbers.
+        Sorted by ``(time, sensor name)``, at least one; ``detections`` of shape ``(m, dz)``
+        with the columns in the sensor's ``component_names`` order, ``rows`` the detection
+        ids, here the line numbers (>= 2).
 
     Raises
     ------
     DataFileError
-        Any malformed header, line or cell (see the module docstring).
+        Any malformed header, line or cell (see the module docstring), or no line after the
+        header.
     InputError
         ``sensors`` is empty or inconsistent.
     """
@@ -468,6 +510,12 @@ def read_detections(path: PathLike, sensors: Mapping[str, Sensor]) -> list[Scan]
                 [_float_cell(path, line, name, cells[index]) for name, index in own]
             )
             builder.rows.append(line)
+    if previous_line == 0:
+        raise DataFileError(
+            path,
+            "no detection lines after the header; a scan without detections is a line with "
+            "time and sensor and empty measurement cells",
+        )
 
     dims = {sensor.name: sensor.measurement.measurement_dim for sensor in sensor_list}
     ordered = sorted(builders.values(), key=lambda b: (b.time, b.sensor))
@@ -477,6 +525,13 @@ def read_detections(path: PathLike, sensors: Mapping[str, Sensor]) -> list[Scan]
 
 
 def _check_scans_for_writing(scans: Sequence[Scan], sensors: Mapping[str, Sensor]) -> None:
+    if isinstance(scans, str) or not isinstance(scans, Sequence):
+        raise InputError(f"scans must be a sequence of Scan, got {scans!r}")
+    if len(scans) == 0:
+        raise InputError(
+            "scans is empty; a detections file needs at least one scan (the readers refuse a "
+            "file without one)"
+        )
     seen: set[tuple[str, float]] = set()
     previous_time = -math.inf
     for index, scan in enumerate(scans):
@@ -511,24 +566,26 @@ def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str
     """Write scans as a detections file (format 1 of the module docstring).
 
     Scans are written in the given order, one line per detection and one line per empty
-    scan, always with the ``sensor`` column.  ``Scan.rows`` is not written: the line
-    numbers are implicit.  Call :func:`number_rows` first so that the scans' ``rows``
-    agree with the file.
+    scan, always with the ``sensor`` column.  ``Scan.rows`` (the detection ids) is not
+    written: reading the file gives every detection its line number as id.  Call
+    :func:`number_rows` first so that the scans' ``rows`` agree with the file (the Parquet
+    writer, :func:`mapassoc.data.parquet.write_detections_parquet`, keeps any ids).
 
     Parameters
     ----------
     path : str or os.PathLike
         The file (overwritten).
     scans : sequence of Scan
-        In non-decreasing time, one scan per (sensor, time); ``detections`` of shape
-        ``(m, dz)`` with ``dz`` the sensor's measurement dimension.
+        At least one, in non-decreasing time, one scan per (sensor, time); ``detections``
+        of shape ``(m, dz)`` with ``dz`` the sensor's measurement dimension.
     sensors : mapping of str to Sensor
         Configured sensors (fixes the column order: ``time,sensor,<component union>``).
 
     Raises
     ------
     InputError
-        A scan of an unknown sensor, of the wrong dimension, out of time order or repeated.
+        No scan, or a scan of an unknown sensor, of the wrong dimension, out of time order
+        or repeated.
     DataFileError
         The file cannot be written.
     """
@@ -555,10 +612,11 @@ def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str
 
 
 def number_rows(scans: Sequence[Scan]) -> list[Scan]:
-    """Copies of ``scans`` whose ``rows`` are the lines :func:`write_detections` gives them.
+    """Copies of ``scans`` whose ``rows`` are the ids reading the file that
+    :func:`write_detections` writes gives them: their line numbers.
 
-    Detections are numbered from line 2 (after the header) in order; an empty scan uses
-    one line and gets no row.
+    Detections are numbered from line 2 (``FIRST_DATA_LINE``, after the header) in order; an
+    empty scan uses one line and gets no id.
 
     Parameters
     ----------
@@ -610,7 +668,14 @@ def _check_state_names(names: object, reserved: Sequence[str]) -> tuple[str, ...
     return out
 
 
-def _int_array(name: str, value: ArrayLike, *, minimum: int, length: int | None) -> IntArray:
+def _int_array(
+    name: str,
+    value: ArrayLike,
+    *,
+    minimum: int,
+    length: int | None,
+    expected: str | None = None,
+) -> IntArray:
     arr = np.asarray(value)
     if arr.size == 0:
         arr = arr.astype(np.int64)
@@ -621,7 +686,9 @@ def _int_array(name: str, value: ArrayLike, *, minimum: int, length: int | None)
     if length is not None and arr.shape[0] != length:
         raise InputError(f"{name} must have shape ({length},), got {arr.shape}")
     if arr.size and int(arr.min()) < minimum:
-        raise InputError(f"{name} must be >= {minimum}, got the value {int(arr.min())}")
+        raise InputError(
+            f"{name} must be {expected or f'>= {minimum}'}, got the value {int(arr.min())}"
+        )
     out = arr.astype(np.int64)
     out.setflags(write=False)
     return out
@@ -725,7 +792,6 @@ class TruthTable(_StateRecords):
         object.__setattr__(self, "states", states)
 
 
-
 @dataclass(frozen=True, eq=False)
 class Origins:
     """True origin of each detection (origins file, format 3).
@@ -733,7 +799,8 @@ class Origins:
     Parameters
     ----------
     rows : ndarray of int64, shape (M,)
-        Detections-file line numbers (>= 2), distinct.
+        Detection ids (``Scan.rows``: any int64 >= 0; for a detections CSV file, its line
+        numbers), distinct.
     target_ids : ndarray of int64, shape (M,)
         Target that produced the detection, or -1 for a false alarm.
     """
@@ -742,7 +809,7 @@ class Origins:
     target_ids: IntArray
 
     def __post_init__(self) -> None:
-        rows = _int_array("rows", self.rows, minimum=FIRST_DATA_LINE, length=None)
+        rows = _int_array("rows", self.rows, minimum=0, length=None, expected="detection ids >= 0")
         ids = _int_array("target_ids", self.target_ids, minimum=-1, length=rows.shape[0])
         repeated = _duplicate([(row,) for row in rows.tolist()])
         if repeated is not None:
@@ -773,7 +840,8 @@ class TrackTable(_StateRecords):
     variances : ndarray, shape (N, n)
         Marginal variances (covariance diagonal), >= 0.
     detection_rows : ndarray of int64, shape (N,)
-        Detections-file line used at this scan (>= 2), or -1 for a miss.
+        Id of the detection used at this scan (``Scan.rows``: any int64 >= 0; for a
+        detections CSV file, its line), or -1 for a miss.
     state_names : tuple of str, length n
         Column names of the state components.
 
@@ -813,12 +881,13 @@ class TrackTable(_StateRecords):
         variances = _float_array("variances", self.variances, (count, len(names)))
         if np.any(variances < 0):
             raise InputError(f"variances must be >= 0, got minimum {float(variances.min())!r}")
-        rows = _int_array("detection_rows", self.detection_rows, minimum=-1, length=count)
-        if np.any((rows >= 0) & (rows < FIRST_DATA_LINE)):
-            raise InputError(
-                f"detection_rows must be -1 (miss) or a line number >= {FIRST_DATA_LINE}, got "
-                f"{sorted(set(rows[(rows >= 0) & (rows < FIRST_DATA_LINE)].tolist()))}"
-            )
+        rows = _int_array(
+            "detection_rows",
+            self.detection_rows,
+            minimum=-1,
+            length=count,
+            expected="-1 (a miss) or a detection id >= 0",
+        )
         repeated = _duplicate(list(zip(ids.tolist(), times.tolist(), sensors, strict=True)))
         if repeated is not None:
             raise InputError(f"(track_id, time, sensor) = {repeated} appears more than once")
@@ -870,7 +939,6 @@ class TrackTable(_StateRecords):
         )
 
 
-
 # --------------------------------------------------------------------------- truth
 
 
@@ -896,6 +964,29 @@ def write_truth(path: PathLike, table: TruthTable) -> None:
     _write_rows(path, [*_TRUTH_FIXED, *table.state_names], rows())
 
 
+_TRUTH_EXPECTED = "target_id,time,<state names>"
+
+
+def _truth_state_names(path: str, header: Sequence[str], *, row: int | None) -> list[str]:
+    """The state names of a truth table's columns ``header`` (also used for Parquet)."""
+    for position, name in enumerate(_TRUTH_FIXED):
+        if position >= len(header) or header[position] != name:
+            found = header[position] if position < len(header) else None
+            raise DataFileError(
+                path,
+                f"column {position + 1} is {found!r}; expected {name!r} "
+                f"(columns {_TRUTH_EXPECTED})",
+                row=row,
+                column=name,
+            )
+    names = list(header[len(_TRUTH_FIXED) :])
+    if not names:
+        raise DataFileError(
+            path, f"no state columns after target_id,time; expected {_TRUTH_EXPECTED}", row=row
+        )
+    return names
+
+
 def read_truth(path: PathLike) -> TruthTable:
     """Read a truth file (format 2); the state names are the columns after ``target_id,time``.
 
@@ -914,23 +1005,9 @@ def read_truth(path: PathLike) -> TruthTable:
         Malformed header, line or cell, or a repeated (target_id, time).
     """
     path = os.fspath(path)
-    expected = "target_id,time,<state names>"
     lines = _lines(path)
-    header = _read_header(path, lines, expected)
-    for position, name in enumerate(_TRUTH_FIXED):
-        if position >= len(header) or header[position] != name:
-            found = header[position] if position < len(header) else None
-            raise DataFileError(
-                path,
-                f"column {position + 1} is {found!r}; expected {name!r} (header {expected})",
-                row=1,
-                column=name,
-            )
-    names = header[len(_TRUTH_FIXED) :]
-    if not names:
-        raise DataFileError(
-            path, f"no state columns after target_id,time; expected {expected}", row=1
-        )
+    header = _read_header(path, lines, _TRUTH_EXPECTED)
+    names = _truth_state_names(path, header, row=1)
     ids: list[int] = []
     times: list[float] = []
     states: list[list[float]] = []
@@ -1022,7 +1099,7 @@ def read_origins(path: PathLike) -> Origins:
     first_line: dict[int, int] = {}
     for line, cells in lines:
         _check_width(path, line, cells, header)
-        row = _int_cell(path, line, "row", cells[0], minimum=FIRST_DATA_LINE)
+        row = _int_cell(path, line, "row", cells[0], minimum=0)
         if row in first_line:
             raise DataFileError(
                 path,
@@ -1079,6 +1156,55 @@ def write_tracks(path: PathLike, table: TrackTable) -> None:
     _write_rows(path, _tracks_header(table.state_names), rows())
 
 
+_TRACKS_EXPECTED = "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row"
+
+
+def _track_state_names(
+    path: str, header: Sequence[str], *, row: int | None
+) -> tuple[list[str], list[str]]:
+    """State and variance column names of a tracks table's columns ``header`` (also used
+    for Parquet)."""
+    expected = _TRACKS_EXPECTED
+    for position, name in enumerate(_TRACK_FIXED):
+        if position >= len(header) or header[position] != name:
+            found = header[position] if position < len(header) else None
+            raise DataFileError(
+                path,
+                f"column {position + 1} is {found!r}; expected {name!r} (header {expected})",
+                row=row,
+                column=name,
+            )
+    if header[-1] != _TRACK_ROW:
+        raise DataFileError(
+            path,
+            f"last column is {header[-1]!r}; expected {_TRACK_ROW!r} (header {expected})",
+            row=row,
+            column=_TRACK_ROW,
+        )
+    middle = header[len(_TRACK_FIXED) : -1]
+    if not middle or len(middle) % 2:
+        raise DataFileError(
+            path,
+            f"{len(middle)} state and variance columns ({','.join(middle)}); expected n state "
+            f"columns followed by their n var_ columns (header {expected})",
+            row=row,
+            column=middle[-1] if middle else _TRACK_ROW,
+        )
+    count = len(middle) // 2
+    names = middle[:count]
+    for name, found in zip(names, middle[count:], strict=True):
+        if found != _VAR_PREFIX + name:
+            raise DataFileError(
+                path,
+                f"column {found!r} where {_VAR_PREFIX + name!r} was expected: the variance "
+                f"columns must follow the state columns {','.join(names)} in the same order",
+                row=row,
+                column=found,
+            )
+    var_names = middle[count:]
+    return list(names), list(var_names)
+
+
 def read_tracks(path: PathLike) -> TrackTable:
     """Read a tracks file (format 4); state names come from the header.
 
@@ -1098,46 +1224,10 @@ def read_tracks(path: PathLike) -> TrackTable:
         order), line or cell, negative variance, or a repeated (track_id, time, sensor).
     """
     path = os.fspath(path)
-    expected = "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row"
     lines = _lines(path)
-    header = _read_header(path, lines, expected)
-    for position, name in enumerate(_TRACK_FIXED):
-        if position >= len(header) or header[position] != name:
-            found = header[position] if position < len(header) else None
-            raise DataFileError(
-                path,
-                f"column {position + 1} is {found!r}; expected {name!r} (header {expected})",
-                row=1,
-                column=name,
-            )
-    if header[-1] != _TRACK_ROW:
-        raise DataFileError(
-            path,
-            f"last column is {header[-1]!r}; expected {_TRACK_ROW!r} (header {expected})",
-            row=1,
-            column=_TRACK_ROW,
-        )
-    middle = header[len(_TRACK_FIXED) : -1]
-    if not middle or len(middle) % 2:
-        raise DataFileError(
-            path,
-            f"{len(middle)} state and variance columns ({','.join(middle)}); expected n state "
-            f"columns followed by their n var_ columns (header {expected})",
-            row=1,
-            column=middle[-1] if middle else _TRACK_ROW,
-        )
-    count = len(middle) // 2
-    names = middle[:count]
-    for name, found in zip(names, middle[count:], strict=True):
-        if found != _VAR_PREFIX + name:
-            raise DataFileError(
-                path,
-                f"column {found!r} where {_VAR_PREFIX + name!r} was expected: the variance "
-                f"columns must follow the state columns {','.join(names)} in the same order",
-                row=1,
-                column=found,
-            )
-    var_names = middle[count:]
+    header = _read_header(path, lines, _TRACKS_EXPECTED)
+    names, var_names = _track_state_names(path, header, row=1)
+    count = len(names)
     ids: list[int] = []
     times: list[float] = []
     sensors: list[str] = []
@@ -1180,9 +1270,7 @@ def read_tracks(path: PathLike) -> TrackTable:
             variance.append(value)
         row_cell = cells[-1]
         detection_row = (
-            -1
-            if row_cell == ""
-            else _int_cell(path, line, _TRACK_ROW, row_cell, minimum=FIRST_DATA_LINE)
+            -1 if row_cell == "" else _int_cell(path, line, _TRACK_ROW, row_cell, minimum=0)
         )
         ids.append(track)
         times.append(time)

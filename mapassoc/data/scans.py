@@ -1,9 +1,21 @@
 """Scans: the detections one sensor delivered at one time.
 
 A run is a list of scans sorted by time (ties broken by sensor name).  Every
-detection keeps ``row``, the 1-based line of the detections file it came from
-(for simulated data: the line the writer gives it), so that tracks can name the
-detections they use.
+detection carries an id, ``Scan.rows`` (the historical name is kept: it is used all over
+the package), so that tracks and origins can name the detections they use.
+
+Detection ids are unique non-negative int64 keys of the detections table; nothing else is
+assumed about them (they need not be contiguous or sorted).  Where they come from:
+
+* the CSV reader (:func:`mapassoc.data.io.read_detections`) uses the file's 1-based line
+  numbers, so CSV ids start at 2 (line 1 is the header), and
+  :func:`mapassoc.data.io.number_rows` gives scans the ids the CSV writer will give them;
+* the Parquet reader (:mod:`mapassoc.data.parquet`) uses the ``detection_id`` column if
+  the file has one, else the 0-based row index;
+* in-memory input (:mod:`mapassoc.data.tables`) uses the ids it is given, else 0..n-1.
+
+:class:`Scan` refuses negative ids and ids repeated within the scan; ids repeated across
+the scans of a run are refused by :func:`check_scan_order`.
 """
 
 from __future__ import annotations
@@ -32,7 +44,16 @@ class Scan:
     detections : ndarray, shape (m, dz)
         Measurements; ``m`` may be 0.
     rows : ndarray of int, shape (m,)
-        Line numbers of the detections in their file (unique within a run).
+        Detection ids: unique non-negative int64 keys of the detections table (see the
+        module docstring; for a CSV file, its line numbers).  Integer arrays, and float
+        arrays of whole numbers, are accepted and stored as int64.  Unique within a run
+        (checked here within the scan, across scans by :func:`check_scan_order`).
+
+    Raises
+    ------
+    InputError
+        A non-finite time, detections not a finite ``(m, dz)`` array, ``rows`` not of shape
+        ``(m,)``, not integers, negative or repeated within the scan.
     """
 
     time: float
@@ -52,12 +73,7 @@ class Scan:
             )
         if not np.all(np.isfinite(det)):
             raise InputError(f"scan detections must be finite (sensor '{self.sensor}', time {t})")
-        rows = np.asarray(self.rows, dtype=np.int64)
-        if rows.shape != (det.shape[0],):
-            raise InputError(
-                f"scan rows must have shape ({det.shape[0]},), got {rows.shape} "
-                f"(sensor '{self.sensor}', time {t})"
-            )
+        rows = _detection_ids(self.rows, det.shape[0], self.sensor, t)
         det.setflags(write=False)
         rows.setflags(write=False)
         object.__setattr__(self, "time", t)
@@ -73,8 +89,39 @@ class Scan:
         return f"Scan(time={self.time}, sensor={self.sensor!r}, detections={self.size})"
 
 
+def _detection_ids(value: object, count: int, sensor: str, time: float) -> NDArray[np.int64]:
+    """``value`` as an int64 array of ``count`` distinct ids >= 0, or an InputError."""
+    where = f"(sensor {sensor!r}, time {time!r})"
+    raw = np.asarray(value)
+    if raw.shape != (count,):
+        raise InputError(f"scan rows must have shape ({count},), got {raw.shape} {where}")
+    if count == 0:
+        return np.zeros(0, dtype=np.int64)
+    if np.issubdtype(raw.dtype, np.floating):
+        whole = np.isfinite(raw) & (raw == np.round(raw)) & (np.abs(raw) < 2.0**63)
+        if not np.all(whole):
+            bad = raw[~whole][:5].tolist()
+            raise InputError(f"scan rows must be whole numbers (detection ids), got {bad} {where}")
+    elif not np.issubdtype(raw.dtype, np.integer):
+        raise InputError(f"scan rows must be integer detection ids, got dtype {raw.dtype} {where}")
+    elif raw.dtype == np.uint64 and int(raw.max()) > np.iinfo(np.int64).max:
+        raise InputError(f"scan rows must fit in int64, got the id {int(raw.max())} {where}")
+    rows = raw.astype(np.int64)
+    if int(rows.min()) < 0:
+        negative = sorted(set(rows[rows < 0].tolist()))[:5]
+        raise InputError(f"scan rows (detection ids) must be >= 0, got {negative} {where}")
+    ordered = np.sort(rows)
+    repeated = ordered[1:][ordered[1:] == ordered[:-1]]
+    if repeated.size:
+        raise InputError(
+            f"scan rows (detection ids) must be distinct, got {sorted(set(repeated.tolist()))[:5]} "
+            f"more than once {where}"
+        )
+    return rows
+
+
 def check_scan_order(scans: Sequence[Scan]) -> None:
-    """Raise unless scans are sorted by (time, sensor) with unique pairs and rows.
+    """Raise unless scans are sorted by (time, sensor) with unique pairs and detection ids.
 
     Parameters
     ----------
@@ -91,5 +138,8 @@ def check_scan_order(scans: Sequence[Scan]) -> None:
                 )
         dup = seen_rows.intersection(scan.rows.tolist())
         if dup:
-            raise InputError(f"detection rows {sorted(dup)[:5]} appear in more than one scan")
+            raise InputError(
+                f"detection ids (rows) {sorted(dup)[:5]} appear in more than one scan; "
+                f"scan {i} ({scan.sensor!r} at {scan.time}) repeats them"
+            )
         seen_rows.update(scan.rows.tolist())

@@ -49,12 +49,13 @@ Measurement components
     is refused.  Detections without a measurement model are taken as they are.  Other
     Stone Soup measurement models are refused.
 Detection rows
-    Our detections are identified by rows (detections-file line numbers, from 2).
-    :func:`scans_from_stonesoup` numbers them 2, 3, ... in scan order, and within a scan in
-    lexicographic order of the (converted) measurement vectors, so that the numbering does
-    not depend on the iteration order of Python sets.  With ``row_key`` it reads each row
-    from ``detection.metadata[row_key]`` instead, where :func:`scans_to_stonesoup` writes it:
-    our scans -> Stone Soup -> our scans is then the identity.
+    Our detections are identified by detection ids (``Scan.rows``: opaque integers >= 0;
+    a CSV file's line numbers, from 2).  :func:`scans_from_stonesoup` numbers them 2, 3,
+    ... (the lines :func:`~mapassoc.data.io.write_detections` gives them) in scan order,
+    and within a scan in lexicographic order of the (converted) measurement vectors, so
+    that the numbering does not depend on the iteration order of Python sets.  With
+    ``row_key`` it reads each id from ``detection.metadata[row_key]`` instead, where
+    :func:`scans_to_stonesoup` writes it: our scans -> Stone Soup -> our scans is then the identity.
 """
 
 from __future__ import annotations
@@ -532,10 +533,9 @@ def _row_of(detection: Any, row_key: str, where: str) -> int:
     if row_key not in metadata:
         raise InputError(f"{where}: metadata has no {row_key!r} (row_key); got {metadata!r}")
     row = metadata[row_key]
-    if isinstance(row, bool) or not isinstance(row, int | np.integer) or row < FIRST_DATA_LINE:
+    if isinstance(row, bool) or not isinstance(row, int | np.integer) or row < 0:
         raise InputError(
-            f"{where}: metadata[{row_key!r}] = {row!r}; expected an integer row >= "
-            f"{FIRST_DATA_LINE}"
+            f"{where}: metadata[{row_key!r}] = {row!r}; expected an integer detection id >= 0"
         )
     return int(row)
 
@@ -570,7 +570,7 @@ def scans_from_stonesoup(
         sensors: a Stone Soup detection set does not say which sensors looked and saw
         nothing).  With a single name, every time is a scan of that sensor.
     row_key : str, optional
-        Read each detection's row from ``detection.metadata[row_key]`` (integers >= 2,
+        Read each detection's id from ``detection.metadata[row_key]`` (integers >= 0,
         distinct; detections within a scan are then in row order) instead of numbering the
         rows 2, 3, ... (see the module docstring).
     config : Config, optional

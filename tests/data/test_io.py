@@ -69,7 +69,7 @@ def _same_float_bits(a: np.ndarray, b: np.ndarray) -> bool:
 
 def _scan(time: float, sensor: str, detections: list[list[float]], dim: int) -> Scan:
     det = np.array(detections, dtype=float).reshape(len(detections), dim)
-    return Scan(time=time, sensor=sensor, detections=det, rows=np.zeros(len(detections)))
+    return Scan(time=time, sensor=sensor, detections=det, rows=np.arange(len(detections)))
 
 
 def _write_text(directory: Path, text: str, name: str = "data.csv") -> str:
@@ -83,8 +83,9 @@ def _write_text(directory: Path, text: str, name: str = "data.csv") -> str:
 
 @st.composite
 def scan_lists(draw: st.DrawFn) -> list[Scan]:
-    """Scans sorted by (time, sensor), unique pairs, some empty, three kinds of sensor."""
-    times = sorted(set(draw(st.lists(finite, max_size=5))))
+    """Scans sorted by (time, sensor), unique pairs, some empty, three kinds of sensor; at
+    least one (a detections file holds at least one scan)."""
+    times = sorted(set(draw(st.lists(finite, min_size=1, max_size=5))))
     scans = []
     for time in times:
         names = draw(st.lists(st.sampled_from(sorted(SENSORS)), unique=True, min_size=1))
@@ -92,7 +93,7 @@ def scan_lists(draw: st.DrawFn) -> list[Scan]:
             dim = SENSORS[name].measurement.measurement_dim
             count = draw(st.integers(0, 3))
             det = draw(arrays(np.float64, (count, dim), elements=finite))
-            scans.append(Scan(time=time, sensor=name, detections=det, rows=np.zeros(count)))
+            scans.append(Scan(time=time, sensor=name, detections=det, rows=np.arange(count)))
     return scans
 
 
@@ -188,8 +189,19 @@ def test_byte_order_mark_is_ignored(tmp_path: Path) -> None:
     assert scan.rows.tolist() == [2]
 
 
-def test_header_only_file_has_no_scans(tmp_path: Path) -> None:
-    assert read_detections(_write_text(tmp_path, f"{HEADER}\n"), SENSORS) == []
+def test_header_only_file_is_an_error_naming_the_file(tmp_path: Path) -> None:
+    path = _write_text(tmp_path, f"{HEADER}\n", name="header_only.csv")
+    with pytest.raises(DataFileError) as info:
+        read_detections(path, SENSORS)
+    message = str(info.value)
+    assert info.value.path == path and message.startswith(path)
+    assert "no detection lines after the header" in message
+    assert "empty measurement cells" in message  # says how to write an empty scan
+
+
+def test_a_single_empty_scan_is_a_valid_file(tmp_path: Path) -> None:
+    (scan,) = read_detections(_write_text(tmp_path, f"{HEADER}\n2.5,radar,,,,,\n"), SENSORS)
+    assert (scan.time, scan.sensor, scan.size, scan.detections.shape) == (2.5, "radar", 0, (0, 2))
 
 
 BAD_DETECTIONS = [
@@ -253,8 +265,42 @@ def test_missing_file_is_a_data_file_error(tmp_path: Path) -> None:
 def test_non_utf8_file_is_a_data_file_error(tmp_path: Path) -> None:
     path = tmp_path / "latin1.csv"
     path.write_bytes(b"time,x,y\n0,1,2\n0,\xe9,2\n")
-    with pytest.raises(DataFileError, match="not UTF-8"):
+    with pytest.raises(DataFileError, match="not UTF-8") as info:
         read_detections(path, RADAR_ONLY)
+    # the bad byte is on line 3, though the decoder fails before csv has read line 2
+    assert info.value.path == str(path) and info.value.row == 3
+    assert str(info.value).startswith(f"{path}, line 3: not UTF-8 text")
+    assert "0xe9 at byte offset 17" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("prefix", "newline", "line"),
+    [
+        (b"", b"\n", 5),
+        (b"\xef\xbb\xbf", b"\n", 5),  # the byte-order mark is not a line
+        (b"", b"\r\n", 5),  # \r\n is one line break
+        (b"", b"\r", 5),  # old Mac line ends
+    ],
+)
+def test_non_utf8_byte_is_reported_on_its_line(
+    tmp_path: Path, prefix: bytes, newline: bytes, line: int
+) -> None:
+    lines = [b"time,x,y", b"0,1,2", b'1,"3",4', b"2,5,6", b"3,7,\xff8", b"4,9,10"]
+    path = tmp_path / "bad.csv"
+    path.write_bytes(prefix + newline.join(lines) + newline)
+    with pytest.raises(DataFileError) as info:
+        read_detections(path, RADAR_ONLY)
+    assert info.value.row == line and f"line {line}: not UTF-8" in str(info.value)
+
+
+def test_non_utf8_byte_far_down_a_large_file_is_reported_on_its_line(tmp_path: Path) -> None:
+    # far beyond the text reader's decoding block, and after a quoted cell spanning two lines
+    body = b"".join(b"%d,1,2\n" % t for t in range(20_000))
+    path = tmp_path / "big.csv"
+    path.write_bytes(b'time,x,y\n0,"1\n",2\n' + body + b"20000,\x80,2\n")
+    with pytest.raises(DataFileError) as info:
+        read_detections(path, RADAR_ONLY)
+    assert info.value.row == 1 + 2 + 20_000 + 1
 
 
 def test_write_detections_refuses_unreadable_input(tmp_path: Path) -> None:
@@ -270,6 +316,9 @@ def test_write_detections_refuses_unreadable_input(tmp_path: Path) -> None:
         write_detections(path, [_scan(0.0, "sonar", [[1.0, 2.0]], 2)], SENSORS)
     with pytest.raises(InputError, match="differs from the sensor's name"):
         write_detections(path, [radar], {"other": SENSORS["radar"]})
+    assert not path.exists()
+    with pytest.raises(InputError, match="scans is empty"):
+        write_detections(path, [], SENSORS)
     assert not path.exists()
 
 
@@ -355,7 +404,7 @@ def test_truth_table_validates() -> None:
 @settings(max_examples=40, deadline=None)
 @given(
     st.lists(
-        st.tuples(st.integers(2, 10**9), st.integers(-1, 10**9)),
+        st.tuples(st.integers(0, 10**9), st.integers(-1, 10**9)),
         max_size=10,
         unique_by=lambda pair: pair[0],
     )
@@ -380,9 +429,16 @@ def test_origins_golden(tmp_path: Path) -> None:
     assert path.read_text(encoding="utf-8") == "row,target_id\n2,4\n3,\n5,0\n"
 
 
+def test_origins_accept_any_detection_id_from_zero() -> None:
+    origins = Origins(rows=[0, 1, 7], target_ids=[3, -1, 3])
+    assert origins.rows.tolist() == [0, 1, 7]
+    with pytest.raises(InputError, match="rows must be detection ids >= 0, got the value -1"):
+        Origins(rows=[0, -1], target_ids=[3, 3])
+
+
 BAD_ORIGINS = [
     ("row,target\n", 1, "target", "expected row,target_id"),
-    ("row,target_id\n1,3\n", 2, "row", "'1' is below the minimum"),
+    ("row,target_id\n-1,3\n", 2, "row", "'-1' is below the minimum"),
     ("row,target_id\n2,-1\n", 2, "target_id", "'-1' is below the minimum"),
     ("row,target_id\n2,x\n", 2, "target_id", "'x' is not an integer"),
     ("row,target_id\n2,1\n2,\n", 3, "row", "already has an origin at line 2"),
@@ -425,7 +481,7 @@ def track_tables(draw: st.DrawFn) -> TrackTable:
         detection_rows=np.array(
             draw(
                 st.lists(
-                    st.one_of(st.just(-1), st.integers(2, 10**6)), min_size=count, max_size=count
+                    st.one_of(st.just(-1), st.integers(0, 10**6)), min_size=count, max_size=count
                 )
             ),
             dtype=np.int64,
@@ -479,7 +535,7 @@ BAD_TRACKS = [
     ("track_id,time,sensor,x,y,var_x,detection_row\n", 1, "var_x", "3 state and variance"),
     ("track_id,time,sensor,x,y,var_y,var_x,detection_row\n", 1, "var_y", "'var_x' was expected"),
     (f"{TRACKS_HEADER}\n0,0,radar,1,2,-1,1,2\n", 2, "var_x", "'-1' is negative"),
-    (f"{TRACKS_HEADER}\n0,0,radar,1,2,1,1,1\n", 2, "detection_row", "'1' is below"),
+    (f"{TRACKS_HEADER}\n0,0,radar,1,2,1,1,-1\n", 2, "detection_row", "'-1' is below"),
     (f"{TRACKS_HEADER}\n0,0,,1,2,1,1,2\n", 2, "sensor", "expected a sensor name"),
     (f"{TRACKS_HEADER}\nx,0,radar,1,2,1,1,2\n", 2, "track_id", "'x' is not an integer"),
     (f"{TRACKS_HEADER}\n0,0,radar,1,2,1,1,\n0,0,radar,1,2,1,1,3\n", 3, "time", "line 2"),
@@ -510,8 +566,10 @@ def test_track_table_validates() -> None:
     TrackTable(**good)
     with pytest.raises(InputError, match="variances must be >= 0"):
         TrackTable(**{**good, "variances": [[-1.0]]})
-    with pytest.raises(InputError, match="detection_rows"):
-        TrackTable(**{**good, "detection_rows": [1]})
+    with pytest.raises(InputError, match=r"detection_rows must be -1 \(a miss\) or a detection id"):
+        TrackTable(**{**good, "detection_rows": [-2]})
+    # any id >= 0 names a detection (Parquet and in-memory ids start at 0)
+    assert TrackTable(**{**good, "detection_rows": [0]}).detection_rows.tolist() == [0]
     with pytest.raises(InputError, match="sensors must have 1 entries"):
         TrackTable(**{**good, "sensors": ("radar", "esm")})
     with pytest.raises(InputError, match="sensor name"):

@@ -615,3 +615,26 @@ def test_without_stonesoup_the_module_imports_and_calls_name_the_extra() -> None
     lazy = "import sys, mapassoc.interop.stonesoup; assert 'stonesoup' not in sys.modules"
     subprocess.run([sys.executable, "-c", lazy], check=True)
     assert "pip install 'mapassoc[stonesoup]'" in INSTALL_HINT
+
+
+
+def test_detection_ids_from_zero_round_trip() -> None:
+    """Ids are opaque (>= 0): scans numbered from 0 go to Stone Soup and back unchanged."""
+    from mapassoc.data.scans import Scan
+
+    scenario = build_scenario("crossing", seed=0)
+    first = 0
+    scans = []
+    for scan in scenario.scans[:6]:
+        ids = np.arange(first, first + scan.size)
+        first += scan.size
+        scans.append(Scan(scan.time, scan.sensor, scan.detections, ids))
+    models = stonesoup_measurement_models(scenario.config)
+    pairs = scans_to_stonesoup(
+        scans, config=scenario.config, epoch=START, measurement_models=models
+    )
+    back = scans_from_stonesoup(
+        pairs, sensor_of={models["pos"]: "pos"}, row_key="row", config=scenario.config
+    )
+    assert_same_scans(back.scans, scans)
+    assert back.scans[0].rows.min() == 0
