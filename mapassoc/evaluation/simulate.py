@@ -241,7 +241,11 @@ def _simulate_truth(
     times: FloatArray,
     streams: Sequence[np.random.Generator],
 ) -> list[dict[float, FloatArray]]:
-    """True state of each target at each distinct scan time at which it is alive."""
+    """True state of each target at each distinct scan time at which it is alive.
+
+    ``times`` is sorted; each target visits only the times of its own life (found by
+    bisection), so the work is linear in the number of (target, time) records.
+    """
     motion = config.motion
     factors: dict[float, FloatArray] = {}
     # A linear model's transition is x -> F(dt) x with F its (constant) Jacobian.
@@ -251,9 +255,9 @@ def _simulate_truth(
         state = np.array(target.initial_state, dtype=float)
         previous_time = target.birth_time
         trajectory: dict[float, FloatArray] = {}
-        for time in times:
-            if not target.alive_at(float(time)):
-                continue
+        first = int(np.searchsorted(times, target.birth_time, side="left"))
+        stop = int(np.searchsorted(times, target.death_time, side="right"))
+        for time in times[first:stop]:
             dt = float(time) - previous_time
             if dt > 0.0:
                 if dt not in factors:
@@ -271,6 +275,15 @@ def _simulate_truth(
             previous_time = float(time)
         trajectories.append(trajectory)
     return trajectories
+
+
+def _alive_by_time(trajectories: Sequence[dict[float, FloatArray]]) -> dict[float, list[int]]:
+    """Indices of the targets alive at each time, ascending (one pass over the records)."""
+    alive: dict[float, list[int]] = {}
+    for k, trajectory in enumerate(trajectories):
+        for time in trajectory:
+            alive.setdefault(time, []).append(k)
+    return alive
 
 
 def simulate(
@@ -331,6 +344,7 @@ def simulate(
 
     times = np.unique(np.array([t for t, _ in plan]))
     trajectories = _simulate_truth(config, targets, times, motion_streams)
+    alive_at = _alive_by_time(trajectories)
     target_ids = np.arange(1, len(targets) + 1, dtype=np.int64)
 
     noise_factors = {
@@ -346,7 +360,7 @@ def simulate(
         sensor = config.sensors[sensor_name]
         model = sensor.measurement
         dz = model.measurement_dim
-        alive = [k for k in range(len(targets)) if time in trajectories[k]]
+        alive = alive_at.get(time, [])
         # Draw order is fixed (detection flags, noise, clutter count, clutter, shuffle) so
         # that the stream, and hence the scenario, depends only on the seed.
         detected = rng.random(len(alive)) < sensor.detection_probability
@@ -389,11 +403,10 @@ def simulate(
     truth_times: list[float] = []
     truth_states: list[FloatArray] = []
     for time in times:
-        for k, trajectory in enumerate(trajectories):
-            if float(time) in trajectory:
-                truth_ids.append(int(target_ids[k]))
-                truth_times.append(float(time))
-                truth_states.append(trajectory[float(time)])
+        for k in alive_at.get(float(time), []):
+            truth_ids.append(int(target_ids[k]))
+            truth_times.append(float(time))
+            truth_states.append(trajectories[k][float(time)])
     truth = TruthTable(
         target_ids=np.array(truth_ids, dtype=np.int64),
         times=np.array(truth_times, dtype=float),
