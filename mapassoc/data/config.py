@@ -26,6 +26,16 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     [estimator]    # optional; keys and defaults: the fields of
                    # mapassoc.data.settings.EstimatorSettings
 
+The ``[birth]`` and ``[estimator]`` sections are optional by design (every field has a
+default), but :func:`load_config` warns (``UserWarning``) when one is missing, naming
+the file and the defaults used: a forgotten section silently changes the model.
+
+``estimator.solver`` is a name of the solver registry, which this layer may not import
+(``tests/test_architecture.py``): the caller that wires the solvers passes the names it
+accepts as ``solver_names`` (for example the integer-capable ones of
+``mapassoc.solvers.available_solvers()``), and an unknown name is then a
+:class:`~mapassoc.errors.ConfigError` naming the file and ``estimator.solver``.
+
 Key paths in errors are dotted, with 0-based indices for arrays: ``sensors[1].region[0]`` is
 the first row of the region of the second ``[[sensors]]`` table.  Integer settings must be
 TOML integers (``5``, not ``5.0``); numbers may be TOML integers or floats; booleans are
@@ -41,7 +51,8 @@ import dataclasses
 import math
 import os
 import tomllib
-from collections.abc import Callable, Mapping
+import warnings
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -464,7 +475,26 @@ def _parse_settings(
         raise parser.fail(key, str(exc)) from None
 
 
-def parse_config(data: Mapping[str, object], *, source: str | None = None) -> Config:
+def _check_solver(
+    parser: _Parser, settings: EstimatorSettings, solver_names: Collection[str] | None
+) -> None:
+    if solver_names is None:
+        return
+    if isinstance(solver_names, str) or not all(isinstance(n, str) for n in solver_names):
+        raise InputError(f"solver_names must be a collection of names, got {solver_names!r}")
+    if settings.solver not in solver_names:
+        known = ", ".join(solver_names) if solver_names else "(none)"
+        raise parser.fail(
+            "estimator.solver", f"unknown solver {settings.solver!r}; known solvers: {known}"
+        )
+
+
+def parse_config(
+    data: Mapping[str, object],
+    *,
+    source: str | None = None,
+    solver_names: Collection[str] | None = None,
+) -> Config:
     """Build a :class:`Config` from a parsed TOML document (schema in the module docstring).
 
     Parameters
@@ -473,11 +503,16 @@ def parse_config(data: Mapping[str, object], *, source: str | None = None) -> Co
         The document, as returned by :func:`tomllib.loads`.
     source : str, optional
         File name reported in errors and kept in ``Config.source``.
+    solver_names : collection of str, optional
+        The solver names ``estimator.solver`` may take (the caller's registry, for example
+        the integer-capable names of ``mapassoc.solvers.available_solvers()``); ``None``
+        (default) leaves the name to be checked when the solver is built.
 
     Raises
     ------
     ConfigError
-        A missing, unknown or invalid key; ``key`` is its dotted path.
+        A missing, unknown or invalid key; ``key`` is its dotted path.  With
+        ``solver_names``, an ``estimator.solver`` (given or default) outside it.
     """
     parser = _Parser(source=source)
     document = parser.table(data, _DOCUMENT_KEY)
@@ -486,20 +521,48 @@ def parse_config(data: Mapping[str, object], *, source: str | None = None) -> Co
     sensors = _parse_sensors(parser, document, motion)
     birth = _parse_settings(parser, document, "birth", BirthModel)
     estimator = _parse_settings(parser, document, "estimator", EstimatorSettings)
+    _check_solver(parser, estimator, solver_names)
     return Config(motion=motion, sensors=sensors, birth=birth, estimator=estimator, source=source)
 
 
-def load_config(path: PathLike) -> Config:
+def _defaults_text(cls: type[BirthModel] | type[EstimatorSettings]) -> str:
+    """``"name value, ..."`` of every field default of a settings class."""
+    defaults = cls()
+    parts = []
+    for field in dataclasses.fields(cls):
+        value = getattr(defaults, field.name)
+        parts.append(f"{field.name} {list(value) if isinstance(value, tuple) else value!r}")
+    return ", ".join(parts)
+
+
+def _warn_missing_sections(data: Mapping[str, object], source: str) -> None:
+    for section, cls in (("birth", BirthModel), ("estimator", EstimatorSettings)):
+        if section not in data:
+            warnings.warn(
+                f"{source} has no [{section}] section: the defaults of {cls.__name__} are "
+                f"used ({_defaults_text(cls)})",
+                UserWarning,
+                stacklevel=3,
+            )
+
+
+def load_config(path: PathLike, *, solver_names: Collection[str] | None = None) -> Config:
     """Read and parse a TOML configuration file.
+
+    Warns (``UserWarning``, naming the file and the defaults) when the optional
+    ``[birth]`` or ``[estimator]`` section is missing.
 
     Parameters
     ----------
     path : str or os.PathLike
+    solver_names : collection of str, optional
+        The solver names ``estimator.solver`` may take (see :func:`parse_config`).
 
     Raises
     ------
     ConfigError
-        Unreadable file or TOML syntax error (key ``"<file>"``), or any schema error.
+        Unreadable file or TOML syntax error (key ``"<file>"``), or any schema error; with
+        ``solver_names``, an unknown ``estimator.solver``.
     """
     source = os.fspath(path)
     try:
@@ -513,7 +576,9 @@ def load_config(path: PathLike) -> Config:
         raise ConfigError(_DOCUMENT_KEY, f"invalid TOML: {exc}", source=source) from None
     except UnicodeDecodeError as exc:
         raise ConfigError(_DOCUMENT_KEY, f"not UTF-8 text ({exc.reason})", source=source) from None
-    return parse_config(data, source=source)
+    config = parse_config(data, source=source, solver_names=solver_names)
+    _warn_missing_sections(data, source)
+    return config
 
 
 # --------------------------------------------------------------------------- writing

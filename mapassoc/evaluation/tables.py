@@ -4,9 +4,15 @@ Adapts :class:`~mapassoc.data.io.TruthTable` and :class:`~mapassoc.data.io.Track
 point sets of :mod:`mapassoc.evaluation.metrics`.  Positions are the ``x``, ``y`` (and ``z``)
 state columns present in both tables.  A track written twice at one time (two sensors
 scanning at the same time) is counted once, with its last row.
+
+:func:`evaluate_tables` warns (``UserWarning``) when the tracks and the truth share no
+time (:func:`disjoint_times_message`): every metric is then all missed and all false,
+which almost always means files from different recordings or clocks.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
@@ -14,7 +20,13 @@ from mapassoc.data.io import TrackTable, TruthTable
 from mapassoc.errors import InputError
 from mapassoc.evaluation.metrics import RunEvaluation, TimedPoints, evaluate
 
-__all__ = ["position_names", "truth_points", "track_points", "evaluate_tables"]
+__all__ = [
+    "position_names",
+    "truth_points",
+    "track_points",
+    "evaluate_tables",
+    "disjoint_times_message",
+]
 
 _AXES = ("x", "y", "z")
 
@@ -60,7 +72,40 @@ def evaluate_tables(
 
     Evaluated at every time that has a truth or a track row (both files are written at
     scan times): a truth time without tracks counts its targets as missed, a track time
-    without targets counts its tracks as false.
+    without targets counts its tracks as false.  Warns (``UserWarning``) when the two
+    share no time (:func:`disjoint_times_message`).
     """
     names = position_names(truth, tracks)
+    message = disjoint_times_message(truth, tracks)
+    if message is not None:
+        warnings.warn(message, UserWarning, stacklevel=2)
     return evaluate(truth_points(truth, names), track_points(tracks, names), c=c, p=p)
+
+
+def _time_range(times: np.ndarray) -> str:
+    distinct = np.unique(times)
+    return f"times {distinct[0]:.10g} to {distinct[-1]:.10g} ({distinct.size} distinct)"
+
+
+def disjoint_times_message(truth: TruthTable, tracks: TrackTable) -> str | None:
+    """A warning when the tracks and the truth are both non-empty but share no time.
+
+    Evaluation pairs tracks with targets at equal times, so with no common time every
+    target counts as missed and every track as false.  An empty table gets no message
+    (no tracks is a legitimate result).
+
+    Returns
+    -------
+    str or None
+        The message, naming both time ranges, or None when a time is shared (or a table
+        is empty).
+    """
+    if truth.size == 0 or tracks.size == 0:
+        return None
+    if np.intersect1d(truth.times, tracks.times).size:
+        return None
+    return (
+        f"the tracks ({_time_range(tracks.times)}) and the truth ({_time_range(truth.times)}) "
+        "share no time: every target counts as missed and every track as false; check that "
+        "both files come from the same recording and clock"
+    )

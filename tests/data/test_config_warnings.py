@@ -1,0 +1,114 @@
+"""load_config: warnings for the optional sections it defaults, and the solver-name check."""
+
+from __future__ import annotations
+
+import tomllib
+import warnings
+from pathlib import Path
+
+import pytest
+
+from mapassoc.data.config import load_config, parse_config
+from mapassoc.data.settings import EstimatorSettings
+from mapassoc.errors import ConfigError, InputError
+from mapassoc.solvers import SOLVER_NAMES, available_solvers
+
+BASE = """
+[motion]
+model = "constant_velocity"
+ndim = 2
+noise_intensity = 0.5
+
+[[sensors]]
+name = "radar"
+measurement = "position"
+noise_std = 1.0
+detection_probability = 0.9
+false_alarms_per_scan = 10.0
+region = [[-100.0, 100.0], [-100.0, 100.0]]
+"""
+BIRTH = "\n[birth]\nrate = 0.2\n"
+ESTIMATOR = "\n[estimator]\nwindow_length = 4\n"
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "config.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_a_missing_estimator_section_warns_with_the_file_and_the_defaults(
+    tmp_path: Path,
+) -> None:
+    path = write(tmp_path, BASE + BIRTH)
+    with pytest.warns(UserWarning) as caught:
+        config = load_config(path)
+    messages = [str(w.message) for w in caught]
+    assert messages == [
+        f"{path} has no [estimator] section: the defaults of EstimatorSettings are used "
+        "(window_length 5, stride 1, max_tracks 20, gate_probability 0.999, "
+        "max_hypotheses_per_tree 64, prune_log_ratio 9.0, k_prior 'birth', k_prior_mean 5.0, "
+        "k_prior_weights [], k_estimate 'marginal', solver 'highs', time_limit 2.0, "
+        "exact_work_limit 500000, beam_width 200)"
+    ]
+    assert config.estimator == EstimatorSettings()  # still optional: the defaults are used
+    assert config.birth.rate == 0.2
+
+
+def test_a_missing_birth_section_warns_with_the_file_and_the_defaults(tmp_path: Path) -> None:
+    path = write(tmp_path, BASE + ESTIMATOR)
+    with pytest.warns(
+        UserWarning,
+        match=r"config\.toml has no \[birth\] section: the defaults of BirthModel are used "
+        r"\(rate 0\.1, initial_count 0\.0, velocity_std 10\.0, acceleration_std 1\.0, "
+        r"speed_std 10\.0, turn_rate_std 0\.1, survival_probability 0\.99\)",
+    ):
+        load_config(path)
+
+
+def test_both_sections_missing_give_two_warnings_and_both_present_none(tmp_path: Path) -> None:
+    with pytest.warns(UserWarning) as caught:
+        load_config(write(tmp_path, BASE))
+    messages = [str(w.message) for w in caught]
+    assert len(messages) == 2
+    assert messages[0].startswith(f"{tmp_path / 'config.toml'} has no [birth] section")
+    assert messages[1].startswith(f"{tmp_path / 'config.toml'} has no [estimator] section")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_config(write(tmp_path, BASE + BIRTH + ESTIMATOR))
+        document = tomllib.loads(BASE)
+        parse_config(document)  # a parsed mapping is not a file: no warning
+
+
+def test_an_unknown_solver_names_the_file_the_key_the_value_and_the_known_solvers(
+    tmp_path: Path,
+) -> None:
+    path = write(tmp_path, BASE + BIRTH + '\n[estimator]\nsolver = "gurobi"\n')
+    names = available_solvers()
+    with pytest.raises(ConfigError) as info:
+        load_config(path, solver_names=names)
+    assert str(info.value) == (
+        f"{path}: config key 'estimator.solver': unknown solver 'gurobi'; known solvers: "
+        + ", ".join(names)
+    )
+    assert info.value.key == "estimator.solver" and info.value.source == str(path)
+    assert "highs" in str(info.value)
+
+
+def test_known_solvers_pass_and_without_names_the_check_is_left_to_the_pipeline(
+    tmp_path: Path,
+) -> None:
+    for name in available_solvers():
+        path = write(tmp_path, BASE + BIRTH + f'\n[estimator]\nsolver = "{name}"\n')
+        assert load_config(path, solver_names=SOLVER_NAMES).estimator.solver == name
+    path = write(tmp_path, BASE + BIRTH + '\n[estimator]\nsolver = "gurobi"\n')
+    assert load_config(path).estimator.solver == "gurobi"
+
+
+def test_the_default_solver_is_checked_too_and_solver_names_must_be_names(tmp_path: Path) -> None:
+    path = write(tmp_path, BASE + BIRTH + ESTIMATOR)
+    message = r"estimator\.solver': unknown solver 'highs'; known solvers: cvxpy-clarabel$"
+    with pytest.raises(ConfigError, match=message):
+        load_config(path, solver_names=["cvxpy-clarabel"])
+    with pytest.raises(InputError, match=r"solver_names must be a collection of names, got 'hi"):
+        load_config(path, solver_names="highs")

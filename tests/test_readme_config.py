@@ -1,0 +1,78 @@
+"""The configuration example of README.md ("## Files") loads and lists every key."""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import tomllib
+import warnings
+from pathlib import Path
+
+import pytest
+
+from mapassoc.data.config import load_config
+from mapassoc.data.settings import BirthModel, EstimatorSettings
+from mapassoc.models.measurement import MEASUREMENT_REGISTRY
+from mapassoc.models.motion import MOTION_REGISTRY
+
+README = Path(__file__).resolve().parent.parent / "README.md"
+SETTINGS = {"birth": BirthModel, "estimator": EstimatorSettings}
+
+
+def files_section() -> str:
+    text = README.read_text(encoding="utf-8")
+    start = text.index("\n## Files\n")
+    end = text.index("\n## ", start + 1)
+    return text[start:end]
+
+
+def toml_block() -> str:
+    blocks = re.findall(r"```toml\n(.*?)```", files_section(), flags=re.DOTALL)
+    assert len(blocks) == 1, f"expected one TOML block in the Files section, found {len(blocks)}"
+    return blocks[0]
+
+
+def test_the_readme_example_loads_without_warnings(tmp_path: Path) -> None:
+    path = tmp_path / "config.toml"
+    path.write_text(toml_block(), encoding="utf-8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # both optional sections are present
+        config = load_config(path)
+    assert list(config.sensors) == ["radar", "esm"]
+
+
+@pytest.mark.parametrize("section", list(SETTINGS))
+def test_every_settings_field_is_a_key_of_the_example(section: str) -> None:
+    table = tomllib.loads(toml_block())[section]
+    fields = [field.name for field in dataclasses.fields(SETTINGS[section])]
+    missing = [name for name in fields if name not in table]
+    assert not missing, f"README [{section}] lacks {missing}"
+    assert list(table) == fields  # in the dataclass's order, nothing else
+
+
+@pytest.mark.parametrize("section", list(SETTINGS))
+def test_the_defaults_the_example_states_are_the_defaults(section: str) -> None:
+    defaults = SETTINGS[section]()
+    lines = toml_block().split(f"[{section}]", 1)[1].split("\n[", 1)[0].splitlines()
+    stated = {}
+    for line in lines:
+        found = re.match(r"(\w+) = .*\(default (.+)\)\s*$", line)
+        if found:
+            stated[found.group(1)] = tomllib.loads(f"v = {found.group(2)}")["v"]
+    assert set(stated) == {field.name for field in dataclasses.fields(defaults)}
+    for name, value in stated.items():
+        expected = getattr(defaults, name)
+        assert value == (list(expected) if isinstance(expected, tuple) else expected), name
+
+
+def test_every_motion_and_sensor_key_is_in_the_example() -> None:
+    block = toml_block()
+    document = tomllib.loads(block)
+    for spec in MOTION_REGISTRY.values():
+        assert re.search(rf"\b{spec.name}\b", block), spec.name
+        for key in spec.keys:  # the active model's keys as keys, the others in comments
+            assert re.search(rf"^(# .*)?\b{key} = ", block, flags=re.MULTILINE), key
+    sensor_keys = {key for table in document["sensors"] for key in table}
+    for spec in MEASUREMENT_REGISTRY.values():
+        assert spec.name in {table["measurement"] for table in document["sensors"]}, spec.name
+        assert set(spec.keys) <= sensor_keys, spec.name
