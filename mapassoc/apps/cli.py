@@ -3,7 +3,7 @@
 Subcommands::
 
     mapassoc scenarios                               list the built-in scenarios
-    mapassoc simulate NAME --out DIR [--seed N]      write a scenario folder
+    mapassoc simulate NAME --out DIR [--scans N]     write a scenario folder
     mapassoc run CONFIG DETECTIONS --out DIR         estimate tracks
     mapassoc batch SOURCE --out DIR [--config C]     many recordings, in parallel
     mapassoc evaluate TRACKS TRUTH [--json FILE]     GOSPA, RMSE, cardinality error
@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -41,10 +42,13 @@ def _cmd_scenarios(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from mapassoc.evaluation.scenarios import build_scenario
+    from mapassoc.evaluation.scenarios import build_scenario, scans_for_duration
     from mapassoc.evaluation.simulate import write_scenario
 
-    scenario = build_scenario(args.name, args.seed)
+    scans = args.scans
+    if args.duration is not None:
+        scans = scans_for_duration(args.name, args.duration)
+    scenario = build_scenario(args.name, args.seed, scans=scans)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise OutputError(str(out), "is a file, not a folder; choose another --out")
@@ -122,13 +126,17 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from mapassoc.data.io import read_tracks, read_truth
+    from mapassoc.data.formats import read_tracks_file, read_truth_file
     from mapassoc.evaluation.metrics import format_report
     from mapassoc.evaluation.tables import evaluate_tables
 
-    summary = evaluate_tables(
-        read_truth(args.truth), read_tracks(args.tracks), c=args.cutoff, p=args.order
-    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        summary = evaluate_tables(
+            read_truth_file(args.truth), read_tracks_file(args.tracks), c=args.cutoff, p=args.order
+        )
+    for warning in caught:
+        print(f"mapassoc: warning: {warning.message}", file=sys.stderr)
     print(format_report(summary))
     if args.json:
         json_dump(summary.to_json(), Path(args.json))
@@ -223,6 +231,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("name", help="scenario name (see `mapassoc scenarios`)")
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    length = p.add_mutually_exclusive_group()
+    length.add_argument(
+        "--scans",
+        type=int,
+        default=None,
+        metavar="N",
+        help="N scans in all (default: the scenario's own length; longer runs keep its "
+        "density of targets, births and deaths, and clutter)",
+    )
+    length.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="T",
+        help="as many scans as cover T time units at the scenario's scan period",
+    )
     p.add_argument(
         "--overwrite", action="store_true", help="write into a non-empty --out (replacing)"
     )

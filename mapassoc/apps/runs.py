@@ -29,6 +29,7 @@ from typing import Any, BinaryIO
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import RunFolder, file_identity, new_manifest, now_text, os_reason
 from mapassoc.errors import InputError, MapassocError, OutputError
+from mapassoc.solvers import SOLVERS
 
 __all__ = [
     "RunOutcome",
@@ -39,6 +40,8 @@ __all__ = [
     "stop_on_signals",
 ]
 
+INTEGER_SOLVERS = tuple(spec.name for spec in SOLVERS if spec.supports_integer)
+"""The solvers ``estimator.solver`` may name (the estimator solves integer programs)."""
 WINDOWS_NAME = "windows.jsonl"
 TRACKS_NAME = "tracks.csv"
 SUMMARY_NAME = "summary.json"
@@ -222,9 +225,9 @@ def run_files(
     RunInterrupted
         ``stop`` returned True.
     """
+    from mapassoc.data.checks import detections_outside_region
     from mapassoc.data.config import load_config
-    from mapassoc.data.io import read_detections as read_detections_file
-    from mapassoc.data.io import write_tracks as write_tracks_file
+    from mapassoc.data.formats import read_detections_file, write_tracks_file
     from mapassoc.estimator.pipeline import WindowEstimator
 
     if overwrite and resume:
@@ -237,7 +240,9 @@ def run_files(
     if not (overwrite or resume):
         folder.refuse_existing()
 
-    config = load_config(config_path)
+    with warnings.catch_warnings(record=True) as config_warnings:
+        warnings.simplefilter("always")
+        config = load_config(config_path, solver_names=INTEGER_SOLVERS)
     inputs = {"config": file_identity(config_path), "detections": file_identity(detections_path)}
     settings = _settings_record(config, timings)
 
@@ -273,7 +278,8 @@ def run_files(
         folder.begin(fresh=checkpoint is None)
         if checkpoint is None:
             manifest = new_manifest(inputs=inputs, settings=settings, scans_total=len(scans))
-            messages = [str(w.message) for w in caught]
+            messages = [str(w.message) for w in (*config_warnings, *caught)]
+            messages += detections_outside_region(scans, config.sensors)
             windows_bytes = 0
         else:
             assert manifest is not None

@@ -1,0 +1,144 @@
+"""The README's promises on the command line: one line naming the file, warnings recorded."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from mapassoc.apps.cli import main
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("scen") / "crossing"
+    assert main(["simulate", "crossing", "--out", str(out), "--seed", "0"]) == 0
+    return out
+
+
+def _run(config: Path, detections: Path, out: Path) -> int:
+    return main(["run", str(config), str(detections), "--out", str(out), "--no-progress"])
+
+
+def test_header_only_detections_names_the_file_and_creates_nothing(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    empty = tmp_path / "empty.csv"
+    empty.write_text("time,sensor,x,y\n")
+    out = tmp_path / "out"
+    assert _run(scenario / "config.toml", empty, out) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "empty.csv" in err
+    assert not out.exists() and not out.with_name("out.partial").exists()
+
+
+def test_unknown_solver_names_the_file(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "solver.toml"
+    text = (scenario / "config.toml").read_text()
+    assert 'solver = "highs"' in text
+    config.write_text(text.replace('solver = "highs"', 'solver = "gurobi"'))
+    assert _run(config, scenario / "detections.csv", tmp_path / "out") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "solver.toml" in err and "estimator.solver" in err and "gurobi" in err
+    assert "highs" in err  # the known names
+
+
+def test_bad_byte_is_reported_on_its_line(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = (scenario / "detections.csv").read_bytes().split(b"\n")
+    data[2] = data[2].replace(b",", b",\xff", 1)
+    bad = tmp_path / "bad.csv"
+    bad.write_bytes(b"\n".join(data))
+    assert _run(scenario / "config.toml", bad, tmp_path / "out") == 2
+    err = capsys.readouterr().err
+    assert "bad.csv, line 3" in err and err.count("\n") == 1
+
+
+def test_run_records_warnings_on_region_and_sections(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Detections moved far outside the region, and a config without [birth].
+    lines = (scenario / "detections.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    ix = header.index("x")
+    moved = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        if cells[ix]:
+            cells[ix] = repr(float(cells[ix]) + 1e6)
+        moved.append(",".join(cells))
+    far = tmp_path / "far.csv"
+    far.write_text("\n".join(moved) + "\n")
+    text = (scenario / "config.toml").read_text()
+    start = text.index("[birth]")
+    end = text.index("[", start + 1)
+    config = tmp_path / "nobirth.toml"
+    config.write_text(text[:start] + text[end:])
+    out = tmp_path / "out"
+    assert _run(config, far, out) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    warned = " ".join(summary["warnings"])
+    assert "no [birth] section" in warned and "nobirth.toml" in warned
+    assert "outside" in warned and "pos" in warned
+    err = capsys.readouterr().err
+    assert "mapassoc: warning:" in err and "no [birth] section" in err
+
+
+def test_evaluate_warns_when_no_time_is_shared(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    assert _run(scenario / "config.toml", scenario / "detections.csv", out) == 0
+    lines = (scenario / "truth.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    it = header.index("time")
+    shifted = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[it] = repr(float(cells[it]) + 1000.5)
+        shifted.append(",".join(cells))
+    truth = tmp_path / "truth.csv"
+    truth.write_text("\n".join(shifted) + "\n")
+    capsys.readouterr()
+    assert main(["evaluate", str(out / "tracks.csv"), str(truth)]) == 0
+    err = capsys.readouterr().err
+    assert "mapassoc: warning:" in err and "share no time" in err
+
+
+def test_simulate_scans_and_duration(tmp_path: Path) -> None:
+    from mapassoc.data.config import load_config
+    from mapassoc.data.io import read_detections
+
+    assert main(["simulate", "crossing", "--scans", "150", "--out", str(tmp_path / "a")]) == 0
+    config = load_config(tmp_path / "a" / "config.toml")
+    assert len(read_detections(tmp_path / "a" / "detections.csv", config.sensors)) == 150
+    assert main(["simulate", "two_sensors", "--duration", "20", "--out",
+                 str(tmp_path / "b")]) == 0
+    config = load_config(tmp_path / "b" / "config.toml")
+    scans = read_detections(tmp_path / "b" / "detections.csv", config.sensors)
+    assert len(scans) == 40  # two sensors, one scan each per 0.5 time units -> 40 in 20
+    assert main(["simulate", "crossing", "--scans", "0", "--out", str(tmp_path / "c")]) == 2
+
+
+def test_parquet_detections_run_like_csv(scenario: Path, tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow")
+    from mapassoc.data.config import load_config
+    from mapassoc.data.formats import read_tracks_file, write_detections_file
+    from mapassoc.data.io import read_detections
+
+    config = load_config(scenario / "config.toml")
+    scans = read_detections(scenario / "detections.csv", config.sensors)
+    write_detections_file(tmp_path / "d.parquet", scans, config.sensors)
+    assert _run(scenario / "config.toml", tmp_path / "d.parquet", tmp_path / "pq") == 0
+    assert _run(scenario / "config.toml", scenario / "detections.csv", tmp_path / "csv") == 0
+    a = read_tracks_file(tmp_path / "pq" / "tracks.csv")
+    b = read_tracks_file(tmp_path / "csv" / "tracks.csv")
+    import numpy as np
+
+    np.testing.assert_array_equal(a.states, b.states)
+    np.testing.assert_array_equal(a.detection_rows, b.detection_rows)
