@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import concurrent.futures
 import csv
-import multiprocessing
 import os
 import sys
 import threading
@@ -39,6 +38,7 @@ from typing import Any
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import os_reason
 from mapassoc.apps.runs import RunInterrupted, StopFlag, run_files, stop_on_signals
+from mapassoc.apps.workers import check_jobs, process_pool, worker_stop_requested
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
 
 __all__ = [
@@ -199,27 +199,8 @@ def find_recordings(source: str | os.PathLike[str]) -> list[Recording]:
 
 # ------------------------------------------------------------------------- one recording
 
-_WORKER_STOP: Callable[[], bool] | None = None
-"""The stop request a pool worker polls (set by :func:`_init_worker`)."""
 _ONE_AT_A_TIME = threading.Lock()
 """Runs in one process go one at a time (warnings capture is process-wide)."""
-
-
-def _init_worker(event: Any) -> None:
-    """Pool worker start: BLAS on one thread, SIGINT/SIGTERM only ask to stop."""
-    import signal
-
-    for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(variable, "1")
-    local = StopFlag()
-
-    def handler(signum: int, frame: object) -> None:
-        local.set(signal.Signals(signum).name)
-
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
-    global _WORKER_STOP
-    _WORKER_STOP = lambda: local() or event.is_set()  # noqa: E731
 
 
 def run_recording(
@@ -235,7 +216,7 @@ def run_recording(
     row's ``status = "failed"`` and ``error``, so that the batch goes on.
     """
     if stop is None:
-        stop = _WORKER_STOP
+        stop = worker_stop_requested
     config = recording.config or shared_config
     row: dict[str, object] = {column: "" for column in SUMMARY_COLUMNS}
     row.update(
@@ -317,16 +298,6 @@ def _check_out(out: Path, options: BatchOptions) -> None:
         raise OutputError(str(out), f"cannot create the folder: {os_reason(exc)}") from None
 
 
-def _jobs(jobs: int | None) -> int:
-    if jobs is None:
-        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
-            os.cpu_count() or 1
-        )
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise InputError(f"jobs must be an integer >= 1, got {jobs!r}")
-    return jobs
-
-
 def run_batch(
     recordings: Sequence[Recording],
     out: str | os.PathLike[str],
@@ -377,7 +348,7 @@ def run_batch(
         raise InputError("recordings is empty: there is nothing to run")
     out_path = Path(out)
     config = None if shared_config is None else Path(shared_config)
-    workers = _jobs(jobs)
+    workers = check_jobs(jobs)
     _check_out(out_path, options)
     rows: dict[str, dict[str, object]] = {}
     ticker = Progress(sys.stderr, label="batch", unit="recordings", enabled=progress)
@@ -424,14 +395,7 @@ def _on_pool(
     finished: Callable[[dict[str, object]], None],
 ) -> None:
     """The recordings on a local process pool; a stop request reaches every worker."""
-    context = multiprocessing.get_context("spawn")
-    event = context.Event()
-    with concurrent.futures.ProcessPoolExecutor(
-        max_workers=min(workers, len(recordings)),
-        mp_context=context,
-        initializer=_init_worker,
-        initargs=(event,),
-    ) as pool:
+    with process_pool(min(workers, len(recordings))) as (pool, event):
         futures = {
             pool.submit(run_recording, recording, config, out, options): recording
             for recording in recordings

@@ -74,6 +74,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
             resume=args.resume,
             checkpoint_seconds=args.checkpoint_seconds,
             stop=stop,
+            segments=args.segments,
+            jobs=args.jobs,
         )
     summary = outcome.summary
     if outcome.status == "skipped":
@@ -291,6 +293,21 @@ def build_parser() -> argparse.ArgumentParser:
         default=10.0,
         metavar="SECONDS",
         help="least time between two checkpoints (default 10; 0: after every window)",
+    )
+    p.add_argument(
+        "--segments",
+        type=int,
+        default=1,
+        metavar="K",
+        help="solve the recording in K overlapping time segments on --jobs processes and "
+        "stitch them (default 1: sequential; see mapassoc.estimator.segments)",
+    )
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="worker processes for --segments (default: every usable core)",
     )
     p.set_defaults(func=_cmd_run)
 

@@ -11,6 +11,7 @@ stopped.
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import dataclasses
 import json
@@ -149,10 +150,11 @@ def json_dump(data: object, path: Path) -> None:
         raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
 
 
-def _settings_record(config: Any, timings: bool) -> dict[str, object]:
+def _settings_record(config: Any, timings: bool, segments: int) -> dict[str, object]:
     """The settings a resumed run must share with its first session."""
     return {
         "timings": timings,
+        "segments": segments,
         "estimator": dataclasses.asdict(config.estimator),
         "birth": dataclasses.asdict(config.birth),
     }
@@ -175,8 +177,42 @@ def _same_run(manifest: dict[str, Any], inputs: dict[str, Any], settings: dict[s
         )
         raise InputError(
             f"cannot resume {folder}: settings {changed} differ from those the run started "
-            "with (for example --no-timings); resume with the same options, or --overwrite"
+            "with (for example --no-timings or --segments); resume with the same options, "
+            "or --overwrite"
         )
+
+
+class _Session:
+    """One session of a run in ``OUT.partial``: its manifest, warnings and checkpoints."""
+
+    def __init__(
+        self, folder: RunFolder, manifest: dict[str, Any], messages: list[str], total: int
+    ) -> None:
+        self.folder = folder
+        self.manifest = manifest
+        self.messages = messages
+        self.total = total
+        self.scans_committed = int(manifest["scans_committed"])
+        self.windows_committed = int(manifest["windows_committed"])
+        self.writing = folder.partial / WINDOWS_NAME  # the file an OSError is about
+
+    def save(self, status: str, error: BaseException | None = None) -> None:
+        self.manifest.update(
+            status=status,
+            scans_committed=self.scans_committed,
+            windows_committed=self.windows_committed,
+            error=None if error is None else str(error),
+        )
+        if status != "running":
+            self.manifest["ended"] = now_text()
+        self.folder.write_manifest(self.manifest)
+
+    def checkpoint(self, content: dict[str, Any]) -> None:
+        self.folder.write_checkpoint({**content, "warnings": list(self.messages)})
+        self.save("running")
+
+    def interrupted(self) -> RunInterrupted:
+        return RunInterrupted(self.folder.partial, self.scans_committed, self.total)
 
 
 def run_files(
@@ -191,6 +227,8 @@ def run_files(
     checkpoint_seconds: float = 10.0,
     stop: Callable[[], bool] | None = None,
     log_seconds: float = 30.0,
+    segments: int = 1,
+    jobs: int | None = None,
 ) -> RunOutcome:
     """Read a configuration and a detections file, estimate tracks, write a run folder.
 
@@ -214,6 +252,13 @@ def run_files(
     stop : callable, optional
         Polled at every window boundary; when it returns True the run checkpoints and
         raises :class:`RunInterrupted`.
+    segments : int
+        1: the sequential run.  More: the recording in that many overlapping segments,
+        solved on ``jobs`` local processes and stitched
+        (:mod:`mapassoc.estimator.segments`); checkpoints then hold finished segments,
+        and a stop abandons the segments in progress.
+    jobs : int, optional
+        Worker processes for ``segments > 1`` (default: the usable cores).
 
     Raises
     ------
@@ -228,12 +273,13 @@ def run_files(
     from mapassoc.data.checks import detections_outside_region
     from mapassoc.data.config import load_config
     from mapassoc.data.formats import read_detections_file, write_tracks_file
-    from mapassoc.estimator.pipeline import WindowEstimator
 
     if overwrite and resume:
         raise InputError("--overwrite and --resume exclude each other; choose one")
     if not (checkpoint_seconds >= 0):
         raise InputError(f"checkpoint_seconds must be >= 0, got {checkpoint_seconds!r}")
+    if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
+        raise InputError(f"segments must be an integer >= 1, got {segments!r}")
     t_session = time.perf_counter()
     folder = RunFolder(out_dir)
     folder.check_writable_place()
@@ -244,7 +290,7 @@ def run_files(
         warnings.simplefilter("always")
         config = load_config(config_path, solver_names=INTEGER_SOLVERS)
     inputs = {"config": file_identity(config_path), "detections": file_identity(detections_path)}
-    settings = _settings_record(config, timings)
+    settings = _settings_record(config, timings, segments)
 
     checkpoint: dict[str, Any] | None = None
     manifest: dict[str, Any] | None = None
@@ -271,26 +317,25 @@ def run_files(
             )
 
     scans = read_detections_file(detections_path, config.sensors)
-    estimator = WindowEstimator(config=config)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        state = estimator.start(scans)
+        from mapassoc.estimator.pipeline import WindowEstimator
+
+        estimator = WindowEstimator(config=config)
+        estimator.start(scans)  # every check of the whole run, before anything is written
         folder.begin(fresh=checkpoint is None)
         if checkpoint is None:
             manifest = new_manifest(inputs=inputs, settings=settings, scans_total=len(scans))
             messages = [str(w.message) for w in (*config_warnings, *caught)]
             messages += detections_outside_region(scans, config.sensors)
-            windows_bytes = 0
         else:
             assert manifest is not None
             manifest.update(status="running", sessions=int(manifest["sessions"]) + 1, error=None)
-            state = checkpoint["state"]
             messages = list(checkpoint["warnings"])
-            windows_bytes = int(checkpoint["windows_bytes"])
-        seen = len(caught)
-        folder.write_manifest(manifest)
-        resumed_at = state.next_scan
-        windows_path = folder.partial / WINDOWS_NAME
+        del caught[:]
+        session = _Session(folder, manifest, messages, len(scans))
+        session.save("running")
+        resumed_at = session.scans_committed
         ticker = Progress(
             sys.stderr,
             label="run",
@@ -299,49 +344,18 @@ def run_files(
             log_seconds=log_seconds,
             initial=resumed_at,
         )
-        writing = windows_path
-
-        def save(status: str, error: BaseException | None = None) -> None:
-            manifest.update(
-                status=status,
-                scans_committed=state.next_scan,
-                windows_committed=state.tally.windows,
-                error=None if error is None else str(error),
-            )
-            if status != "running":
-                manifest["ended"] = now_text()
-            folder.write_manifest(manifest)
-
-        def save_checkpoint(stream: BinaryIO) -> None:
-            stream.flush()
-            os.fsync(stream.fileno())
-            folder.write_checkpoint(
-                {"state": state, "windows_bytes": stream.tell(), "warnings": list(messages)}
-            )
-            save("running")
-
         try:
-            stream = _open_windows(windows_path, windows_bytes)
-            with stream:
-                last_checkpoint = time.monotonic()
-                while not state.done:
-                    if stop is not None and stop():
-                        save_checkpoint(stream)
-                        save("interrupted")
-                        raise RunInterrupted(folder.partial, state.next_scan, len(scans))
-                    report = estimator.step(scans, state)
-                    line = json.dumps(report.to_json(timings=timings), allow_nan=False) + "\n"
-                    stream.write(line.encode("utf-8"))
-                    stream.flush()
-                    messages.extend(str(w.message) for w in caught[seen:])
-                    seen = len(caught)
-                    ticker(state.next_scan, state.total_scans)
-                    if time.monotonic() - last_checkpoint >= checkpoint_seconds:
-                        save_checkpoint(stream)
-                        last_checkpoint = time.monotonic()
-                save_checkpoint(stream)
-            result = estimator.finish(scans, state)
-            messages.extend(str(w.message) for w in caught[seen:])
+            if segments == 1:
+                result = _run_windows(
+                    session, estimator, scans, checkpoint, timings=timings, stop=stop,
+                    checkpoint_seconds=checkpoint_seconds, ticker=ticker, caught=caught,
+                )  # fmt: skip
+            else:
+                result = _run_segments(
+                    session, config, scans, checkpoint, segments=segments, jobs=jobs,
+                    stop=stop, timings=timings, ticker=ticker,
+                )  # fmt: skip
+            messages.extend(str(w.message) for w in caught)
             summary: dict[str, object] = {
                 "mapassoc_version": manifest["mapassoc_version"],
                 "config": manifest["inputs"]["config"]["path"],
@@ -349,29 +363,152 @@ def run_files(
                 **result.summary(timings=timings),
                 "warnings": messages,
             }
-            writing = folder.partial / TRACKS_NAME
-            write_tracks_file(writing, result.tracks)
-            writing = folder.partial / SUMMARY_NAME
-            json_dump(summary, writing)
-            save("complete")
+            session.writing = folder.partial / TRACKS_NAME
+            write_tracks_file(session.writing, result.tracks)
+            session.writing = folder.partial / SUMMARY_NAME
+            json_dump(summary, session.writing)
+            session.save("complete")
             folder.complete()
         except RunInterrupted:
             raise
         except KeyboardInterrupt:
-            _mark(save, "interrupted")
-            raise RunInterrupted(folder.partial, state.next_scan, len(scans)) from None
+            _mark(session.save, "interrupted")
+            raise session.interrupted() from None
         except OSError as exc:
-            error = OutputError(str(writing), f"cannot write: {os_reason(exc)}")
-            _mark(save, "failed", error)
+            error = OutputError(str(session.writing), f"cannot write: {os_reason(exc)}")
+            _mark(session.save, "failed", error)
             raise error from None
         except MapassocError as exc:
-            _mark(save, "failed", exc)
+            _mark(session.save, "failed", exc)
             raise
         finally:
             ticker.close()
     for message in messages:
         print(f"mapassoc: warning: {message}", file=sys.stderr)
     return RunOutcome(folder.path, "complete", summary, resumed_at, time.perf_counter() - t_session)
+
+
+def _run_windows(
+    session: _Session,
+    estimator: Any,
+    scans: list[Any],
+    checkpoint: dict[str, Any] | None,
+    *,
+    timings: bool,
+    stop: Callable[[], bool] | None,
+    checkpoint_seconds: float,
+    ticker: Progress,
+    caught: list[warnings.WarningMessage],
+) -> Any:
+    """The sequential run, window by window, writing ``windows.jsonl`` as it goes."""
+    if checkpoint is None:
+        state, windows_bytes = estimator.start(scans), 0
+        del caught[:]
+    else:
+        state, windows_bytes = checkpoint["state"], int(checkpoint["windows_bytes"])
+
+    def save_checkpoint(stream: BinaryIO) -> None:
+        stream.flush()
+        os.fsync(stream.fileno())
+        session.scans_committed, session.windows_committed = state.next_scan, state.tally.windows
+        session.checkpoint({"state": state, "windows_bytes": stream.tell()})
+
+    with _open_windows(session.folder.partial / WINDOWS_NAME, windows_bytes) as stream:
+        last_checkpoint = time.monotonic()
+        while not state.done:
+            if stop is not None and stop():
+                save_checkpoint(stream)
+                session.save("interrupted")
+                raise session.interrupted()
+            report = estimator.step(scans, state)
+            line = json.dumps(report.to_json(timings=timings), allow_nan=False) + "\n"
+            stream.write(line.encode("utf-8"))
+            stream.flush()
+            session.messages.extend(str(w.message) for w in caught)
+            del caught[:]
+            ticker(state.next_scan, state.total_scans)
+            if time.monotonic() - last_checkpoint >= checkpoint_seconds:
+                save_checkpoint(stream)
+                last_checkpoint = time.monotonic()
+        save_checkpoint(stream)
+    return estimator.finish(scans, state)
+
+
+def _run_segments(
+    session: _Session,
+    config: Any,
+    scans: list[Any],
+    checkpoint: dict[str, Any] | None,
+    *,
+    segments: int,
+    jobs: int | None,
+    stop: Callable[[], bool] | None,
+    timings: bool,
+    ticker: Progress,
+) -> Any:
+    """The run in overlapping segments on local processes, checkpointing finished ones."""
+    from mapassoc.apps.workers import check_jobs, process_pool
+    from mapassoc.estimator.segments import plan_segments, solve_segment, stitch_segments
+
+    plan = plan_segments(
+        len(scans), segments=segments, overlap=4 * config.estimator.window_length
+    )
+    done: dict[int, Any] = dict(checkpoint["segments"]) if checkpoint is not None else {}
+    todo = [segment for segment in plan if segment.index not in done]
+    workers = min(check_jobs(jobs), len(todo)) if todo else 1
+
+    def record(result: Any) -> None:
+        done[result.segment.index] = result
+        owned = sum(r.segment.own_stop - r.segment.own_first for r in done.values())
+        session.scans_committed = owned
+        session.checkpoint({"segments": dict(done)})
+        ticker(owned, len(scans))
+
+    def stopped() -> bool:
+        return stop is not None and stop()
+
+    if workers <= 1:
+        for segment in todo:
+            result = solve_segment(
+                config, scans[segment.first : segment.stop], segment, stop=stopped
+            )
+            if result is None:
+                break
+            record(result)
+    else:
+        from mapassoc.apps.workers import worker_stop_requested
+
+        with process_pool(workers) as (pool, event):
+            futures = [
+                pool.submit(
+                    solve_segment, config, scans[s.first : s.stop], s, stop=worker_stop_requested
+                )
+                for s in todo
+            ]
+            pending = set(futures)
+            while pending:
+                finished, pending = concurrent.futures.wait(
+                    pending, timeout=0.2, return_when=concurrent.futures.FIRST_COMPLETED
+                )
+                for future in finished:
+                    result = future.result()
+                    if result is not None:
+                        record(result)
+                if stopped() and not event.is_set():
+                    event.set()  # running segments stop at their next window
+    if len(done) < len(plan):
+        session.save("interrupted")
+        raise session.interrupted()
+    result = stitch_segments(scans, [done[s.index] for s in plan], config)
+    message = result.tally.kmax_warning(config.estimator.max_tracks)
+    if message is not None:
+        session.messages.append(message)
+    session.windows_committed = result.tally.windows
+    with _open_windows(session.folder.partial / WINDOWS_NAME, 0) as stream:
+        for report in result.windows:
+            line = json.dumps(report.to_json(timings=timings), allow_nan=False) + "\n"
+            stream.write(line.encode("utf-8"))
+    return result
 
 
 def _open_windows(path: Path, keep_bytes: int) -> BinaryIO:

@@ -379,6 +379,15 @@ class WindowTally:
         self.min_captured_mass = min(self.min_captured_mass, float(report.captured_mass))
         self.over_time_limit += int(report.over_time_limit)
 
+    def kmax_warning(self, max_tracks: int) -> str | None:
+        """The warning that Kmax cuts the posterior off, when some window piled up at it."""
+        if not self.piling_up_at_kmax:
+            return None
+        return (
+            f"p(K = Kmax | Z) exceeded 1% in {self.piling_up_at_kmax} of {self.windows} "
+            f"windows: max_tracks = {max_tracks} probably cuts off the posterior; raise it"
+        )
+
 
 @dataclass
 class RunState:
@@ -835,14 +844,9 @@ class WindowEstimator:
             )
         t_start = time.perf_counter()
         tally = state.tally
-        if tally.piling_up_at_kmax:
-            warnings.warn(
-                f"p(K = Kmax | Z) exceeded 1% in {tally.piling_up_at_kmax} of {tally.windows} "
-                f"windows: max_tracks = {self.settings.max_tracks} probably cuts off the "
-                "posterior; raise it",
-                RuntimeWarning,
-                stacklevel=2,
-            )
+        message = tally.kmax_warning(self.settings.max_tracks)
+        if message is not None:
+            warnings.warn(message, RuntimeWarning, stacklevel=3)
         tracks = self._smooth(scans, state.records)
         tally.seconds += time.perf_counter() - t_start
         return EstimateResult(

@@ -32,7 +32,7 @@ import concurrent.futures
 import dataclasses
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -140,7 +140,13 @@ def plan_segments(total_scans: int, *, segments: int, overlap: int) -> list[Segm
     return plan
 
 
-def solve_segment(config: Config, scans: Sequence[Scan], segment: Segment) -> SegmentResult:
+def solve_segment(
+    config: Config,
+    scans: Sequence[Scan],
+    segment: Segment,
+    *,
+    stop: Callable[[], bool] | None = None,
+) -> SegmentResult | None:
     """Run the estimator over ``scans[segment.first:segment.stop]`` (picklable arguments).
 
     Parameters
@@ -150,6 +156,12 @@ def solve_segment(config: Config, scans: Sequence[Scan], segment: Segment) -> Se
         The segment's scans only (``scans[segment.first:segment.stop]``), so that a process
         pool ships no more than it needs.
     segment : Segment
+    stop : callable, optional
+        Polled at every window boundary; True abandons the segment.
+
+    Returns
+    -------
+    SegmentResult, or None when ``stop`` abandoned the segment.
     """
     if len(scans) != segment.stop - segment.first:
         raise InputError(
@@ -157,7 +169,14 @@ def solve_segment(config: Config, scans: Sequence[Scan], segment: Segment) -> Se
             f"{len(scans)}"
         )
     started = time.perf_counter()
-    result = WindowEstimator(config=config).run(scans)
+    estimator = WindowEstimator(config=config)
+    state = estimator.start(scans)
+    reports = []
+    while not state.done:
+        if stop is not None and stop():
+            return None
+        reports.append(estimator.step(scans, state))
+    result = estimator.finish(scans, state, windows=reports)
     return SegmentResult(
         segment=segment,
         track_rows=dict(result.track_rows),
@@ -320,10 +339,10 @@ def run_segmented(
     plan = plan_segments(len(scans), segments=segments, overlap=max(overlap, 2))
     WindowEstimator(config=config).start(scans)  # every check of the whole run, up front
     if executor is None:
-        results = [solve_segment(config, scans[s.first : s.stop], s) for s in plan]
+        solved = [solve_segment(config, scans[s.first : s.stop], s) for s in plan]
     else:
         futures = [
             executor.submit(solve_segment, config, scans[s.first : s.stop], s) for s in plan
         ]
-        results = [future.result() for future in futures]
-    return stitch_segments(scans, results, config)
+        solved = [future.result() for future in futures]
+    return stitch_segments(scans, [r for r in solved if r is not None], config)

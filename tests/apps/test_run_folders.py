@@ -261,3 +261,37 @@ def test_broken_pipe_is_one_line(
     assert main(["scenarios"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "<stdout>" in err and "broken pipe" in err
+
+
+@pytest.fixture(scope="module")
+def long_scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("scen") / "long"
+    assert main(["simulate", "crossing", "--scans", "240", "--out", str(out), "--seed", "4"]) == 0
+    return out
+
+
+@pytest.mark.slow
+def test_segmented_run_stops_and_resumes_to_the_same_files(
+    long_scenario: Path, tmp_path: Path
+) -> None:
+    """Segments on two processes; a stop after the first finished segment, then resume."""
+    whole = tmp_path / "whole"
+    _run(long_scenario, whole, segments=3, jobs=2)
+    manifest = read_manifest(whole)
+    assert manifest is not None and manifest["settings"]["segments"] == 3
+    lines = (whole / "windows.jsonl").read_text().splitlines()
+    assert sum(json.loads(line)["committed_scans"] for line in lines) == 240
+
+    out = tmp_path / "out"
+    polls = iter(range(10**6))
+    # In this process (jobs=1) the stop is polled at every window: stop inside segment 2.
+    with pytest.raises(RunInterrupted) as stopped:
+        _run(long_scenario, out, segments=3, jobs=1, stop=lambda: next(polls) >= 90)
+    partial = out.with_name("out.partial")
+    assert (read_manifest(partial) or {})["status"] == "interrupted"
+    assert 0 < stopped.value.scans_committed < 240
+    with pytest.raises(InputError, match="segments"):
+        _run(long_scenario, out, segments=2, resume=True)
+    outcome = _run(long_scenario, out, segments=3, jobs=2, resume=True)
+    assert outcome.resumed_at == stopped.value.scans_committed
+    _same_results(out, whole)

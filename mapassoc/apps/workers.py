@@ -1,0 +1,78 @@
+"""Local worker processes that stop on request: what ``batch`` and ``run --segments`` share.
+
+Workers are started with the ``spawn`` method (no inherited threads or locks), run BLAS
+on one thread each (the parallelism is the processes), and never die of a Ctrl-C: in a
+terminal SIGINT reaches every process of the group, and a worker only records it, so
+that its task stops at the next window boundary and reports back.  The parent asks all
+of them to stop through one shared event.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import contextlib
+import multiprocessing
+import os
+import signal
+from collections.abc import Iterator
+from typing import Any
+
+from mapassoc.apps.runs import StopFlag
+from mapassoc.errors import InputError
+
+__all__ = ["process_pool", "worker_stop_requested", "usable_cores"]
+
+_STOP: StopFlag | None = None
+_EVENT: Any = None
+
+
+def usable_cores() -> int:
+    """Cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def check_jobs(jobs: int | None) -> int:
+    """``jobs`` checked (an integer >= 1), or the usable cores when None."""
+    if jobs is None:
+        return usable_cores()
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise InputError(f"jobs must be an integer >= 1, got {jobs!r}")
+    return jobs
+
+
+def _init_worker(event: Any) -> None:
+    """Worker start: BLAS on one thread, SIGINT/SIGTERM only ask to stop."""
+    for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(variable, "1")
+    global _STOP, _EVENT
+    _STOP, _EVENT = StopFlag(), event
+
+    def handler(signum: int, frame: object) -> None:
+        assert _STOP is not None
+        _STOP.set(signal.Signals(signum).name)
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+def worker_stop_requested() -> bool:
+    """In a worker of :func:`process_pool`: whether this worker or the parent asked to stop.
+
+    False outside such a worker.
+    """
+    if _STOP is None:
+        return False
+    return _STOP() or bool(_EVENT is not None and _EVENT.is_set())
+
+
+@contextlib.contextmanager
+def process_pool(workers: int) -> Iterator[tuple[concurrent.futures.ProcessPoolExecutor, Any]]:
+    """A spawn process pool of ``workers`` and the event that asks its tasks to stop."""
+    context = multiprocessing.get_context("spawn")
+    event = context.Event()
+    with concurrent.futures.ProcessPoolExecutor(
+        max_workers=workers, mp_context=context, initializer=_init_worker, initargs=(event,)
+    ) as pool:
+        yield pool, event
