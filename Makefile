@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 OUT    ?= demo-out
 
-.PHONY: setup demo test bench lint notebooks clean
+.PHONY: setup demo test bench bench-reprocess lint notebooks clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,9 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/mapassoc bench
+
+bench-reprocess: $(STAMP)
+	$(BIN)/mapassoc bench-reprocess
 
 notebooks: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[dev,notebooks]'

@@ -46,11 +46,20 @@ _EXPORTS: dict[str, str] = {
     "write_tracks": "mapassoc.data.io",
     "TruthTable": "mapassoc.data.io",
     "TrackTable": "mapassoc.data.io",
+    "read_detections_file": "mapassoc.data.formats",
+    "write_detections_file": "mapassoc.data.formats",
+    "read_tracks_file": "mapassoc.data.formats",
+    "write_tracks_file": "mapassoc.data.formats",
+    "read_truth_file": "mapassoc.data.formats",
+    "scans_from_frame": "mapassoc.data.tables",
+    "scans_from_arrays": "mapassoc.data.tables",
     # the estimator
     "WindowEstimator": "mapassoc.estimator.pipeline",
     "WindowSolution": "mapassoc.estimator.pipeline",
     "WindowReport": "mapassoc.estimator.pipeline",
     "EstimateResult": "mapassoc.estimator.pipeline",
+    "RunState": "mapassoc.estimator.pipeline",
+    "run_segmented": "mapassoc.estimator.segments",
     "CountPrior": "mapassoc.estimator.posterior",
     "KPosterior": "mapassoc.estimator.posterior",
     "k_posterior": "mapassoc.estimator.posterior",
@@ -68,6 +77,12 @@ _EXPORTS: dict[str, str] = {
     # errors
     "InputError": "mapassoc.errors",
     "ConfigError": "mapassoc.errors",
+    "DataFileError": "mapassoc.errors",
+    "OutputError": "mapassoc.errors",
+    # reprocessing files
+    "run_files": "mapassoc.apps.runs",
+    "find_recordings": "mapassoc.apps.batch",
+    "run_batch": "mapassoc.apps.batch",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -1,0 +1,186 @@
+"""``mapassoc bench-reprocess``: throughput and memory of reprocessing, as numbers.
+
+Three measurements, each ``mapassoc`` command in a child process (so that its wall time
+and peak memory are its own, read with :func:`os.wait4`):
+
+1. **batch**: ``R`` simulated recordings of ``S`` scans (crossing, dense, turning, ...)
+   with ``batch --jobs 1`` (one after the other) and ``batch --jobs N`` (the local
+   pool): wall time, scans per second, the speed-up, and whether both wrote the same
+   files;
+2. **long recording**: one recording of ``L`` scans with ``run``: wall time, scans per
+   second and peak resident memory;
+3. **segments**: per family, a recording of ``M`` scans with ``run`` and with
+   ``run --segments N --jobs N``: the speed-up, GOSPA of both against the truth, and how
+   many tracks are the same.
+
+Numbers on shared machines are noisy: the variants of each measurement run one after
+the other in the same session.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from mapassoc.apps.workers import check_jobs
+from mapassoc.errors import InputError
+
+__all__ = ["ChildRun", "run_child", "run_reprocess_benchmark"]
+
+BATCH_FAMILIES = ("crossing", "dense", "turning")
+RESULT_FILES = ("tracks.csv", "windows.jsonl", "summary.json")
+
+
+@dataclass(frozen=True)
+class ChildRun:
+    """Wall time and peak resident memory of one child command."""
+
+    seconds: float
+    max_rss_mb: float
+
+
+def run_child(arguments: Sequence[str]) -> ChildRun:
+    """Run ``mapassoc ARGUMENTS`` in a child process; raise unless it exits with 0."""
+    command = [sys.executable, "-m", "mapassoc.apps.cli", *arguments]
+    started = time.perf_counter()
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    assert process.stderr is not None
+    err = process.stderr.read().decode("utf-8", "replace")
+    _, status, usage = os.wait4(process.pid, 0)
+    process.returncode = os.waitstatus_to_exitcode(status)
+    seconds = time.perf_counter() - started
+    if process.returncode != 0:
+        raise InputError(f"`mapassoc {' '.join(arguments)}` failed: {err.strip()[-500:]}")
+    # ru_maxrss is in KiB on Linux; a pool's workers are grandchildren, not counted here.
+    return ChildRun(seconds, usage.ru_maxrss / 1024.0)
+
+
+def _same_folders(a: Path, b: Path, names: Sequence[str]) -> bool:
+    return all(
+        (a / name / file).read_bytes() == (b / name / file).read_bytes()
+        for name in names
+        for file in RESULT_FILES
+    )
+
+
+def _gospa(tracks: Path, truth: Path) -> float:
+    from mapassoc.data.io import read_tracks, read_truth
+    from mapassoc.evaluation.tables import evaluate_tables
+
+    return evaluate_tables(read_truth(truth), read_tracks(tracks), c=10.0).gospa.mean_total
+
+
+def _track_sets(tracks: Path) -> set[tuple[int, ...]]:
+    from mapassoc.data.io import read_tracks
+
+    table = read_tracks(tracks)
+    rows: dict[int, list[int]] = {}
+    for tid, row in zip(table.track_ids.tolist(), table.detection_rows.tolist(), strict=True):
+        if row >= 0:
+            rows.setdefault(tid, []).append(row)
+    return {tuple(sorted(r)) for r in rows.values()}
+
+
+def run_reprocess_benchmark(
+    *,
+    recordings: int = 6,
+    scans: int = 300,
+    long_scans: int = 10_000,
+    long_family: str = "crossing",
+    segment_families: Sequence[str] = ("crossing", "dense"),
+    segment_scans: int = 1000,
+    jobs: int | None = None,
+    out: str | os.PathLike[str] | None = None,
+) -> dict[str, object]:
+    """Run the three measurements (module docstring), print them, return the numbers."""
+    for name, value in (
+        ("recordings", recordings), ("scans", scans), ("long_scans", long_scans),
+        ("segment_scans", segment_scans),
+    ):  # fmt: skip
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise InputError(f"{name} must be an integer >= 0, got {value!r}")
+    workers = check_jobs(jobs)
+    results: dict[str, object] = {"jobs": workers}
+    with tempfile.TemporaryDirectory(prefix="mapassoc-bench-") as scratch:
+        root = Path(out) if out is not None else Path(scratch)
+        root.mkdir(parents=True, exist_ok=True)
+        if recordings:
+            source = root / "recordings"
+            names = []
+            for i in range(recordings):
+                family = BATCH_FAMILIES[i % len(BATCH_FAMILIES)]
+                name = f"{family}-{i // len(BATCH_FAMILIES)}"
+                run_child(["simulate", family, "--scans", str(scans), "--seed",
+                           str(i // len(BATCH_FAMILIES)), "--out", str(source / name),
+                           "--overwrite"])  # fmt: skip
+                names.append(name)
+            total = recordings * scans
+            timing = {}
+            for label, n in (("sequential", 1), ("pool", workers)):
+                folder = root / f"batch-{label}"
+                timing[label] = run_child(["batch", str(source), "--out", str(folder),
+                                           "--jobs", str(n), "--no-timings", "--no-progress",
+                                           "--overwrite"])  # fmt: skip
+            same = _same_folders(root / "batch-sequential", root / "batch-pool", names)
+            speedup = timing["sequential"].seconds / timing["pool"].seconds
+            print(f"batch: {recordings} recordings x {scans} scans ({', '.join(BATCH_FAMILIES)})")
+            for label in ("sequential", "pool"):
+                t = timing[label].seconds
+                print(f"  {label:10s} {t:7.1f} s  {total / t:7.1f} scans/s")
+            print(f"  pool of {workers}: x{speedup:.2f}; same files: {same}")
+            results["batch"] = {
+                "recordings": recordings, "scans_each": scans, "same_files": same,
+                "speedup": speedup,
+                **{f"{k}_seconds": v.seconds for k, v in timing.items()},
+            }  # fmt: skip
+        if long_scans:
+            scen = root / "long"
+            run_child(["simulate", long_family, "--scans", str(long_scans), "--seed", "0",
+                       "--out", str(scen), "--overwrite"])  # fmt: skip
+            child = run_child(["run", str(scen / "config.toml"), str(scen / "detections.csv"),
+                               "--out", str(root / "long-run"), "--no-progress",
+                               "--overwrite"])  # fmt: skip
+            detections = sum(1 for _ in open(scen / "detections.csv")) - 1
+            print(f"long recording: {long_family}, {long_scans} scans, {detections} lines")
+            print(f"  {child.seconds:7.1f} s  {long_scans / child.seconds:7.1f} scans/s  "
+                  f"peak memory {child.max_rss_mb:.0f} MB")
+            results["long"] = {"family": long_family, "scans": long_scans,
+                               "seconds": child.seconds, "max_rss_mb": child.max_rss_mb}
+        segments_out = {}
+        if segment_scans and segment_families:
+            print(f"segments: {segment_scans} scans, sequential vs --segments {workers} "
+                  f"--jobs {workers}")
+        for family in segment_families if segment_scans else ():
+            scen = root / f"seg-{family}"
+            run_child(["simulate", family, "--scans", str(segment_scans), "--seed", "0",
+                       "--out", str(scen), "--overwrite"])  # fmt: skip
+            runs = {}
+            for label, extra in (("sequential", []),
+                                 ("segments", ["--segments", str(max(2, workers)),
+                                               "--jobs", str(workers)])):
+                folder = root / f"seg-{family}-{label}"
+                runs[label] = run_child(["run", str(scen / "config.toml"),
+                                         str(scen / "detections.csv"), "--out", str(folder),
+                                         "--no-progress", "--overwrite", *extra])
+            # fmt: skip
+            sets = {label: _track_sets(root / f"seg-{family}-{label}" / "tracks.csv")
+                    for label in runs}
+            gospa = {label: _gospa(root / f"seg-{family}-{label}" / "tracks.csv",
+                                   scen / "truth.csv") for label in runs}
+            speedup = runs["sequential"].seconds / runs["segments"].seconds
+            same = len(sets["sequential"] & sets["segments"])
+            print(f"  {family:10s} x{speedup:.2f}  GOSPA {gospa['segments']:.3f} vs "
+                  f"{gospa['sequential']:.3f}  same tracks {same} of "
+                  f"{len(sets['sequential'])} ({len(sets['segments'])} stitched)")
+            segments_out[family] = {"speedup": speedup, "gospa": gospa,
+                                    "same_tracks": same,
+                                    "tracks": {k: len(v) for k, v in sets.items()}}
+        if segments_out:
+            results["segments"] = segments_out
+    return results
