@@ -29,5 +29,5 @@ def test_tiny_reprocess_benchmark(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_a_failing_child_names_its_command() -> None:
-    with pytest.raises(InputError, match="`mapassoc simulate no-such` failed: .*no-such"):
+    with pytest.raises(InputError, match="`mapassoc simulate no-such --out .*` failed: .*no-such"):
         run_child(["simulate", "no-such", "--out", "/tmp/never-written"])
