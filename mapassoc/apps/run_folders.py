@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import datetime
 import errno
+import fcntl
 import hashlib
 import json
 import os
@@ -145,6 +146,7 @@ class RunFolder:
         if self.path.name in ("", ".", ".."):
             raise InputError(f"--out must name a folder, got {os.fspath(path)!r}")
         self.partial = self.path.with_name(self.path.name + ".partial")
+        self._lock: tuple[Path, Any] | None = None
 
     # -- checks before anything is computed ------------------------------------------
     def check_writable_place(self) -> None:
@@ -190,8 +192,49 @@ class RunFolder:
             )
 
     # -- the working folder ----------------------------------------------------------
+    def lock(self) -> None:
+        """Take the run's lock (``.OUT.lock`` beside it), or raise OutputError.
+
+        Two runs into the same folder would wipe or interleave each other's files; the
+        lock (an ``flock``, released by the system when its process ends, however it
+        ends) lets only one of them write.  Idempotent.
+        """
+        if self._lock is not None:
+            return
+        path = self.path.with_name(f".{self.path.name}.lock")
+        try:
+            handle = open(path, "a+", encoding="utf-8")
+        except OSError as exc:
+            raise OutputError(str(path), f"cannot create the lock: {os_reason(exc)}") from None
+        try:
+            fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.seek(0)
+            owner = handle.read().strip() or "unknown"
+            handle.close()
+            raise OutputError(
+                str(self.partial),
+                f"another mapassoc run (pid {owner}) is writing it; wait for it to end or "
+                "stop it",
+            ) from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
+        self._lock = (path, handle)
+
+    def release(self) -> None:
+        """Drop the lock file and the lock (a no-op when not held)."""
+        if self._lock is None:
+            return
+        path, handle = self._lock
+        self._lock = None
+        path.unlink(missing_ok=True)
+        handle.close()
+
     def begin(self, *, fresh: bool) -> None:
-        """Create ``OUT.partial`` (emptied first when ``fresh``)."""
+        """Take the lock and create ``OUT.partial`` (emptied first when ``fresh``)."""
+        self.lock()
         try:
             if fresh and self.partial.exists():
                 shutil.rmtree(self.partial)
@@ -234,6 +277,7 @@ class RunFolder:
         A previous ``OUT`` (``--overwrite``) is moved aside first and deleted after the
         rename, so ``OUT`` always holds one whole run.
         """
+        self.lock()
         try:
             (self.partial / CHECKPOINT_NAME).unlink(missing_ok=True)
             aside = None

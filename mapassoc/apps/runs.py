@@ -301,6 +301,7 @@ def run_files(
             _same_run(partial, inputs, settings, folder.partial)
             if partial["status"] == "complete":  # stopped between its last two renames
                 folder.complete()
+                folder.release()
                 summary = json.loads((folder.path / SUMMARY_NAME).read_text(encoding="utf-8"))
                 return RunOutcome(folder.path, "complete", summary, int(partial["scans_total"]),
                                   time.perf_counter() - t_session)
@@ -383,6 +384,7 @@ def run_files(
             raise
         finally:
             ticker.close()
+            folder.release()
     for message in messages:
         print(f"mapassoc: warning: {message}", file=sys.stderr)
     return RunOutcome(folder.path, "complete", summary, resumed_at, time.perf_counter() - t_session)

@@ -295,3 +295,27 @@ def test_segmented_run_stops_and_resumes_to_the_same_files(
     outcome = _run(long_scenario, out, segments=3, jobs=2, resume=True)
     assert outcome.resumed_at == stopped.value.scans_committed
     _same_results(out, whole)
+
+
+def test_a_second_run_into_the_same_folder_is_refused(
+    scenario: Path, reference: Path, tmp_path: Path
+) -> None:
+    from mapassoc.apps.run_folders import RunFolder
+
+    out = tmp_path / "out"
+    polls = iter(range(10**6))
+    with pytest.raises(RunInterrupted):
+        _run(scenario, out, stop=lambda: next(polls) >= 5)
+    other = RunFolder(out)  # what a run in another process holds while it writes
+    other.lock()
+    try:
+        for options in ({"overwrite": True}, {"resume": True}):
+            with pytest.raises(OutputError, match=r"another mapassoc run \(pid \d+\) is writing"):
+                _run(scenario, out, **options)
+        # Nothing was wiped: the interrupted run is still there to resume.
+        assert (read_manifest(out.with_name("out.partial")) or {})["status"] == "interrupted"
+    finally:
+        other.release()
+    _run(scenario, out, resume=True)
+    _same_results(out, reference)
+    assert not out.with_name(".out.lock").exists()
