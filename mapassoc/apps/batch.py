@@ -97,6 +97,7 @@ class BatchOptions:
     overwrite: bool = False
     resume: bool = False
     checkpoint_seconds: float = 10.0
+    tracks_format: str = "csv"
 
 
 def _check_name(name: str, where: str) -> str:
@@ -243,6 +244,7 @@ def run_recording(
                 resume=options.resume,
                 checkpoint_seconds=options.checkpoint_seconds,
                 stop=stop,
+                tracks_format=options.tracks_format,
             )
     except RunInterrupted as exc:
         row.update(status="interrupted", scans=exc.scans_committed, error=str(exc))

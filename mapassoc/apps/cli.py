@@ -80,6 +80,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             stop=stop,
             segments=args.segments,
             jobs=args.jobs,
+            tracks_format=args.tracks_format,
         )
     summary = outcome.summary
     if outcome.status == "skipped":
@@ -88,7 +89,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     resumed = f" (resumed at scan {outcome.resumed_at})" if outcome.resumed_at else ""
     print(
         f"{summary['tracks']} tracks over {summary['scans']} scans in {summary['windows']} "
-        f"windows{resumed} -> {args.out}/tracks.csv, windows.jsonl, summary.json, manifest.json"
+        f"windows{resumed} -> {args.out}/tracks.{args.tracks_format}, windows.jsonl, "
+        "summary.json, manifest.json"
     )
     return 0
 
@@ -102,6 +104,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         resume=args.resume,
         checkpoint_seconds=args.checkpoint_seconds,
+        tracks_format=args.tracks_format,
     )
 
     def report(row: dict[str, object]) -> None:
@@ -330,6 +333,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="worker processes for --segments (default: every usable core)",
     )
+    p.add_argument(
+        "--tracks-format",
+        choices=("csv", "parquet"),
+        default="csv",
+        help="tracks.csv (default) or tracks.parquet (extra 'parquet')",
+    )
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser(
@@ -370,6 +379,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     p.add_argument(
         "--checkpoint-seconds", type=float, default=10.0, metavar="SECONDS", help="as for `run`"
+    )
+    p.add_argument(
+        "--tracks-format", choices=("csv", "parquet"), default="csv", help="as for `run`"
     )
     p.set_defaults(func=_cmd_batch)
 

@@ -44,7 +44,8 @@ __all__ = [
 INTEGER_SOLVERS = tuple(spec.name for spec in SOLVERS if spec.supports_integer)
 """The solvers ``estimator.solver`` may name (the estimator solves integer programs)."""
 WINDOWS_NAME = "windows.jsonl"
-TRACKS_NAME = "tracks.csv"
+TRACKS_FORMATS = {"csv": "tracks.csv", "parquet": "tracks.parquet"}
+"""File of the tracks in each ``tracks_format``."""
 SUMMARY_NAME = "summary.json"
 
 
@@ -150,11 +151,14 @@ def json_dump(data: object, path: Path) -> None:
         raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
 
 
-def _settings_record(config: Any, timings: bool, segments: int) -> dict[str, object]:
+def _settings_record(
+    config: Any, timings: bool, segments: int, tracks_format: str
+) -> dict[str, object]:
     """The settings a resumed run must share with its first session."""
     return {
         "timings": timings,
         "segments": segments,
+        "tracks_format": tracks_format,
         "estimator": dataclasses.asdict(config.estimator),
         "birth": dataclasses.asdict(config.birth),
     }
@@ -229,6 +233,7 @@ def run_files(
     log_seconds: float = 30.0,
     segments: int = 1,
     jobs: int | None = None,
+    tracks_format: str = "csv",
 ) -> RunOutcome:
     """Read a configuration and a detections file, estimate tracks, write a run folder.
 
@@ -259,6 +264,8 @@ def run_files(
         and a stop abandons the segments in progress.
     jobs : int, optional
         Worker processes for ``segments > 1`` (default: the usable cores).
+    tracks_format : {"csv", "parquet"}
+        ``tracks.csv`` or ``tracks.parquet`` (extra ``parquet``).
 
     Raises
     ------
@@ -278,6 +285,10 @@ def run_files(
         raise InputError("--overwrite and --resume exclude each other; choose one")
     if not (checkpoint_seconds >= 0):
         raise InputError(f"checkpoint_seconds must be >= 0, got {checkpoint_seconds!r}")
+    if tracks_format not in TRACKS_FORMATS:
+        raise InputError(
+            f"tracks_format must be one of {sorted(TRACKS_FORMATS)}, got {tracks_format!r}"
+        )
     if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
         raise InputError(f"segments must be an integer >= 1, got {segments!r}")
     t_session = time.perf_counter()
@@ -290,7 +301,7 @@ def run_files(
         warnings.simplefilter("always")
         config = load_config(config_path, solver_names=INTEGER_SOLVERS)
     inputs = {"config": file_identity(config_path), "detections": file_identity(detections_path)}
-    settings = _settings_record(config, timings, segments)
+    settings = _settings_record(config, timings, segments, tracks_format)
 
     checkpoint: dict[str, Any] | None = None
     manifest: dict[str, Any] | None = None
@@ -364,7 +375,7 @@ def run_files(
                 **result.summary(timings=timings),
                 "warnings": messages,
             }
-            session.writing = folder.partial / TRACKS_NAME
+            session.writing = folder.partial / TRACKS_FORMATS[tracks_format]
             write_tracks_file(session.writing, result.tracks)
             session.writing = folder.partial / SUMMARY_NAME
             json_dump(summary, session.writing)

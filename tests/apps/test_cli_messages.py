@@ -136,9 +136,15 @@ def test_parquet_detections_run_like_csv(scenario: Path, tmp_path: Path) -> None
     write_detections_file(tmp_path / "d.parquet", scans, config.sensors)
     assert _run(scenario / "config.toml", tmp_path / "d.parquet", tmp_path / "pq") == 0
     assert _run(scenario / "config.toml", scenario / "detections.csv", tmp_path / "csv") == 0
+    assert main(["run", str(scenario / "config.toml"), str(tmp_path / "d.parquet"), "--out",
+                 str(tmp_path / "pq2"), "--no-progress", "--tracks-format", "parquet"]) == 0
+    assert not (tmp_path / "pq2" / "tracks.csv").exists()
     a = read_tracks_file(tmp_path / "pq" / "tracks.csv")
     b = read_tracks_file(tmp_path / "csv" / "tracks.csv")
+    c = read_tracks_file(tmp_path / "pq2" / "tracks.parquet")
     import numpy as np
 
-    np.testing.assert_array_equal(a.states, b.states)
-    np.testing.assert_array_equal(a.detection_rows, b.detection_rows)
+    for other in (b, c):
+        np.testing.assert_array_equal(a.states, other.states)
+        np.testing.assert_array_equal(a.detection_rows, other.detection_rows)
+        np.testing.assert_array_equal(a.track_ids, other.track_ids)
