@@ -232,7 +232,21 @@ def _check_compare_methods(ns: dict) -> None:  # type: ignore[type-arg]
         np.testing.assert_allclose(value, first.loc[name, "gospa"], rtol=0, atol=1e-9)
 
 
+def _check_reprocessing(ns: dict) -> None:  # type: ignore[type-arg]
+    """The frame gives the simulated scans; the continued run equals the whole one; the
+    stitched segments are the sequential run's tracks; the broken recording alone fails."""
+    assert ns["same"] is True
+    assert ns["continued"].track_rows == ns["whole"].track_rows
+    assert len(ns["same_tracks"]) >= 0.95 * len(ns["sequential"].track_rows)
+    assert abs(ns["gospa"]["segmented"] - ns["gospa"]["sequential"]) <= 0.02 * ns["gospa"][
+        "sequential"
+    ]
+    status = dict(zip(ns["summary"]["name"], ns["summary"]["status"], strict=True))
+    assert status == {"broken": "failed", "north": "complete", "south": "complete"}
+
+
 RESULT_CHECKS = {
+    "reprocessing.ipynb": _check_reprocessing,
     "compare_methods.ipynb": _check_compare_methods,
     "window_posterior.ipynb": _check_window_posterior,
     "hard_window.ipynb": _check_hard_window,
