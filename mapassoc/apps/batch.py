@@ -38,7 +38,7 @@ from typing import Any
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import os_reason
 from mapassoc.apps.runs import RunInterrupted, StopFlag, run_files, stop_on_signals
-from mapassoc.apps.workers import check_jobs, process_pool, worker_stop_requested
+from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
 
 __all__ = [
@@ -397,24 +397,12 @@ def _on_pool(
     finished: Callable[[dict[str, object]], None],
 ) -> None:
     """The recordings on a local process pool; a stop request reaches every worker."""
-    with process_pool(min(workers, len(recordings))) as (pool, event):
-        futures = {
-            pool.submit(run_recording, recording, config, out, options): recording
-            for recording in recordings
-        }
-        pending = set(futures)
-        while pending:
-            done, pending = concurrent.futures.wait(
-                pending, timeout=0.2, return_when=concurrent.futures.FIRST_COMPLETED
-            )
-            for future in done:
-                if future.cancelled():
-                    continue
-                finished(_row_of(future, futures[future], out))
-            if stop() and not event.is_set():
-                event.set()
-                for future in pending:
-                    future.cancel()
+    run_on_pool(
+        min(workers, len(recordings)),
+        [(run_recording, (recording, config, out, options), {}) for recording in recordings],
+        on_done=lambda i, future: finished(_row_of(future, recordings[i], out)),
+        stop=stop,
+    )
 
 
 def _row_of(future: concurrent.futures.Future[Any], recording: Recording, out: Path) -> dict:

@@ -460,7 +460,7 @@ def _run_segments(
     ticker: Progress,
 ) -> Any:
     """The run in overlapping segments on local processes, checkpointing finished ones."""
-    from mapassoc.apps.workers import check_jobs, process_pool
+    from mapassoc.apps.workers import check_jobs, run_on_pool
     from mapassoc.estimator.segments import plan_segments, solve_segment, stitch_segments
 
     plan = plan_segments(
@@ -491,24 +491,21 @@ def _run_segments(
     else:
         from mapassoc.apps.workers import worker_stop_requested
 
-        with process_pool(workers) as (pool, event):
-            futures = [
-                pool.submit(
-                    solve_segment, config, scans[s.first : s.stop], s, stop=worker_stop_requested
-                )
+        def on_done(index: int, future: concurrent.futures.Future[Any]) -> None:
+            result = future.result()
+            if result is not None:  # None: stopped at a window boundary
+                record(result)
+
+        run_on_pool(
+            workers,
+            [
+                (solve_segment, (config, scans[s.first : s.stop], s),
+                 {"stop": worker_stop_requested})
                 for s in todo
-            ]
-            pending = set(futures)
-            while pending:
-                finished, pending = concurrent.futures.wait(
-                    pending, timeout=0.2, return_when=concurrent.futures.FIRST_COMPLETED
-                )
-                for future in finished:
-                    result = future.result()
-                    if result is not None:
-                        record(result)
-                if stopped() and not event.is_set():
-                    event.set()  # running segments stop at their next window
+            ],
+            on_done=on_done,
+            stop=stopped,
+        )  # fmt: skip
     if len(done) < len(plan):
         session.save("interrupted")
         raise session.interrupted()

@@ -14,13 +14,13 @@ import contextlib
 import multiprocessing
 import os
 import signal
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from mapassoc.apps.runs import StopFlag
 from mapassoc.errors import InputError
 
-__all__ = ["process_pool", "worker_stop_requested", "usable_cores"]
+__all__ = ["process_pool", "run_on_pool", "worker_stop_requested", "usable_cores", "check_jobs"]
 
 _STOP: StopFlag | None = None
 _EVENT: Any = None
@@ -76,3 +76,40 @@ def process_pool(workers: int) -> Iterator[tuple[concurrent.futures.ProcessPoolE
         max_workers=workers, mp_context=context, initializer=_init_worker, initargs=(event,)
     ) as pool:
         yield pool, event
+
+
+Task = tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]
+"""A call for a pool worker: ``(function, args, kwargs)``, all picklable."""
+
+
+def run_on_pool(
+    workers: int,
+    tasks: Sequence[Task],
+    *,
+    on_done: Callable[[int, concurrent.futures.Future[Any]], None],
+    stop: Callable[[], bool],
+) -> None:
+    """Run ``tasks`` on a :func:`process_pool`, reporting each finished one at once.
+
+    ``on_done(index, future)`` is called in this process as each task ends (its result or
+    its exception is the future's).  When ``stop()`` turns True the workers are asked to
+    stop (their tasks poll :func:`worker_stop_requested`) and the tasks not started are
+    cancelled (never reported); the call returns when the running ones have ended.
+    """
+    with process_pool(workers) as (pool, event):
+        futures = {
+            pool.submit(function, *args, **kwargs): index
+            for index, (function, args, kwargs) in enumerate(tasks)
+        }
+        pending = set(futures)
+        while pending:
+            done, pending = concurrent.futures.wait(
+                pending, timeout=0.2, return_when=concurrent.futures.FIRST_COMPLETED
+            )
+            for future in done:
+                if not future.cancelled():
+                    on_done(futures[future], future)
+            if stop() and not event.is_set():
+                event.set()
+                for future in pending:
+                    future.cancel()
