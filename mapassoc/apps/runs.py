@@ -114,9 +114,10 @@ class StopFlag:
 def stop_on_signals(flag: StopFlag, *, notice: bool = True) -> Iterator[StopFlag]:
     """Turn SIGINT and SIGTERM into ``flag.set()`` while the block runs.
 
-    The first signal asks the run to stop after the current window (and says so on
-    stderr when ``notice``); a second SIGINT raises KeyboardInterrupt at once.  Outside
-    the main thread (signal handlers cannot be installed there) the block runs unchanged.
+    The first signal asks the run to stop after the current window (and says so at once
+    when ``notice`` and stderr is a terminal: a log gets only the final line); a second
+    SIGINT raises KeyboardInterrupt at once.  Outside the main thread (signal handlers
+    cannot be installed there) the block runs unchanged.
     """
     if threading.current_thread() is not threading.main_thread():
         yield flag
@@ -127,7 +128,7 @@ def stop_on_signals(flag: StopFlag, *, notice: bool = True) -> Iterator[StopFlag
         if flag() and signum == signal.SIGINT:
             raise KeyboardInterrupt
         flag.set(name)
-        if notice:
+        if notice and sys.stderr.isatty():
             print(
                 f"mapassoc: {name}: stopping after the current window "
                 "(Ctrl-C again to stop at once)",

@@ -319,3 +319,40 @@ def test_a_second_run_into_the_same_folder_is_refused(
     _run(scenario, out, resume=True)
     _same_results(out, reference)
     assert not out.with_name(".out.lock").exists()
+
+
+def test_signals_set_the_flag_and_a_second_sigint_stops_at_once() -> None:
+    import os
+    import signal
+
+    from mapassoc.apps.runs import StopFlag, stop_on_signals
+
+    before = signal.getsignal(signal.SIGINT)
+    with stop_on_signals(StopFlag()) as stop:
+        assert not stop()
+        os.kill(os.getpid(), signal.SIGTERM)
+        assert stop() and stop.signal_name == "SIGTERM"
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_an_abort_mid_run_keeps_the_last_checkpoint(
+    scenario: Path, reference: Path, tmp_path: Path
+) -> None:
+    """Ctrl-C twice (KeyboardInterrupt inside a window): interrupted, resumable."""
+    out = tmp_path / "out"
+    polls = iter(range(10**6))
+
+    def abort() -> bool:
+        if next(polls) == 20:
+            raise KeyboardInterrupt
+        return False
+
+    with pytest.raises(RunInterrupted):
+        _run(scenario, out, checkpoint_seconds=0.0, stop=abort)
+    manifest = read_manifest(out.with_name("out.partial"))
+    assert manifest is not None and manifest["status"] == "interrupted"
+    assert manifest["scans_committed"] == 20  # the checkpoint after window 19
+    _run(scenario, out, resume=True)
+    _same_results(out, reference)
