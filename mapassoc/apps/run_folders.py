@@ -240,6 +240,7 @@ class RunFolder:
                 shutil.rmtree(self.partial)
             self.partial.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
+            self.release()
             raise OutputError(
                 str(self.partial), f"cannot create the run folder: {os_reason(exc)}"
             ) from None

@@ -337,65 +337,71 @@ def run_files(
         estimator = WindowEstimator(config=config)
         estimator.start(scans)  # every check of the whole run, before anything is written
         folder.begin(fresh=checkpoint is None)
-        if checkpoint is None:
-            manifest = new_manifest(inputs=inputs, settings=settings, scans_total=len(scans))
-            messages = [str(w.message) for w in (*config_warnings, *caught)]
-            messages += detections_outside_region(scans, config.sensors)
-        else:
-            assert manifest is not None
-            manifest.update(status="running", sessions=int(manifest["sessions"]) + 1, error=None)
-            messages = list(checkpoint["warnings"])
-        del caught[:]
-        session = _Session(folder, manifest, messages, len(scans))
-        session.save("running")
-        resumed_at = session.scans_committed
-        ticker = Progress(
-            sys.stderr,
-            label="run",
-            unit="scans",
-            enabled=progress,
-            log_seconds=log_seconds,
-            initial=resumed_at,
-        )
         try:
-            if segments == 1:
-                result = _run_windows(
-                    session, estimator, scans, checkpoint, timings=timings, stop=stop,
-                    checkpoint_seconds=checkpoint_seconds, ticker=ticker, caught=caught,
-                )  # fmt: skip
+            if checkpoint is None:
+                manifest = new_manifest(inputs=inputs, settings=settings, scans_total=len(scans))
+                messages = [str(w.message) for w in (*config_warnings, *caught)]
+                messages += detections_outside_region(scans, config.sensors)
             else:
-                result = _run_segments(
-                    session, config, scans, checkpoint, segments=segments, jobs=jobs,
-                    stop=stop, timings=timings, ticker=ticker,
-                )  # fmt: skip
-            messages.extend(str(w.message) for w in caught)
-            summary: dict[str, object] = {
-                "mapassoc_version": manifest["mapassoc_version"],
-                "config": manifest["inputs"]["config"]["path"],
-                "detections": manifest["inputs"]["detections"]["path"],
-                **result.summary(timings=timings),
-                "warnings": messages,
-            }
-            session.writing = folder.partial / TRACKS_FORMATS[tracks_format]
-            write_tracks_file(session.writing, result.tracks)
-            session.writing = folder.partial / SUMMARY_NAME
-            json_dump(summary, session.writing)
-            session.save("complete")
-            folder.complete()
-        except RunInterrupted:
-            raise
-        except KeyboardInterrupt:
-            _mark(session.save, "interrupted")
-            raise session.interrupted() from None
-        except OSError as exc:
-            error = OutputError(str(session.writing), f"cannot write: {os_reason(exc)}")
-            _mark(session.save, "failed", error)
-            raise error from None
-        except MapassocError as exc:
-            _mark(session.save, "failed", exc)
-            raise
+                assert manifest is not None
+                sessions = int(manifest["sessions"]) + 1
+                manifest.update(status="running", sessions=sessions, error=None)
+                messages = list(checkpoint["warnings"])
+            del caught[:]
+            session = _Session(folder, manifest, messages, len(scans))
+            session.save("running")
+            resumed_at = session.scans_committed
+            ticker = Progress(
+                sys.stderr,
+                label="run",
+                unit="scans",
+                enabled=progress,
+                log_seconds=log_seconds,
+                initial=resumed_at,
+            )
+            try:
+                if segments == 1:
+                    result = _run_windows(
+                        session, estimator, scans, checkpoint, timings=timings, stop=stop,
+                        checkpoint_seconds=checkpoint_seconds, ticker=ticker, caught=caught,
+                    )  # fmt: skip
+                else:
+                    result = _run_segments(
+                        session, config, scans, checkpoint, segments=segments, jobs=jobs,
+                        stop=stop, timings=timings, ticker=ticker,
+                    )  # fmt: skip
+                messages.extend(str(w.message) for w in caught)
+                summary: dict[str, object] = {
+                    "mapassoc_version": manifest["mapassoc_version"],
+                    "config": manifest["inputs"]["config"]["path"],
+                    "detections": manifest["inputs"]["detections"]["path"],
+                    **result.summary(timings=timings),
+                    "warnings": messages,
+                }
+                session.writing = folder.partial / TRACKS_FORMATS[tracks_format]
+                write_tracks_file(session.writing, result.tracks)
+                session.writing = folder.partial / SUMMARY_NAME
+                json_dump(summary, session.writing)
+                session.save("complete")
+                folder.complete()
+            except RunInterrupted:
+                raise
+            except KeyboardInterrupt:
+                _mark(session.save, "interrupted")
+                raise session.interrupted() from None
+            except OSError as exc:
+                error = OutputError(str(session.writing), f"cannot write: {os_reason(exc)}")
+                _mark(session.save, "failed", error)
+                raise error from None
+            except MapassocError as exc:
+                _mark(session.save, "failed", exc)
+                raise
+            except Exception as exc:  # a bug or a crashed worker: still say so in the manifest
+                _mark(session.save, "failed", exc)
+                raise
+            finally:
+                ticker.close()
         finally:
-            ticker.close()
             folder.release()
     for message in messages:
         print(f"mapassoc: warning: {message}", file=sys.stderr)
