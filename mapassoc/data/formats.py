@@ -24,7 +24,7 @@ from pathlib import PurePath
 from typing import Any
 
 from mapassoc.data import io as csv_io
-from mapassoc.data.io import TrackTable, TruthTable
+from mapassoc.data.io import Origins, TrackTable, TruthTable
 from mapassoc.data.scans import Scan
 from mapassoc.errors import DataFileError
 from mapassoc.models.sensor import Sensor
@@ -38,6 +38,8 @@ __all__ = [
     "write_tracks_file",
     "read_truth_file",
     "write_truth_file",
+    "read_origins_file",
+    "write_origins_file",
 ]
 
 PathLike = str | os.PathLike[str]
@@ -122,3 +124,13 @@ def read_truth_file(path: PathLike) -> TruthTable:
 def write_truth_file(path: PathLike, table: TruthTable) -> None:
     """Write a truth file, CSV or Parquet by its suffix."""
     _dispatch(path, csv_io.write_truth, "write_truth_parquet")(path, table)
+
+
+def read_origins_file(path: PathLike) -> Origins:
+    """Read an origins file, CSV or Parquet by its suffix."""
+    return _dispatch(path, csv_io.read_origins, "read_origins_parquet")(path)
+
+
+def write_origins_file(path: PathLike, origins: Origins) -> None:
+    """Write an origins file, CSV or Parquet by its suffix."""
+    _dispatch(path, csv_io.write_origins, "write_origins_parquet")(path, origins)

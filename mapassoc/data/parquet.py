@@ -40,10 +40,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.data.io import (
+    _ORIGINS_HEADER,
     _TRACK_FIXED,
     _TRACK_ROW,
     _TRUTH_FIXED,
     _VAR_PREFIX,
+    Origins,
     TrackTable,
     TruthTable,
     _check_scans_for_writing,
@@ -69,6 +71,8 @@ __all__ = [
     "write_tracks_parquet",
     "read_truth_parquet",
     "write_truth_parquet",
+    "read_origins_parquet",
+    "write_origins_parquet",
 ]
 
 PathLike = str | os.PathLike[str]
@@ -77,6 +81,7 @@ IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
 _INT64_MAX = np.iinfo(np.int64).max
+_ORIGINS_COLUMNS = _ORIGINS_HEADER
 
 
 def _pyarrow(verb: str) -> tuple[Any, Any, Any]:
@@ -376,6 +381,37 @@ def read_truth_parquet(path: PathLike) -> TruthTable:
         raise DataFileError(path, str(exc)) from None
 
 
+def read_origins_parquet(path: PathLike) -> Origins:
+    """Read an origins Parquet file: columns ``row`` (detection id) and ``target_id`` (null
+    for a false alarm), like the CSV origins file.
+
+    Returns
+    -------
+    Origins
+        In file order; a null ``target_id`` becomes -1.
+
+    Raises
+    ------
+    InputError
+        pyarrow is not installed.
+    DataFileError
+        The file cannot be read; other columns than ``row,target_id``; a null or negative
+        ``row``, a negative ``target_id``, or a repeated ``row``.
+    """
+    path = os.fspath(path)
+    reader = _Reader(path)
+    if sorted(reader.names) != sorted(_ORIGINS_COLUMNS):
+        raise DataFileError(
+            path, f"columns {','.join(reader.names)}; expected {','.join(_ORIGINS_COLUMNS)}"
+        )
+    rows, _ = reader.ints("row", nullable=False, minimum=0)
+    ids, _ = reader.ints("target_id", nullable=True, minimum=0)
+    try:
+        return Origins(rows=rows, target_ids=ids)
+    except InputError as exc:
+        raise DataFileError(path, str(exc)) from None
+
+
 def _stack(columns: Sequence[FloatArray], size: int) -> FloatArray:
     return np.column_stack(columns) if columns else np.zeros((size, 0))
 
@@ -511,5 +547,27 @@ def write_truth_parquet(path: PathLike, table: TruthTable) -> None:
             name: pa.array(table.states[:, k], type=pa.float64())
             for k, name in enumerate(table.state_names)
         },
+    }
+    _write(pq, pa, path, pa.table(columns))
+
+
+def write_origins_parquet(path: PathLike, origins: Origins) -> None:
+    """Write an origins Parquet file (a false alarm's ``target_id`` is null).
+
+    Raises
+    ------
+    InputError
+        pyarrow is not installed, or ``origins`` is not an Origins.
+    DataFileError
+        The file cannot be written.
+    """
+    path = os.fspath(path)
+    pa, _, pq = _pyarrow("writing")
+    if not isinstance(origins, Origins):
+        raise InputError(f"origins must be an Origins, got {origins!r}")
+    ids = origins.target_ids
+    columns = {
+        "row": pa.array(origins.rows, type=pa.int64()),
+        "target_id": pa.array(ids, type=pa.int64(), mask=ids < 0),
     }
     _write(pq, pa, path, pa.table(columns))

@@ -12,6 +12,7 @@ for one row of a pandas DataFrame.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -22,7 +23,12 @@ from mapassoc.evaluation.calibration import DEFAULT_BINS, count_series_scores
 from mapassoc.evaluation.clear_mot import clear_mot
 from mapassoc.evaluation.metrics import _check_order, gospa_over_time
 from mapassoc.evaluation.ospa import ospa2, ospa2_over_time, ospa_over_time
-from mapassoc.evaluation.tables import position_names, track_points, truth_points
+from mapassoc.evaluation.tables import (
+    disjoint_times_message,
+    position_names,
+    track_points,
+    truth_points,
+)
 from mapassoc.trackers.base import TrackerOutput
 from mapassoc.validation import check_positive
 
@@ -134,6 +140,9 @@ def score_tracks(
     InputError
         Bad arguments, no truth record, tables without a shared position column, or
         ``clear_mot_scores`` without ``motmetrics`` installed.
+
+    Warns (``UserWarning``) when the tracks and the truth share no time
+    (:func:`~mapassoc.evaluation.tables.disjoint_times_message`).
     """
     if not isinstance(truth, TruthTable):
         raise InputError(f"truth must be a TruthTable, got {type(truth).__name__}")
@@ -149,6 +158,9 @@ def score_tracks(
     if not isinstance(clear_mot_scores, bool):
         raise InputError(f"clear_mot_scores must be True or False, got {clear_mot_scores!r}")
     names = position_names(truth, output.tracks)
+    message = disjoint_times_message(truth, output.tracks)
+    if message is not None:
+        warnings.warn(message, UserWarning, stacklevel=2)
     truth_run = truth_points(truth, names)
     track_run = track_points(output.tracks, names)
 

@@ -393,3 +393,29 @@ def test_without_pyarrow_the_message_says_how_to_install_it(
         write_detections_parquet(path, [scan], RADAR)
     assert str(info.value) == "writing Parquet needs pyarrow: pip install 'mapassoc[parquet]'"
     assert not path.exists()
+
+
+def test_origins_round_trip_with_false_alarms(tmp_path: Path, pa: Any) -> None:
+    from mapassoc.data.formats import read_origins_file, write_origins_file
+    from mapassoc.data.io import Origins
+
+    scenario = build_scenario("crossing", 0)
+    origins = scenario.origins
+    assert np.any(origins.target_ids < 0)  # false alarms are in it
+    for name in ("origins.parquet", "origins.csv"):
+        write_origins_file(tmp_path / name, origins)
+        back = read_origins_file(tmp_path / name)
+        np.testing.assert_array_equal(back.rows, origins.rows)
+        np.testing.assert_array_equal(back.target_ids, origins.target_ids)
+    # Ids from 0 are fine; a repeated row is not.
+    write_origins_file(tmp_path / "zero.parquet",
+                       Origins(rows=np.array([0, 1]), target_ids=np.array([-1, 3])))
+    assert read_origins_file(tmp_path / "zero.parquet").rows.tolist() == [0, 1]
+    import pyarrow.parquet as pq
+
+    pq.write_table(pa.table({"row": [4, 4], "target_id": [1, None]}), tmp_path / "rep.parquet")
+    with pytest.raises(DataFileError, match="rep.parquet"):
+        read_origins_file(tmp_path / "rep.parquet")
+    pq.write_table(pa.table({"row": [4], "target": [1]}), tmp_path / "cols.parquet")
+    with pytest.raises(DataFileError, match="expected row,target_id"):
+        read_origins_file(tmp_path / "cols.parquet")

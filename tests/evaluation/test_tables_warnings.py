@@ -63,3 +63,15 @@ def test_one_shared_time_or_an_empty_table_gives_no_warning() -> None:
         "share no time: every target counts as missed and every track as false; check that "
         "both files come from the same recording and clock"
     )
+
+
+def test_score_tracks_warns_too() -> None:
+    from mapassoc.evaluation.scoring import score_tracks
+    from mapassoc.trackers.base import TrackerOutput
+
+    output = TrackerOutput(tracks=tracks([10.0, 11.0]), seconds=0.0)
+    with pytest.warns(UserWarning, match="share no time"):
+        score_tracks(truth([0.0, 1.0]), output, c=5.0, clear_mot_scores=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        score_tracks(truth([10.0, 11.0]), output, c=5.0, clear_mot_scores=False)
