@@ -60,7 +60,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise OutputError(
             str(out), "is not empty; pass --overwrite to replace its scenario files"
         )
-    paths = write_scenario(scenario, out)
+    paths = write_scenario(scenario, out, data_format=args.format)
     for kind, path in paths.items():
         print(f"{kind:10s} {path}")
     return 0
@@ -272,6 +272,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="T",
         help="as many scans as cover T time units at the scenario's scan period",
+    )
+    p.add_argument(
+        "--format",
+        choices=("csv", "parquet"),
+        default="csv",
+        help="detections, truth and origins as CSV (default) or Parquet (extra 'parquet')",
     )
     p.add_argument(
         "--overwrite", action="store_true", help="write into a non-empty --out (replacing)"

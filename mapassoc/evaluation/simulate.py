@@ -41,9 +41,6 @@ from mapassoc.data.io import (
     Origins,
     TruthTable,
     number_rows,
-    write_detections,
-    write_origins,
-    write_truth,
 )
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError, NotPositiveDefiniteError
@@ -416,7 +413,9 @@ def simulate(
     return Scenario(name=name, config=config, scans=list(scans), truth=truth, origins=origins)
 
 
-def write_scenario(scenario: Scenario, out_dir: str | Path) -> dict[str, Path]:
+def write_scenario(
+    scenario: Scenario, out_dir: str | Path, *, data_format: str = "csv"
+) -> dict[str, Path]:
     """Write a scenario's detections, truth, origins and configuration files.
 
     ``out_dir`` is created if needed; existing files of the same names are overwritten.
@@ -425,23 +424,39 @@ def write_scenario(scenario: Scenario, out_dir: str | Path) -> dict[str, Path]:
     ----------
     scenario : Scenario
     out_dir : str or Path
+    data_format : {"csv", "parquet"}
+        Format of the detections, truth and origins files (``.csv`` or ``.parquet``;
+        Parquet needs the ``parquet`` extra).  Detection ids are the same in both: the
+        CSV lines, which a Parquet file keeps in its ``detection_id`` column.
 
     Returns
     -------
     dict of str to Path
         Paths written, keyed ``"detections"``, ``"truth"``, ``"origins"`` and ``"config"``
-        (file names in :data:`SCENARIO_FILES`).
+        (file names in :data:`SCENARIO_FILES`, with the suffix of ``data_format``).
     """
+    from mapassoc.data.formats import (
+        write_detections_file,
+        write_origins_file,
+        write_truth_file,
+    )
+
     if not isinstance(scenario, Scenario):
         raise InputError(f"scenario must be a Scenario, got {scenario!r}")
+    if data_format not in ("csv", "parquet"):
+        raise InputError(f"data_format must be 'csv' or 'parquet', got {data_format!r}")
     directory = Path(out_dir)
     if directory.exists() and not directory.is_dir():
         raise InputError(f"out_dir must be a directory, got the existing file {str(directory)!r}")
     directory.mkdir(parents=True, exist_ok=True)
     paths = {key: directory / filename for key, filename in SCENARIO_FILES.items()}
-    write_detections(paths["detections"], scenario.scans, scenario.config.sensors)
-    write_truth(paths["truth"], scenario.truth)
-    write_origins(paths["origins"], scenario.origins)
+    if data_format == "parquet":
+        paths.update(
+            {key: paths[key].with_suffix(".parquet") for key in ("detections", "truth", "origins")}
+        )
+    write_detections_file(paths["detections"], scenario.scans, scenario.config.sensors)
+    write_truth_file(paths["truth"], scenario.truth)
+    write_origins_file(paths["origins"], scenario.origins)
     write_config(paths["config"], scenario.config)
     return paths
 

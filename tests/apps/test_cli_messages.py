@@ -148,3 +148,27 @@ def test_parquet_detections_run_like_csv(scenario: Path, tmp_path: Path) -> None
         np.testing.assert_array_equal(a.states, other.states)
         np.testing.assert_array_equal(a.detection_rows, other.detection_rows)
         np.testing.assert_array_equal(a.track_ids, other.track_ids)
+
+
+def test_simulate_parquet_runs_to_the_csv_tracks(tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow")
+    from mapassoc.data.formats import read_origins_file, read_tracks_file, read_truth_file
+
+    assert main(["simulate", "crossing", "--out", str(tmp_path / "c"), "--seed", "5"]) == 0
+    assert main(["simulate", "crossing", "--out", str(tmp_path / "p"), "--seed", "5",
+                 "--format", "parquet"]) == 0
+    for kind in ("truth", "origins"):
+        read = read_truth_file if kind == "truth" else read_origins_file
+        a, b = read(tmp_path / "c" / f"{kind}.csv"), read(tmp_path / "p" / f"{kind}.parquet")
+        assert a.size == b.size
+    for folder, name in (("c", "detections.csv"), ("p", "detections.parquet")):
+        assert _run(tmp_path / folder / "config.toml", tmp_path / folder / name,
+                    tmp_path / f"run-{folder}") == 0
+    a = read_tracks_file(tmp_path / "run-c" / "tracks.csv")
+    b = read_tracks_file(tmp_path / "run-p" / "tracks.csv")
+    import numpy as np
+
+    np.testing.assert_array_equal(a.detection_rows, b.detection_rows)  # same ids: CSV lines
+    np.testing.assert_array_equal(a.states, b.states)
+    assert main(["evaluate", str(tmp_path / "run-p" / "tracks.csv"),
+                 str(tmp_path / "p" / "truth.parquet")]) == 0
