@@ -383,7 +383,7 @@ def run_batch(
             _write_summary(out_path / BATCH_SUMMARY_NAME, ordered)
     if stop() or any(row["status"] in ("interrupted", "pending") for row in ordered):
         done = sum(1 for row in ordered if row["status"] in ("complete", "skipped"))
-        raise RunInterrupted(out_path, done, len(recordings)) from None
+        raise RunInterrupted(out_path, done, len(recordings), unit="recordings") from None
     return ordered
 
 

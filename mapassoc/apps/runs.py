@@ -55,17 +55,21 @@ class RunInterrupted(MapassocError):
     Attributes
     ----------
     partial : Path
-        The run folder holding the checkpoint (``OUT.partial``).
+        The run folder holding the checkpoint (``OUT.partial``), or a batch's folder.
     scans_committed, scans_total : int
+        Scans (for a batch: recordings) done and in all.
     """
 
-    def __init__(self, partial: Path, scans_committed: int, scans_total: int) -> None:
+    def __init__(
+        self, partial: Path, scans_committed: int, scans_total: int, *, unit: str = "scans"
+    ) -> None:
         self.partial = partial
         self.scans_committed = scans_committed
         self.scans_total = scans_total
+        what = "run" if unit == "scans" else "batch"
         super().__init__(
-            f"interrupted after {scans_committed} of {scans_total} scans; the run so far is "
-            f"in {partial} (continue it with --resume)"
+            f"interrupted after {scans_committed} of {scans_total} {unit}; the {what} so far "
+            f"is in {partial} (continue it with --resume)"
         )
 
 

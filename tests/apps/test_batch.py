@@ -196,6 +196,7 @@ def test_an_interrupted_batch_resumes_to_the_same_folders(tmp_path: Path) -> Non
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=120)
     assert process.returncode == 130, err
+    assert "recordings; the batch so far is in" in err and "--resume" in err
     table = _summary(out)
     assert {row["status"] for row in table} <= {"interrupted", "pending", "complete"}
     assert any(row["status"] != "complete" for row in table)
