@@ -339,7 +339,9 @@ def run_files(
         from mapassoc.estimator.pipeline import WindowEstimator
 
         estimator = WindowEstimator(config=config)
-        estimator.start(scans)  # every check of the whole run, before anything is written
+        # Every check of the whole run, before anything is written; a resumed run steps on
+        # from its checkpoint's state instead of this fresh one.
+        fresh_state = estimator.start(scans)
         folder.begin(fresh=checkpoint is None)
         try:
             if checkpoint is None:
@@ -366,8 +368,9 @@ def run_files(
             try:
                 if segments == 1:
                     result = _run_windows(
-                        session, estimator, scans, checkpoint, timings=timings, stop=stop,
-                        checkpoint_seconds=checkpoint_seconds, ticker=ticker, caught=caught,
+                        session, estimator, scans, fresh_state, checkpoint, timings=timings,
+                        stop=stop, checkpoint_seconds=checkpoint_seconds, ticker=ticker,
+                        caught=caught,
                     )  # fmt: skip
                 else:
                     result = _run_segments(
@@ -416,6 +419,7 @@ def _run_windows(
     session: _Session,
     estimator: Any,
     scans: list[Any],
+    fresh_state: Any,
     checkpoint: dict[str, Any] | None,
     *,
     timings: bool,
@@ -426,8 +430,7 @@ def _run_windows(
 ) -> Any:
     """The sequential run, window by window, writing ``windows.jsonl`` as it goes."""
     if checkpoint is None:
-        state, windows_bytes = estimator.start(scans), 0
-        del caught[:]
+        state, windows_bytes = fresh_state, 0
     else:
         state, windows_bytes = checkpoint["state"], int(checkpoint["windows_bytes"])
 
@@ -445,8 +448,7 @@ def _run_windows(
                 session.save("interrupted")
                 raise session.interrupted()
             report = estimator.step(scans, state)
-            line = json.dumps(report.to_json(timings=timings), allow_nan=False) + "\n"
-            stream.write(line.encode("utf-8"))
+            stream.write(_window_line(report, timings))
             stream.flush()
             session.messages.extend(str(w.message) for w in caught)
             del caught[:]
@@ -527,9 +529,13 @@ def _run_segments(
     session.windows_committed = result.tally.windows
     with _open_windows(session.folder.partial / WINDOWS_NAME, 0) as stream:
         for report in result.windows:
-            line = json.dumps(report.to_json(timings=timings), allow_nan=False) + "\n"
-            stream.write(line.encode("utf-8"))
+            stream.write(_window_line(report, timings))
     return result
+
+
+def _window_line(report: Any, timings: bool) -> bytes:
+    """One ``windows.jsonl`` line of a WindowReport, UTF-8."""
+    return (json.dumps(report.to_json(timings=timings), allow_nan=False) + "\n").encode("utf-8")
 
 
 def _open_windows(path: Path, keep_bytes: int) -> BinaryIO:
