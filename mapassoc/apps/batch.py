@@ -24,7 +24,6 @@ continue from their checkpoints.
 
 from __future__ import annotations
 
-import concurrent.futures
 import csv
 import os
 import sys
@@ -219,13 +218,7 @@ def run_recording(
     if stop is None:
         stop = worker_stop_requested
     config = recording.config or shared_config
-    row: dict[str, object] = {column: "" for column in SUMMARY_COLUMNS}
-    row.update(
-        name=recording.name,
-        out=str(out / recording.name),
-        detections=str(recording.detections),
-        config="" if config is None else str(config),
-    )
+    row = _blank_row(recording, out, config="" if config is None else str(config))
     started = time.perf_counter()
     try:
         if config is None:
@@ -375,10 +368,7 @@ def run_batch(
         finally:
             ticker.close()
             ordered = [
-                rows.get(r.name)
-                or {**{c: "" for c in SUMMARY_COLUMNS}, "name": r.name, "status": "pending",
-                    "out": str(out_path / r.name), "detections": str(r.detections)}
-                for r in recordings
+                rows.get(r.name) or _blank_row(r, out_path, status="pending") for r in recordings
             ]
             _write_summary(out_path / BATCH_SUMMARY_NAME, ordered)
     if stop() or any(row["status"] in ("interrupted", "pending") for row in ordered):
@@ -400,21 +390,30 @@ def _on_pool(
     run_on_pool(
         min(workers, len(recordings)),
         [(run_recording, (recording, config, out, options), {}) for recording in recordings],
-        on_done=lambda i, future: finished(_row_of(future, recordings[i], out)),
+        on_done=lambda i, future: finished(_row_of(future, recordings[i], out, what="worker")),
         stop=stop,
     )
 
 
-def _row_of(future: concurrent.futures.Future[Any], recording: Recording, out: Path) -> dict:
-    """The row of a finished task; a crashed worker process becomes a failed row."""
+def _blank_row(
+    recording: Recording, out: Path, *, status: str = "", error: str = "", config: str = ""
+) -> dict[str, object]:
+    """A summary row of ``recording`` with its name, folder and detections; the counts
+    empty."""
+    row: dict[str, object] = {column: "" for column in SUMMARY_COLUMNS}
+    row.update(name=recording.name, status=status, error=error, out=str(out / recording.name),
+               detections=str(recording.detections), config=config)
+    return row
+
+
+def _row_of(future: Any, recording: Recording, out: Path, *, what: str) -> dict[str, object]:
+    """The row of a finished task (a local or a Dask future); a task that raised past
+    :func:`run_recording` (a dead worker, a lost task) becomes a failed row."""
     try:
         return future.result()  # type: ignore[no-any-return]
     except Exception as exc:  # e.g. BrokenProcessPool: the worker died
-        row: dict[str, object] = {column: "" for column in SUMMARY_COLUMNS}
-        row.update(name=recording.name, status="failed", out=str(out / recording.name),
-                   detections=str(recording.detections),
-                   error=f"worker failed: {type(exc).__name__}: {exc}")
-        return row
+        return _blank_row(recording, out, status="failed",
+                          error=f"{what} failed: {type(exc).__name__}: {exc}")
 
 
 def _dask_stop(event_name: str) -> Callable[[], bool]:
@@ -479,15 +478,6 @@ def _on_dask(
                 done = set()
             pending = set(pending)
             for future in done:
-                recording = futures[future]
-                try:
-                    row = future.result()
-                except Exception as exc:  # the task raised past run_recording, or was lost
-                    row = {column: "" for column in SUMMARY_COLUMNS}
-                    row.update(name=recording.name, status="failed",
-                               out=str(out / recording.name),
-                               detections=str(recording.detections),
-                               error=f"task failed: {type(exc).__name__}: {exc}")
-                finished(row)
+                finished(_row_of(future, futures[future], out, what="task"))
             if stop() and not event.is_set():
                 event.set()  # running tasks stop at their next window, waiting ones at once
