@@ -513,17 +513,20 @@ def write_tracks_parquet(path: PathLike, table: TrackTable) -> None:
         _TRACK_FIXED[0]: pa.array(table.track_ids, type=pa.int64()),
         _TRACK_FIXED[1]: pa.array(table.times, type=pa.float64()),
         _TRACK_FIXED[2]: pa.array(list(table.sensors), type=pa.string()),
-        **{
-            name: pa.array(table.states[:, k], type=pa.float64())
-            for k, name in enumerate(table.state_names)
-        },
-        **{
-            _VAR_PREFIX + name: pa.array(table.variances[:, k], type=pa.float64())
-            for k, name in enumerate(table.state_names)
-        },
+        **_float_columns(pa, table.state_names, table.states),
+        **_float_columns(pa, table.state_names, table.variances, prefix=_VAR_PREFIX),
         _TRACK_ROW: pa.array(rows, type=pa.int64(), mask=rows < 0),
     }
     _write(pq, pa, path, pa.table(columns))
+
+
+def _float_columns(
+    pa: Any, names: Sequence[str], values: FloatArray, *, prefix: str = ""
+) -> dict[str, Any]:
+    """One float64 column ``prefix + name`` per column of ``values`` (shape ``(n, len(names))``)."""
+    return {
+        prefix + name: pa.array(values[:, k], type=pa.float64()) for k, name in enumerate(names)
+    }
 
 
 def write_truth_parquet(path: PathLike, table: TruthTable) -> None:
@@ -543,10 +546,7 @@ def write_truth_parquet(path: PathLike, table: TruthTable) -> None:
     columns = {
         _TRUTH_FIXED[0]: pa.array(table.target_ids, type=pa.int64()),
         _TRUTH_FIXED[1]: pa.array(table.times, type=pa.float64()),
-        **{
-            name: pa.array(table.states[:, k], type=pa.float64())
-            for k, name in enumerate(table.state_names)
-        },
+        **_float_columns(pa, table.state_names, table.states),
     }
     _write(pq, pa, path, pa.table(columns))
 
