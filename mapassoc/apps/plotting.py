@@ -48,8 +48,73 @@ def _save(fig: Figure, path: str | Path) -> Path:
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(out)
+    # ``tight`` keeps a legend drawn outside the axes inside the image.
+    fig.savefig(out, bbox_inches="tight", pad_inches=0.15)
     return out
+
+
+#: At most this many estimated tracks get a legend entry each; more get one entry.
+TRACK_LEGEND_LIMIT = 12
+
+# tab10 without its grey (index 7): grey is the detections' and truth's colour.
+_TRACK_COLOURS = (0, 1, 2, 3, 4, 5, 6, 8, 9)
+_LABEL_FONTSIZE = 9.5
+_LABEL_OFFSET_POINTS = 9.0
+
+
+def _check_unit(name: str, value: object) -> str | None:
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value.strip():
+        raise InputError(f"{name} must be None or a non-empty string such as 'm', got {value!r}")
+    return value.strip()
+
+
+def _axis_label(axis: str, unit: str | None) -> str:
+    return f"{axis} [{unit}]" if unit is not None else f"{axis} (length unit of the data)"
+
+
+def _lines(
+    ids: np.ndarray, times: np.ndarray, xy: np.ndarray
+) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """(id, times, positions) per id, in time order."""
+    out = []
+    for tid in np.unique(ids):
+        sel = ids == tid
+        order = np.argsort(times[sel], kind="stable")
+        out.append((int(tid), times[sel][order], xy[sel][order]))
+    return out
+
+
+def _heading(line: np.ndarray, *, at_end: bool, min_length: float) -> np.ndarray | None:
+    """Unit vector of motion at one end of ``line``, over at least ``min_length``.
+
+    The vector points along the motion (from earlier to later points).  ``None`` when the
+    line never leaves a ball of that radius around the end point (no direction to show).
+    """
+    pts = line if at_end else line[::-1]
+    tip = pts[-1]
+    for back in pts[-2::-1]:
+        step = tip - back
+        length = float(np.hypot(*step))
+        if length >= min_length:
+            unit = step / length
+            return unit if at_end else -unit
+    return None
+
+
+def _alignment(direction: np.ndarray) -> dict[str, str]:
+    """Text alignment that keeps a label on the side ``direction`` points to."""
+    dx, dy = float(direction[0]), float(direction[1])
+    ha = "left" if dx > 0.35 else "right" if dx < -0.35 else "center"
+    va = "bottom" if dy > 0.35 else "top" if dy < -0.35 else "center"
+    return {"ha": ha, "va": va}
+
+
+def _span(times: np.ndarray, time_unit: str | None) -> str:
+    first, last = float(times[0]), float(times[-1])
+    unit = f" {time_unit}" if time_unit is not None else ""
+    return f"t {first:g}\N{EN DASH}{last:g}{unit}"
 
 
 def draw_tracks(
@@ -60,48 +125,165 @@ def draw_tracks(
     tracks: TrackTable,
     truth: TruthTable | None = None,
     title: str = "",
+    length_unit: str | None = None,
+    time_unit: str | None = None,
+    legend: bool = True,
 ) -> None:
-    """Draw the detections (grey), truth (dashed) and tracks (coloured) on ``ax``.
+    """Draw detections, truth and estimated tracks on ``ax``, with a legend beside it.
+
+    Detections are small grey points.  Each true target is a thick dashed grey line
+    under the tracks, with an arrow head at its last position.  Each estimated track is
+    a coloured line on top (thin and slightly transparent, so the truth shows through),
+    with an open circle at its first position, an arrow head at its last one and its id
+    written in bold with a white halo.  The legend sits outside the axes, to the right,
+    so it never covers data.  With at most ``TRACK_LEGEND_LIMIT`` tracks the legend has
+    one entry per track (id and time span) and the id is written at both ends; with more,
+    one entry ``tracks (N)`` and the id at the track's end only (both ends of 50 tracks
+    are unreadable).  A track (or target) whose positions all lie within a few
+    thousandths of the plot's extent of its end has no arrow (no direction to show).
 
     Parameters
     ----------
     ax : matplotlib.axes.Axes
     scans : sequence of Scan
     sensors : mapping of str to Sensor
+        Every scan's sensor (its measurement model places the detections).
     tracks : TrackTable
     truth : TruthTable, optional
     title : str
-    """
-    from matplotlib import colormaps
+        Axes title; empty gives "mapassoc tracks".
+    length_unit : str, optional
+        Unit of the x and y positions (e.g. ``"m"``): the axes read ``x [m]``.  ``None``
+        says the data's own length unit, which the plot cannot know.
+    time_unit : str, optional
+        Unit of the scan times, shown with each track's time span in the legend
+        (e.g. ``"s"`` or ``"scans"``).
+    legend : bool
+        Draw the legend (outside the axes, upper right).  ``False`` for a grid of small
+        panels where one legend is enough.
 
-    points = []
+    Raises
+    ------
+    InputError
+        A unit that is not ``None`` or a non-empty string, a scan whose sensor is not in
+        ``sensors``, or tracks or truth without ``x`` and ``y`` state columns.
+    """
+    length_unit = _check_unit("length_unit", length_unit)
+    time_unit = _check_unit("time_unit", time_unit)
+    if not isinstance(title, str):
+        raise InputError(f"title must be a string, got {title!r}")
+    if not isinstance(legend, bool):
+        raise InputError(f"legend must be True or False, got {legend!r}")
     for scan in scans:
-        model = sensors[scan.sensor].measurement
-        for z in scan.detections:
-            points.append(model.position_from_measurement(z)[0][:2])
-    if points:
-        pts = np.array(points)
-        ax.scatter(pts[:, 0], pts[:, 1], s=4, c="0.7", label="detections", zorder=1)
-    if truth is not None and truth.target_ids.size:
-        xy = _xy(truth.state_names, truth.states)
-        for i, tid in enumerate(np.unique(truth.target_ids)):
-            sel = truth.target_ids == tid
-            order = np.argsort(truth.times[sel], kind="stable")
-            ax.plot(*xy[sel][order].T, "k--", lw=1.2, label="truth" if i == 0 else None, zorder=2)
+        if scan.sensor not in sensors:
+            raise InputError(
+                f"scan at time {scan.time:g} is from sensor {scan.sensor!r}, which is not in "
+                f"sensors (got {sorted(sensors)})"
+            )
+    from matplotlib import colormaps, patheffects
+    from matplotlib.artist import Artist
+    from matplotlib.lines import Line2D
+
+    points = [
+        sensors[scan.sensor].measurement.position_from_measurement(z)[0][:2]
+        for scan in scans
+        for z in scan.detections
+    ]
+    detections = np.array(points, dtype=float).reshape(-1, 2)
+    targets = (
+        _lines(truth.target_ids, truth.times, _xy(truth.state_names, truth.states))
+        if truth is not None and truth.target_ids.size
+        else []
+    )
+    estimated = (
+        _lines(tracks.track_ids, tracks.times, _xy(tracks.state_names, tracks.states))
+        if tracks.track_ids.size
+        else []
+    )
+    everything = np.vstack([detections, *(line for _, _, line in targets + estimated)])
+    extent = float(np.ptp(everything, axis=0).max()) if everything.shape[0] else 1.0
+    min_length = 0.004 * extent if extent > 0 else 0.0
+
+    handles: list[Artist] = []
+    count = detections.shape[0]
+    if count:
+        # Smaller points when there are many, so clutter stays a light texture.
+        size = float(np.clip(5.0 * np.sqrt(2000.0 / count), 1.5, 5.0))
+        ax.scatter(detections[:, 0], detections[:, 1], s=size, c="0.68", linewidths=0, zorder=1)
+        handles.append(
+            Line2D([], [], ls="", marker="o", ms=3.5, mfc="0.68", mec="none",
+                   label=f"detections ({count})")
+        )  # fmt: skip
+    truth_style = {"color": "0.1", "lw": 3.2, "alpha": 0.4, "ls": (0, (4, 2))}
+    for _, _, line in targets:
+        ax.plot(*line.T, zorder=2, solid_capstyle="round", **truth_style)
+        heading = _heading(line, at_end=True, min_length=min_length)
+        if heading is not None:
+            ax.annotate(
+                "", xy=line[-1], xytext=line[-1] - heading * 2 * min_length,
+                arrowprops={"arrowstyle": "-|>", "color": "0.35", "lw": 0,
+                            "mutation_scale": 16, "shrinkA": 0, "shrinkB": 0},
+                zorder=2,
+            )  # fmt: skip
+    if targets:
+        handles.append(
+            Line2D([], [], label=f"truth ({len(targets)} targets)", **truth_style)
+        )
+    if estimated:
+        handles.append(
+            Line2D([], [], ls="", marker="o", ms=6, mfc="white", mec="0.2",
+                   label="track start")
+        )  # fmt: skip
+        handles.append(
+            Line2D([], [], ls="", marker=">", ms=7, color="0.2", label="track end, heading")
+        )
     cmap = colormaps["tab10"]
-    if tracks.track_ids.size:
-        xy = _xy(tracks.state_names, tracks.states)
-        for i, tid in enumerate(np.unique(tracks.track_ids)):
-            sel = tracks.track_ids == tid
-            order = np.argsort(tracks.times[sel], kind="stable")
-            line = xy[sel][order]
-            ax.plot(*line.T, "-", lw=2.0, color=cmap(i % 10), zorder=3)
-            ax.annotate(str(int(tid)), line[0], fontsize=8, color=cmap(i % 10))
+    halo = [patheffects.withStroke(linewidth=3.0, foreground="white")]
+    each = len(estimated) <= TRACK_LEGEND_LIMIT
+    for i, (tid, times, line) in enumerate(estimated):
+        colour = cmap(_TRACK_COLOURS[i % len(_TRACK_COLOURS)])
+        label = f"track {tid}  ({_span(times, time_unit)})" if each else None
+        (drawn,) = ax.plot(
+            *line.T, "-", lw=1.6, color=colour, alpha=0.9, zorder=3, label=label,
+            solid_capstyle="round",
+        )  # fmt: skip
+        if each:
+            handles.append(drawn)
+        ax.plot(*line[0], "o", ms=6, mfc="white", mec=colour, mew=1.6, zorder=4)
+        end_heading = _heading(line, at_end=True, min_length=min_length)
+        if end_heading is not None:
+            ax.annotate(
+                "", xy=line[-1], xytext=line[-1] - end_heading * 2 * min_length,
+                arrowprops={"arrowstyle": "-|>", "color": colour, "lw": 0,
+                            "mutation_scale": 18, "shrinkA": 0, "shrinkB": 0},
+                zorder=4,
+            )  # fmt: skip
+        start_heading = _heading(line, at_end=False, min_length=min_length)
+        # Labels sit beyond each end, on the side the track leaves it (ahead of the
+        # arrow, behind the start); a track with no direction gets one label above.
+        ends = [(line[-1], end_heading)]
+        if each and len(line) > 1:
+            ends.append((line[0], None if start_heading is None else -start_heading))
+        for where, outward in ends:
+            away = outward if outward is not None else np.array([0.0, 1.0])
+            ax.annotate(
+                str(tid), xy=where, xytext=tuple(_LABEL_OFFSET_POINTS * away),
+                textcoords="offset points", fontsize=_LABEL_FONTSIZE, fontweight="bold",
+                color=colour, path_effects=halo, zorder=5, **_alignment(away),
+            )  # fmt: skip
+    if estimated and not each:
+        handles.append(
+            Line2D([], [], lw=1.6, color=cmap(0), label=f"tracks ({len(estimated)}), id at end")
+        )
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x")
-    ax.set_ylabel("y")
+    ax.set_xlabel(_axis_label("x", length_unit))
+    ax.set_ylabel(_axis_label("y", length_unit))
     ax.set_title(title or "mapassoc tracks")
-    ax.legend(loc="upper right", fontsize=8)
+    if legend and handles:
+        ax.legend(
+            handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+            fontsize=9, frameon=False,
+        )  # fmt: skip
 
 
 def plot_tracks(
@@ -112,12 +294,18 @@ def plot_tracks(
     tracks: TrackTable,
     truth: TruthTable | None = None,
     title: str = "",
+    length_unit: str | None = None,
+    time_unit: str | None = None,
 ) -> Path:
-    """Write a PNG of :func:`draw_tracks`; returns its path."""
-    fig = _figure(figsize=(8, 8), dpi=110)
+    """Write a PNG of :func:`draw_tracks` (legend beside the axes); returns its path.
+
+    ``length_unit`` and ``time_unit`` are :func:`draw_tracks`'s.
+    """
+    fig = _figure(figsize=(10.5, 8), dpi=110)
     draw_tracks(
-        fig.add_subplot(), scans=scans, sensors=sensors, tracks=tracks, truth=truth, title=title
-    )
+        fig.add_subplot(), scans=scans, sensors=sensors, tracks=tracks, truth=truth,
+        title=title, length_unit=length_unit, time_unit=time_unit,
+    )  # fmt: skip
     return _save(fig, path)
 
 
