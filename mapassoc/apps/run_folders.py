@@ -18,6 +18,12 @@ resume only run folders you (or your own batch) wrote.
 
 Writes of the manifest and the checkpoint go to a temporary file that is renamed over
 the old one (atomic on POSIX), so a kill at any moment leaves the previous version whole.
+
+Nothing is deleted that mapassoc did not write: a folder is replaced (``--overwrite``) or
+emptied only when it is absent, empty, or holds a manifest of this folder's kind
+(:func:`is_own_folder`), and never when it holds one of the run's own inputs
+(:meth:`RunFolder.check_replaceable`).  ``mapassoc demo`` uses the same folders with a
+manifest of its own kind (``mapassoc-demo/1``).
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ import json
 import os
 import pickle
 import shutil
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +48,10 @@ __all__ = [
     "CHECKPOINT_NAME",
     "RUN_STATUSES",
     "RunFolder",
+    "RUN_FORMAT",
+    "DEMO_FORMAT",
     "file_identity",
+    "is_own_folder",
     "os_reason",
     "write_atomically",
     "read_manifest",
@@ -50,7 +59,10 @@ __all__ = [
 
 MANIFEST_NAME = "manifest.json"
 CHECKPOINT_NAME = "checkpoint.pickle"
-FORMAT = "mapassoc-run/1"
+RUN_FORMAT = "mapassoc-run/1"
+"""``manifest.json`` format of a ``mapassoc run`` folder."""
+DEMO_FORMAT = "mapassoc-demo/1"
+"""``manifest.json`` format of a ``mapassoc demo`` folder."""
 RUN_STATUSES = ("running", "complete", "interrupted", "failed")
 """A run's ``manifest.json`` status."""
 
@@ -100,13 +112,19 @@ def write_atomically(path: Path, data: bytes) -> None:
         raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
 
 
-def read_manifest(folder: Path) -> dict[str, Any] | None:
+def read_manifest(folder: Path, *, kind: str = RUN_FORMAT) -> dict[str, Any] | None:
     """The manifest of a run folder, or None when it has none.
+
+    Parameters
+    ----------
+    folder : Path
+    kind : str
+        The manifest ``format`` expected (:data:`RUN_FORMAT` or :data:`DEMO_FORMAT`).
 
     Raises
     ------
     InputError
-        The manifest exists but is not a mapassoc run manifest.
+        The manifest exists but is not a mapassoc manifest of that kind.
     """
     path = folder / MANIFEST_NAME
     try:
@@ -119,8 +137,10 @@ def read_manifest(folder: Path) -> dict[str, Any] | None:
         manifest = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"{path}: not a mapassoc run manifest (invalid JSON: {exc})") from None
-    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
-        raise InputError(f"{path}: not a mapassoc run manifest (expected format {FORMAT!r})")
+    if not isinstance(manifest, dict) or manifest.get("format") != kind:
+        found = manifest.get("format") if isinstance(manifest, dict) else None
+        what = f"format {found!r}" if isinstance(found, str) else "no format"
+        raise InputError(f"{path}: not a mapassoc run manifest ({what}, expected {kind!r})")
     if manifest.get("status") not in RUN_STATUSES:
         raise InputError(
             f"{path}: status {manifest.get('status')!r} is not one of {list(RUN_STATUSES)}"
@@ -132,6 +152,31 @@ def _is_empty_folder(path: Path) -> bool:
     return path.is_dir() and not any(path.iterdir())
 
 
+def is_own_folder(path: Path, *, kind: str = RUN_FORMAT) -> bool:
+    """Whether mapassoc may replace or empty ``path``: absent, empty, or of ``kind``.
+
+    A folder of ``kind`` is one whose ``manifest.json`` has ``"format": kind`` (what a
+    run or a demo writes first); anything else (a folder of the user's, a file, another
+    kind of mapassoc folder) is not mapassoc's to delete.
+    """
+    if not path.exists():
+        return True
+    if not path.is_dir():
+        return False
+    if not any(path.iterdir()):
+        return True
+    try:
+        manifest = json.loads((path / MANIFEST_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(manifest, dict) and manifest.get("format") == kind
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    """Whether ``path`` is ``folder`` or below it (links resolved)."""
+    return Path(os.path.realpath(path)).is_relative_to(os.path.realpath(folder))
+
+
 class RunFolder:
     """The output folder ``OUT`` of one run and its working sibling ``OUT.partial``.
 
@@ -139,13 +184,18 @@ class RunFolder:
     ----------
     path : path
         ``OUT``, as given to ``--out``.
+    kind : str
+        The manifest format of the folder (:data:`RUN_FORMAT`, :data:`DEMO_FORMAT`):
+        only a folder of this kind is ever replaced or emptied.
     """
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, kind: str = RUN_FORMAT) -> None:
         self.path = Path(path)
         if self.path.name in ("", ".", ".."):
             raise InputError(f"--out must name a folder, got {os.fspath(path)!r}")
         self.partial = self.path.with_name(self.path.name + ".partial")
+        self.kind = kind
+        self.noun = "demo" if kind == DEMO_FORMAT else "run"
         self._lock: tuple[Path, Any] | None = None
 
     # -- checks before anything is computed ------------------------------------------
@@ -164,15 +214,41 @@ class RunFolder:
 
     def final_manifest(self) -> dict[str, Any] | None:
         """The manifest of ``OUT`` (None: no run there)."""
-        return read_manifest(self.path) if self.path.is_dir() else None
+        return read_manifest(self.path, kind=self.kind) if self.path.is_dir() else None
 
     def partial_manifest(self) -> dict[str, Any] | None:
         """The manifest of ``OUT.partial`` (None: no unfinished run)."""
-        return read_manifest(self.partial) if self.partial.is_dir() else None
+        return read_manifest(self.partial, kind=self.kind) if self.partial.is_dir() else None
+
+    def check_replaceable(self, inputs: Sequence[str | os.PathLike[str]] = ()) -> None:
+        """Raise OutputError unless ``OUT`` and ``OUT.partial`` may be replaced.
+
+        What ``--overwrite`` and a fresh start may delete: each folder must be absent,
+        empty or a folder of this kind (:func:`is_own_folder`), and neither may hold one
+        of ``inputs`` (a run's own configuration or detections).  Checked before
+        anything is computed, and again just before a folder is deleted.
+        """
+        for folder in (self.path, self.partial):
+            for source in inputs:
+                if folder.exists() and _inside(Path(source), folder):
+                    raise OutputError(
+                        str(folder),
+                        f"holds the input {os.fspath(source)}; mapassoc never replaces a "
+                        "folder holding its own inputs: choose another --out",
+                    )
+            if not is_own_folder(folder, kind=self.kind):
+                raise OutputError(
+                    str(folder),
+                    f"is not empty and is not a mapassoc {self.noun} folder (no "
+                    f"manifest.json of format {self.kind!r}); mapassoc replaces only its own "
+                    "outputs: choose another --out, or empty it yourself",
+                )
 
     def refuse_existing(self) -> None:
         """Raise OutputError unless both ``OUT`` and ``OUT.partial`` are absent or empty."""
         if self.partial.exists() and not _is_empty_folder(self.partial):
+            if not is_own_folder(self.partial, kind=self.kind):
+                self.check_replaceable()  # raises, naming the folder
             manifest = self.partial_manifest()
             status = manifest["status"] if manifest else "unknown"
             raise OutputError(
@@ -181,14 +257,17 @@ class RunFolder:
                 "or --overwrite to start again",
             )
         if self.path.exists() and not _is_empty_folder(self.path):
+            if not is_own_folder(self.path, kind=self.kind):
+                raise OutputError(
+                    str(self.path),
+                    f"is not empty and holds no mapassoc {self.noun}; choose another --out",
+                )
             manifest = self.final_manifest()
-            what = (
-                f"holds a {manifest['status']} run" if manifest else "is not empty"
-            )
+            status = manifest["status"] if manifest else "unknown"
             raise OutputError(
                 str(self.path),
-                f"{what}; pass --overwrite to replace it (or --resume to finish or skip it), "
-                "or choose another --out",
+                f"holds a {status} {self.noun}; pass --overwrite to replace it (or --resume "
+                "to finish or skip it), or choose another --out",
             )
 
     # -- the working folder ----------------------------------------------------------
@@ -203,6 +282,7 @@ class RunFolder:
             return
         path = self.path.with_name(f".{self.path.name}.lock")
         try:
+            path.parent.mkdir(parents=True, exist_ok=True)  # --out a/b with no a/ yet
             handle = open(path, "a+", encoding="utf-8")
         except OSError as exc:
             raise OutputError(str(path), f"cannot create the lock: {os_reason(exc)}") from None
@@ -235,6 +315,9 @@ class RunFolder:
     def begin(self, *, fresh: bool) -> None:
         """Take the lock and create ``OUT.partial`` (emptied first when ``fresh``)."""
         self.lock()
+        if fresh and not is_own_folder(self.partial, kind=self.kind):
+            self.release()
+            self.check_replaceable()  # raises, naming the folder
         try:
             if fresh and self.partial.exists():
                 shutil.rmtree(self.partial)
@@ -279,6 +362,8 @@ class RunFolder:
         rename, so ``OUT`` always holds one whole run.
         """
         self.lock()
+        if not is_own_folder(self.path, kind=self.kind):
+            self.check_replaceable()  # raises, naming the folder: never delete another's
         try:
             (self.partial / CHECKPOINT_NAME).unlink(missing_ok=True)
             aside = None
@@ -300,10 +385,11 @@ def new_manifest(
     inputs: Mapping[str, object],
     settings: Mapping[str, object],
     scans_total: int,
+    kind: str = RUN_FORMAT,
 ) -> dict[str, object]:
     """The manifest of a run that starts now (status ``running``, first session)."""
     return {
-        "format": FORMAT,
+        "format": kind,
         "status": "running",
         "mapassoc_version": __version__,
         "inputs": dict(inputs),

@@ -299,7 +299,9 @@ def run_files(
     t_session = time.perf_counter()
     folder = RunFolder(out_dir)
     folder.check_writable_place()
-    if not (overwrite or resume):
+    if overwrite or resume:
+        folder.check_replaceable((config_path, detections_path))
+    else:
         folder.refuse_existing()
 
     with warnings.catch_warnings(record=True) as config_warnings:

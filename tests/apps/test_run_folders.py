@@ -70,7 +70,7 @@ def test_complete_folder_holds_results_and_manifest(reference: Path, scenario: P
     assert not reference.with_name("run.partial").exists()
 
 
-def test_a_non_empty_out_is_refused_then_overwritten(
+def test_a_folder_that_is_no_run_is_never_replaced(
     scenario: Path, reference: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "out"
@@ -80,14 +80,80 @@ def test_a_non_empty_out_is_refused_then_overwritten(
             "--out", str(out), "--no-progress", "--no-timings"]
     assert main(args) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and str(out) in err and "--overwrite" in err
-    assert (out / "mine.txt").read_text() == "keep me"
-    assert main([*args, "--overwrite"]) == 0
-    assert not (out / "mine.txt").exists()
-    _same_results(out, reference)
-    # A complete run is refused too, naming its status.
+    assert err.count("\n") == 1 and str(out) in err and "holds no mapassoc run" in err
+    assert "--overwrite" not in err  # no advice that would delete the user's files
+    for again in ("--overwrite", "--resume"):
+        assert main([*args, again]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "not a mapassoc run folder" in err, again
+        assert (out / "mine.txt").read_text() == "keep me"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_a_run_folder_is_refused_then_overwritten(
+    scenario: Path, reference: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    _run(scenario, out)
+    (out / "note.txt").write_text("a note kept in a run folder goes with it")
+    args = ["run", str(scenario / "config.toml"), str(scenario / "detections.csv"),
+            "--out", str(out), "--no-progress", "--no-timings"]
     assert main(args) == 2
-    assert "holds a complete run" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "holds a complete run" in err and "--overwrite" in err
+    assert main([*args, "--overwrite"]) == 0
+    assert not (out / "note.txt").exists()
+    _same_results(out, reference)
+
+
+@pytest.mark.parametrize("where", ["out", "partial"])
+def test_a_folder_holding_the_inputs_is_never_replaced(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], where: str
+) -> None:
+    """`run scen/config.toml scen/detections.csv --out scen --overwrite` once deleted the
+    inputs; now it is refused before anything is computed, even where the folder is a
+    mapassoc run folder (a manifest of the right format)."""
+    scen = tmp_path / "scen"
+    scen.mkdir()
+    for name in ("config.toml", "detections.csv", "truth.csv"):
+        (scen / name).write_bytes((scenario / name).read_bytes())
+    (scen / MANIFEST_NAME).write_text(json.dumps({"format": "mapassoc-run/1"}))
+    before = {p.name: p.read_bytes() for p in scen.iterdir()}
+    out = scen if where == "out" else tmp_path / "x"
+    if where == "partial":
+        scen.rename(tmp_path / "x.partial")
+        scen = tmp_path / "x.partial"
+    args = ["run", str(scen / "config.toml"), str(scen / "detections.csv"),
+            "--out", str(out), "--no-progress", "--no-timings"]
+    for again in ("--overwrite", "--resume"):
+        assert main([*args, again]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "holds the input" in err and str(scen) in err
+    assert {p.name: p.read_bytes() for p in scen.iterdir()} == before
+
+
+def test_a_foreign_partial_folder_is_never_emptied(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    partial = tmp_path / "out.partial"
+    partial.mkdir()
+    (partial / "mine.txt").write_text("keep me")
+    args = ["run", str(scenario / "config.toml"), str(scenario / "detections.csv"),
+            "--out", str(out), "--no-progress", "--no-timings"]
+    for again in ((), ("--overwrite",), ("--resume",)):
+        assert main([*args, *again]) == 2
+        err = capsys.readouterr().err
+        assert "out.partial" in err and "not a mapassoc run folder" in err, again
+    assert (partial / "mine.txt").read_text() == "keep me"
+    assert not out.exists()
+
+
+def test_out_parents_are_created(scenario: Path, reference: Path, tmp_path: Path) -> None:
+    out = tmp_path / "a" / "b" / "run"
+    assert main(["run", str(scenario / "config.toml"), str(scenario / "detections.csv"),
+                 "--out", str(out), "--no-progress", "--no-timings"]) == 0
+    _same_results(out, reference)
 
 
 def test_a_failed_overwrite_keeps_the_previous_run(
