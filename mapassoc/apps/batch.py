@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from mapassoc.apps.progress import Progress
-from mapassoc.apps.run_folders import os_reason
+from mapassoc.apps.run_folders import inside, os_reason
 from mapassoc.apps.runs import RunInterrupted, StopFlag, run_files, stop_on_signals
 from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
@@ -278,7 +278,22 @@ def _write_summary(path: Path, rows: Iterable[dict[str, object]]) -> None:
         raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
 
 
-def _check_out(out: Path, options: BatchOptions) -> None:
+def _check_out(out: Path, options: BatchOptions, recordings: Sequence[Recording]) -> None:
+    """Raise OutputError where ``out`` cannot be the batch folder.
+
+    Besides a file or a non-empty folder without ``--resume``/``--overwrite``: a batch
+    folder that is or holds a recording's detections or configuration (``batch recs --out
+    recs``) is refused whatever the options, since each recording's run folder
+    ``out/NAME`` would then be the recording's own folder.
+    """
+    for recording in recordings:
+        for source in (recording.detections, recording.config):
+            if source is not None and inside(source, out):
+                raise OutputError(
+                    str(out),
+                    f"holds the input {source} of recording {recording.name!r}; the batch "
+                    "folder must be outside the recordings: choose another --out",
+                )
     if out.exists() and not out.is_dir():
         raise OutputError(str(out), "is a file, not a folder; choose another --out")
     if out.is_dir() and any(out.iterdir()) and not (options.overwrite or options.resume):
@@ -344,7 +359,7 @@ def run_batch(
     out_path = Path(out)
     config = None if shared_config is None else Path(shared_config)
     workers = check_jobs(jobs)
-    _check_out(out_path, options)
+    _check_out(out_path, options, recordings)
     rows: dict[str, dict[str, object]] = {}
     ticker = Progress(sys.stderr, label="batch", unit="recordings", enabled=progress)
 

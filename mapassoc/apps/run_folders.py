@@ -52,6 +52,7 @@ __all__ = [
     "DEMO_FORMAT",
     "file_identity",
     "is_own_folder",
+    "inside",
     "os_reason",
     "write_atomically",
     "read_manifest",
@@ -172,7 +173,7 @@ def is_own_folder(path: Path, *, kind: str = RUN_FORMAT) -> bool:
     return isinstance(manifest, dict) and manifest.get("format") == kind
 
 
-def _inside(path: Path, folder: Path) -> bool:
+def inside(path: Path, folder: Path) -> bool:
     """Whether ``path`` is ``folder`` or below it (links resolved)."""
     return Path(os.path.realpath(path)).is_relative_to(os.path.realpath(folder))
 
@@ -230,7 +231,7 @@ class RunFolder:
         """
         for folder in (self.path, self.partial):
             for source in inputs:
-                if folder.exists() and _inside(Path(source), folder):
+                if folder.exists() and inside(Path(source), folder):
                     raise OutputError(
                         str(folder),
                         f"holds the input {os.fspath(source)}; mapassoc never replaces a "

@@ -211,3 +211,24 @@ def test_an_interrupted_batch_resumes_to_the_same_folders(tmp_path: Path) -> Non
         assert manifest is not None and manifest["status"] == "complete"
         for name in RESULT_FILES:
             assert (out / f"p{seed}" / name).read_bytes() == (alone / name).read_bytes()
+
+
+@pytest.mark.parametrize("options", [["--overwrite"], ["--resume"], []])
+def test_a_batch_folder_holding_its_recordings_is_refused(
+    recordings: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], options: list[str]
+) -> None:
+    """`mapassoc batch recs --out recs --overwrite` once deleted every recording: an
+    --out that is (or holds) the source is refused before anything runs, and a parent of
+    the source too; every input stays byte for byte."""
+    source = tmp_path / "recs"
+    shutil.copytree(recordings / "alpha", source / "alpha")
+    shutil.copy(recordings / "gamma.csv", source / "gamma.csv")
+    before = {p: p.read_bytes() for p in source.rglob("*") if p.is_file()}
+    for out in (source, tmp_path):
+        code = main(["batch", str(source), "--out", str(out), "--config",
+                     str(source / "alpha" / "config.toml"), "--jobs", "1", *options])
+        assert code == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "holds the input" in err and str(out) in err
+    assert {p: p.read_bytes() for p in source.rglob("*") if p.is_file()} == before
+    assert not (source / BATCH_SUMMARY_NAME).exists()
