@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 setup: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/mapassoc demo --out $(OUT)
+	$(BIN)/mapassoc demo --out $(OUT) --overwrite
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -m ""

@@ -155,7 +155,13 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 def _cmd_demo(args: argparse.Namespace) -> int:
     from mapassoc.apps.demo import run_demo
 
-    run_demo(scenario=args.scenario, seed=args.seed, out_dir=Path(args.out), plot=not args.no_plot)
+    run_demo(
+        scenario=args.scenario,
+        seed=args.seed,
+        out_dir=Path(args.out),
+        plot=not args.no_plot,
+        overwrite=args.overwrite,
+    )
     return 0
 
 
@@ -412,7 +418,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--scenario", default="crossing", help="scenario name (default crossing)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--out", default="demo-out", help="output folder (default demo-out)")
+    p.add_argument(
+        "--out", default="demo-out", help="output folder (default demo-out; parents created)"
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace --out when it holds a previous demo (never any other folder)",
+    )
     p.add_argument("--no-plot", action="store_true", help="skip the PNG plot")
     p.set_defaults(func=_cmd_demo)
 

@@ -4,17 +4,26 @@ Simulates the scenario into ``OUT/scenario/``, runs the estimator on those files
 exactly as ``mapassoc run`` would (the run folder ``OUT/run/``), smooths the true
 associations (the oracle, ``OUT/oracle_tracks.csv``), prints GOSPA of both and
 plots detections, truth and tracks (``OUT/tracks.png``).
+
+``OUT`` follows the rules of a run folder (:mod:`mapassoc.apps.run_folders`): a
+non-empty ``OUT`` is refused unless ``overwrite``, and even then replaced only when it
+is a previous demo's folder (its ``manifest.json`` of format ``mapassoc-demo/1``).  The
+demo is built in ``OUT.partial`` and renamed into place whole, so ``OUT`` never mixes
+two demos (a ``--no-plot`` demo leaves no earlier plot behind).
 """
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
-from mapassoc.apps.runs import run_files
+from mapassoc.apps.run_folders import DEMO_FORMAT, RunFolder, new_manifest, now_text
+from mapassoc.apps.runs import RunInterrupted, run_files
 from mapassoc.data.io import read_tracks, write_tracks
+from mapassoc.errors import InputError
 from mapassoc.evaluation.metrics import RunEvaluation
 from mapassoc.evaluation.oracle import oracle_tracks
-from mapassoc.evaluation.scenarios import build_scenario, describe_scenario
+from mapassoc.evaluation.scenarios import Scenario, build_scenario, describe_scenario
 from mapassoc.evaluation.simulate import write_scenario
 from mapassoc.evaluation.tables import evaluate_tables
 
@@ -48,15 +57,62 @@ def run_demo(
     seed: int = 0,
     out_dir: Path = Path("demo-out"),
     plot: bool = True,
+    overwrite: bool = False,
 ) -> dict[str, RunEvaluation]:
-    """Run the demo; returns the metrics of the estimator and of the oracle."""
+    """Run the demo into ``out_dir``; returns the metrics of the estimator and the oracle.
+
+    Raises
+    ------
+    InputError
+        ``plot`` without matplotlib installed (checked before anything is computed).
+    OutputError
+        ``out_dir`` is not empty and ``overwrite`` is False, or it is not a demo folder.
+    """
+    if plot and importlib.util.find_spec("matplotlib") is None:
+        raise InputError(
+            "the demo's plot needs matplotlib: pip install 'mapassoc[plot]', or pass --no-plot"
+        )
+    folder = RunFolder(out_dir, kind=DEMO_FORMAT)
+    folder.check_writable_place()
+    if overwrite:
+        folder.check_replaceable()
+    else:
+        folder.refuse_existing()
     built = build_scenario(scenario, seed)
+    folder.begin(fresh=True)
+    try:
+        manifest = new_manifest(
+            inputs={}, settings={"scenario": scenario, "seed": seed, "plot": plot},
+            scans_total=len(built.scans), kind=DEMO_FORMAT,
+        )  # fmt: skip
+        folder.write_manifest(manifest)
+        rows = _build_demo(built, scenario, seed, folder.partial, plot=plot)
+        manifest.update(status="complete", ended=now_text(), scans_committed=len(built.scans))
+        folder.write_manifest(manifest)
+        folder.complete()
+    except RunInterrupted:
+        raise InputError(
+            f"the demo was interrupted; {out_dir} is as it was (the unfinished demo is in "
+            f"{folder.partial})"
+        ) from None
+    finally:
+        folder.release()
+    png = " tracks.png," if plot else ""
+    print(
+        f"outputs in {out_dir}/: run/ (tracks.csv, windows.jsonl, summary.json, "
+        f"manifest.json),{png} oracle_tracks.csv, scenario/"
+    )
+    return rows
+
+
+def _build_demo(
+    built: Scenario, scenario: str, seed: int, out_dir: Path, *, plot: bool
+) -> dict[str, RunEvaluation]:
+    """The demo's files in ``out_dir`` (the working folder); prints as it goes."""
     print(f"scenario {scenario!r} (seed {seed}): {describe_scenario(scenario)}")
     paths = write_scenario(built, out_dir / "scenario")
     run_dir = out_dir / "run"
-    summary = run_files(
-        paths["config"], paths["detections"], run_dir, progress=True, overwrite=True
-    ).summary
+    summary = run_files(paths["config"], paths["detections"], run_dir, progress=True).summary
     tracks = read_tracks(run_dir / "tracks.csv")
     oracle = oracle_tracks(built.scans, built.origins, built.config)
     write_tracks(out_dir / "oracle_tracks.csv", oracle)
@@ -75,7 +131,7 @@ def run_demo(
     if plot:
         from mapassoc.apps.plotting import plot_tracks
 
-        png = plot_tracks(
+        plot_tracks(
             out_dir / "tracks.png",
             scans=built.scans,
             sensors=built.config.sensors,
@@ -83,9 +139,4 @@ def run_demo(
             truth=built.truth,
             title=f"mapassoc on '{scenario}' (seed {seed}): GOSPA {ratio:.2f} x oracle",
         )
-        print(f"plot: {png}")
-    print(
-        f"outputs: {run_dir}/ (tracks.csv, windows.jsonl, summary.json, manifest.json), "
-        f"{out_dir}/oracle_tracks.csv, {out_dir}/scenario/"
-    )
     return rows
