@@ -546,7 +546,12 @@ def _warn_missing_sections(data: Mapping[str, object], source: str) -> None:
             )
 
 
-def load_config(path: PathLike, *, solver_names: Collection[str] | None = None) -> Config:
+def load_config(
+    path: PathLike,
+    *,
+    solver_names: Collection[str] | None = None,
+    content: bytes | None = None,
+) -> Config:
     """Read and parse a TOML configuration file.
 
     Warns (``UserWarning``, naming the file and the defaults) when the optional
@@ -557,6 +562,9 @@ def load_config(path: PathLike, *, solver_names: Collection[str] | None = None) 
     path : str or os.PathLike
     solver_names : collection of str, optional
         The solver names ``estimator.solver`` may take (see :func:`parse_config`).
+    content : bytes, optional
+        The file's bytes when the caller has read them already (a named pipe can be read
+        only once); ``path`` then only names the file in errors and ``Config.source``.
 
     Raises
     ------
@@ -566,8 +574,10 @@ def load_config(path: PathLike, *, solver_names: Collection[str] | None = None) 
     """
     source = os.fspath(path)
     try:
-        with open(source, "rb") as handle:
-            data = tomllib.load(handle)
+        if content is None:
+            with open(source, "rb") as handle:
+                content = handle.read()
+        data = tomllib.loads(content.decode("utf-8"))
     except OSError as exc:
         raise ConfigError(
             _DOCUMENT_KEY, f"cannot read the file: {exc.strerror or exc}", source=source
