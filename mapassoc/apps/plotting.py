@@ -56,8 +56,12 @@ def _save(fig: Figure, path: str | Path) -> Path:
 #: At most this many estimated tracks get a legend entry each; more get one entry.
 TRACK_LEGEND_LIMIT = 12
 
-# tab10 without its grey (index 7): grey is the detections' and truth's colour.
-_TRACK_COLOURS = (0, 1, 2, 3, 4, 5, 6, 8, 9)
+# Qualitative colours of the tracks, one per legend entry up to TRACK_LEGEND_LIMIT: tab10
+# without its grey (grey is the detections' and truth's colour), then navy, teal and maroon.
+_TRACK_COLOURS = (
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#bcbd22",
+    "#17becf", "#000075", "#469990", "#800000",
+)  # fmt: skip
 _LABEL_FONTSIZE = 9.5
 _LABEL_OFFSET_POINTS = 9.0
 
@@ -180,7 +184,7 @@ def draw_tracks(
                 f"scan at time {scan.time:g} is from sensor {scan.sensor!r}, which is not in "
                 f"sensors (got {sorted(sensors)})"
             )
-    from matplotlib import colormaps, patheffects
+    from matplotlib import patheffects
     from matplotlib.artist import Artist
     from matplotlib.lines import Line2D
 
@@ -237,11 +241,10 @@ def draw_tracks(
         handles.append(
             Line2D([], [], ls="", marker=">", ms=7, color="0.2", label="track end, heading")
         )
-    cmap = colormaps["tab10"]
     halo = [patheffects.withStroke(linewidth=3.0, foreground="white")]
     each = len(estimated) <= TRACK_LEGEND_LIMIT
     for i, (tid, times, line) in enumerate(estimated):
-        colour = cmap(_TRACK_COLOURS[i % len(_TRACK_COLOURS)])
+        colour = _TRACK_COLOURS[i % len(_TRACK_COLOURS)]
         label = f"track {tid}  ({_span(times, time_unit)})" if each else None
         (drawn,) = ax.plot(
             *line.T, "-", lw=1.6, color=colour, alpha=0.9, zorder=3, label=label,
@@ -273,7 +276,10 @@ def draw_tracks(
             )  # fmt: skip
     if estimated and not each:
         handles.append(
-            Line2D([], [], lw=1.6, color=cmap(0), label=f"tracks ({len(estimated)}), id at end")
+            Line2D(
+                [], [], lw=1.6, color=_TRACK_COLOURS[0],
+                label=f"tracks ({len(estimated)}), id at end",
+            )  # fmt: skip
         )
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel(_axis_label("x", length_unit))
@@ -282,7 +288,7 @@ def draw_tracks(
     if legend and handles:
         ax.legend(
             handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
-            fontsize=9, frameon=False,
+            fontsize=9, frameon=False, handlelength=3.0,
         )  # fmt: skip
 
 

@@ -320,3 +320,16 @@ def test_the_module_imports_without_matplotlib_and_plotting_names_the_extra() ->
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "ok"
+
+
+def test_up_to_the_legend_limit_every_track_has_its_own_colour(crossing: Scenario) -> None:
+    from matplotlib.colors import to_rgba
+
+    tracks = _straight_tracks(TRACK_LEGEND_LIMIT)
+    _, ax = _draw(crossing, tracks)
+    colours = {
+        to_rgba(line.get_color())
+        for line in ax.get_lines()
+        if re.match(r"track \d", str(line.get_label()))
+    }
+    assert len(colours) == TRACK_LEGEND_LIMIT
