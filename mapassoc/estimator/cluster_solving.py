@@ -361,10 +361,15 @@ class ClusterSolver:
                 mass_upper[k] = min(mass_upper[k], float(at_k[0]))
                 line = (k, lp.objective, mu, multipliers)
                 if best[k] < best_upper[k] - 1e-9 and best_upper[k] >= found_best - self.map_margin:
-                    status = self._solve_integer(problem, k, deadline, best, sets)
+                    status, bound = self._solve_integer(problem, k, deadline, best, sets)
                     solves += 1
                     if status is SolveStatus.OPTIMAL:
                         best_upper[k] = best[k]
+                    elif status is SolveStatus.WORK_LIMIT:
+                        # The backend's own deterministic limit (e.g. a node limit), not
+                        # the clock: its dual bound is proven, the k stays bounded.
+                        if math.isfinite(bound):
+                            best_upper[k] = min(best_upper[k], bound)
                     elif status is not SolveStatus.INFEASIBLE:
                         limited = True
                     found_best = max(found_best, float(best[k]))
@@ -418,10 +423,14 @@ class ClusterSolver:
         deadline: float,
         best: NDArray[np.float64],
         sets: list[tuple[int, ...] | None],
-    ) -> SolveStatus:
-        """Solve the integer program of k; keep its set if it beats the beam's."""
+    ) -> tuple[SolveStatus, float]:
+        """Solve the integer program of k; keep its set if it beats the beam's.
+
+        Returns the solver's status and its proven upper bound on the best score of k
+        (``nan`` when it has none).
+        """
         if time.perf_counter() >= deadline:
-            return SolveStatus.TIME_LIMIT
+            return SolveStatus.TIME_LIMIT, math.nan
         result = self.solver.solve(set_packing_program(problem, k), time_limit=_remaining(deadline))
         if result.solution is not None and result.status in (
             SolveStatus.OPTIMAL,
@@ -436,7 +445,7 @@ class ClusterSolver:
             score = problem.value(chosen)
             if score > best[k] or sets[k] is None:
                 best[k], sets[k] = score, tuple(int(h) for h in chosen)
-        return result.status
+        return result.status, result.bound
 
     def _relaxed_bounds(
         self, problem: PackingProblem, top: int, deadline: float
