@@ -44,7 +44,7 @@ from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import InputError
 from mapassoc.estimator.cluster_solving import ClusterReport, ClusterSolver, ClusterStatus
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
-from mapassoc.estimator.posterior import KPosterior, k_posterior
+from mapassoc.estimator.posterior import FULL_LENGTH_KMAX, KPosterior, k_posterior
 from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.formulations.cardinality import (
     ClusterTable,
@@ -543,13 +543,17 @@ class WindowEstimator:
             ``BirthModel.initial_count`` targets present; so ``solve_window(scans[:N])``
             is exactly the first window of ``run(scans)``.
         """
-        kmax = self.settings.max_tracks
         t0 = time.perf_counter()
         deadline = t0 + self.settings.time_limit
         population = self.generator.population(scans, carried, undetected)
         hyps = self.generator.generate(scans, carried, population=population)
         t1 = time.perf_counter()
         problem = packing_problem(hyps)
+        # No track set has more tracks than counted hypotheses: beyond
+        # FULL_LENGTH_KMAX the per-T tables stop there whatever max_tracks says (the K
+        # beyond are the posterior's business, k_posterior).
+        counted = int(np.count_nonzero(problem.counts))
+        kmax = min(self.settings.max_tracks, max(counted, FULL_LENGTH_KMAX))
         clusters = cluster_hypotheses(problem)
         tables: list[ClusterTable] = []
         reports: list[ClusterReport] = []

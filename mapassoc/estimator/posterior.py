@@ -68,6 +68,8 @@ __all__ = [
     "k_posterior",
     "PILE_UP_THRESHOLD",
     "NEGLIGIBLE_LOG_RATIO",
+    "MAX_KMAX",
+    "FULL_LENGTH_KMAX",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -79,6 +81,16 @@ NEGLIGIBLE_LOG_RATIO = 800.0
 """A K whose weight is this many nats below the largest is below double precision's
 smallest number relative to it (e^-745): the posterior stops there (see
 :func:`k_posterior`)."""
+
+MAX_KMAX = 2**53
+"""Largest ``max_tracks``: every K up to it is exact in double precision (the Poisson and
+factorial terms take K as a float).  Beyond what the data and the prior can reach a
+Kmax costs nothing (:func:`k_posterior`), so this bound only refuses nonsense."""
+
+FULL_LENGTH_KMAX = 4096
+"""Up to this Kmax the posterior's arrays have the full length Kmax + 1 (a few pages
+of memory); beyond it they stop where the posterior provably ends (:func:`k_posterior`),
+so their length is what the data and the prior reach, not Kmax."""
 
 _BLOCK = 256
 """K values per block of the (T, K) weight matrix."""
@@ -99,6 +111,27 @@ class CountLaw:
     def log_prior(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
         """log pi(K) for K = 0..top (top <= kmax), up to an additive constant."""
         raise NotImplementedError
+
+    def tail_step(
+        self, prior: CountPrior, population: WindowPopulation, top: int, tracks: NDArray[np.int64]
+    ) -> FloatArray | None:
+        """An upper bound ``r_T``, for every K >= ``top`` and each track count T of
+        ``tracks`` (all <= top), on the step ``W_T(K + 1) / W_T(K)`` of the term
+
+            W_T(K) = pi(K) / p_birth(K) * Po(K - T; nu)
+
+        of eq. (3) (the term of T without its mass); :func:`k_posterior` cuts the K
+        range where the geometric tails these steps bound are negligible.  ``None``
+        (the default, for a law that cannot bound it): the range is never cut, K runs
+        to kmax.
+
+        Every bound below uses the step of the birth law's p_birth = (sum of the carried
+        Bernoullis) + Po(mu): with ``b_c`` the law of the Bernoulli sum,
+        ``p_birth(K + 1) = sum_c b_c Po(K - c; mu) mu / (K + 1 - c) >= p_birth(K) mu /
+        (K + 1)``, so ``p_birth(K) / p_birth(K + 1) <= (K + 1) / mu``; and the Poisson
+        step ``Po(K + 1 - T; nu) / Po(K - T; nu) = nu / (K + 1 - T)``.
+        """
+        return None
 
     def log_ratio(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
         """``log pi(K) - log p_birth(K)`` for K = 0..top, up to a constant (eq. 2);
@@ -123,6 +156,13 @@ class BirthLaw(CountLaw):
     def log_ratio(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
         return np.where(np.isfinite(population.log_count_prior(top)), 0.0, -math.inf)
 
+    def tail_step(
+        self, prior: CountPrior, population: WindowPopulation, top: int, tracks: NDArray[np.int64]
+    ) -> FloatArray:
+        """``nu / (top + 1 - T)``: W_T is the Poisson term alone, whose step
+        ``nu / (K + 1 - T)`` falls with K."""
+        return population.undetected_mean / (top + 1.0 - tracks)
+
 
 class UniformLaw(CountLaw):
     """Uniform on 0..kmax (seed 002)."""
@@ -132,6 +172,19 @@ class UniformLaw(CountLaw):
     def log_prior(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
         return np.zeros(top + 1)
 
+    def tail_step(
+        self, prior: CountPrior, population: WindowPopulation, top: int, tracks: NDArray[np.int64]
+    ) -> FloatArray:
+        """``q (top + 1) / (top + 1 - T)`` with ``q = nu / mu`` (< 1: the probability
+        that a target of the window is never detected): the step is at most
+        ``(K + 1) / mu * nu / (K + 1 - T)``, which falls with K.  With ``mu = 0`` the
+        birth law gives no K beyond the carried tracks and ``nu = 0``: 0."""
+        mu = population.new_target_mean
+        if mu <= 0:
+            return np.zeros(tracks.shape[0])
+        q = population.undetected_mean / mu
+        return q * (top + 1.0) / (top + 1.0 - tracks)
+
 
 class PoissonLaw(CountLaw):
     """Poisson with mean ``CountPrior.mean``, cut at kmax."""
@@ -140,6 +193,16 @@ class PoissonLaw(CountLaw):
 
     def log_prior(self, prior: CountPrior, population: WindowPopulation, top: int) -> FloatArray:
         return poisson_log_pmf(np.arange(top + 1), prior.mean)
+
+    def tail_step(
+        self, prior: CountPrior, population: WindowPopulation, top: int, tracks: NDArray[np.int64]
+    ) -> FloatArray:
+        """``(mean / mu) nu / (top + 1 - T)``: the prior's step ``mean / (K + 1)`` times
+        the birth law's inverse step, at most ``(K + 1) / mu``, times the Poisson step."""
+        mu = population.new_target_mean
+        if mu <= 0:
+            return np.zeros(tracks.shape[0])
+        return prior.mean / mu * population.undetected_mean / (top + 1.0 - tracks)
 
 
 class WeightsLaw(CountLaw):
@@ -210,6 +273,12 @@ class CountPrior:
             raise InputError(
                 f"max_tracks must be an integer >= 0, got {self.kmax!r}", key="max_tracks"
             )
+        if self.kmax > MAX_KMAX:
+            raise InputError(
+                f"max_tracks must be at most 2**53 = {MAX_KMAX} (every K exact in double "
+                f"precision), got {self.kmax!r}",
+                key="max_tracks",
+            )
         if not (math.isfinite(self.mean) and self.mean > 0):
             raise InputError(
                 f"k_prior_mean must be a finite number > 0, got {self.mean!r}", key="k_prior_mean"
@@ -237,15 +306,21 @@ class CountPrior:
 class KPosterior:
     """Posterior over the number of targets K = 0..Kmax of one window.
 
+    Every array has one length L <= Kmax + 1: L = Kmax + 1 up to Kmax =
+    :data:`FULL_LENGTH_KMAX`, and beyond it L is the K (and T) range the posterior
+    reaches to double precision (:func:`k_posterior` says where it stops and proves that
+    every K left out has p(K | Z) < 1e-300).  An entry past the end is 0 (``-inf`` for
+    the log-scores), so a huge Kmax costs no memory; :attr:`max_tracks` is Kmax itself.
+
     Attributes
     ----------
-    best_log_score : ndarray, shape (Kmax + 1,)
+    best_log_score : ndarray, shape (L,)
         Best total score per number of tracks T (``-inf`` where infeasible).
-    log_mass : ndarray, shape (Kmax + 1,)
+    log_mass : ndarray, shape (L,)
         log of the summed weight of the track sets with T tracks.
-    probabilities : ndarray, shape (Kmax + 1,)
+    probabilities : ndarray, shape (L,)
         p(K | Z) over the number of targets present in the window; sums to 1.
-    track_probabilities : ndarray, shape (Kmax + 1,)
+    track_probabilities : ndarray, shape (L,)
         p(T | Z) over the number of tracks of the track set; sums to 1.
     joint_map_k, joint_map_tracks : int
         K and the track count T of the joint MAP estimate of (K, track set).
@@ -258,11 +333,13 @@ class KPosterior:
     count_prior : CountPrior
     exact : bool
         Whether ``log_mass`` summed every feasible track set.
-    probabilities_lower, probabilities_upper : ndarray, shape (Kmax + 1,)
+    probabilities_lower, probabilities_upper : ndarray, shape (L,)
         Proven bounds on p(K | Z) from the mass bounds (equal to ``probabilities`` up to
         round-off when exact): with weights ``L_K <= W_K <= U_K`` (eq. 3 with the lower
         and upper masses; it is increasing in every mass),
         ``L_K / (L_K + sum_{j != K} U_j) <= p(K | Z) <= U_K / (U_K + sum_{j != K} L_j)``.
+    max_tracks : int
+        Kmax, the largest K of the prior's range (``p_k_length`` is Kmax + 1).
     marginal_certain : bool
         Whether ``marginal_k`` is proven to be argmax p(K | Z).
     joint_certain : bool
@@ -282,21 +359,21 @@ class KPosterior:
     exact: bool
     probabilities_lower: FloatArray
     probabilities_upper: FloatArray
+    max_tracks: int
     marginal_certain: bool = True
     joint_certain: bool = True
 
     @property
-    def max_tracks(self) -> int:
-        return int(self.probabilities.shape[0]) - 1
-
-    @property
     def piles_up_at_kmax(self) -> bool:
         """Whether p(Kmax | Z) exceeds :data:`PILE_UP_THRESHOLD` (raise Kmax)."""
-        return bool(self.probabilities[-1] > PILE_UP_THRESHOLD) and self.max_tracks > 0
+        reaches_kmax = self.probabilities.shape[0] == self.max_tracks + 1
+        return reaches_kmax and bool(self.probabilities[-1] > PILE_UP_THRESHOLD) and (
+            self.max_tracks > 0
+        )
 
     @property
     def mean_k(self) -> float:
-        return float(np.dot(np.arange(self.max_tracks + 1), self.probabilities))
+        return float(np.dot(np.arange(self.probabilities.shape[0]), self.probabilities))
 
     def tracks_given(self, k: int) -> int:
         """T of the MAP track set given K = k targets: argmax over T <= k of
@@ -415,7 +492,6 @@ class _Sweep:
     joint_upper: FloatArray
     joint_tracks: NDArray[np.int64]
     tracks: FloatArray  # per T: log sum over K of the lower weights
-    decreasing_at_top: bool
 
 
 def _relevant_rows(
@@ -467,7 +543,6 @@ def _sweep(
         np.full(n, -math.inf),
         np.zeros(n, dtype=np.int64),
         np.full(mass.shape[0], -math.inf),
-        True,
     )
     if rows.size == 0:
         return out
@@ -492,13 +567,43 @@ def _sweep(
         out.joint_upper[ks] = np.max(bu[:, None] + weight, axis=0)
         tracks = np.logaddexp(tracks, logsumexp(lower, axis=1))
     out.tracks[rows] = tracks
-    if top >= 1:
-        # Whether every term's weight falls from top - 1 to top (each is concave in K
-        # for the priors whose range is cut, so it keeps falling).
-        weight = weights(np.array([top - 1, top], dtype=np.int64))
-        live = np.isfinite(weight[:, 1])
-        out.decreasing_at_top = bool(np.all(weight[live, 1] <= weight[live, 0]))
     return out
+
+
+def _log_tail(values: FloatArray, steps: FloatArray) -> float:
+    """log of ``sum_T exp(values[T]) r_T / (1 - r_T)``: the geometric tails beyond top of
+    terms whose value at top is ``values`` and whose step is at most ``steps`` (``inf``
+    where a live term's step is not below 1: no bound)."""
+    live = np.isfinite(values)
+    if not np.any(live):
+        return -math.inf
+    r = steps[live]
+    if np.any(r >= 1.0) or np.any(~np.isfinite(r)):
+        return math.inf
+    with np.errstate(divide="ignore"):
+        factor = np.log(r) - np.log1p(-r)
+    return float(logsumexp(values[live] + factor))
+
+
+def _tail_is_negligible(
+    top: int,
+    ratio: FloatArray,
+    nu: float,
+    steps: FloatArray | None,
+    sweep: _Sweep,
+    mass_upper: FloatArray,
+    best_upper: FloatArray,
+) -> bool:
+    """Whether every K > top can be left out (the proof is in :func:`k_posterior`)."""
+    if steps is None or not math.isfinite(ratio[top]):
+        return False
+    tracks = np.arange(mass_upper.shape[0], dtype=np.int64)
+    at_top = ratio[top] + poisson_log_pmf(top - tracks, nu)
+    with np.errstate(invalid="ignore"):
+        mass_tail = _log_tail(mass_upper + at_top, steps)
+        joint_tail = _log_tail(best_upper + at_top, steps)
+    total = float(logsumexp(sweep.mass_lower))
+    return mass_tail < total - NEGLIGIBLE_LOG_RATIO and joint_tail < float(np.max(sweep.joint))
 
 
 def k_posterior(
@@ -513,12 +618,35 @@ def k_posterior(
 ) -> KPosterior:
     """p(K | Z), the joint MAP and the marginal estimates (eqs. 2-3 of the module).
 
-    The K range is 0..kmax.  Except for the ``"weights"`` prior, the weights are
-    computed up to the first K (grown by doubling) past which every term falls and is
-    :data:`NEGLIGIBLE_LOG_RATIO` nats below the largest weight; the K beyond get
-    probability 0, which is what double precision would give them.  So a huge kmax
-    costs nothing.  Track counts whose terms cannot reach that precision for any K are
-    skipped likewise (:func:`_relevant_rows`).
+    The K range is 0..kmax, but the weights are computed only up to the K where the
+    posterior provably ends to double precision, and beyond :data:`FULL_LENGTH_KMAX` the
+    arrays returned stop there too (``KPosterior.max_tracks`` is still kmax), so a huge
+    kmax costs nothing: the work and memory are those of the K the data and the prior
+    can reach.  Track counts whose terms cannot reach that precision for any K
+    are skipped likewise (:func:`_relevant_rows`).
+
+    **Where the K range is cut.**  Write eq. (3) as ``W(K) = sum_T m_T W_T(K)`` with
+    ``m_T = exp(log_mass_upper[T])`` and ``W_T(K) = pi(K) / p_birth(K) Po(K - T; nu)``.
+    The weights are computed for K = 0..top, with top grown by doubling from
+    ``T_max + u`` (``u``: the Poisson reach of ``nu``, :func:`_poisson_reach`), and
+    the K > top are left out once
+
+    1. the prior's law bounds the steps: ``W_T(K + 1) <= r_T W_T(K)`` for every
+       K >= top with ``r_T < 1`` (:meth:`CountLaw.tail_step`: ``nu / (top + 1 - T)``
+       for ``"birth"``, ``q (top + 1) / (top + 1 - T)`` with ``q = nu / mu < 1`` for
+       ``"uniform"``, ``(mean / mu) nu / (top + 1 - T)`` for ``"poisson"``; the
+       ``"weights"`` prior gives none, so it always runs to kmax), and
+       ``p_birth(top) > 0`` (then ``p_birth(K) > 0`` for every K >= top);
+    2. the geometric tails they imply,
+       ``sum_{K > top} W(K) <= sum_T m_T W_T(top) r_T / (1 - r_T)``,
+       are :data:`NEGLIGIBLE_LOG_RATIO` (800) nats below the summed weight of 0..top,
+       i.e. below ``e^-800 < 1e-347`` of the total: every left-out p(K | Z), and their
+       sum, is below 1e-300, and the kept ones are exact to that relative precision;
+    3. the same bound with the best scores (a maximum is at most the sum) is below the
+       joint MAP's weight within 0..top, so the joint MAP K is not in the tail.
+
+    With ``mu = 0`` (no births, no initial targets) the birth law gives no K beyond the
+    carried tracks C, and the range stops at C exactly.
 
     Parameters
     ----------
@@ -561,17 +689,19 @@ def k_posterior(
     best_upper, mass_upper = best_upper[:n_tracks], mass_upper[:n_tracks]
     nu = population.undetected_mean
 
-    if prior.kind == "weights":
+    tracks_range = np.arange(n_tracks, dtype=np.int64)
+    if prior.law.tail_step(prior, population, n_tracks - 1, tracks_range) is None:
         top = kmax
     else:
         top = min(kmax, n_tracks - 1 + _poisson_reach(nu))
+    no_births = population.new_target_mean <= 0
     while True:
         ratio = prior.log_ratio(population, top)
         sweep = _sweep(top, ratio, nu, log_mass, mass_upper, best, best_upper)
-        if top == kmax:
+        if top == kmax or (no_births and top >= population.carried_alive.size):
             break
-        peak = float(np.max(sweep.mass_lower))
-        if sweep.decreasing_at_top and sweep.mass_upper[top] < peak - NEGLIGIBLE_LOG_RATIO:
+        steps = prior.law.tail_step(prior, population, top, tracks_range)
+        if _tail_is_negligible(top, ratio, nu, steps, sweep, mass_upper, best_upper):
             break
         top = min(kmax, 2 * top + 1)
 
@@ -581,23 +711,24 @@ def k_posterior(
             "no K in 0..Kmax has a feasible track set with positive prior probability; "
             "raise max_tracks or check k_prior_weights"
         )
+    length = max(top, min(kmax, FULL_LENGTH_KMAX)) + 1
     weights = np.exp(joint - np.max(joint))
-    probabilities = np.zeros(kmax + 1)
+    probabilities = np.zeros(length)
     probabilities[: top + 1] = weights / weights.sum()
     p_lower_part, p_upper_part = _probability_bounds(joint, sweep.mass_upper)
-    p_lower = np.zeros(kmax + 1)
-    p_upper = np.zeros(kmax + 1)
+    p_lower = np.zeros(length)
+    p_upper = np.zeros(length)
     p_lower[: top + 1] = p_lower_part
     p_upper[: top + 1] = p_upper_part
     track_weights = np.exp(sweep.tracks - np.max(sweep.tracks))
-    track_probabilities = np.zeros(kmax + 1)
+    track_probabilities = np.zeros(length)
     track_probabilities[:n_tracks] = track_weights / track_weights.sum()
 
     marginal_k = _argmax_first(probabilities)
     joint_map_k = _argmax_first(sweep.joint)
-    padded = np.full(kmax + 1, -math.inf)
+    padded = np.full(length, -math.inf)
     padded[:n_tracks] = best
-    mass_padded = np.full(kmax + 1, -math.inf)
+    mass_padded = np.full(length, -math.inf)
     mass_padded[:n_tracks] = log_mass
     return KPosterior(
         best_log_score=padded,
@@ -613,6 +744,7 @@ def k_posterior(
         exact=exact,
         probabilities_lower=p_lower,
         probabilities_upper=p_upper,
+        max_tracks=kmax,
         marginal_certain=_beats_others(joint, sweep.mass_upper, marginal_k),
         joint_certain=_beats_others(sweep.joint, sweep.joint_upper, joint_map_k),
     )

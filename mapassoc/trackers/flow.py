@@ -64,7 +64,8 @@ one Dijkstra per K on the float costs) or by networkx's network simplex
 two new tracks first and twice as many while the minimum sits at the largest K solved;
 the components' convex costs are combined
 (:func:`~mapassoc.formulations.tracking_flow.combine_convex_costs`) for K up to
-``Kmax = max(C, config.estimator.max_tracks)`` (C carried tracks), and the window's
+``Kmax = max(C, min(config.estimator.max_tracks, items kept))`` (C carried tracks; no
+flow has more tracks than items), and the window's
 track set is the flow of the K >= C with the smallest total cost (ties: the smaller K).
 Under these costs that is the most likely track set of the window over every K with the
 birth model's own prior on K (seed 002's joint MAP without a separate count prior).  The
@@ -516,7 +517,9 @@ class FlowTracker:
         sub_tails = remap[link_tails[inside_links]]
         sub_heads = remap[link_heads[inside_links]]
         sub_costs = link_costs[inside_links]
-        kmax = max(C, config.estimator.max_tracks)
+        # No flow has more tracks than items kept (each track holds one at least), so
+        # a huge max_tracks costs no more than that.
+        kmax = max(C, min(config.estimator.max_tracks, int(kept.size)))
         count, label = connected_components(
             coo_array(
                 (np.ones(sub_tails.size), (sub_tails, sub_heads)),
