@@ -367,7 +367,9 @@ def run_batch(
         rows[str(row["name"])] = row
         if on_row is not None:
             on_row(row)
-        ticker(len(rows), len(recordings))
+        # An interrupted recording is not done: it would read "1/1 (100%)" before the
+        # line saying the batch stopped after 0 of 1.
+        ticker(sum(r["status"] != "interrupted" for r in rows.values()), len(recordings))
 
     with stop_on_signals(StopFlag(), notice=progress) as stop:
         try:

@@ -36,6 +36,11 @@ from mapassoc.errors import MapassocError, OutputError
 __all__ = ["main", "build_parser"]
 
 
+def _count(number: object, noun: str) -> str:
+    """``"1 track"``, ``"2 tracks"``, ``"0 tracks"``."""
+    return f"{number} {noun}" if number == 1 else f"{number} {noun}s"
+
+
 def _cmd_scenarios(args: argparse.Namespace) -> int:
     from mapassoc.evaluation.scenarios import DEFAULT_SCENARIO, describe_scenario, scenario_names
 
@@ -84,13 +89,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
     summary = outcome.summary
     if outcome.status == "skipped":
-        print(f"{args.out} is complete already ({summary['tracks']} tracks); nothing to resume")
+        print(
+            f"{args.out} is complete already ({_count(summary['tracks'], 'track')}); "
+            "nothing to resume"
+        )
         return 0
     resumed = f" (resumed at scan {outcome.resumed_at})" if outcome.resumed_at else ""
     print(
-        f"{summary['tracks']} tracks over {summary['scans']} scans in {summary['windows']} "
-        f"windows{resumed} -> {args.out}/tracks.{args.tracks_format}, windows.jsonl, "
-        "summary.json, manifest.json"
+        f"{_count(summary['tracks'], 'track')} over {_count(summary['scans'], 'scan')} in "
+        f"{_count(summary['windows'], 'window')}{resumed} -> {args.out}/tracks."
+        f"{args.tracks_format}, windows.jsonl, summary.json, manifest.json"
     )
     return 0
 
@@ -130,7 +138,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     for row in rows:
         counts[str(row["status"])] = counts.get(str(row["status"]), 0) + 1
     told = ", ".join(f"{n} {status}" for status, n in sorted(counts.items()))
-    print(f"{len(rows)} recordings: {told} -> {Path(args.out) / BATCH_SUMMARY_NAME}")
+    print(f"{_count(len(rows), 'recording')}: {told} -> {Path(args.out) / BATCH_SUMMARY_NAME}")
     return 1 if counts.get("failed") else 0
 
 
@@ -293,13 +301,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "run",
         help="estimate tracks from a detections file",
-        description="Estimate tracks window by window and write tracks.csv, windows.jsonl "
+        description="Estimate tracks window by window and write tracks.csv (or "
+        "tracks.parquet), windows.jsonl "
         "(one line per window: p(K | Z) over the targets present and p(T | Z) over the "
         "tracks, joint MAP and marginal K, objective per number of tracks, solver status, "
         "hypothesis counts) and summary.json.",
     )
     p.add_argument("config", help="TOML configuration (motion, sensors, birth, estimator)")
-    p.add_argument("detections", help="detections CSV")
+    p.add_argument("detections", help="detections file, CSV or Parquet by its suffix")
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument(
         "--no-timings",
@@ -403,8 +412,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="GOSPA (alpha = 2) with its localisation, missed and false parts, "
         "position RMSE over assigned pairs and the cardinality error, averaged over time.",
     )
-    p.add_argument("tracks", help="tracks CSV (as written by `mapassoc run`)")
-    p.add_argument("truth", help="truth CSV (as written by `mapassoc simulate`)")
+    p.add_argument(
+        "tracks", help="tracks file, CSV or Parquet by its suffix (as `mapassoc run` writes)"
+    )
+    p.add_argument(
+        "truth", help="truth file, CSV or Parquet by its suffix (as `mapassoc simulate` writes)"
+    )
     p.add_argument("--cutoff", type=float, default=10.0, help="GOSPA cut-off c (default 10)")
     p.add_argument("--order", type=float, default=2.0, help="GOSPA order p (default 2)")
     p.add_argument("--json", help="also write the metrics to this JSON file")
@@ -601,6 +614,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     Input errors and output errors print one line naming the file (or ``<stdout>``) and
     return 2; a run stopped by a signal prints one line and returns 130.
     """
+    if sys.stderr is None:  # started with stderr closed (2>&-): messages go nowhere
+        sys.stderr = open(os.devnull, "w", encoding="utf-8")  # noqa: SIM115
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -609,6 +624,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return status
     except RunInterrupted as exc:
         print(f"mapassoc: {exc}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except KeyboardInterrupt:  # a second Ctrl-C, or one outside a run's window loop
+        print("mapassoc: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:
         _close_stdout_quietly()

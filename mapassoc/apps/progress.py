@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import datetime
 import time
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
-from tqdm import tqdm
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 __all__ = ["Progress"]
 
@@ -30,8 +31,9 @@ class Progress:
 
     Parameters
     ----------
-    stream : text stream
-        Where to write (standard error).
+    stream : text stream or None
+        Where to write (standard error); None (a process started with stderr closed,
+        where ``sys.stderr`` is None) writes nothing.
     label : str
         What is running (``"run"``, ``"batch"``); starts the log lines.
     unit : str
@@ -46,7 +48,7 @@ class Progress:
 
     def __init__(
         self,
-        stream: TextIO,
+        stream: TextIO | None,
         *,
         label: str,
         unit: str,
@@ -59,7 +61,9 @@ class Progress:
         self.stream = stream
         self.label = label
         self.unit = unit
-        self.enabled = enabled
+        # No stream (sys.stderr is None when the process started with stderr closed):
+        # nothing to show progress on.
+        self.enabled = enabled and stream is not None
         self.log_seconds = float(log_seconds)
         self.initial = int(initial)
         self._terminal = enabled and bool(getattr(stream, "isatty", lambda: False)())
@@ -72,6 +76,8 @@ class Progress:
             return
         if self._terminal:
             if self._bar is None:
+                from tqdm import tqdm  # imported when a bar is first drawn, not at start-up
+
                 self._bar = tqdm(
                     total=total,
                     initial=self.initial,

@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from mapassoc import __version__
-from mapassoc.errors import DataFileError, InputError, OutputError
+from mapassoc.errors import InputError, OutputError
 
 __all__ = [
     "MANIFEST_NAME",
@@ -80,18 +80,13 @@ def os_reason(exc: OSError) -> str:
     return str(exc)
 
 
-def file_identity(path: str | os.PathLike[str]) -> dict[str, object]:
-    """``{"path", "bytes", "sha256"}`` of an input file (read in 1 MiB blocks)."""
-    digest = hashlib.sha256()
-    size = 0
-    try:
-        with open(path, "rb") as handle:
-            while block := handle.read(1 << 20):
-                digest.update(block)
-                size += len(block)
-    except OSError as exc:
-        raise DataFileError(os.fspath(path), f"cannot read the file: {os_reason(exc)}") from None
-    return {"path": os.fspath(path), "bytes": size, "sha256": digest.hexdigest()}
+def file_identity(path: str | os.PathLike[str], content: bytes) -> dict[str, object]:
+    """``{"path", "bytes", "sha256"}`` of an input file, from its bytes (read once)."""
+    return {
+        "path": os.fspath(path),
+        "bytes": len(content),
+        "sha256": hashlib.sha256(content).hexdigest(),
+    }
 
 
 def write_atomically(path: Path, data: bytes) -> None:

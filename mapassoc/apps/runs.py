@@ -29,20 +29,19 @@ from typing import Any, BinaryIO
 
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import RunFolder, file_identity, new_manifest, now_text, os_reason
-from mapassoc.errors import InputError, MapassocError, OutputError
-from mapassoc.solvers import SOLVERS
+from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
 
 __all__ = [
     "RunOutcome",
     "RunInterrupted",
+    "InputWaitInterrupted",
+    "read_input",
     "StopFlag",
     "json_dump",
     "run_files",
     "stop_on_signals",
 ]
 
-INTEGER_SOLVERS = tuple(spec.name for spec in SOLVERS if spec.supports_integer)
-"""The solvers ``estimator.solver`` may name (the estimator solves integer programs)."""
 WINDOWS_NAME = "windows.jsonl"
 TRACKS_FORMATS = {"csv": "tracks.csv", "parquet": "tracks.parquet"}
 """File of the tracks in each ``tracks_format``."""
@@ -71,6 +70,22 @@ class RunInterrupted(MapassocError):
             f"interrupted after {scans_committed} of {scans_total} {unit}; the {what} so far "
             f"is in {partial} (continue it with --resume)"
         )
+
+
+class InputWaitInterrupted(RunInterrupted):
+    """A run stopped on request while an input was still being read: nothing written.
+
+    Attributes
+    ----------
+    path : str
+        The input being read (for instance a named pipe no writer had opened).
+    """
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.partial = None  # type: ignore[assignment]
+        self.scans_committed = self.scans_total = 0
+        MapassocError.__init__(self, f"stopped while waiting for input {path}; nothing was written")
 
 
 @dataclass(frozen=True)
@@ -146,6 +161,61 @@ def stop_on_signals(flag: StopFlag, *, notice: bool = True) -> Iterator[StopFlag
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)
+
+
+def read_input(
+    path: str | os.PathLike[str],
+    *,
+    stop: Callable[[], bool] | None = None,
+    poll_seconds: float = 0.1,
+) -> tuple[bytes, dict[str, object]]:
+    """Read an input file once: its bytes and ``{"path", "bytes", "sha256"}``.
+
+    Every input of a run is read through this once, then parsed from the bytes and
+    hashed for the manifest, so a stream (a named pipe, a process substitution) works
+    like a file.  The read runs on a helper thread while this one polls ``stop`` every
+    ``poll_seconds``: a stop request (SIGINT, SIGTERM) is honoured even while the read
+    waits, for instance on a named pipe no writer has opened yet.
+
+    Raises
+    ------
+    DataFileError
+        The file cannot be read (names it and the system's reason).
+    InputWaitInterrupted
+        ``stop`` returned True before the read finished; the helper thread is left
+        blocked in its read (a daemon thread: it does not keep the process alive).
+    """
+    name = os.fspath(path)
+    outcome: list[bytes | OSError] = []
+
+    def read() -> None:
+        try:
+            with open(name, "rb") as handle:
+                outcome.append(handle.read())
+        except OSError as exc:
+            outcome.append(exc)
+
+    reader = threading.Thread(target=read, name=f"read {name}", daemon=True)
+    reader.start()
+    while reader.is_alive():
+        reader.join(poll_seconds)
+        if reader.is_alive() and stop is not None and stop():
+            raise InputWaitInterrupted(name)
+    result = outcome[0]
+    if isinstance(result, OSError):
+        raise DataFileError(name, f"cannot read the file: {os_reason(result)}")
+    return result, file_identity(name, result)
+
+
+def _integer_solvers() -> tuple[str, ...]:
+    """The solvers ``estimator.solver`` may name (the estimator solves integer programs).
+
+    Imported when a run starts, not with this module: the solver backends import
+    scipy.optimize and cvxpy, which every command line start-up would otherwise pay.
+    """
+    from mapassoc.solvers import SOLVERS
+
+    return tuple(spec.name for spec in SOLVERS if spec.supports_integer)
 
 
 def json_dump(data: object, path: Path) -> None:
@@ -304,10 +374,14 @@ def run_files(
     else:
         folder.refuse_existing()
 
+    # Each input is read once (a named pipe cannot be read twice), hashed for the
+    # manifest, then parsed from its bytes; a stop request is honoured while reading.
+    config_bytes, config_identity = read_input(config_path, stop=stop)
     with warnings.catch_warnings(record=True) as config_warnings:
         warnings.simplefilter("always")
-        config = load_config(config_path, solver_names=INTEGER_SOLVERS)
-    inputs = {"config": file_identity(config_path), "detections": file_identity(detections_path)}
+        config = load_config(config_path, solver_names=_integer_solvers(), content=config_bytes)
+    detections_bytes, detections_identity = read_input(detections_path, stop=stop)
+    inputs = {"config": config_identity, "detections": detections_identity}
     settings = _settings_record(config, timings, segments, tracks_format)
 
     checkpoint: dict[str, Any] | None = None
@@ -335,7 +409,8 @@ def run_files(
                 str(folder.path), "is not empty and holds no mapassoc run; choose another --out"
             )
 
-    scans = read_detections_file(detections_path, config.sensors)
+    scans = read_detections_file(detections_path, config.sensors, content=detections_bytes)
+    del detections_bytes  # parsed: the scans are what the run needs from here on
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         from mapassoc.estimator.pipeline import WindowEstimator

@@ -82,14 +82,17 @@ def _dispatch(
     return getattr(parquet, parquet_name)
 
 
-def read_detections_file(path: PathLike, sensors: Mapping[str, Sensor]) -> list[Scan]:
+def read_detections_file(
+    path: PathLike, sensors: Mapping[str, Sensor], *, content: bytes | None = None
+) -> list[Scan]:
     """Read a detections file, CSV or Parquet by its suffix.
 
-    See :func:`mapassoc.data.io.read_detections` and
-    :func:`mapassoc.data.parquet.read_detections_parquet`.
+    ``content``: the file's bytes when the caller has read them already (``path`` then
+    only names the file and its format).  See :func:`mapassoc.data.io.read_detections`
+    and :func:`mapassoc.data.parquet.read_detections_parquet`.
     """
     reader = _dispatch(path, csv_io.read_detections, "read_detections_parquet")
-    return reader(path, sensors)
+    return reader(path, sensors, content=content)
 
 
 def write_detections_file(

@@ -76,11 +76,13 @@ the track missed.  Read into
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 import re
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TextIO
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -189,23 +191,25 @@ def _float_text(value: float) -> str:
 # --------------------------------------------------------------------------- files
 
 
-def _decode_error_line(path: str, fallback: int) -> tuple[int, str]:
+def _decode_error_line(path: str, fallback: int, content: bytes | None) -> tuple[int, str]:
     """Line number and description of the first byte of ``path`` that is not UTF-8.
 
     The text reader decodes ahead of the csv module in blocks, so the line it is at when
-    decoding fails is not the line of the bad byte.  Only on that error path, this reads
-    the whole file as bytes (for a 100 MB file, about twice that in memory once, at the
-    moment the read is failing anyway; the normal path streams) and counts the line breaks
-    before the bad byte: ``\\r\\n``, ``\\r`` and ``\\n``, the breaks the text reader
-    recognises, so a quoted cell spanning lines counts them as the csv module's line
-    numbers do.  ``fallback`` is
+    decoding fails is not the line of the bad byte.  Only on that error path, this takes
+    the whole file as bytes (``content`` when the caller read it already, else the file is
+    read again: for a 100 MB file, about twice that in memory once, at the moment the read
+    is failing anyway) and counts the line breaks before the bad byte: ``\\r\\n``,
+    ``\\r`` and ``\\n``, the breaks the text reader recognises, so a quoted cell
+    spanning lines counts them as the csv module's line numbers do.  ``fallback`` is
     returned if the bytes cannot be read again or now decode (the file changed).
     """
-    try:
-        with open(path, "rb") as handle:
-            data = handle.read()
-    except OSError:
-        return fallback, "undecodable bytes"
+    data = content
+    if data is None:
+        try:
+            with open(path, "rb") as handle:
+                data = handle.read()
+        except OSError:
+            return fallback, "undecodable bytes"
     try:
         data.decode("utf-8")  # a leading byte-order mark is valid UTF-8
     except UnicodeDecodeError as exc:
@@ -217,10 +221,21 @@ def _decode_error_line(path: str, fallback: int) -> tuple[int, str]:
     return fallback, "undecodable bytes"
 
 
-def _lines(path: str) -> Iterator[tuple[int, list[str]]]:
-    """Yield ``(line number, stripped cells)`` for every CSV line of ``path``."""
+def _open_text(path: str, content: bytes | None) -> TextIO:
+    """``path`` (or ``content``, its bytes read already) as UTF-8 text for :mod:`csv`."""
+    if content is not None:
+        return io.TextIOWrapper(io.BytesIO(content), encoding="utf-8-sig", newline="")
+    return open(path, encoding="utf-8-sig", newline="")
+
+
+def _lines(path: str, content: bytes | None = None) -> Iterator[tuple[int, list[str]]]:
+    """Yield ``(line number, stripped cells)`` for every CSV line of ``path``.
+
+    ``content``: the file's bytes, when the caller has read them (a stream such as a
+    named pipe can be read only once); ``path`` then only names the file in errors.
+    """
     try:
-        with open(path, encoding="utf-8-sig", newline="") as handle:
+        with _open_text(path, content) as handle:
             reader = csv.reader(handle, strict=True)
             last_line = 0
             while True:
@@ -231,7 +246,7 @@ def _lines(path: str) -> Iterator[tuple[int, list[str]]]:
                 except csv.Error as exc:
                     raise DataFileError(path, f"malformed CSV: {exc}", row=last_line + 1) from None
                 except UnicodeDecodeError:
-                    line, what = _decode_error_line(path, last_line + 1)
+                    line, what = _decode_error_line(path, last_line + 1, content)
                     raise DataFileError(path, f"not UTF-8 text ({what})", row=line) from None
                 line = last_line + 1
                 last_line = reader.line_num
@@ -353,7 +368,9 @@ class _ScanBuilder:
         )
 
 
-def read_detections(path: PathLike, sensors: Mapping[str, Sensor]) -> list[Scan]:
+def read_detections(
+    path: PathLike, sensors: Mapping[str, Sensor], *, content: bytes | None = None
+) -> list[Scan]:
     """Read a detections file (format 1 of the module docstring).
 
     Parameters
@@ -362,6 +379,9 @@ def read_detections(path: PathLike, sensors: Mapping[str, Sensor]) -> list[Scan]
         The file.
     sensors : mapping of str to Sensor
         Configured sensors by name (the order fixes the canonical column order).
+    content : bytes, optional
+        The file's bytes, read already (for instance while hashing it, or from a named
+        pipe, which can be read only once); ``path`` then only names it in errors.
 
     Returns
     -------
@@ -382,7 +402,7 @@ def read_detections(path: PathLike, sensors: Mapping[str, Sensor]) -> list[Scan]
     sensor_list = _check_sensors(sensors)
     union = _component_union(sensor_list)
     canonical = "time,sensor," + ",".join(union)
-    lines = _lines(path)
+    lines = _lines(path, content)
     header = _read_header(path, lines, canonical)
     column_of = {name: index for index, name in enumerate(header)}
     if "time" not in column_of:

@@ -111,11 +111,11 @@ def _error(
 class _Reader:
     """One Parquet table being read, with typed column access that names the file."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, content: bytes | None = None) -> None:
         self.path = path
         self.pa, self.pc, pq = _pyarrow("reading")
         try:
-            table = pq.read_table(path)
+            table = pq.read_table(path if content is None else self.pa.BufferReader(content))
         except OSError as exc:
             raise DataFileError(path, f"cannot read the file: {exc}") from None
         except self.pa.ArrowException as exc:
@@ -243,7 +243,9 @@ def _pairs_repeated(path: str, keys: Sequence[tuple[object, ...]], what: str, co
         first[key] = i
 
 
-def read_detections_parquet(path: PathLike, sensors: Mapping[str, Sensor]) -> list[Scan]:
+def read_detections_parquet(
+    path: PathLike, sensors: Mapping[str, Sensor], *, content: bytes | None = None
+) -> list[Scan]:
     """Read a detections Parquet file (format 1 of the module docstring).
 
     Parameters
@@ -252,6 +254,9 @@ def read_detections_parquet(path: PathLike, sensors: Mapping[str, Sensor]) -> li
         The file.
     sensors : mapping of str to Sensor
         The configured sensors by name.
+    content : bytes, optional
+        The file's bytes, read already (see :func:`mapassoc.data.io.read_detections`);
+        ``path`` then only names it in errors.
 
     Returns
     -------
@@ -272,7 +277,7 @@ def read_detections_parquet(path: PathLike, sensors: Mapping[str, Sensor]) -> li
     path = os.fspath(path)
     _pyarrow("reading")
     sensor_list = _check_sensors(sensors)
-    reader = _Reader(path)
+    reader = _Reader(path, content)
 
     def fail(message: str, column: str | None, row: int | None) -> DataFileError:
         return _error(path, message, column, row)

@@ -1,0 +1,118 @@
+"""Inputs are read once: named pipes work like files, and a stop is honoured while waiting."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from mapassoc.apps.cli import main
+from mapassoc.apps.runs import InputWaitInterrupted, StopFlag, read_input, run_files
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes need POSIX")
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("scen") / "crossing"
+    assert main(["simulate", "crossing", "--out", str(out), "--seed", "3", "--scans", "20"]) == 0
+    return out
+
+
+def _feed(pipe: Path, data: bytes, delay: float = 0.2) -> threading.Thread:
+    """Write ``data`` into the named pipe ``pipe`` once a reader has it open."""
+
+    def write() -> None:
+        time.sleep(delay)
+        with open(pipe, "wb") as handle:  # blocks until the reader opens it
+            handle.write(data)
+
+    thread = threading.Thread(target=write, daemon=True)
+    thread.start()
+    return thread
+
+
+def test_read_input_hashes_the_bytes_it_returns(tmp_path: Path) -> None:
+    import hashlib
+
+    path = tmp_path / "a.csv"
+    path.write_bytes(b"time,x\n1,2\n")
+    data, identity = read_input(path)
+    assert data == b"time,x\n1,2\n"
+    assert identity == {"path": str(path), "bytes": 11,
+                        "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def test_named_pipes_give_the_same_run_as_files(scenario: Path, tmp_path: Path) -> None:
+    """Config and detections from named pipes (each can be read only once, as a process
+    substitution <(...) can): the same tracks and the same input hashes as the files."""
+    reference = tmp_path / "ref"
+    run_files(scenario / "config.toml", scenario / "detections.csv", reference,
+              timings=False, progress=False)
+    config_pipe, detections_pipe = tmp_path / "config.toml", tmp_path / "detections.csv"
+    os.mkfifo(config_pipe)
+    os.mkfifo(detections_pipe)
+    feeders = [
+        _feed(config_pipe, (scenario / "config.toml").read_bytes()),
+        _feed(detections_pipe, (scenario / "detections.csv").read_bytes(), delay=0.5),
+    ]
+    out = tmp_path / "out"
+    run_files(config_pipe, detections_pipe, out, timings=False, progress=False)
+    for thread in feeders:
+        thread.join(5)
+    for name in ("tracks.csv", "windows.jsonl"):
+        assert (out / name).read_bytes() == (reference / name).read_bytes(), name
+    import json
+
+    hashes = [json.loads((folder / "manifest.json").read_text())["inputs"]
+              for folder in (out, reference)]
+    for kind in ("config", "detections"):
+        assert hashes[0][kind]["sha256"] == hashes[1][kind]["sha256"]
+
+
+def test_a_stop_is_honoured_while_waiting_for_input(scenario: Path, tmp_path: Path) -> None:
+    pipe = tmp_path / "detections.csv"
+    os.mkfifo(pipe)  # no writer ever opens it
+    flag = StopFlag()
+    threading.Timer(0.3, flag.set).start()
+    started = time.monotonic()
+    with pytest.raises(InputWaitInterrupted, match="waiting for input .*detections.csv"):
+        run_files(scenario / "config.toml", pipe, tmp_path / "out", progress=False, stop=flag)
+    assert time.monotonic() - started < 5
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["detections.csv"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_the_command_line_stops_while_waiting_on_a_pipe(
+    scenario: Path, tmp_path: Path, signum: signal.Signals
+) -> None:
+    """Once, a blocked read of a named pipe ignored SIGTERM for good and a second Ctrl-C
+    gave a traceback; now either signal ends the command at once with one line, 130."""
+    pipe = tmp_path / "detections.csv"
+    os.mkfifo(pipe)
+    child = subprocess.Popen(
+        [sys.executable, "-m", "mapassoc.apps.cli", "run", str(scenario / "config.toml"),
+         str(pipe), "--out", str(tmp_path / "out"), "--no-progress"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    time.sleep(2.0)  # well into the wait on the pipe
+    assert child.poll() is None
+    child.send_signal(signum)
+    try:
+        out, err = child.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        raise AssertionError("the run did not stop while waiting on a named pipe") from None
+    assert child.returncode == 130, err
+    assert err.strip().splitlines() == [
+        f"mapassoc: stopped while waiting for input {pipe}; nothing was written"
+    ]
+    assert "Traceback" not in err and out == ""
+    assert not (tmp_path / "out").exists() and not (tmp_path / "out.partial").exists()
