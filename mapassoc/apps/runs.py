@@ -352,10 +352,6 @@ def run_files(
     RunInterrupted
         ``stop`` returned True.
     """
-    from mapassoc.data.checks import detections_outside_region
-    from mapassoc.data.config import load_config
-    from mapassoc.data.formats import read_detections_file, write_tracks_file
-
     if overwrite and resume:
         raise InputError("--overwrite and --resume exclude each other; choose one")
     if not (checkpoint_seconds >= 0):
@@ -377,6 +373,11 @@ def run_files(
     # Each input is read once (a named pipe cannot be read twice), hashed for the
     # manifest, then parsed from its bytes; a stop request is honoured while reading.
     config_bytes, config_identity = read_input(config_path, stop=stop)
+    # The models (numpy, scipy.linalg) are imported only once there is something to parse.
+    from mapassoc.data.checks import detections_outside_region
+    from mapassoc.data.config import load_config
+    from mapassoc.data.formats import read_detections_file, write_tracks_file
+
     with warnings.catch_warnings(record=True) as config_warnings:
         warnings.simplefilter("always")
         config = load_config(config_path, solver_names=_integer_solvers(), content=config_bytes)
