@@ -138,5 +138,8 @@ def _build_demo(
             tracks=tracks,
             truth=built.truth,
             title=f"mapassoc on '{scenario}' (seed {seed}): GOSPA {ratio:.2f} x oracle",
+            # The built-in scenarios' units (mapassoc.evaluation.scenarios).
+            length_unit="position-noise σ",
+            time_unit="scans",
         )
     return rows

@@ -88,19 +88,30 @@ def _time_range(times: np.ndarray) -> str:
 
 
 def disjoint_times_message(truth: TruthTable, tracks: TrackTable) -> str | None:
-    """A warning when the tracks and the truth are both non-empty but share no time.
+    """A warning when the truth is empty, or when tracks and truth share no time.
 
     Evaluation pairs tracks with targets at equal times, so with no common time every
-    target counts as missed and every track as false.  An empty table gets no message
-    (no tracks is a legitimate result).
+    target counts as missed and every track as false.  A truth with no record at all
+    (a header-only file) makes every track false and is almost always the wrong file, so
+    it gets a message too; empty tracks get none (no tracks is a legitimate result).
 
     Returns
     -------
     str or None
-        The message, naming both time ranges, or None when a time is shared (or a table
-        is empty).
+        The message, naming the time ranges, or None when a time is shared (or only the
+        tracks are empty).
     """
-    if truth.size == 0 or tracks.size == 0:
+    if truth.size == 0:
+        counted = (
+            f"the {tracks.size} track rows ({_time_range(tracks.times)}) all count as false"
+            if tracks.size
+            else "there is nothing to evaluate (the tracks are empty too)"
+        )
+        return (
+            f"the truth has no record: {counted}; check that it is the truth file of this "
+            "recording"
+        )
+    if tracks.size == 0:
         return None
     if np.intersect1d(truth.times, tracks.times).size:
         return None

@@ -110,6 +110,19 @@ def test_evaluate_warns_when_no_time_is_shared(
     assert "mapassoc: warning:" in err and "share no time" in err
 
 
+def test_evaluate_warns_on_a_header_only_truth_file(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    assert _run(scenario / "config.toml", scenario / "detections.csv", out) == 0
+    truth = tmp_path / "truth.csv"
+    truth.write_text((scenario / "truth.csv").read_text().splitlines()[0] + "\n")
+    capsys.readouterr()
+    assert main(["evaluate", str(out / "tracks.csv"), str(truth)]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("mapassoc: warning: the truth has no record") and err.count("\n") == 1
+
+
 def test_simulate_scans_and_duration(tmp_path: Path) -> None:
     from mapassoc.data.config import load_config
     from mapassoc.data.io import read_detections

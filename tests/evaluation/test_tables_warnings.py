@@ -56,13 +56,24 @@ def test_one_shared_time_or_an_empty_table_gives_no_warning() -> None:
         warnings.simplefilter("error")
         evaluate_tables(truth([0.0, 1.0]), tracks([1.0, 2.0]), c=10.0)
         evaluate_tables(truth([0.0, 1.0]), tracks([]), c=10.0)
-    assert disjoint_times_message(truth([]), tracks([5.0])) is None
     assert disjoint_times_message(truth([0.0, 1.0]), tracks([1.0])) is None
     assert disjoint_times_message(truth([0.0]), tracks([2.0, 3.0])) == (
         "the tracks (times 2 to 3 (2 distinct)) and the truth (times 0 to 0 (1 distinct)) "
         "share no time: every target counts as missed and every track as false; check that "
         "both files come from the same recording and clock"
     )
+
+
+def test_an_empty_truth_is_named() -> None:
+    """A header-only truth file once gave a GOSPA without a word: every track false."""
+    assert disjoint_times_message(truth([]), tracks([5.0, 6.0])) == (
+        "the truth has no record: the 2 track rows (times 5 to 6 (2 distinct)) all count as "
+        "false; check that it is the truth file of this recording"
+    )
+    assert "nothing to evaluate" in (disjoint_times_message(truth([]), tracks([])) or "")
+    with pytest.warns(UserWarning, match="the truth has no record"):
+        result = evaluate_tables(truth([]), tracks([5.0, 6.0]), c=10.0)
+    assert int(result.gospa.num_false.sum()) == 2
 
 
 def test_score_tracks_warns_too() -> None:
