@@ -1365,4 +1365,35 @@ def build_scenario(
             f"{scans!r}); scenarios that can: {', '.join(lengthenable_scenarios())}"
         )
     seed = _check_count("seed", seed, 0)
+    _check_simulated_size(name, count)
     return _LENGTHEN[name](name, _GEOMETRIES[name](), count, seed)
+
+
+MAX_SIMULATED_DETECTIONS = 20_000_000
+"""The most detections :func:`build_scenario` simulates in one recording.
+
+A lengthened scenario is built in memory (about 100 bytes a detection in its scans,
+truth and origins, before any file is written), so 20 million detections take a couple
+of GB; longer recordings are better simulated as several, and an absurd ``--scans``
+(a typing slip of a few zeros) is refused at once instead of filling the memory."""
+
+
+def _check_simulated_size(name: str, scans: int) -> None:
+    """Raise InputError when ``scans`` of ``name`` would exceed the detections limit.
+
+    The expected count is the native scenario's detections per scan (targets and clutter
+    of seed 0) times ``scans``: a lengthened run keeps the native density.
+    """
+    native = SCENARIOS[name](0)
+    per_scan = sum(len(scan.detections) for scan in native.scans) / len(native.scans)
+    expected = per_scan * scans
+    if expected > MAX_SIMULATED_DETECTIONS:
+        asked = f"{scans:,}" if scans < 10**15 else f"{float(scans):.3g}"
+        raise InputError(
+            f"scans={asked} of scenario {name!r} would simulate about {expected:.3g} "
+            f"detections ({per_scan:.3g} per scan), over the limit of "
+            f"{MAX_SIMULATED_DETECTIONS:,} one recording is built with in memory; simulate "
+            f"at most {int(MAX_SIMULATED_DETECTIONS // per_scan):,} scans, or several "
+            "recordings",
+            key="scans",
+        )

@@ -26,6 +26,10 @@ def test_tiny_reprocess_benchmark(capsys: pytest.CaptureFixture[str]) -> None:
     assert crossing["gospa"]["segments"] == pytest.approx(crossing["gospa"]["sequential"], rel=0.1)
     printed = capsys.readouterr().out
     assert "scans/s" in printed and "peak memory" in printed and "same tracks" in printed
+    startup = results["startup"]
+    assert isinstance(startup, dict)
+    assert 0 < startup["--help median"] <= startup["--help max"]
+    assert "mapassoc --help" in printed and "goal < 0.5 s" in printed
 
 
 def test_a_failing_child_names_its_command() -> None:

@@ -646,3 +646,29 @@ def test_oracle_validates_origins() -> None:
         oracle_tracks(
             scans, Origins(rows=np.array([2, 3, 9]), target_ids=np.array([1, -1, 1])), config
         )
+
+
+@pytest.mark.parametrize("scans", [10**11, 10**300], ids=["1e11", "1e300"])
+def test_an_absurd_length_is_refused_before_anything_is_built(scans: int) -> None:
+    """`simulate crossing --scans 100000000000` once ran with memory growing for good."""
+    import tracemalloc
+
+    from mapassoc.evaluation.scenarios import MAX_SIMULATED_DETECTIONS
+
+    tracemalloc.start()
+    try:
+        with pytest.raises(InputError, match=r"would simulate about .* detections") as info:
+            build_scenario("crossing", 0, scans=scans)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert info.value.key == "scans"
+    assert f"{MAX_SIMULATED_DETECTIONS:,}" in str(info.value)
+    assert peak < 50e6  # the native scenario only
+    # The limit it names is a length that is accepted.
+    limit = int(str(info.value).split("at most ")[1].split(" scans")[0].replace(",", ""))
+    from mapassoc.evaluation.scenarios import _check_simulated_size
+
+    _check_simulated_size("crossing", limit)
+    with pytest.raises(InputError):
+        _check_simulated_size("crossing", limit + 2)
