@@ -116,3 +116,19 @@ def test_the_command_line_stops_while_waiting_on_a_pipe(
     ]
     assert "Traceback" not in err and out == ""
     assert not (tmp_path / "out").exists() and not (tmp_path / "out.partial").exists()
+
+
+def test_a_run_with_stderr_closed_completes(scenario: Path, tmp_path: Path) -> None:
+    """With stderr closed (2>&-) Python has no sys.stderr; progress on, the run once
+    failed with "'NoneType' object has no attribute 'write'" in its manifest."""
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-m", "mapassoc.apps.cli", "run", str(scenario / "config.toml"),
+         str(scenario / "detections.csv"), "--out", str(out)],
+        stdout=subprocess.PIPE, text=True, timeout=300, preexec_fn=lambda: os.close(2),
+    )
+    assert done.returncode == 0
+    assert "tracks over 20 scans" in done.stdout
+    import json
+
+    assert json.loads((out / "manifest.json").read_text())["status"] == "complete"
