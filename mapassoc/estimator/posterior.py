@@ -70,6 +70,7 @@ __all__ = [
     "NEGLIGIBLE_LOG_RATIO",
     "MAX_KMAX",
     "FULL_LENGTH_KMAX",
+    "MAX_K_RANGE",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -86,6 +87,13 @@ MAX_KMAX = 2**53
 """Largest ``max_tracks``: every K up to it is exact in double precision (the Poisson and
 factorial terms take K as a float).  Beyond what the data and the prior can reach a
 Kmax costs nothing (:func:`k_posterior`), so this bound only refuses nonsense."""
+
+MAX_K_RANGE = 2**20
+"""Most K values :func:`k_posterior` computes when Kmax is larger: a posterior that has
+not provably ended by then (a prior with its mass far beyond the data, such as a
+Poisson prior of mean 1e15, or a uniform prior when a target is almost never
+detected) is refused with an :class:`InputError` naming ``max_tracks`` instead of
+filling the memory.  A Kmax up to it is always computed in full if it must be."""
 
 FULL_LENGTH_KMAX = 4096
 """Up to this Kmax the posterior's arrays have the full length Kmax + 1 (a few pages
@@ -606,6 +614,18 @@ def _tail_is_negligible(
     return mass_tail < total - NEGLIGIBLE_LOG_RATIO and joint_tail < float(np.max(sweep.joint))
 
 
+def _range_error(prior: CountPrior, nu: float, top: int) -> InputError:
+    """The error of a posterior that does not end within :data:`MAX_K_RANGE`."""
+    return InputError(
+        f"p(K | Z) under k_prior = {prior.kind!r} does not provably end before K = {top} "
+        f"(max_tracks = {prior.kmax}, expected undetected targets nu = {nu!r}, "
+        f"k_prior_mean = {prior.mean!r}): computing it further needs more than "
+        f"{MAX_K_RANGE} values of K; lower max_tracks to at most {MAX_K_RANGE}, or choose "
+        "a prior whose mass ends earlier",
+        key="max_tracks",
+    )
+
+
 def k_posterior(
     best: FloatArray,
     log_mass: FloatArray,
@@ -646,7 +666,8 @@ def k_posterior(
        joint MAP's weight within 0..top, so the joint MAP K is not in the tail.
 
     With ``mu = 0`` (no births, no initial targets) the birth law gives no K beyond the
-    carried tracks C, and the range stops at C exactly.
+    carried tracks C, and the range stops at C exactly.  A range that would grow past
+    :data:`MAX_K_RANGE` without ending is refused (InputError, key ``max_tracks``).
 
     Parameters
     ----------
@@ -695,6 +716,12 @@ def k_posterior(
     else:
         top = min(kmax, n_tracks - 1 + _poisson_reach(nu))
     no_births = population.new_target_mean <= 0
+    if kmax > MAX_K_RANGE and not no_births:
+        # Every step bound falls with K: one not below 1 at MAX_K_RANGE is not below 1
+        # anywhere before it, so the tail cannot be bounded in range (fail at once).
+        far = prior.law.tail_step(prior, population, MAX_K_RANGE, tracks_range)
+        if far is not None and np.any(far[np.isfinite(mass_upper)] >= 1.0):
+            raise _range_error(prior, nu, MAX_K_RANGE)
     while True:
         ratio = prior.log_ratio(population, top)
         sweep = _sweep(top, ratio, nu, log_mass, mass_upper, best, best_upper)
@@ -703,7 +730,10 @@ def k_posterior(
         steps = prior.law.tail_step(prior, population, top, tracks_range)
         if _tail_is_negligible(top, ratio, nu, steps, sweep, mass_upper, best_upper):
             break
-        top = min(kmax, 2 * top + 1)
+        grown = min(kmax, 2 * top + 1)
+        if grown > MAX_K_RANGE:
+            raise _range_error(prior, nu, top)
+        top = grown
 
     joint = sweep.mass_lower
     if not np.any(np.isfinite(joint)):
