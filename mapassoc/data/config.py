@@ -72,6 +72,7 @@ from mapassoc.validation import check_nonnegative, check_positive, check_probabi
 
 __all__ = [
     "Config",
+    "check_config",
     "MOTION_MODELS",
     "MEASUREMENTS",
     "load_config",
@@ -148,6 +149,30 @@ class Config:
         if self.source is not None and not isinstance(self.source, str):
             raise InputError(f"source must be a string or None, got {self.source!r}")
         object.__setattr__(self, "sensors", dict(self.sensors))
+
+
+def check_config(config: object, *, argument: str = "config") -> Config:
+    """``config`` if it is a :class:`Config`, else an InputError saying how to get one.
+
+    The estimator and every tracker take a ``Config`` object, not a file name: a path
+    is loaded with :func:`load_config`, a parsed TOML document with
+    :func:`parse_config`, and a scenario's is ``build_scenario(name).config``.
+    """
+    if isinstance(config, Config):
+        return config
+    kind = type(config).__name__
+    if isinstance(config, (str, bytes)) or hasattr(config, "__fspath__"):
+        hint = f"load the file first: config=mapassoc.load_config({config!r})"
+    elif isinstance(config, Mapping):
+        hint = "build one from a parsed TOML document with mapassoc.parse_config(data)"
+    else:
+        hint = (
+            "load one with mapassoc.load_config(path) or build one with "
+            "mapassoc.Config(motion=..., sensors=..., birth=..., estimator=...)"
+        )
+    raise InputError(
+        f"{argument} must be a Config (mapassoc.Config), got {kind} {config!r:.80}; {hint}"
+    )
 
 
 def _check_measurement_fits_motion(
@@ -244,6 +269,12 @@ class _Parser:
             raise self.fail(key, str(exc)) from None
 
 
+def _subkey(prefix: str, exc: InputError) -> str:
+    """The key of a model's error: ``prefix.<exc.key>`` when the model named its setting
+    (``sensors[0].noise_std``), else the whole table ``prefix``."""
+    return prefix if exc.key is None else f"{prefix}.{exc.key}"
+
+
 def _leaf(key: str) -> str:
     """Last component of a dotted key: ``"sensors[0].noise_std"`` -> ``"noise_std"``."""
     return key.rsplit(".", 1)[-1]
@@ -270,8 +301,8 @@ def _parse_motion(parser: _Parser, data: Mapping[str, object]) -> MotionModel:
             values[setting.key] = parser.positive(raw, key)
     try:
         return spec.cls(**values)
-    except InputError as exc:  # a model's own cross-checks of its settings
-        raise parser.fail("motion", str(exc)) from None
+    except InputError as exc:  # a model's own checks of its settings (key: the setting)
+        raise parser.fail(_subkey("motion", exc), str(exc)) from None
 
 
 def _parse_region(
@@ -301,7 +332,10 @@ def _parse_region(
             )
         lower.append(low)
         upper.append(high)
-    return Region(lower=np.array(lower), upper=np.array(upper))
+    try:
+        return Region(lower=np.array(lower), upper=np.array(upper))
+    except InputError as exc:  # the volume: finite and > 0
+        raise parser.fail(key, str(exc)) from None
 
 
 class _SensorSettings:
@@ -379,8 +413,8 @@ def _parse_sensor(parser: _Parser, item: object, index: int, motion: MotionModel
         )
     try:
         measurement = spec.read(_SensorSettings(parser, table, prefix), motion)
-    except InputError as exc:  # a model's own cross-checks of its settings
-        raise parser.fail(prefix, str(exc)) from None
+    except InputError as exc:  # a model's own checks of its settings (key: the setting)
+        raise parser.fail(_subkey(prefix, exc), str(exc)) from None
     detection_probability = parser.probability(
         parser.required(table, prefix, "detection_probability"),
         f"{prefix}.detection_probability",
@@ -404,7 +438,7 @@ def _parse_sensor(parser: _Parser, item: object, index: int, motion: MotionModel
             region=region,
         )
     except InputError as exc:
-        raise parser.fail(prefix, str(exc)) from None
+        raise parser.fail(_subkey(prefix, exc), str(exc)) from None
 
 
 def _parse_sensors(

@@ -20,7 +20,7 @@ the scans of a run are refused by :func:`check_scan_order`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from mapassoc.errors import InputError
 
-__all__ = ["Scan", "check_scan_order"]
+__all__ = ["Scan", "check_scan_order", "check_scans"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,3 +143,92 @@ def check_scan_order(scans: Sequence[Scan]) -> None:
                 f"scan {i} ({scan.sensor!r} at {scan.time}) repeats them"
             )
         seen_rows.update(scan.rows.tolist())
+
+
+def _not_scans(value: object, argument: str) -> str | None:
+    """Why ``value`` is not a sequence of :class:`Scan` (None: it is), saying what to pass."""
+    convert = (
+        "read a detections file with mapassoc.read_detections_file(path, config.sensors), "
+        "a pandas DataFrame with mapassoc.scans_from_frame(frame, config.sensors), "
+        "arrays with mapassoc.scans_from_arrays(times, measurements, config.sensors)"
+    )
+    kind = type(value).__name__
+    if isinstance(value, (str, bytes)) or hasattr(value, "__fspath__"):
+        return (
+            f"{argument} must be a sequence of mapassoc.Scan, got the {kind} {value!r}; to "
+            f"estimate from a file, read it first: "
+            f"mapassoc.read_detections_file(path, config.sensors)"
+        )
+    if hasattr(value, "columns") and hasattr(value, "iloc"):
+        return (
+            f"{argument} must be a sequence of mapassoc.Scan, got a {kind}; convert a table "
+            "of detections with mapassoc.scans_from_frame(frame, config.sensors)"
+        )
+    if isinstance(value, np.ndarray):
+        return (
+            f"{argument} must be a sequence of mapassoc.Scan, got a numpy array of shape "
+            f"{value.shape}; convert arrays of detections with "
+            "mapassoc.scans_from_arrays(times, measurements, config.sensors)"
+        )
+    if isinstance(value, Scan):
+        return f"{argument} must be a sequence of mapassoc.Scan, got one Scan; pass [scan]"
+    if not isinstance(value, Sequence):
+        return (
+            f"{argument} must be a sequence of mapassoc.Scan, got {kind} {value!r:.80}; "
+            f"{convert}"
+        )
+    for i, item in enumerate(value):
+        if not isinstance(item, Scan):
+            return (
+                f"{argument}[{i}] must be a mapassoc.Scan, got {type(item).__name__} "
+                f"{item!r:.80}; {convert}"
+            )
+    return None
+
+
+def check_scans(
+    scans: object,
+    sensors: Collection[str],
+    *,
+    argument: str = "scans",
+    what: str = "estimate",
+) -> list[Scan]:
+    """The scans as a list, after the checks every entry point makes up front.
+
+    One check for :meth:`~mapassoc.estimator.pipeline.WindowEstimator.start`,
+    :meth:`~mapassoc.estimator.pipeline.WindowEstimator.solve_window` and every
+    tracker's ``track`` (:func:`mapassoc.trackers.base.check_scans`).
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+        Sorted by (time, sensor), without repeats (:func:`check_scan_order`).
+    sensors : collection of str
+        The configured sensor names (``Config.sensors``).
+    argument : str
+        The argument's name in messages.
+    what : str
+        What the caller does with the scans, for the message about no scans.
+
+    Raises
+    ------
+    InputError
+        Not a sequence of :class:`Scan` (the message says how to make one from a file,
+        a DataFrame or arrays), no scans, scans out of (time, sensor) order or repeated,
+        detection ids repeated across scans, or a scan of a sensor the configuration does
+        not define.
+    """
+    problem = _not_scans(scans, argument)
+    if problem is not None:
+        raise InputError(problem)
+    listed = list(scans)  # type: ignore[call-overload]
+    if not listed:
+        raise InputError(f"{argument} is empty: there is nothing to {what}")
+    check_scan_order(listed)
+    for scan in listed:
+        if scan.sensor not in sensors:
+            raise InputError(
+                f"scan at time {scan.time} names sensor '{scan.sensor}', which the "
+                f"configuration does not define (known: {sorted(sensors)})"
+            )
+    return listed

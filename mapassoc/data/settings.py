@@ -11,7 +11,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from mapassoc.errors import InputError
-from mapassoc.estimator.posterior import COUNT_PRIORS, K_ESTIMATORS, CountPrior, KEstimator
+from mapassoc.estimator.posterior import (
+    COUNT_PRIORS,
+    K_ESTIMATORS,
+    MAX_KMAX,
+    CountPrior,
+    KEstimator,
+)
+from mapassoc.models.motion import check_standard_deviation
 from mapassoc.validation import check_nonnegative, check_positive, check_probability
 
 __all__ = ["BirthModel", "EstimatorSettings", "K_PRIORS", "K_ESTIMATES"]
@@ -72,12 +79,17 @@ class BirthModel:
     survival_probability: float = 0.99
 
     def __post_init__(self) -> None:
-        check_nonnegative("birth rate", self.rate, key="rate")
-        check_nonnegative("birth initial_count", self.initial_count, key="initial_count")
-        check_positive("birth velocity_std", self.velocity_std, key="velocity_std")
-        check_positive("birth acceleration_std", self.acceleration_std, key="acceleration_std")
-        check_positive("birth speed_std", self.speed_std, key="speed_std")
-        check_positive("birth turn_rate_std", self.turn_rate_std, key="turn_rate_std")
+        for name in ("rate", "initial_count"):
+            value = check_nonnegative(f"birth {name}", getattr(self, name), key=name)
+            if value > MAX_KMAX:
+                raise InputError(
+                    f"birth {name} = {value!r} is an expected number of targets beyond "
+                    f"2**53 = {MAX_KMAX}, the largest count of targets (max_tracks) that "
+                    "is exact in double precision; expected a smaller number",
+                    key=name,
+                )
+        for name in ("velocity_std", "acceleration_std", "speed_std", "turn_rate_std"):
+            check_standard_deviation(f"birth {name}", getattr(self, name), key=name)
         check_probability(
             "birth survival_probability",
             self.survival_probability,

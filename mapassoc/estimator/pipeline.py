@@ -38,9 +38,9 @@ from enum import StrEnum
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.data.config import Config
+from mapassoc.data.config import Config, check_config
 from mapassoc.data.io import TrackTable
-from mapassoc.data.scans import Scan, check_scan_order
+from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError
 from mapassoc.estimator.cluster_solving import ClusterReport, ClusterSolver, ClusterStatus
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
@@ -491,7 +491,7 @@ class WindowEstimator:
     """
 
     def __init__(self, *, config: Config) -> None:
-        self.config = config
+        self.config = check_config(config)
         s = config.estimator
         self.settings = s
         self.generator = HypothesisGenerator(
@@ -542,7 +542,14 @@ class WindowEstimator:
             the recording starts at the window's first scan, with
             ``BirthModel.initial_count`` targets present; so ``solve_window(scans[:N])``
             is exactly the first window of ``run(scans)``.
+
+        Raises
+        ------
+        InputError
+            The scans fail the checks of :meth:`start` (not a sequence of Scan, none,
+            out of (time, sensor) order or repeated, an unknown sensor).
         """
+        scans = check_scans(scans, self.config.sensors, what="solve")
         t0 = time.perf_counter()
         deadline = t0 + self.settings.time_limit
         population = self.generator.population(scans, carried, undetected)
@@ -660,7 +667,7 @@ class WindowEstimator:
             (for comparisons, e.g. the LP relaxation tracker); the window's report then
             gives that set's T as ``chosen_tracks``.  Default: the estimator's own set.
         """
-        scans = list(scans)
+        scans = check_scans(scans, self.config.sensors)
         state = self.start(scans)
         reports: list[WindowReport] = []
         while not state.done:
@@ -682,18 +689,11 @@ class WindowEstimator:
         Raises
         ------
         InputError
-            No scans, scans out of order, an unknown sensor, or a time step so large that
-            the motion model's matrices are not finite.
+            Not a sequence of Scan (the message says how to read a file, a DataFrame or
+            arrays), no scans, scans out of order, an unknown sensor, or a time step so
+            large that the motion model's matrices are not finite.
         """
-        if not scans:
-            raise InputError("scans is empty: there is nothing to estimate")
-        check_scan_order(scans)
-        for scan in scans:
-            if scan.sensor not in self.config.sensors:
-                raise InputError(
-                    f"scan at time {scan.time} names sensor '{scan.sensor}', which the "
-                    f"configuration does not define (known: {sorted(self.config.sensors)})"
-                )
+        scans = check_scans(scans, self.config.sensors)
         self._check_time_steps(scans)
         if self.settings.max_tracks == 0:
             warnings.warn(

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.errors import InputError
-from mapassoc.models.motion import MotionModel
+from mapassoc.models.motion import MotionModel, check_standard_deviation
 from mapassoc.validation import check_covariance, check_finite_array
 
 __all__ = [
@@ -223,7 +223,13 @@ class LinearMeasurement(MeasurementModel):
         d = len(idx)
         std = np.broadcast_to(np.asarray(noise_std, dtype=float), (d,))
         if not np.all(np.isfinite(std)) or np.any(std <= 0):
-            raise InputError(f"noise_std must be positive and finite, got {noise_std!r}")
+            raise InputError(
+                f"noise_std must be positive and finite, got {noise_std!r}", key="noise_std"
+            )
+        same = bool(np.all(std == std[0]))
+        for i, value in enumerate(std):
+            name = "noise_std" if same else f"noise_std[{i}]"
+            check_standard_deviation(name, float(value), key=name)
         H = np.zeros((d, motion.state_dim))
         H[np.arange(d), idx] = 1.0
         names = tuple(motion.state_names[i] for i in idx)
@@ -341,7 +347,8 @@ class RangeBearing(MeasurementModel):
         self.sensor_position = check_finite_array("sensor_position", sensor_position, shape=(2,))
         for name, val in (("range_std", range_std), ("bearing_std", bearing_std)):
             if not (np.isfinite(val) and val > 0):
-                raise InputError(f"{name} must be positive and finite, got {val!r}")
+                raise InputError(f"{name} must be positive and finite, got {val!r}", key=name)
+            check_standard_deviation(name, val, key=name)
         self.R = np.diag([float(range_std) ** 2, float(bearing_std) ** 2])
         idx = tuple(int(i) for i in position_indices)
         if len(idx) != 2:

@@ -65,6 +65,25 @@ _AXES = ("x", "y", "z")
 FloatArray = NDArray[np.float64]
 
 
+def check_standard_deviation(name: str, value: object, *, key: str | None = None) -> float:
+    """``value`` as a float after checking that it is a standard deviation the filters
+    can square: finite, > 0, and with a square (the variance) that is finite and > 0 in
+    double precision (so from about 1.5e-154 to 1.3e154).  Nothing is clamped.
+
+    ``key`` is stored in the raised error's ``InputError.key``.
+    """
+    std = check_positive(name, value, key=key)
+    variance = std * std
+    if not (math.isfinite(variance) and variance > 0.0):
+        raise InputError(
+            f"{name} = {value!r} is a standard deviation whose square (the variance, "
+            f"{variance!r}) is not a finite number > 0 in double precision; expected a "
+            f"value between 1.5e-154 and 1.3e154 (check its unit)",
+            key=key,
+        )
+    return std
+
+
 @runtime_checkable
 class MotionModel(Protocol):
     """What the filters, the track initiation and the hypothesis generator need of a model.
@@ -545,7 +564,16 @@ class Singer(_LinearKinematic):
     def __init__(self, *, ndim: int = 2, time_constant: float, acceleration_std: float) -> None:
         self.ndim = _check_ndim(ndim)
         self.time_constant = check_positive("time_constant", time_constant)
-        self.acceleration_std = check_positive("acceleration_std", acceleration_std)
+        self.acceleration_std = check_standard_deviation(
+            "acceleration_std", acceleration_std, key="acceleration_std"
+        )
+        if not math.isfinite(self.noise_intensity):
+            raise InputError(
+                f"acceleration_std = {acceleration_std!r} and time_constant = "
+                f"{time_constant!r} give the noise intensity 2 sigma^2 / tau = "
+                f"{self.noise_intensity!r}; expected a finite number",
+                key="acceleration_std",
+            )
 
     @property
     def noise_intensity(self) -> float:  # type: ignore[override]

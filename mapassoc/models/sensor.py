@@ -47,6 +47,16 @@ class Region:
                 f"region is empty: every upper bound must exceed its lower bound, got "
                 f"lower={lo.tolist()} upper={hi.tolist()}"
             )
+        with np.errstate(over="ignore", under="ignore"):
+            sides = hi - lo
+            volume = float(np.prod(sides))
+        if not (np.all(np.isfinite(sides)) and math.isfinite(volume) and volume > 0.0):
+            raise InputError(
+                f"region {[[float(a), float(b)] for a, b in zip(lo, hi, strict=True)]} has "
+                f"side lengths {sides.tolist()} and volume {volume!r}; expected a volume "
+                "that is finite and > 0 in double precision (the false-alarm density is "
+                "false_alarms_per_scan / volume): check the region's unit"
+            )
         lo.setflags(write=False)
         hi.setflags(write=False)
         object.__setattr__(self, "lower", lo)
@@ -136,6 +146,15 @@ class Sensor:
         )
         if not isinstance(region, Region):
             raise InputError(f"sensor '{name}' region must be a Region, got {region!r}")
+        density = self.false_alarms_per_scan / region.volume
+        if self.false_alarms_per_scan > 0 and not (density > 0.0 and math.isfinite(density)):
+            raise InputError(
+                f"sensor '{name}' false_alarms_per_scan = {false_alarms_per_scan!r} over the "
+                f"region's volume {region.volume!r} gives the false-alarm density "
+                f"{density!r}; expected a finite number > 0 (or false_alarms_per_scan = 0 "
+                "for no false alarms)",
+                key="false_alarms_per_scan",
+            )
         if region.dim != measurement.measurement_dim:
             raise InputError(
                 f"sensor '{name}' region has {region.dim} dimensions but the measurement "

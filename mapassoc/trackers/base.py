@@ -22,7 +22,8 @@ from numpy.typing import NDArray
 
 from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
-from mapassoc.data.scans import Scan, check_scan_order
+from mapassoc.data.scans import Scan
+from mapassoc.data.scans import check_scans as check_scan_list
 from mapassoc.errors import InputError
 
 __all__ = ["CountSeries", "Tracker", "TrackerOutput", "check_scans"]
@@ -133,22 +134,13 @@ class Tracker(Protocol):
 
 
 def check_scans(scans: Sequence[Scan], config: Config) -> list[Scan]:
-    """The scans as a list, after the checks every tracker makes up front.
+    """The scans as a list, after the checks every tracker makes up front
+    (:func:`mapassoc.data.scans.check_scans`, the estimator's own).
 
     Raises
     ------
     InputError
-        No scans, scans out of (time, sensor) order, or a scan of a sensor the
-        configuration does not define.
+        Not a sequence of Scan, no scans, scans out of (time, sensor) order, or a scan
+        of a sensor the configuration does not define.
     """
-    scans = list(scans)
-    if not scans:
-        raise InputError("scans is empty: there is nothing to track")
-    check_scan_order(scans)
-    for scan in scans:
-        if scan.sensor not in config.sensors:
-            raise InputError(
-                f"scan at time {scan.time} names sensor '{scan.sensor}', which the "
-                f"configuration does not define (known: {sorted(config.sensors)})"
-            )
-    return scans
+    return check_scan_list(scans, config.sensors, what="track")

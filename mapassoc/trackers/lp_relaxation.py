@@ -70,7 +70,7 @@ from enum import StrEnum
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.data.config import Config
+from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.estimator.pipeline import EstimateResult, WindowEstimator, WindowSolution
@@ -589,7 +589,7 @@ class LpRelaxationTracker:
         gap_tolerance: float = 1e-6,
         time_limit: float | None = None,
     ) -> None:
-        self.config = config
+        self.config = check_config(config)
         self.name = name
         self.integrality_tolerance = _check_positive(
             "integrality_tolerance", integrality_tolerance, below=0.5

@@ -51,7 +51,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.data.config import Config
+from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.filtering.kalman import gate_threshold
@@ -288,8 +288,7 @@ def check_tracker_config(config: Config) -> None:
     false-alarm density, as in the window estimator) and ``Pd * P_G < 1`` (otherwise a
     track could never miss a scan: ``log(1 - Pd P_G) = -inf``).
     """
-    if not isinstance(config, Config):
-        raise InputError(f"config must be a Config, got {type(config).__name__}")
+    check_config(config)
     pg = config.estimator.gate_probability
     for name, sensor in config.sensors.items():
         if not sensor.false_alarms_per_scan > 0:

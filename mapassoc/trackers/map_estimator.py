@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 
-from mapassoc.data.config import Config
+from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.estimator.pipeline import EstimateResult, WindowEstimator
 from mapassoc.trackers.base import CountSeries, TrackerOutput, check_scans
@@ -43,7 +43,7 @@ class MapTracker:
     """
 
     def __init__(self, *, config: Config, name: str = "map") -> None:
-        self.config = config
+        self.config = check_config(config)
         self.name = name
         self._estimator = WindowEstimator(config=config)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 
-from mapassoc.data.config import Config
+from mapassoc.data.config import Config, check_config
 from mapassoc.data.io import Origins
 from mapassoc.data.scans import Scan
 from mapassoc.evaluation.oracle import oracle_tracks
@@ -27,7 +27,7 @@ class OracleTracker:
     """
 
     def __init__(self, *, config: Config, origins: Origins, name: str = "oracle") -> None:
-        self.config = config
+        self.config = check_config(config)
         self.origins = origins
         self.name = name
 
