@@ -74,6 +74,8 @@ __all__ = [
     "WindowEstimator",
     "packing_problem",
     "SelectionRule",
+    "SPREAD_WARNING_RATIO",
+    "time_scale_warning",
 ]
 
 class WindowStatus(StrEnum):
@@ -481,6 +483,76 @@ class EstimateResult:
         return out
 
 
+SPREAD_WARNING_RATIO = 4.0
+""":func:`time_scale_warning` fires when one typical time step spreads a new track's
+predicted position (one standard deviation) over more than this many times the largest
+side of the position sensors' regions.  The built-in scenarios stay below 0.02 of it."""
+
+
+def time_scale_warning(config: Config, scans: Sequence[Scan]) -> str | None:
+    """A warning when the scans' time step looks like a unit mistake, else None.
+
+    The rule: take the median step ``dt`` between distinct scan times and a track born
+    at a detection (position exact, velocity and the other unmeasured components from
+    the birth prior: ``BirthModel.velocity_std`` and so on, in position units per time
+    unit), predict it by ``dt`` with the motion model (its initiation model, as a new
+    track does: ``F P F^T + Q(dt)``) and take the largest standard deviation of the
+    predicted position.  When that is more than :data:`SPREAD_WARNING_RATIO` times the
+    largest side of every position sensor's region, a target could be anywhere after
+    one scan and hardly any track can start: the times are probably not in the unit
+    the model's standard deviations and noise are per (milliseconds or nanoseconds
+    against a model in seconds).  Only sensors that measure the position directly
+    have a region in position units; without one there is no warning.
+
+    Parameters
+    ----------
+    config : Config
+    scans : sequence of Scan
+        Checked already (sorted).
+
+    Returns
+    -------
+    str or None
+        The message: the step, the spread, the velocity_std and the region, and which
+        key to check.
+    """
+    times = np.unique([scan.time for scan in scans])
+    if times.size < 2:
+        return None
+    dt = float(np.median(np.diff(times)))
+    model = config.motion.initiation_model()
+    sides = [
+        (float(np.max(sensor.region.upper - sensor.region.lower)), name)
+        for name, sensor in config.sensors.items()
+        if sensor.measurement.measures_position_directly
+    ]
+    if not model.is_linear or not sides:
+        return None
+    extent, sensor = max(sides)
+    n = model.state_dim
+    position = list(model.position_indices)
+    rest = [i for i in range(n) if i not in position]
+    with np.errstate(over="ignore", invalid="ignore"):
+        P = np.zeros((n, n))
+        if rest:
+            P[np.ix_(rest, rest)] = model.birth_prior(config.birth)[1]
+        F = model.transition_matrix(dt)  # type: ignore[attr-defined]
+        predicted = F @ P @ F.T + model.process_noise(dt)
+        spread = float(np.sqrt(np.max(np.diag(predicted)[position])))
+    if math.isfinite(spread) and spread <= SPREAD_WARNING_RATIO * extent:
+        return None  # (an overflow to inf or nan warns)
+    return (
+        f"the scans are {dt:.6g} time units apart (median step), and over one step a new "
+        f"track's predicted position spreads by {spread:.3g} (one standard deviation; "
+        f"birth velocity_std = {config.birth.velocity_std!r} per time unit, and the "
+        f"motion model's process noise), {spread / extent:.3g} times the largest side "
+        f"{extent:.6g} of the region of sensor '{sensor}': a target could be anywhere after "
+        "one scan, so hardly any track can start. Is the detections' time column in the "
+        "unit of birth.velocity_std and of the [motion] noise (seconds, say, not "
+        "milliseconds or nanoseconds)?"
+    )
+
+
 class WindowEstimator:
     """Sliding-window MAP estimator of track sets and of the number of tracks.
 
@@ -686,6 +758,10 @@ class WindowEstimator:
         scans : sequence of Scan
             Sorted by (time, sensor); may include empty scans.
 
+        Warns (RuntimeWarning) when ``max_tracks = 0``, and when the typical time step
+        looks like a unit mistake (:func:`time_scale_warning`: times in milliseconds
+        or nanoseconds against a model in seconds).
+
         Raises
         ------
         InputError
@@ -695,6 +771,9 @@ class WindowEstimator:
         """
         scans = check_scans(scans, self.config.sensors)
         self._check_time_steps(scans)
+        message = time_scale_warning(self.config, scans)
+        if message is not None:
+            warnings.warn(message, RuntimeWarning, stacklevel=2)
         if self.settings.max_tracks == 0:
             warnings.warn(
                 "max_tracks = 0: every detection is a false alarm and p(K = 0 | Z) = 1 by "
