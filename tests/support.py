@@ -4,6 +4,7 @@ Test modules import from here (``from support import make_config``), never from 
 other; ``tests/test_architecture.py`` checks that.  ``tests/`` is on ``sys.path`` because
 pytest's default ``prepend`` import mode inserts the directory of ``tests/conftest.py``.
 
+* :data:`NO_TIME_LIMIT`, the time limit of tests that compare numbers (no window reaches it);
 * one-sensor windows: :data:`SENSOR`, :func:`make_config`, :func:`make_scans`,
   :func:`random_window` (used by ``estimator/`` and ``formulations/`` tests);
 * brute-force enumeration of track partitions: :func:`partitions`;
@@ -29,6 +30,11 @@ from mapassoc.formulations.packing import PackingProblem
 from mapassoc.models.measurement import LinearMeasurement
 from mapassoc.models.motion import ConstantVelocity, MotionModel
 from mapassoc.models.sensor import Region, Sensor
+
+NO_TIME_LIMIT = 600.0
+"""``EstimatorSettings.time_limit`` for tests that compare numbers: no window of the
+test suite comes near it, so the deterministic work limits alone bound every window and
+the results are a function of the input (the clock guard of ``conftest.py`` checks it)."""
 
 SENSOR = "s"
 """The name of the one sensor of :func:`make_config` and :func:`make_scans`."""

@@ -75,6 +75,7 @@ def test_bounded_path_bounds_hold_against_brute_force(seed: int) -> None:
     assert np.all(table.best[near] >= table.best_upper[near])
 
 
+@pytest.mark.clock_dependent
 @pytest.mark.parametrize("seed", range(20))
 def test_time_limited_cluster_still_gives_valid_bounds(seed: int) -> None:
     """A deadline already past: no LP runs, a narrow beam and the LP-free mass bound."""
@@ -235,6 +236,7 @@ def test_frontier_search_has_no_recursion_limit() -> None:
     np.testing.assert_allclose(table.best, [0.0, 0.5, 1.0, 1.5])
 
 
+@pytest.mark.clock_dependent
 @pytest.mark.parametrize("seed", range(15))
 def test_window_past_its_time_limit_says_so_and_keeps_valid_bounds(seed: int) -> None:
     """A time limit of a nanosecond has passed before any cluster is solved (the
@@ -262,6 +264,7 @@ def test_window_past_its_time_limit_says_so_and_keeps_valid_bounds(seed: int) ->
     assert limited.table.best_set(limited.posterior.marginal_k) is not None
 
 
+@pytest.mark.clock_dependent
 def test_time_limit_path_is_exercised() -> None:
     statuses = []
     for seed in range(15):
@@ -271,6 +274,7 @@ def test_time_limit_path_is_exercised() -> None:
     assert statuses.count("time_limit") >= 5
 
 
+@pytest.mark.clock_dependent
 def test_a_window_that_only_ran_long_keeps_its_exact_status() -> None:
     """Past the limit but every cluster solved exactly (they are small): not time_limit."""
     case = random_window(0)
