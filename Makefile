@@ -18,8 +18,10 @@ setup: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/mapassoc demo --out $(OUT) --overwrite
 
+# Every test, slow ones included (-m ""), on every core (pytest-xdist; the tests that
+# start process pools of their own share the cores with the other workers).
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -m ""
+	$(BIN)/python -m pytest -q -m "" -n auto
 
 bench: $(STAMP)
 	$(BIN)/mapassoc bench
