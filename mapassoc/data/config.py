@@ -712,8 +712,7 @@ def config_to_toml(config: Config) -> str:
         A motion or measurement model outside the schema (e.g. a general
         :class:`~mapassoc.models.measurement.LinearMeasurement`).
     """
-    if not isinstance(config, Config):
-        raise InputError(f"config must be a Config, got {config!r}")
+    check_config(config)
     lines = ["# mapassoc configuration", "", "[motion]", *_motion_lines(config.motion)]
     for index, sensor in enumerate(config.sensors.values()):
         key = f"sensors[{index}]"

@@ -102,7 +102,7 @@ from numpy.typing import NDArray
 from scipy.sparse import coo_array
 from scipy.sparse.csgraph import connected_components
 
-from mapassoc.data.config import Config
+from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.filtering.kalman import gate_threshold
@@ -293,8 +293,7 @@ class FlowTracker:
         solver: str = _SSP,
         name: str = "flow",
     ) -> None:
-        if not isinstance(config, Config):
-            raise InputError(f"config must be a Config, got {config!r}")
+        check_config(config)
         if isinstance(max_gap, bool) or not isinstance(max_gap, int) or max_gap < 0:
             raise InputError(f"max_gap must be an integer >= 0, got {max_gap!r}")
         length = config.estimator.window_length if window_length is None else window_length
