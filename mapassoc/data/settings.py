@@ -146,8 +146,13 @@ class EstimatorSettings:
     time_limit : float
         Wall-clock seconds per window (hypothesis generation, solves and bounds
         together; a window past it reports ``status = "time_limit"`` with its best
-        certified answer).  The outer guard: the work limits below bind first on
-        ordinary windows, so results do not depend on the machine's speed.
+        certified answer, and ``WindowSolution.timed_out``).  The outer guard: the work
+        limits below (and ``max_hypotheses_per_tree``) bind first on ordinary windows.
+        A window whose bounded path needs longer (those of the built-in ``parallel``
+        scenario take several seconds) stops at the limit with an answer that depends
+        on the machine's speed.  For results that are a function of the input alone
+        (tests, comparisons, notebooks), set a limit no window reaches, 600 say: the
+        deterministic work limits then bound every window.
     exact_work_limit : int
         Transitions the exact per-cluster frontier search may take before the cluster
         gets certified bounds instead (deterministic; about a microsecond each).
