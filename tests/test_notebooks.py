@@ -1,4 +1,11 @@
-"""Every notebook's code cells run top to bottom without error (they cannot rot)."""
+"""Every notebook's code cells run top to bottom without error (they cannot rot), and
+what they compute is what their text says.
+
+The notebooks give their estimators a time limit no window reaches, so their numbers are
+a function of the input alone; the clock guard of ``conftest.py`` fails a notebook whose
+window ran past its limit (only windows solved in this process are watched, not those of
+the process pools in ``reprocessing.ipynb``, which get the same time limit).
+"""
 
 from __future__ import annotations
 
@@ -221,10 +228,9 @@ def _check_compare_methods(ns: dict) -> None:  # type: ignore[type-arg]
             for column in ("gospa", "gospa_localisation", "ospa2", "mota", "k_brier"):
                 assert rows.loc[(family, "map"), column] == rows.loc[(family, "lp"), column]
         assert rows.loc[("parallel", "map"), "gospa"] != rows.loc[("parallel", "lp"), "gospa"]
-        assert (rows.xs("lp", level="tracker")["seconds"]
-                > rows.xs("map", level="tracker")["seconds"]).all()
-    seconds = summary.set_index("tracker")["seconds"]
-    assert (seconds.loc[["gnn", "jpda"]] < 1.0).all()
+    # Seconds are measured, not computed: only that every run has a time is checked (the
+    # text's remarks on speed hold on this machine's printed table, not on every machine).
+    assert (summary["seconds"] > 0).all() and np.isfinite(summary["seconds"]).all()
 
     # The drawn tracks are the table's seed-0 crossing runs.
     first = table[(table["scenario"] == "crossing") & (table["seed"] == 0)].set_index("tracker")
