@@ -1,0 +1,188 @@
+"""False-alarm rate and Pd from the recording (mapassoc.estimator.parameters).
+
+Hand-counted association statistics, the M step's fixed point at the truth, estimates of
+seeded simulations within stated tolerances, a recording without targets, the sampling
+of long recordings, and the argument checks.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mapassoc.data.io import TrackTable
+from mapassoc.data.scans import Scan
+from mapassoc.errors import InputError
+from mapassoc.estimator.parameters import (
+    DEFAULT_PD_START,
+    MIN_INTERIOR_SCANS,
+    association_counts,
+    estimate_parameters,
+    sample_blocks,
+)
+from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.evaluation.scenarios import build_scenario, generic_config
+
+
+def _tracks(rows: list[tuple[int, float, int]]) -> TrackTable:
+    """A TrackTable of ``(track_id, time, detection_row)`` rows of sensor "s"."""
+    n = len(rows)
+    return TrackTable(
+        track_ids=np.array([r[0] for r in rows], dtype=np.int64),
+        times=np.array([r[1] for r in rows]),
+        sensors=("s",) * n,
+        states=np.zeros((n, 2)),
+        variances=np.ones((n, 2)),
+        detection_rows=np.array([r[2] for r in rows], dtype=np.int64),
+        state_names=("x", "y"),
+    )
+
+
+def test_association_counts_by_hand() -> None:
+    # Five scans of sensor "s" with detections 10.. (ids), three per scan.
+    scans = [
+        Scan(float(t), "s", np.zeros((3, 2)), np.arange(10 + 3 * t, 13 + 3 * t, dtype=np.int64))
+        for t in range(5)
+    ]
+    # Track 0: scans 0..4, detected at 0, 1, 3, 4 (ids 10, 13, 19, 22), missed at 2.
+    # Track 1: scans 1..2, detected at both (ids 14, 17): no interior scan.
+    tracks = _tracks([(0, 0.0, 10), (0, 1.0, 13), (0, 2.0, -1), (0, 3.0, 19), (0, 4.0, 22),
+                      (1, 2.0, 17), (1, 1.0, 14)])  # fmt: skip
+    counts = association_counts(scans, tracks, ["s", "other"])["s"]
+    assert (counts.scans, counts.detections, counts.explained) == (5, 15, 6)
+    assert counts.unexplained == 9
+    assert counts.clutter_per_scan == (2, 1, 2, 2, 2)
+    # Interior of track 0: scans 1, 2, 3 (two detections); track 1 has none.
+    assert (counts.interior_scans, counts.interior_detections) == (3, 2)
+    other = association_counts(scans, tracks, ["other"])["other"]
+    assert (other.scans, other.detections, other.interior_scans) == (0, 0, 0)
+
+
+def test_sample_blocks_cover_the_recording_evenly() -> None:
+    assert sample_blocks(100, sample_scans=600, blocks=6) == [(0, 100)]
+    blocks = sample_blocks(6000, sample_scans=600, blocks=6)
+    assert len(blocks) == 6 and all(stop - first == 100 for first, stop in blocks)
+    assert blocks[0][0] == 0 and blocks[-1][1] == 6000
+    assert all(a[1] <= b[0] for a, b in zip(blocks, blocks[1:], strict=False))
+    assert sample_blocks(1000, sample_scans=600, blocks=1) == [(200, 800)]
+
+
+def _scenario(name: str, seed: int, scans: int | None = None):  # type: ignore[no-untyped-def]
+    built = build_scenario(name, seed, scans=scans)
+    return built, generic_config(built, time_limit=600.0)
+
+
+@pytest.mark.slow
+def test_the_truth_is_a_fixed_point_of_the_update() -> None:
+    """Run with the true parameters, the M step lands within the tolerances the README
+    states (10% of the rate, 0.05 of Pd) of them: the iteration stays at the truth."""
+    built, config = _scenario("dense_pd08", 1)
+    result = WindowEstimator(config=config).run(built.scans)
+    counts = association_counts(built.scans, result.tracks, ["pos"])["pos"]
+    sensor = config.sensors["pos"]
+    rate = counts.unexplained / counts.scans
+    pd = counts.interior_detections / counts.interior_scans
+    assert rate == pytest.approx(sensor.false_alarms_per_scan, rel=0.10)
+    assert pd == pytest.approx(sensor.detection_probability, abs=0.05)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "seed"), [("dense_pd08", 2), ("crossing", 1)])
+def test_estimates_land_near_the_truth(name: str, seed: int) -> None:
+    built, config = _scenario(name, seed)
+    true = config.sensors["pos"]
+    passes = []
+    estimate = estimate_parameters(
+        config, built.scans, false_alarms=["pos"], detection_probability={"pos": None},
+        on_pass=passes.append,
+    )  # fmt: skip
+    found = estimate.sensors["pos"]
+    assert found.rate_estimated and found.pd_estimated
+    assert found.false_alarms_per_scan == pytest.approx(true.false_alarms_per_scan, rel=0.10)
+    assert found.detection_probability == pytest.approx(true.detection_probability, abs=0.05)
+    assert estimate.converged and estimate.warnings == ()
+    assert list(estimate.passes) == passes and len(passes) <= 6
+    # The first pass starts where every detection is clutter and Pd at the default.
+    mean = sum(scan.size for scan in built.scans) / len(built.scans)
+    assert passes[0].used["pos"] == (mean, DEFAULT_PD_START)
+    # The returned values are those the last pass ran with, and its run is the result.
+    assert passes[-1].used["pos"] == (found.false_alarms_per_scan, found.detection_probability)
+    sensor = estimate.config.sensors["pos"]
+    assert (sensor.false_alarms_per_scan, sensor.detection_probability) == passes[-1].used["pos"]
+    rerun = WindowEstimator(config=estimate.config).run(built.scans)
+    assert estimate.result is not None
+    assert rerun.track_rows == estimate.result.track_rows  # type: ignore[attr-defined]
+
+
+def test_a_recording_without_targets() -> None:
+    """No target: Pd is not estimable (kept, with a message) and the rate is exactly the
+    mean detections per scan (the scenario's own configuration, whose birth model finds no
+    false track in this clutter)."""
+    built = build_scenario("crossing", 0, scans=30)
+    config = built.config
+    rng = np.random.default_rng(7)
+    region = config.sensors["pos"].region
+    scans, row = [], 0
+    for scan in built.scans:
+        count = int(rng.poisson(3))
+        z = rng.uniform(region.lower, region.upper, size=(count, 2))
+        scans.append(Scan(scan.time, "pos", z, np.arange(row, row + count, dtype=np.int64)))
+        row += count
+    estimate = estimate_parameters(
+        config, scans, false_alarms=["pos"], detection_probability={"pos": 0.9}
+    )
+    found = estimate.sensors["pos"]
+    assert estimate.passes[-1].tracks == 0
+    assert found.false_alarms_per_scan == sum(s.size for s in scans) / len(scans)
+    assert found.rate_estimated
+    assert not found.pd_estimated and found.detection_probability == 0.9
+    assert any("detection_probability not estimable" in w and str(MIN_INTERIOR_SCANS) in w
+               for w in estimate.warnings)  # fmt: skip
+    assert estimate.converged
+
+
+def test_too_few_scans_keep_the_configured_rate() -> None:
+    built, config = _scenario("crossing", 0, scans=3)
+    estimate = estimate_parameters(config, built.scans, false_alarms=["pos"])
+    found = estimate.sensors["pos"]
+    assert not found.rate_estimated
+    assert found.false_alarms_per_scan == config.sensors["pos"].false_alarms_per_scan
+    assert any("not estimable from 3 scans" in w for w in estimate.warnings)
+
+
+@pytest.mark.slow
+def test_a_long_recording_is_estimated_on_a_sample() -> None:
+    built, config = _scenario("crossing", 3, scans=400)
+    true = config.sensors["pos"]
+    estimate = estimate_parameters(
+        config, built.scans, false_alarms=["pos"], detection_probability={"pos": None},
+        sample_scans=150, sample_blocks_count=3,
+    )  # fmt: skip
+    assert estimate.sample_scans == 150 and estimate.result is None
+    assert all(p.scans == 150 for p in estimate.passes)
+    found = estimate.sensors["pos"]
+    assert found.false_alarms_per_scan == pytest.approx(true.false_alarms_per_scan, rel=0.10)
+    assert found.detection_probability == pytest.approx(true.detection_probability, abs=0.05)
+
+
+@pytest.mark.parametrize(
+    ("arguments", "key"),
+    [
+        ({"false_alarms": ["radar"]}, "false_alarms_per_scan"),
+        ({"detection_probability": {"radar": None}}, "detection_probability"),
+        ({"detection_probability": {"pos": 0.0}}, "detection_probability_start"),
+        ({"detection_probability": {"pos": 1.5}}, "detection_probability_start"),
+        ({"detection_probability": {"pos": math.nan}}, "detection_probability_start"),
+        ({"rate_tolerance": 0.0}, "rate_tolerance"),
+        ({"pd_tolerance": -1.0}, "pd_tolerance"),
+        ({"max_passes": 0}, "max_passes"),
+        ({"sample_scans": 2.5}, "sample_scans"),
+    ],
+)
+def test_bad_arguments_name_their_key(arguments: dict[str, object], key: str) -> None:
+    built, config = _scenario("crossing", 0, scans=5)
+    with pytest.raises(InputError) as info:
+        estimate_parameters(config, built.scans, **arguments)  # type: ignore[arg-type]
+    assert info.value.key == key
