@@ -74,6 +74,7 @@ def compare(
     config: str = "scenario",
     scans: int | None = None,
     window_length: int | None = None,
+    time_limit: float | None = None,
     ospa2_window: int | None = None,
     on_row: Callable[[dict[str, object]], None] | None = None,
 ) -> pd.DataFrame:
@@ -98,6 +99,11 @@ def compare(
     window_length : int, optional
         Replace the configuration's window length (the MAP estimator, LP relaxation and
         network flow use it).
+    time_limit : float, optional
+        Replace the configuration's ``time_limit`` (seconds per window, > 0).  A limit no
+        window reaches (for example 600) makes every number a function of the inputs
+        alone; with the default 2 s, windows that need longer (the parallel scenario's)
+        stop at the clock and their answers depend on the machine.
     ospa2_window : int, optional
         Score OSPA(2) as the mean over sliding windows of this many evaluation times
         (:func:`~mapassoc.evaluation.ospa.ospa2_over_time`); ``None`` (default) scores the
@@ -138,6 +144,12 @@ def compare(
         raise InputError(f"scans must be an integer >= 1, got {scans!r}")
     if window_length is not None and (not _is_int(window_length) or window_length < 1):
         raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
+    if time_limit is not None and (
+        isinstance(time_limit, bool)
+        or not isinstance(time_limit, (int, float))
+        or not (np.isfinite(time_limit) and time_limit > 0)
+    ):
+        raise InputError(f"time_limit must be a finite number of seconds > 0, got {time_limit!r}")
     if ospa2_window is not None and (not _is_int(ospa2_window) or ospa2_window < 1):
         raise InputError(f"ospa2_window must be an integer >= 1, got {ospa2_window!r}")
     # CLEAR-MOT needs the optional motmetrics; without it its columns are empty instead of
@@ -151,10 +163,14 @@ def compare(
             if scans is not None:
                 scenario = truncate_scenario(scenario, int(scans))
             run_config = _config_for(scenario, config)
+            overrides: dict[str, object] = {}
             if window_length is not None:
+                overrides["window_length"] = int(window_length)
+            if time_limit is not None:
+                overrides["time_limit"] = float(time_limit)
+            if overrides:
                 run_config = replace(
-                    run_config,
-                    estimator=replace(run_config.estimator, window_length=int(window_length)),
+                    run_config, estimator=replace(run_config.estimator, **overrides)
                 )
             for name in names:
                 row: dict[str, object] = {

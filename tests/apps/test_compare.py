@@ -129,6 +129,8 @@ def test_format_summary_shows_the_means(two_seeds: pd.DataFrame) -> None:
         ({"config": "tuned"}, "config"),
         ({"scans": 0}, "scans"),
         ({"window_length": 0}, "window_length"),
+        ({"time_limit": 0.0}, "time_limit"),
+        ({"time_limit": float("inf")}, "time_limit"),
         ({"ospa2_window": 0}, "ospa2_window"),
     ],
 )
@@ -150,6 +152,21 @@ def test_windowed_ospa2_option() -> None:
     assert table["ospa2"].iloc[0] == pytest.approx(expected.ospa2, rel=1e-12)
     whole = score_tracks(scenario.truth, output, c=10.0)
     assert expected.ospa2 != pytest.approx(whole.ospa2)  # the option changes the score
+
+
+def test_time_limit_reaches_every_tracker(monkeypatch: pytest.MonkeyPatch) -> None:
+    from mapassoc.apps import compare as module
+
+    seen: list[float] = []
+    real = module.build_tracker
+
+    def spy(name: str, *, config: object, origins: object) -> object:
+        seen.append(config.estimator.time_limit)  # type: ignore[attr-defined]
+        return real(name, config=config, origins=origins)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(module, "build_tracker", spy)
+    compare(["oracle", "gnn"], ["crossing"], [0], scans=5, time_limit=600.0)
+    assert seen == [600.0, 600.0]
 
 
 def test_seeds_may_be_any_iterable_of_integers() -> None:
