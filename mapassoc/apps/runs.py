@@ -456,6 +456,8 @@ def run_files(
                         stop=stop, timings=timings, ticker=ticker,
                     )  # fmt: skip
                 messages.extend(str(w.message) for w in caught)
+                # One line per message: segments (and sessions) repeat start()'s warnings.
+                messages[:] = dict.fromkeys(messages)
                 summary: dict[str, object] = {
                     "mapassoc_version": manifest["mapassoc_version"],
                     "config": manifest["inputs"]["config"]["path"],
