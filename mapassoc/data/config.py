@@ -18,8 +18,9 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     noise_std = 1.0               # position: a number, or one std per position component
     # range_bearing instead: position = [x, y], range_std = ..., bearing_std = ... (radians);
     # needs a motion model with a 2-D position (ndim = 2, or coordinated_turn)
-    detection_probability = 0.9   # Pd in (0, 1]
-    false_alarms_per_scan = 10.0  # expected false alarms per scan, >= 0
+    detection_probability = 0.9   # Pd in (0, 1], or "auto" (estimated from the recording)
+    # detection_probability_start = 0.95  # with "auto" only: the first pass's Pd
+    false_alarms_per_scan = 10.0  # expected false alarms per scan, >= 0, or "auto"
     region = [[-100.0, 100.0], [-100.0, 100.0]]   # one [low, high] per measured component
 
     [birth]        # optional; keys and defaults: the fields of mapassoc.data.settings.BirthModel
@@ -29,6 +30,12 @@ Schema (unknown keys anywhere are an error; every value is checked)::
 The ``[birth]`` and ``[estimator]`` sections are optional by design (every field has a
 default), but :func:`load_config` warns (``UserWarning``) when one is missing, naming
 the file and the defaults used: a forgotten section silently changes the model.
+
+``"auto"`` leaves a sensor's ``detection_probability`` or ``false_alarms_per_scan`` to
+be estimated from the recording (:mod:`mapassoc.estimator.parameters`, which ``mapassoc
+run`` calls before the run): :attr:`Config.auto` lists them, the sensor holds
+placeholders (``Pd`` = 1, no false alarms) until then, and :func:`check_config` refuses
+such a configuration to anything that would run on the placeholders.
 
 ``estimator.solver`` is a name of the solver registry, which this layer may not import
 (``tests/test_architecture.py``): the caller that wires the solvers passes the names it
@@ -71,6 +78,8 @@ from mapassoc.models.sensor import Region, Sensor
 from mapassoc.validation import check_nonnegative, check_positive, check_probability
 
 __all__ = [
+    "AUTO",
+    "AutoParameters",
     "Config",
     "check_config",
     "MOTION_MODELS",
@@ -95,11 +104,40 @@ _SENSOR_COMMON_KEYS = (
     "name",
     "measurement",
     "detection_probability",
+    "detection_probability_start",
     "false_alarms_per_scan",
     "region",
 )
+AUTO = "auto"
+"""The value of a sensor parameter left to be estimated from the recording."""
 _DOCUMENT_KEY = "<file>"
 """Key reported for problems with the whole document (unreadable file, TOML syntax)."""
+
+
+@dataclass(frozen=True)
+class AutoParameters:
+    """The sensor parameters a configuration leaves to the recording (``"auto"``).
+
+    Attributes
+    ----------
+    false_alarms : tuple of str
+        Sensors whose ``false_alarms_per_scan`` is estimated.
+    detection_probability : tuple of (str, float or None)
+        Sensors whose ``detection_probability`` is estimated, each with its
+        ``detection_probability_start`` (None: the estimator's default start).
+    """
+
+    false_alarms: tuple[str, ...] = ()
+    detection_probability: tuple[tuple[str, float | None], ...] = ()
+
+    @property
+    def pending(self) -> bool:
+        """Whether any parameter is still to be estimated."""
+        return bool(self.false_alarms or self.detection_probability)
+
+    def pd_starts(self) -> dict[str, float | None]:
+        """``{sensor: start}`` of the sensors whose ``Pd`` is estimated."""
+        return dict(self.detection_probability)
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,6 +157,10 @@ class Config:
         Window estimator settings.
     source : str, optional
         The file the configuration came from, for messages.
+    auto : AutoParameters
+        Sensor parameters still to be estimated from the recording (``"auto"`` in the
+        file); their sensors hold placeholders until
+        :func:`mapassoc.estimator.parameters.estimate_parameters` fills them in.
     """
 
     motion: MotionModel
@@ -126,6 +168,7 @@ class Config:
     birth: BirthModel
     estimator: EstimatorSettings
     source: str | None = None
+    auto: AutoParameters = AutoParameters()
 
     def __post_init__(self) -> None:
         if not isinstance(self.motion, MotionModel):
@@ -148,17 +191,37 @@ class Config:
             raise InputError(f"estimator must be an EstimatorSettings, got {self.estimator!r}")
         if self.source is not None and not isinstance(self.source, str):
             raise InputError(f"source must be a string or None, got {self.source!r}")
+        if not isinstance(self.auto, AutoParameters):
+            raise InputError(f"auto must be an AutoParameters, got {self.auto!r}")
+        for name in (*self.auto.false_alarms, *self.auto.pd_starts()):
+            if name not in self.sensors:
+                raise InputError(
+                    f"auto names sensor {name!r}, which is not configured "
+                    f"(known: {sorted(self.sensors)})"
+                )
         object.__setattr__(self, "sensors", dict(self.sensors))
 
 
-def check_config(config: object, *, argument: str = "config") -> Config:
+def check_config(
+    config: object, *, argument: str = "config", allow_auto: bool = False
+) -> Config:
     """``config`` if it is a :class:`Config`, else an InputError saying how to get one.
 
     The estimator and every tracker take a ``Config`` object, not a file name: a path
     is loaded with :func:`load_config`, a parsed TOML document with
-    :func:`parse_config`, and a scenario's is ``build_scenario(name).config``.
+    :func:`parse_config`, and a scenario's is ``build_scenario(name).config``.  A
+    configuration with ``"auto"`` parameters still to be estimated is refused too
+    (unless ``allow_auto``): its sensors hold placeholders.
     """
     if isinstance(config, Config):
+        if config.auto.pending and not allow_auto:
+            names = [f"sensor '{n}' false_alarms_per_scan" for n in config.auto.false_alarms]
+            names += [f"sensor '{n}' detection_probability" for n in config.auto.pd_starts()]
+            raise InputError(
+                f"{argument} leaves {', '.join(names)} = \"auto\"; estimate them from the "
+                "recording first: mapassoc.estimate_parameters(config, scans).config (what "
+                "`mapassoc run` does), or give numbers"
+            )
         return config
     kind = type(config).__name__
     if isinstance(config, (str, bytes)) or hasattr(config, "__fspath__"):
@@ -394,7 +457,10 @@ class _SensorSettings:
         return [self._parser.positive(value, full)] * count
 
 
-def _parse_sensor(parser: _Parser, item: object, index: int, motion: MotionModel) -> Sensor:
+def _parse_sensor(
+    parser: _Parser, item: object, index: int, motion: MotionModel
+) -> tuple[Sensor, bool, tuple[tuple[str, float | None], ...]]:
+    """The sensor, whether its rate is "auto", and its ``(name, start)`` when Pd is."""
     prefix = f"sensors[{index}]"
     table = parser.table(item, prefix)
     kind = parser.choice(
@@ -415,13 +481,34 @@ def _parse_sensor(parser: _Parser, item: object, index: int, motion: MotionModel
         measurement = spec.read(_SensorSettings(parser, table, prefix), motion)
     except InputError as exc:  # a model's own checks of its settings (key: the setting)
         raise parser.fail(_subkey(prefix, exc), str(exc)) from None
-    detection_probability = parser.probability(
-        parser.required(table, prefix, "detection_probability"),
-        f"{prefix}.detection_probability",
+    pd_value = parser.required(table, prefix, "detection_probability")
+    rate_value = parser.required(table, prefix, "false_alarms_per_scan")
+    for value, what, expected in (
+        (pd_value, "detection_probability", "a probability in (0, 1]"),
+        (rate_value, "false_alarms_per_scan", "a number >= 0"),
+    ):
+        if isinstance(value, str) and value != AUTO:
+            raise parser.fail(
+                f"{prefix}.{what}", f'must be {expected} or "auto", got {value!r}'
+            )
+    auto_pd = pd_value == AUTO
+    start_key = f"{prefix}.detection_probability_start"
+    start = None
+    if "detection_probability_start" in table:
+        if not auto_pd:
+            raise parser.fail(
+                start_key, 'only goes with detection_probability = "auto"; remove it or '
+                'write detection_probability = "auto"',
+            )  # fmt: skip
+        start = parser.probability(table["detection_probability_start"], start_key)
+        if start == 0:
+            raise parser.fail(start_key, "must be a probability in (0, 1], got 0")
+    detection_probability = (
+        1.0 if auto_pd else parser.probability(pd_value, f"{prefix}.detection_probability")
     )
-    false_alarms = parser.nonnegative(
-        parser.required(table, prefix, "false_alarms_per_scan"),
-        f"{prefix}.false_alarms_per_scan",
+    auto_rate = rate_value == AUTO
+    false_alarms = (
+        0.0 if auto_rate else parser.nonnegative(rate_value, f"{prefix}.false_alarms_per_scan")
     )
     region = _parse_region(
         parser,
@@ -430,7 +517,7 @@ def _parse_sensor(parser: _Parser, item: object, index: int, motion: MotionModel
         measurement.component_names,
     )
     try:
-        return Sensor(
+        sensor = Sensor(
             name=name,
             measurement=measurement,
             detection_probability=detection_probability,
@@ -439,11 +526,12 @@ def _parse_sensor(parser: _Parser, item: object, index: int, motion: MotionModel
         )
     except InputError as exc:
         raise parser.fail(_subkey(prefix, exc), str(exc)) from None
+    return sensor, auto_rate, ((name, start),) if auto_pd else ()
 
 
 def _parse_sensors(
     parser: _Parser, data: Mapping[str, object], motion: MotionModel
-) -> dict[str, Sensor]:
+) -> tuple[dict[str, Sensor], AutoParameters]:
     if "sensors" not in data:
         raise parser.fail("sensors", "missing required [[sensors]] tables (at least one)")
     items = parser.array(data["sensors"], "sensors")
@@ -451,8 +539,12 @@ def _parse_sensors(
         raise parser.fail("sensors", "must hold at least one [[sensors]] table, got []")
     sensors: dict[str, Sensor] = {}
     first_index: dict[str, int] = {}
+    auto_rates: list[str] = []
+    auto_pds: list[tuple[str, float | None]] = []
     for index, item in enumerate(items):
-        sensor = _parse_sensor(parser, item, index, motion)
+        sensor, auto_rate, auto_pd = _parse_sensor(parser, item, index, motion)
+        auto_rates += [sensor.name] if auto_rate else []
+        auto_pds += auto_pd
         if sensor.name in sensors:
             raise parser.fail(
                 f"sensors[{index}].name",
@@ -461,7 +553,7 @@ def _parse_sensors(
             )
         sensors[sensor.name] = sensor
         first_index[sensor.name] = index
-    return sensors
+    return sensors, AutoParameters(tuple(auto_rates), tuple(auto_pds))
 
 
 def _field_kind(field: dataclasses.Field[object]) -> str:
@@ -552,11 +644,18 @@ def parse_config(
     document = parser.table(data, _DOCUMENT_KEY)
     parser.only_keys(document, "", _SECTIONS, "at the top level")
     motion = _parse_motion(parser, document)
-    sensors = _parse_sensors(parser, document, motion)
+    sensors, auto = _parse_sensors(parser, document, motion)
     birth = _parse_settings(parser, document, "birth", BirthModel)
     estimator = _parse_settings(parser, document, "estimator", EstimatorSettings)
     _check_solver(parser, estimator, solver_names)
-    return Config(motion=motion, sensors=sensors, birth=birth, estimator=estimator, source=source)
+    return Config(
+        motion=motion,
+        sensors=sensors,
+        birth=birth,
+        estimator=estimator,
+        source=source,
+        auto=auto,
+    )
 
 
 def _defaults_text(cls: type[BirthModel] | type[EstimatorSettings]) -> str:
@@ -712,17 +811,30 @@ def config_to_toml(config: Config) -> str:
         A motion or measurement model outside the schema (e.g. a general
         :class:`~mapassoc.models.measurement.LinearMeasurement`).
     """
-    check_config(config)
+    check_config(config, allow_auto=True)
     lines = ["# mapassoc configuration", "", "[motion]", *_motion_lines(config.motion)]
+    pd_starts = config.auto.pd_starts()
     for index, sensor in enumerate(config.sensors.values()):
         key = f"sensors[{index}]"
+        if sensor.name in pd_starts:
+            start = pd_starts[sensor.name]
+            pd_lines = [f"detection_probability = {_toml_string(AUTO)}"]
+            if start is not None:
+                pd_lines.append(f"detection_probability_start = {_toml_float(start)}")
+        else:
+            pd_lines = [f"detection_probability = {_toml_float(sensor.detection_probability)}"]
+        rate = (
+            _toml_string(AUTO)
+            if sensor.name in config.auto.false_alarms
+            else _toml_float(sensor.false_alarms_per_scan)
+        )
         lines += [
             "",
             "[[sensors]]",
             f"name = {_toml_string(sensor.name)}",
             *_measurement_lines(sensor.measurement, config.motion, key),
-            f"detection_probability = {_toml_float(sensor.detection_probability)}",
-            f"false_alarms_per_scan = {_toml_float(sensor.false_alarms_per_scan)}",
+            *pd_lines,
+            f"false_alarms_per_scan = {rate}",
             "region = ["
             + ", ".join(
                 f"[{_toml_float(low)}, {_toml_float(high)}]"

@@ -387,7 +387,7 @@ def estimate_parameters(
     config: Config,
     scans: Sequence[Scan],
     *,
-    false_alarms: Collection[str] = (),
+    false_alarms: Collection[str] | None = None,
     detection_probability: Mapping[str, float | None] | None = None,
     rate_tolerance: float = 0.02,
     pd_tolerance: float = 0.005,
@@ -405,11 +405,12 @@ def estimate_parameters(
         parameter is not estimated.
     scans : sequence of Scan
         The whole recording, sorted by (time, sensor).
-    false_alarms : collection of str
+    false_alarms : collection of str, optional
         The sensors whose false-alarm rate to estimate.
     detection_probability : mapping of str to float or None, optional
         The sensors whose ``Pd`` to estimate, each with its starting value (None:
-        :data:`DEFAULT_PD_START`).
+        :data:`DEFAULT_PD_START`).  When neither is given, the configuration's
+        ``"auto"`` parameters (:attr:`Config.auto`) are estimated.
     rate_tolerance : float
         Relative change of every rate below which the iteration stops (> 0).
     pd_tolerance : float
@@ -434,10 +435,23 @@ def estimate_parameters(
     """
     from mapassoc.estimator.pipeline import WindowEstimator
 
-    rates = list(dict.fromkeys(false_alarms))
+    if false_alarms is None and detection_probability is None:
+        false_alarms, detection_probability = config.auto.false_alarms, config.auto.pd_starts()
+    rates = list(dict.fromkeys(false_alarms or ()))
     for name in rates:
         _check_sensor(config, name, "false_alarms_per_scan")
     pds = _check_starts(config, detection_probability or {})
+    left = [f"sensor '{n}' false_alarms_per_scan" for n in config.auto.false_alarms
+            if n not in rates]
+    left += [f"sensor '{n}' detection_probability" for n in config.auto.pd_starts()
+             if n not in pds]  # fmt: skip
+    if left:
+        raise InputError(
+            f"the configuration leaves {', '.join(left)} = \"auto\", which this call does "
+            "not estimate; ask for it too, or call without false_alarms and "
+            "detection_probability to estimate what the configuration asks",
+            key="auto",
+        )
     for name, value in (("rate_tolerance", rate_tolerance), ("pd_tolerance", pd_tolerance)):
         if isinstance(value, bool) or not (isinstance(value, (int, float)) and value > 0):
             raise InputError(f"{name} must be a number > 0, got {value!r}", key=name)

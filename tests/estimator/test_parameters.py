@@ -186,3 +186,21 @@ def test_bad_arguments_name_their_key(arguments: dict[str, object], key: str) ->
     with pytest.raises(InputError) as info:
         estimate_parameters(config, built.scans, **arguments)  # type: ignore[arg-type]
     assert info.value.key == key
+
+
+def test_the_configuration_s_auto_parameters_are_the_default_request() -> None:
+    import dataclasses
+
+    from mapassoc.data.config import AutoParameters
+
+    built = build_scenario("crossing", 0, scans=30)
+    auto = dataclasses.replace(
+        built.config, auto=AutoParameters(("pos",), (("pos", 0.9),))
+    )
+    estimate = estimate_parameters(auto, built.scans)
+    assert estimate.passes[0].used["pos"][1] == 0.9
+    assert not estimate.config.auto.pending
+    WindowEstimator(config=estimate.config)  # runnable: no placeholder left
+    with pytest.raises(InputError) as info:
+        estimate_parameters(auto, built.scans, false_alarms=["pos"])
+    assert info.value.key == "auto" and "detection_probability" in str(info.value)
