@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 import pytest
+from support import NO_TIME_LIMIT
 
 from mapassoc.data.scans import Scan
 from mapassoc.data.settings import BirthModel
@@ -490,7 +491,9 @@ def test_every_target_born_in_dense_clutter_gets_a_track() -> None:
         motion=motion,
         sensors={"radar": sensor},
         birth=birth,
-        estimator=EstimatorSettings(window_length=5, max_tracks=30, prune_log_ratio=5.0),
+        estimator=EstimatorSettings(
+            window_length=5, max_tracks=30, prune_log_ratio=5.0, time_limit=NO_TIME_LIMIT
+        ),
     )
     pd, lambda_bar = 0.9, 1000.0
     assert math.log((birth.rate + birth.initial_count) * pd / lambda_bar) < -5.0

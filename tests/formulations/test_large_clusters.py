@@ -14,7 +14,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from support import brute_force_tables, make_config, random_problem, random_window
+from support import (
+    NO_TIME_LIMIT,
+    brute_force_tables,
+    make_config,
+    random_problem,
+    random_window,
+)
 
 from mapassoc.estimator.cluster_solving import ClusterSolver
 from mapassoc.estimator.pipeline import WindowEstimator
@@ -314,7 +320,9 @@ def test_bounded_window_lines_carry_their_bounds() -> None:
     for seed in range(10):
         case = random_window(seed)
         exact = case.estimator.solve_window(case.scans, case.carried)
-        forced = with_settings(case.estimator, exact_work_limit=1, beam_width=1)
+        forced = with_settings(
+            case.estimator, exact_work_limit=1, beam_width=1, time_limit=NO_TIME_LIMIT
+        )
         bounded = forced.solve_window(case.scans, case.carried)
         if bounded.posterior.exact:
             continue
@@ -329,7 +337,9 @@ def test_bounded_window_lines_carry_their_bounds() -> None:
 
     scenario = truncate_scenario(build_scenario("crossing", 0), 8)
     estimator = WindowEstimator(config=scenario.config)
-    run = with_settings(estimator, exact_work_limit=1, beam_width=1).run(scenario.scans)
+    run = with_settings(
+        estimator, exact_work_limit=1, beam_width=1, time_limit=NO_TIME_LIMIT
+    ).run(scenario.scans)
     lines = [w.to_json(timings=False) for w in run.windows if not w.marginal_exact]
     assert lines and all("p_k_lower" in line and "p_k_upper" in line for line in lines)
     for w in run.windows:
