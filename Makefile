@@ -18,10 +18,10 @@ setup: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/mapassoc demo --out $(OUT) --overwrite
 
-# Every test, slow ones included (-m ""), on every core (pytest-xdist; the tests that
-# start process pools of their own share the cores with the other workers).
+# Every test, slow ones included (-m ""), on every core (pytest-xdist; an idle worker
+# takes tests queued for another, so no worker trails alone at the end).
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -m "" -n auto
+	$(BIN)/python -m pytest -q -m "" -n auto --dist worksteal
 
 bench: $(STAMP)
 	$(BIN)/mapassoc bench
