@@ -2,16 +2,17 @@
 
 Markers: ``slow`` marks the tests that take a second or more each (full scenario runs,
 calibration over hundreds of windows).  A plain ``pytest`` skips them (``addopts`` in
-``pyproject.toml``); ``make test`` and CI run everything (``-m ""``).
+``pyproject.toml``); ``make test`` and CI run everything (``-m ""``), slow tests first
+and on every core (pytest-xdist).
 
 ``clock_dependent`` marks the tests that exercise ``EstimatorSettings.time_limit``
 itself.  Every other test fails if, while it ran, a window ran past its time limit
 (``WindowSolution.timed_out``) or a cluster ended with status ``time_limit``
-(:func:`pytest_runtest_makereport`): what such a window returns depends on how fast the machine is,
-so a test that compares its numbers would pass on one machine and fail on another.
-Such a test gives its estimator a time limit no window reaches (``support.NO_TIME_LIMIT``),
-so that only the deterministic work limits (``exact_work_limit``, ``beam_width``,
-``max_hypotheses_per_tree``, ``integer_node_limit``) bound the work.
+(:func:`pytest_runtest_makereport`): what such a window returns depends on how fast
+the machine is, so a test that compares its numbers would pass on one machine and fail
+on another.  Such a test gives its estimator a time limit no window reaches
+(``support.NO_TIME_LIMIT``), so that only the deterministic work limits
+(``exact_work_limit``, ``beam_width``, ``max_hypotheses_per_tree``) bound the work.
 """
 
 from __future__ import annotations
