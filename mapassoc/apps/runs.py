@@ -21,7 +21,7 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
@@ -34,6 +34,7 @@ from mapassoc.errors import DataFileError, InputError, MapassocError, OutputErro
 __all__ = [
     "RunOutcome",
     "RunInterrupted",
+    "StoppedBeforeRun",
     "InputWaitInterrupted",
     "read_input",
     "StopFlag",
@@ -72,8 +73,17 @@ class RunInterrupted(MapassocError):
         )
 
 
-class InputWaitInterrupted(RunInterrupted):
-    """A run stopped on request while an input was still being read: nothing written.
+class StoppedBeforeRun(RunInterrupted):
+    """A run stopped on request before its first window: nothing was written."""
+
+    def __init__(self, message: str) -> None:
+        self.partial = None  # type: ignore[assignment]
+        self.scans_committed = self.scans_total = 0
+        MapassocError.__init__(self, f"{message}; nothing was written")
+
+
+class InputWaitInterrupted(StoppedBeforeRun):
+    """A run stopped on request while an input was still being read.
 
     Attributes
     ----------
@@ -83,9 +93,7 @@ class InputWaitInterrupted(RunInterrupted):
 
     def __init__(self, path: str) -> None:
         self.path = path
-        self.partial = None  # type: ignore[assignment]
-        self.scans_committed = self.scans_total = 0
-        MapassocError.__init__(self, f"stopped while waiting for input {path}; nothing was written")
+        super().__init__(f"stopped while waiting for input {path}")
 
 
 @dataclass(frozen=True)
@@ -205,6 +213,57 @@ def read_input(
     if isinstance(result, OSError):
         raise DataFileError(name, f"cannot read the file: {os_reason(result)}")
     return result, file_identity(name, result)
+
+
+def _estimate_parameters(
+    config: Any, scans: list[Any], *, stop: Callable[[], bool] | None, progress: bool
+) -> Any:
+    """The configuration's "auto" sensor parameters from the recording, a line per pass.
+
+    Raises
+    ------
+    StoppedBeforeRun
+        ``stop`` asked to stop (nothing is written).
+    """
+    from mapassoc.estimator.parameters import EstimationStopped, estimate_parameters
+
+    def report(record: Any) -> None:
+        if not progress or sys.stderr is None:
+            return
+        moves = "; ".join(
+            f"{name}: false_alarms_per_scan {used[0]:.4g} -> {record.updated[name][0]:.4g}, "
+            f"detection_probability {used[1]:.3f} -> {record.updated[name][1]:.3f}"
+            for name, used in record.used.items()
+        )
+        print(
+            f"mapassoc: parameters pass {record.index + 1}: {moves} ({record.tracks} tracks, "
+            f"{record.seconds:.1f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    try:
+        return estimate_parameters(config, scans, on_pass=report, stop=stop)
+    except EstimationStopped as exc:
+        raise StoppedBeforeRun(str(exc)) from None
+
+
+def _with_estimates(config: Any, parameters: dict[str, Any]) -> Any:
+    """``config`` with the sensor values of a ``parameters`` record (ParameterEstimate)."""
+    from mapassoc.estimator.parameters import with_sensor_parameters
+
+    values = {
+        name: (float(entry["false_alarms_per_scan"]), float(entry["detection_probability"]))
+        for name, entry in parameters["sensors"].items()
+    }
+    return with_sensor_parameters(config, values)
+
+
+def _as_warnings(messages: Iterable[str]) -> list[warnings.WarningMessage]:
+    """Messages in the shape of recorded warnings (to join the configuration's)."""
+    return [
+        warnings.WarningMessage(message, UserWarning, __file__, 0) for message in messages
+    ]
 
 
 def _integer_solvers() -> tuple[str, ...]:
@@ -412,6 +471,17 @@ def run_files(
 
     scans = read_detections_file(detections_path, config.sensors, content=detections_bytes)
     del detections_bytes  # parsed: the scans are what the run needs from here on
+    parameters: dict[str, Any] | None = None
+    precomputed = None
+    if config.auto.pending:
+        if manifest is not None and manifest.get("parameters") is not None:
+            parameters = manifest["parameters"]  # a resumed run keeps its estimates
+        else:
+            estimate = _estimate_parameters(config, scans, stop=stop, progress=progress)
+            parameters = estimate.to_json(timings=timings)
+            precomputed = estimate.result if segments == 1 else None
+            config_warnings.extend(_as_warnings(estimate.warnings))
+        config = _with_estimates(config, parameters)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         from mapassoc.estimator.pipeline import WindowEstimator
@@ -424,6 +494,8 @@ def run_files(
         try:
             if checkpoint is None:
                 manifest = new_manifest(inputs=inputs, settings=settings, scans_total=len(scans))
+                if parameters is not None:
+                    manifest["parameters"] = parameters
                 messages = [str(w.message) for w in (*config_warnings, *caught)]
                 messages += detections_outside_region(scans, config.sensors)
             else:
@@ -448,7 +520,7 @@ def run_files(
                     result = _run_windows(
                         session, estimator, scans, fresh_state, checkpoint, timings=timings,
                         stop=stop, checkpoint_seconds=checkpoint_seconds, ticker=ticker,
-                        caught=caught,
+                        caught=caught, precomputed=precomputed,
                     )  # fmt: skip
                 else:
                     result = _run_segments(
@@ -463,6 +535,7 @@ def run_files(
                     "config": manifest["inputs"]["config"]["path"],
                     "detections": manifest["inputs"]["detections"]["path"],
                     **result.summary(timings=timings),
+                    **({"parameters": parameters} if parameters is not None else {}),
                     "warnings": messages,
                 }
                 session.writing = folder.partial / TRACKS_FORMATS[tracks_format]
@@ -507,8 +580,21 @@ def _run_windows(
     checkpoint_seconds: float,
     ticker: Progress,
     caught: list[warnings.WarningMessage],
+    precomputed: Any = None,
 ) -> Any:
-    """The sequential run, window by window, writing ``windows.jsonl`` as it goes."""
+    """The sequential run, window by window, writing ``windows.jsonl`` as it goes.
+
+    ``precomputed``: the whole run already done (the parameter estimation's last pass
+    covered every scan with the final values); its windows are written, not solved again.
+    """
+    if precomputed is not None and checkpoint is None:
+        with _open_windows(session.folder.partial / WINDOWS_NAME, 0) as stream:
+            for report in precomputed.windows:
+                stream.write(_window_line(report, timings))
+        session.scans_committed = precomputed.num_scans
+        session.windows_committed = precomputed.tally.windows
+        ticker(precomputed.num_scans, precomputed.num_scans)
+        return precomputed
     if checkpoint is None:
         state, windows_bytes = fresh_state, 0
     else:

@@ -102,8 +102,8 @@ def test_estimates_land_near_the_truth(name: str, seed: int) -> None:
     assert found.rate_estimated and found.pd_estimated
     assert found.false_alarms_per_scan == pytest.approx(true.false_alarms_per_scan, rel=0.10)
     assert found.detection_probability == pytest.approx(true.detection_probability, abs=0.05)
-    assert estimate.converged and estimate.warnings == ()
-    assert list(estimate.passes) == passes and len(passes) <= 6
+    assert estimate.warnings == ()
+    assert list(estimate.passes) == passes and len(passes) <= 3
     # The first pass starts where every detection is clutter and Pd at the default.
     mean = sum(scan.size for scan in built.scans) / len(built.scans)
     assert passes[0].used["pos"] == (mean, DEFAULT_PD_START)
