@@ -5,6 +5,7 @@ Subcommands::
     mapassoc scenarios                               list the built-in scenarios
     mapassoc simulate NAME --out DIR [--scans N]     write a scenario folder
     mapassoc run CONFIG DETECTIONS --out DIR         estimate tracks
+    mapassoc estimate-parameters CONFIG DETECTIONS   sensor parameters from the recording
     mapassoc batch SOURCE --out DIR [--config C]     many recordings, in parallel
     mapassoc evaluate TRACKS TRUTH [--json FILE]     GOSPA, RMSE, cardinality error
     mapassoc demo [--scenario NAME] [--out DIR]      simulate, run, evaluate, plot
@@ -37,8 +38,10 @@ __all__ = ["main", "build_parser"]
 
 
 def _count(number: object, noun: str) -> str:
-    """``"1 track"``, ``"2 tracks"``, ``"0 tracks"``."""
-    return f"{number} {noun}" if number == 1 else f"{number} {noun}s"
+    """``"1 track"``, ``"2 tracks"``, ``"0 tracks"``, ``"3 passes"``."""
+    if number == 1:
+        return f"{number} {noun}"
+    return f"{number} {noun}{'es' if noun.endswith('s') else 's'}"
 
 
 def _cmd_scenarios(args: argparse.Namespace) -> int:
@@ -100,6 +103,27 @@ def _cmd_run(args: argparse.Namespace) -> int:
         f"{_count(summary['windows'], 'window')}{resumed} -> {args.out}/tracks."
         f"{args.tracks_format}, windows.jsonl, summary.json, manifest.json"
     )
+    return 0
+
+
+def _cmd_estimate_parameters(args: argparse.Namespace) -> int:
+    from mapassoc.apps.estimate import estimate_file_parameters
+
+    with stop_on_signals(StopFlag()) as stop:
+        report = estimate_file_parameters(
+            args.config, args.detections, write=args.write, stop=stop,
+            progress=not args.no_progress,
+        )  # fmt: skip
+    print(report.table())
+    estimate = report.estimate
+    how = "converged" if estimate.converged else "pass limit"
+    print(
+        f"{_count(len(estimate.passes), 'pass')} ({how}) over "
+        f"{_count(estimate.sample_scans, 'scan')}"
+        + (f" -> {args.write}" if args.write else "")
+    )
+    for message in report.warnings:
+        print(f"mapassoc: warning: {message}", file=sys.stderr)
     return 0
 
 
@@ -361,6 +385,23 @@ def build_parser() -> argparse.ArgumentParser:
         help="tracks.csv (default) or tracks.parquet (extra 'parquet')",
     )
     p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser(
+        "estimate-parameters",
+        help="estimate each sensor's false-alarm rate and Pd from a recording",
+        description="Estimates every sensor's false_alarms_per_scan and "
+        "detection_probability from the recording by expectation-maximisation around the "
+        "estimator (mapassoc.estimator.parameters), prints them next to the configured "
+        "values, warns where they disagree by more than a factor 1.5 (rate) or 0.1 (Pd), "
+        "and with --write writes the configuration with the estimates filled in.",
+        allow_abbrev=False,
+    )
+    p.add_argument("config", help="TOML configuration (numbers or \"auto\")")
+    p.add_argument("detections", help="detections file, CSV or Parquet by its suffix")
+    p.add_argument("--write", metavar="TOML", help="write the estimated configuration here "
+                   "(a new file)")  # fmt: skip
+    p.add_argument("--no-progress", action="store_true", help="no line per pass on stderr")
+    p.set_defaults(func=_cmd_estimate_parameters)
 
     p = sub.add_parser(
         "batch",

@@ -37,6 +37,7 @@ __all__ = [
     "StoppedBeforeRun",
     "InputWaitInterrupted",
     "read_input",
+    "estimate_with_progress",
     "StopFlag",
     "json_dump",
     "run_files",
@@ -215,10 +216,18 @@ def read_input(
     return result, file_identity(name, result)
 
 
-def _estimate_parameters(
-    config: Any, scans: list[Any], *, stop: Callable[[], bool] | None, progress: bool
+def estimate_with_progress(
+    config: Any,
+    scans: list[Any],
+    *,
+    stop: Callable[[], bool] | None,
+    progress: bool,
+    every_sensor: bool = False,
 ) -> Any:
     """The configuration's "auto" sensor parameters from the recording, a line per pass.
+
+    ``every_sensor``: estimate every sensor's rate and ``Pd``, not only the "auto" ones
+    (the configuration's ``detection_probability_start`` still serves as a start).
 
     Raises
     ------
@@ -242,8 +251,14 @@ def _estimate_parameters(
             flush=True,
         )
 
+    rates, pds = config.auto.false_alarms, config.auto.pd_starts()
+    if every_sensor:
+        rates, pds = tuple(config.sensors), {name: pds.get(name) for name in config.sensors}
     try:
-        return estimate_parameters(config, scans, on_pass=report, stop=stop)
+        return estimate_parameters(
+            config, scans, false_alarms=rates, detection_probability=pds, on_pass=report,
+            stop=stop,
+        )  # fmt: skip
     except EstimationStopped as exc:
         raise StoppedBeforeRun(str(exc)) from None
 
@@ -477,7 +492,7 @@ def run_files(
         if manifest is not None and manifest.get("parameters") is not None:
             parameters = manifest["parameters"]  # a resumed run keeps its estimates
         else:
-            estimate = _estimate_parameters(config, scans, stop=stop, progress=progress)
+            estimate = estimate_with_progress(config, scans, stop=stop, progress=progress)
             parameters = estimate.to_json(timings=timings)
             precomputed = estimate.result if segments == 1 else None
             config_warnings.extend(_as_warnings(estimate.warnings))

@@ -1,0 +1,154 @@
+"""``mapassoc estimate-parameters``: sensor parameters from a recording, next to the configured.
+
+Estimates every sensor's false-alarm rate and detection probability from the recording
+(:mod:`mapassoc.estimator.parameters`), prints them beside the configured values, warns
+where a configured number and its estimate disagree by more than
+:data:`RATE_DISAGREEMENT` (a factor, either way) or :data:`PD_DISAGREEMENT` (an absolute
+difference), and writes a configuration with the estimates filled in.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+from mapassoc.errors import InputError
+
+__all__ = [
+    "RATE_DISAGREEMENT",
+    "PD_DISAGREEMENT",
+    "ParameterReport",
+    "estimate_file_parameters",
+    "disagreements",
+]
+
+RATE_DISAGREEMENT = 1.5
+"""A configured false-alarm rate more than this factor above or below its estimate is
+reported: a factor 2 in dense clutter costs 1.7 to 3.5 times the GOSPA."""
+PD_DISAGREEMENT = 0.1
+"""A configured detection probability further than this from its estimate is reported."""
+
+
+@dataclass(frozen=True)
+class ParameterReport:
+    """What :func:`estimate_file_parameters` found.
+
+    Attributes
+    ----------
+    estimate : ParameterEstimate
+        The estimates, passes and notes.
+    configured : dict of str to (float or None, float or None)
+        Per sensor, the configured ``(false_alarms_per_scan, detection_probability)``;
+        None where the configuration says "auto".
+    warnings : tuple of str
+        The disagreements (:func:`disagreements`) and the estimation's own notes.
+    """
+
+    estimate: Any
+    configured: dict[str, tuple[float | None, float | None]]
+    warnings: tuple[str, ...]
+
+    def table(self) -> str:
+        """An aligned text table: sensor, configured and estimated values."""
+        header = (
+            f"{'sensor':12s} {'false alarms/scan':>18s} {'estimated':>10s} "
+            f"{'Pd':>8s} {'estimated':>10s}"
+        )
+        lines = [header, "-" * len(header)]
+        for name, found in self.estimate.sensors.items():
+            rate, pd = self.configured[name]
+            lines.append(
+                f"{name:12s} {_text(rate, '.4g'):>18s} "
+                f"{_text(found.false_alarms_per_scan, '.4g', found.rate_estimated):>10s} "
+                f"{_text(pd, '.3f'):>8s} "
+                f"{_text(found.detection_probability, '.3f', found.pd_estimated):>10s}"
+            )
+        return "\n".join(lines)
+
+
+def _text(value: float | None, spec: str, estimated: bool = True) -> str:
+    if value is None:
+        return "auto"
+    return format(value, spec) + ("" if estimated else " (kept)")
+
+
+def disagreements(
+    configured: dict[str, tuple[float | None, float | None]], estimate: Any
+) -> list[str]:
+    """Messages where a configured number and its estimate disagree (module docstring)."""
+    out = []
+    for name, found in estimate.sensors.items():
+        rate, pd = configured[name]
+        new_rate = found.false_alarms_per_scan
+        if found.rate_estimated and rate is not None:
+            low, high = sorted((rate, new_rate))
+            if high > RATE_DISAGREEMENT * low or (low == 0 < high):
+                out.append(
+                    f"sensor '{name}': configured false_alarms_per_scan = {rate:.4g}, the "
+                    f"recording says {new_rate:.4g} (more than a factor {RATE_DISAGREEMENT} "
+                    "apart)"
+                )
+        if found.pd_estimated and pd is not None:
+            if abs(pd - found.detection_probability) > PD_DISAGREEMENT:
+                out.append(
+                    f"sensor '{name}': configured detection_probability = {pd:.3f}, the "
+                    f"recording says {found.detection_probability:.3f} (more than "
+                    f"{PD_DISAGREEMENT} apart)"
+                )
+    return out
+
+
+def estimate_file_parameters(
+    config_path: str | os.PathLike[str],
+    detections_path: str | os.PathLike[str],
+    *,
+    write: str | os.PathLike[str] | None = None,
+    stop: Any = None,
+    progress: bool = True,
+) -> ParameterReport:
+    """Estimate every sensor's rate and ``Pd`` from a recording; optionally write them.
+
+    Parameters
+    ----------
+    config_path, detections_path : path
+        The TOML configuration ("auto" or numbers) and the detections file.
+    write : path, optional
+        Write the configuration with the estimates filled in (numbers) to this file;
+        it must not exist yet.
+    stop : callable, optional
+        Polled between windows (SIGINT, SIGTERM).
+    progress : bool
+        A line per pass on stderr.
+
+    Raises
+    ------
+    InputError, ConfigError, DataFileError
+        Bad inputs, or ``write`` names an existing file (nothing is overwritten).
+    """
+    from mapassoc.apps.runs import estimate_with_progress, read_input
+    from mapassoc.data.config import load_config, write_config
+    from mapassoc.data.formats import read_detections_file
+
+    if write is not None and os.path.lexists(write):
+        raise InputError(f"{os.fspath(write)} exists already; name a new file to write")
+    config_bytes, _ = read_input(config_path, stop=stop)
+    config = load_config(config_path, content=config_bytes)
+    detections_bytes, _ = read_input(detections_path, stop=stop)
+    scans = read_detections_file(detections_path, config.sensors, content=detections_bytes)
+    auto_rates = set(config.auto.false_alarms)
+    auto_pds = config.auto.pd_starts()
+    configured = {
+        name: (
+            None if name in auto_rates else sensor.false_alarms_per_scan,
+            None if name in auto_pds else sensor.detection_probability,
+        )
+        for name, sensor in config.sensors.items()
+    }
+    estimate = estimate_with_progress(
+        config, scans, stop=stop, progress=progress, every_sensor=True
+    )
+    warnings = (*disagreements(configured, estimate), *estimate.warnings)
+    if write is not None:
+        write_config(write, estimate.config)
+    return ParameterReport(estimate=estimate, configured=configured, warnings=warnings)
