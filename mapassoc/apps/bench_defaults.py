@@ -7,7 +7,7 @@ estimator.
 
 from __future__ import annotations
 
-__all__ = ["DEFAULT_FAMILIES", "DEFAULT_K_PRIORS"]
+__all__ = ["DEFAULT_FAMILIES", "DEFAULT_K_PRIORS", "DEFAULT_PARAMETER_FAMILIES"]
 
 #: Families run by default, in this order.
 DEFAULT_FAMILIES: tuple[str, ...] = (
@@ -23,3 +23,8 @@ DEFAULT_FAMILIES: tuple[str, ...] = (
 )
 #: Priors compared by default, in this order (the first is the one the goals judge).
 DEFAULT_K_PRIORS: tuple[str, ...] = ("birth", "uniform")
+
+DEFAULT_PARAMETER_FAMILIES = ("crossing", "parallel", "dense_pd08", "dense", "scale20", "burst")
+"""Families of ``mapassoc bench-parameters`` (one sensor each): sparse and dense clutter,
+closely spaced lanes, low Pd, many targets, and a clutter burst (a rate that is not
+constant, where "true" is only the background rate)."""
