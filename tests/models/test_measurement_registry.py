@@ -213,7 +213,8 @@ def test_a_registered_model_gets_the_schema_errors(bearing_only: str) -> None:
     assert unknown.key == "sensors[0].noise_std"
     assert (
         "allowed keys for a bearing_only sensor: name, measurement, detection_probability, "
-        "false_alarms_per_scan, region, position, bearing_std, scans, tag"
+        "detection_probability_start, false_alarms_per_scan, region, position, bearing_std, "
+        "scans, tag"
     ) in str(unknown)
     assert error(position=[1.0]).key == "sensors[0].position"
     assert "must be [x, y], got [1.0]" in str(error(position=[1.0]))
