@@ -167,6 +167,11 @@ class WindowSolution:
     timed_out : bool
         Whether the window ran past ``time_limit`` (whether or not that changed the
         answer; see :attr:`status`).
+    pruning_cut_short : bool
+        Whether a cluster the LP bound would have pruned went unpruned because the
+        deadline had passed (conservatively: also when the bound would have kept every
+        hypothesis anyway).  Its mass then depends on the clock, so the window's status
+        is ``time_limit`` even where every cluster was solved exactly.
     """
 
     hypotheses: WindowHypotheses
@@ -180,15 +185,20 @@ class WindowSolution:
     solve_seconds: float
     bound_pruned: int = 0
     timed_out: bool = False
+    pruning_cut_short: bool = False
 
     @property
     def status(self) -> WindowStatus:
         """The worst of :class:`WindowStatus` that applies.
 
-        ``time_limit`` means that the deadline changed the answer (a cluster got only
-        what was certified by then).  A window that merely ran long, every cluster
-        still solved, keeps its status and says so in :attr:`timed_out`.
+        ``time_limit`` means that the deadline (may have) changed the answer: a cluster
+        got only what was certified by then, or went unpruned because the deadline had
+        passed (:attr:`pruning_cut_short`).  A window that merely ran long, every
+        cluster still solved as it would have been without a clock, keeps its status and
+        says so in :attr:`timed_out`.
         """
+        if self.pruning_cut_short:
+            return WindowStatus.TIME_LIMIT
         worst = WindowStatus.CAPPED if self.hypotheses.nodes_capped else WindowStatus.EXACT
         for report in self.bounded_clusters:
             worst = max(worst, WindowStatus.of_cluster(report.status), key=WINDOW_STATUSES.index)
@@ -637,6 +647,7 @@ class WindowEstimator:
         tables: list[ClusterTable] = []
         reports: list[ClusterReport] = []
         bound_pruned = 0
+        pruning_cut_short = False
         required = problem.exactly_one[problem.resource_indices]
         has_required = np.zeros(problem.num_hypotheses, dtype=bool)
         np.logical_or.at(
@@ -664,6 +675,8 @@ class WindowEstimator:
             # the end") merge exactly: best score for the MAP, summed weight for the mass.
             merged = merge_interchangeable(problem.subproblem(members))
             keep = self.cluster_solver.bound_prune(merged.problem, deadline)
+            if keep is None and time.perf_counter() >= deadline and self._prunable(merged):
+                pruning_cut_short = True  # the clock, not the bound, left it unpruned
             if keep is not None:
                 bound_pruned += int(np.count_nonzero(~keep))
                 kept = np.flatnonzero(keep)
@@ -708,6 +721,15 @@ class WindowEstimator:
             solve_seconds=t2 - t1,
             bound_pruned=bound_pruned,
             timed_out=t2 > deadline,
+            pruning_cut_short=pruning_cut_short,
+        )
+
+    def _prunable(self, merged: MergedProblem) -> bool:
+        """Whether :meth:`ClusterSolver.bound_prune` would have tried ``merged``."""
+        solver = self.cluster_solver
+        return (
+            merged.problem.num_hypotheses >= solver.bound_prune_min_hypotheses
+            and math.isfinite(solver.prune_log_ratio)
         )
 
     # -- whole run -------------------------------------------------------------------

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -205,12 +203,11 @@ def test_max_tracks_for_counts_the_most_targets_alive_at_one_time() -> None:
     assert scenarios.max_tracks_for([], plan) == 8
 
 
-def test_a_10000_scan_recording_builds_in_seconds() -> None:
-    start = time.perf_counter()
+def test_a_10000_scan_recording_builds() -> None:
+    """(How fast is measured by `mapassoc bench-reprocess`, not asserted here: a timed
+    test depends on the machine.)"""
     scenario = build_scenario("crossing", 0, scans=10_000)
-    seconds = time.perf_counter() - start
     assert len(scenario.scans) == 10_000
     assert scenario.detection_count > 60_000
-    assert seconds < 20.0, seconds
     _, alive = alive_per_time(scenario)
     assert 2.5 <= alive[-2000:].mean() <= 4.5
