@@ -492,9 +492,12 @@ def run_files(
         if manifest is not None and manifest.get("parameters") is not None:
             parameters = manifest["parameters"]  # a resumed run keeps its estimates
         else:
-            estimate = estimate_with_progress(config, scans, stop=stop, progress=progress)
+            with warnings.catch_warnings(record=True) as estimation_warnings:
+                warnings.simplefilter("always")  # the passes' own, kept for summary.json
+                estimate = estimate_with_progress(config, scans, stop=stop, progress=progress)
             parameters = estimate.to_json(timings=timings)
             precomputed = estimate.result if segments == 1 else None
+            config_warnings.extend(estimation_warnings)
             config_warnings.extend(_as_warnings(estimate.warnings))
         config = _with_estimates(config, parameters)
     with warnings.catch_warnings(record=True) as caught:
