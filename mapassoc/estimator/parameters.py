@@ -495,9 +495,14 @@ def estimate_parameters(
         of_sensor = [scan for scan in sampled if scan.sensor == name]
         rate = sensor.false_alarms_per_scan
         if name in rates and len(of_sensor) < MIN_SCANS:
+            if name in config.auto.false_alarms:  # no configured number to keep
+                rate = sum(scan.size for scan in of_sensor) / max(len(of_sensor), 1)
+                kept = f"used the mean detections per scan, {rate!r}"
+            else:
+                kept = f"kept {rate!r}"
             notes[name].append(
                 f"sensor '{name}': false_alarms_per_scan not estimable from "
-                f"{len(of_sensor)} scans (at least {MIN_SCANS} needed); kept {rate!r}"
+                f"{len(of_sensor)} scans (at least {MIN_SCANS} needed); {kept}"
             )
             rates.remove(name)
         elif name in rates:  # every detection clutter: an upper bound on the rate

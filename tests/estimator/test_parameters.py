@@ -204,3 +204,18 @@ def test_the_configuration_s_auto_parameters_are_the_default_request() -> None:
     with pytest.raises(InputError) as info:
         estimate_parameters(auto, built.scans, false_alarms=["pos"])
     assert info.value.key == "auto" and "detection_probability" in str(info.value)
+
+
+def test_too_few_scans_for_an_auto_rate_use_the_mean_detections() -> None:
+    """An "auto" rate has no configured number to keep: with too few scans it is the mean
+    detections per scan (never the configuration's placeholder of no false alarms)."""
+    import dataclasses
+
+    from mapassoc.data.config import AutoParameters
+
+    built = build_scenario("crossing", 0, scans=3)
+    auto = dataclasses.replace(built.config, auto=AutoParameters(("pos",), ()))
+    estimate = estimate_parameters(auto, built.scans)
+    found = estimate.sensors["pos"]
+    assert found.false_alarms_per_scan == sum(s.size for s in built.scans) / 3 > 0
+    assert any("used the mean detections per scan" in w for w in estimate.warnings)
