@@ -150,3 +150,22 @@ def test_a_stop_while_estimating_writes_nothing(scenario: Path, tmp_path: Path) 
         run_files(config, scenario / "detections.csv", out, progress=False,
                   stop=lambda: True)  # fmt: skip
     assert not out.exists() and not out.with_name("out.partial").exists()
+
+
+def test_a_batch_estimates_each_recording_s_parameters(scenario: Path, tmp_path: Path) -> None:
+    import shutil
+
+    source = tmp_path / "recs"
+    (source / "one").mkdir(parents=True)
+    shutil.copy(scenario / "detections.csv", source / "one" / "detections.csv")
+    shutil.copy(_auto(scenario), source / "one" / "config.toml")
+    out = tmp_path / "batch"
+    assert main(["batch", str(source), "--out", str(out), "--jobs", "1", "--no-timings",
+                 "--no-progress"]) == 0  # fmt: skip
+    summary = json.loads((out / "one" / "summary.json").read_text())
+    found = summary["parameters"]["sensors"]["pos"]
+    assert found["rate_estimated"] and found["pd_estimated"]
+    single = tmp_path / "single"
+    run_files(source / "one" / "config.toml", source / "one" / "detections.csv", single,
+              timings=False, progress=False)  # fmt: skip
+    assert (single / "tracks.csv").read_bytes() == (out / "one" / "tracks.csv").read_bytes()
