@@ -27,9 +27,13 @@ def test_window_status_is_the_worst_that_applies(capped: bool, clusters: tuple[s
     window = SimpleNamespace(
         hypotheses=SimpleNamespace(nodes_capped=int(capped)),
         bounded_clusters=[SimpleNamespace(status=ClusterStatus(c)) for c in clusters],
+        pruning_cut_short=False,
     )
     status = WindowSolution.status.fget(window)  # type: ignore[attr-defined]
     expected = "time_limit" if "time_limit" in clusters else (
         "bounded" if clusters else ("capped" if capped else "exact")
     )
     assert status is WindowStatus(expected)
+    # Pruning skipped for the deadline is time_limit whatever the clusters say.
+    window.pruning_cut_short = True
+    assert WindowSolution.status.fget(window) is WindowStatus.TIME_LIMIT  # type: ignore[attr-defined]

@@ -309,7 +309,7 @@ def test_window_status_is_the_worst_cluster_status_in_any_order() -> None:
     for clusters in (worst_first, worst_first[::-1], worst_first[1:], ()):
         for capped in (False, True):
             window = SimpleNamespace(hypotheses=SimpleNamespace(nodes_capped=capped),
-                                     bounded_clusters=clusters)
+                                     bounded_clusters=clusters, pruning_cut_short=False)
             expected = max(
                 [WINDOW_STATUSES.index("capped" if capped else "exact")]
                 + [WINDOW_STATUSES.index(c.status) for c in clusters]
