@@ -43,6 +43,24 @@ MAX_ENUMERATED_HYPOTHESES = 40  # EnumerationSolver's default max_variables
 # ------------------------------------------------------------------ one-sensor windows
 
 
+MINIMAL_CONFIG_TOML = """
+[motion]
+model = "constant_velocity"
+ndim = 2
+noise_intensity = 0.5
+
+[[sensors]]
+name = "radar"
+measurement = "position"
+noise_std = 1.0
+detection_probability = 0.9
+false_alarms_per_scan = 10.0
+region = [[-100.0, 100.0], [-100.0, 100.0]]
+"""
+"""The smallest configuration file: a constant-velocity model and one position sensor
+"radar" (no [birth] or [estimator] section)."""
+
+
 def make_config(
     *,
     motion: MotionModel,

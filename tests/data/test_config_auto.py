@@ -3,28 +3,17 @@
 from __future__ import annotations
 
 import pytest
+from support import MINIMAL_CONFIG_TOML
 
 from mapassoc.data.config import AutoParameters, config_to_toml, load_config, parse_config
 from mapassoc.errors import ConfigError, InputError
 from mapassoc.estimator.pipeline import WindowEstimator
 
-BASE = """
-[motion]
-model = "constant_velocity"
-ndim = 2
-noise_intensity = 0.5
-
-[[sensors]]
-name = "radar"
-measurement = "position"
-noise_std = 1.0
-detection_probability = {pd}
-false_alarms_per_scan = {rate}
-region = [[-100.0, 100.0], [-100.0, 100.0]]
-{extra}
-[birth]
-[estimator]
-"""
+BASE = (
+    MINIMAL_CONFIG_TOML.replace("detection_probability = 0.9", "detection_probability = {pd}")
+    .replace("false_alarms_per_scan = 10.0", "false_alarms_per_scan = {rate}")
+    + "{extra}\n[birth]\n[estimator]\n"
+)
 
 
 def _text(pd: str = "0.9", rate: str = "10.0", extra: str = "") -> str:

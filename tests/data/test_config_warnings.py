@@ -7,26 +7,14 @@ import warnings
 from pathlib import Path
 
 import pytest
+from support import MINIMAL_CONFIG_TOML
 
 from mapassoc.data.config import load_config, parse_config
 from mapassoc.data.settings import EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
 from mapassoc.solvers import SOLVER_NAMES, available_solvers
 
-BASE = """
-[motion]
-model = "constant_velocity"
-ndim = 2
-noise_intensity = 0.5
-
-[[sensors]]
-name = "radar"
-measurement = "position"
-noise_std = 1.0
-detection_probability = 0.9
-false_alarms_per_scan = 10.0
-region = [[-100.0, 100.0], [-100.0, 100.0]]
-"""
+BASE = MINIMAL_CONFIG_TOML
 BIRTH = "\n[birth]\nrate = 0.2\n"
 ESTIMATOR = "\n[estimator]\nwindow_length = 4\n"
 

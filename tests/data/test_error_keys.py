@@ -11,26 +11,12 @@ import dataclasses
 import tomllib
 
 import pytest
+from support import MINIMAL_CONFIG_TOML
 
 from mapassoc.data.config import parse_config
 from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
 from mapassoc.estimator.posterior import CountPrior
-
-MINIMAL_TOML = """
-[motion]
-model = "constant_velocity"
-ndim = 2
-noise_intensity = 0.5
-
-[[sensors]]
-name = "radar"
-measurement = "position"
-noise_std = 1.0
-detection_probability = 0.9
-false_alarms_per_scan = 10.0
-region = [[-100.0, 100.0], [-100.0, 100.0]]
-"""
 
 # One bad value per validated field, typed as the TOML reader hands it over (so the
 # same table drives the constructor and the config reader), plus the other fields it
@@ -109,7 +95,7 @@ def test_config_reports_section_and_field(
 ) -> None:
     with pytest.raises(InputError) as direct:
         cls(**extra, **{name: bad})
-    data = copy.deepcopy(tomllib.loads(MINIMAL_TOML))
+    data = copy.deepcopy(tomllib.loads(MINIMAL_CONFIG_TOML))
     data[section] = {**extra, name: list(bad) if isinstance(bad, tuple) else bad}
     with pytest.raises(ConfigError) as info:
         parse_config(data, source="bad.toml")
