@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -35,6 +36,9 @@ from scipy.optimize import linear_sum_assignment
 
 from mapassoc.errors import InputError
 from mapassoc.validation import check_positive
+
+if TYPE_CHECKING:
+    from mapassoc.evaluation.tgospa import TgospaResult, TrackFragmentation
 
 __all__ = [
     "GospaResult",
@@ -642,12 +646,20 @@ class RunEvaluation:
         Pairs the RMSE is taken over.
     cardinality : CardinalityError
         Per-time ``#estimates - #truth``.
+    tgospa : TgospaResult or None
+        T-GOSPA of the trajectories (:mod:`mapassoc.evaluation.tgospa`); ``None`` unless
+        :func:`evaluate` was given a ``switch_cost``.
+    fragmentation : TrackFragmentation or None
+        Fragments per true target and identity switches of the T-GOSPA assignment; ``None``
+        with ``tgospa``.
     """
 
     gospa: GospaSeries
     position_rmse: float | None
     num_assigned_pairs: int
     cardinality: CardinalityError
+    tgospa: TgospaResult | None = None
+    fragmentation: TrackFragmentation | None = None
 
     @property
     def num_times(self) -> int:
@@ -662,20 +674,34 @@ class RunEvaluation:
     def to_json(self) -> dict[str, object]:
         """The means as a JSON-ready dictionary of plain numbers (``mapassoc evaluate --json``):
         ``{"num_times", "gospa": GospaSeries.summary(), "position_rmse" (null without pairs),
-        "num_assigned_pairs", "mean_abs_cardinality_error"}``."""
-        return {
+        "num_assigned_pairs", "mean_abs_cardinality_error"}``, plus ``"tgospa"``
+        (:meth:`TgospaResult.summary`) and ``"fragmentation"``
+        (:meth:`TrackFragmentation.summary`) when T-GOSPA was computed."""
+        out: dict[str, object] = {
             "num_times": self.num_times,
             "gospa": self.gospa.summary(),
             "position_rmse": self.position_rmse,
             "num_assigned_pairs": self.num_assigned_pairs,
             "mean_abs_cardinality_error": self.mean_abs_cardinality_error,
         }
+        if self.tgospa is not None:
+            out["tgospa"] = self.tgospa.summary()
+        if self.fragmentation is not None:
+            out["fragmentation"] = self.fragmentation.summary()
+        return out
 
 
 def evaluate(
-    truth: TimedPoints, estimates: TimedPoints, *, c: float, p: float = 2.0
+    truth: TimedPoints,
+    estimates: TimedPoints,
+    *,
+    c: float,
+    p: float = 2.0,
+    switch_cost: float | None = None,
+    tgospa_method: str = "milp",
 ) -> RunEvaluation:
-    """All metrics of a run: GOSPA over time, position RMSE, cardinality error.
+    """All metrics of a run: GOSPA over time, position RMSE, cardinality error, and with a
+    ``switch_cost`` T-GOSPA of the trajectories with the fragments per target.
 
     Parameters
     ----------
@@ -685,23 +711,40 @@ def evaluate(
         GOSPA cut-off distance, > 0.
     p : float
         GOSPA order, ``1 <= p < inf``; it also decides the pairs the RMSE is taken over.
+    switch_cost : float, optional
+        T-GOSPA switching cost gamma > 0 (same ``c`` and ``p``); ``None`` skips T-GOSPA and
+        fragmentation (their fields are then ``None``).
+    tgospa_method : {"milp", "lp"}
+        ``milp``: exact T-GOSPA; ``lp``: its LP relaxation (a lower bound, for very large
+        runs).  Fragmentation comes from the assignment of the method chosen.
 
     Returns
     -------
     RunEvaluation
         Typed; :meth:`RunEvaluation.to_json` gives the dictionary the command line writes.
     """
+    from mapassoc.evaluation.tgospa import _check_method, fragmentation_of, tgospa
+
     cutoff = check_positive("c", c)
     order = _check_order(p)
+    gamma = None if switch_cost is None else check_positive("switch_cost", switch_cost)
+    method = _check_method(tgospa_method)
     _check_runs(truth, estimates)
     times, results = _per_time_gospa(truth, estimates, cutoff, order)
     series = _series(times, results, cutoff, order)
     rmse, num_pairs = _rmse(results)
+    trajectory = (
+        None
+        if gamma is None
+        else tgospa(truth, estimates, c=cutoff, gamma=gamma, p=order, method=method)
+    )
     return RunEvaluation(
         gospa=series,
         position_rmse=None if math.isnan(rmse) else rmse,
         num_assigned_pairs=num_pairs,
         cardinality=cardinality_error(truth, estimates),
+        tgospa=trajectory,
+        fragmentation=None if trajectory is None else fragmentation_of(trajectory),
     )
 
 
@@ -778,6 +821,27 @@ def format_report(summary: RunEvaluation | dict) -> str:
         ("mean |cardinality error|", summary["mean_abs_cardinality_error"]),
         ("evaluation times", summary["num_times"]),
     ]
+    tg = summary.get("tgospa")
+    if isinstance(tg, dict):
+        bound = "" if tg.get("method") == "milp" else ", LP lower bound"
+        rows += [
+            (
+                f"T-GOSPA (c={float(tg['c']):g}, p={float(tg['p']):g}, "
+                f"gamma={float(tg['gamma']):g}{bound})",
+                tg["total"],
+            ),
+            (f"  localisation part of T-GOSPA^{p}", tg["localisation"]),
+            (f"  missed part of T-GOSPA^{p}", tg["missed"]),
+            (f"  false part of T-GOSPA^{p}", tg["false"]),
+            (f"  switching part of T-GOSPA^{p}", tg["switching"]),
+            ("  switches (full 1, start or end 1/2)", tg["num_switches"]),
+        ]
+    fragmentation = summary.get("fragmentation")
+    if isinstance(fragmentation, dict):
+        rows += [
+            ("fragments per tracked target", fragmentation["fragments_per_target"]),
+            ("identity switches", fragmentation["id_switches"]),
+        ]
     texts = [(name, _number(value)) for name, value in rows]
     name_width = max(len(name) for name, _ in texts)
     value_width = max(len(text) for _, text in texts)

@@ -66,20 +66,35 @@ def track_points(tracks: TrackTable, names: tuple[str, ...]) -> TimedPoints:
 
 
 def evaluate_tables(
-    truth: TruthTable, tracks: TrackTable, *, c: float, p: float = 2.0
+    truth: TruthTable,
+    tracks: TrackTable,
+    *,
+    c: float,
+    p: float = 2.0,
+    switch_cost: float | None = None,
+    tgospa_method: str = "milp",
 ) -> RunEvaluation:
     """GOSPA (over time, with its parts), position RMSE and cardinality error of tracks vs truth.
 
     Evaluated at every time that has a truth or a track row (both files are written at
     scan times): a truth time without tracks counts its targets as missed, a track time
     without targets counts its tracks as false.  Warns (``UserWarning``) when the two
-    share no time (:func:`disjoint_times_message`).
+    share no time (:func:`disjoint_times_message`).  With a ``switch_cost`` (gamma > 0) it
+    adds T-GOSPA of the trajectories (one target id, one track id = one trajectory) and the
+    fragments per target (:func:`mapassoc.evaluation.metrics.evaluate`).
     """
     names = position_names(truth, tracks)
     message = disjoint_times_message(truth, tracks)
     if message is not None:
         warnings.warn(message, UserWarning, stacklevel=2)
-    return evaluate(truth_points(truth, names), track_points(tracks, names), c=c, p=p)
+    return evaluate(
+        truth_points(truth, names),
+        track_points(tracks, names),
+        c=c,
+        p=p,
+        switch_cost=switch_cost,
+        tgospa_method=tgospa_method,
+    )
 
 
 def _time_range(times: np.ndarray) -> str:

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import itertools
+import json
 import math
 
 import numpy as np
 import pytest
 
 from mapassoc.errors import InputError
-from mapassoc.evaluation.metrics import TimedPoints
+from mapassoc.evaluation.metrics import TimedPoints, evaluate, format_report
 from mapassoc.evaluation.tgospa import fragmentation_of, tgospa, track_fragmentation
 
 
@@ -321,3 +322,39 @@ def test_bad_inputs_are_refused() -> None:
         tgospa(truth, run({1: {0: (0.0,)}}), c=1.0, gamma=1.0)
     with pytest.raises(InputError, match="no rows"):
         tgospa(TimedPoints.empty(2), TimedPoints.empty(2), c=1.0, gamma=1.0)
+
+
+# ----------------------------------------------------------------------------------------------
+# In evaluate and its report
+# ----------------------------------------------------------------------------------------------
+
+
+def test_evaluate_adds_tgospa_and_fragmentation_only_with_a_switch_cost() -> None:
+    truth = run({1: line(range(4), 0.0), 2: line(range(4), 10.0)})
+    a = {t: (float(t), 0.0 if t < 2 else 10.0) for t in range(4)}
+    b = {t: (float(t), 10.0 if t < 2 else 0.0) for t in range(4)}
+    estimates = run({5: a, 6: b})
+    plain = evaluate(truth, estimates, c=3.0, p=2.0)
+    assert plain.tgospa is None and plain.fragmentation is None
+    assert "tgospa" not in plain.to_json() and "fragmentation" not in plain.to_json()
+    full = evaluate(truth, estimates, c=3.0, p=2.0, switch_cost=2.0)
+    assert full.to_json()["gospa"] == plain.to_json()["gospa"]  # existing keys unchanged
+    summary = full.to_json()
+    assert json.loads(json.dumps(summary, allow_nan=False)) == summary
+    assert summary["tgospa"]["total"] == pytest.approx(math.sqrt(8.0))
+    assert summary["tgospa"]["num_switches"] == 2.0 and summary["tgospa"]["gamma"] == 2.0
+    assert summary["fragmentation"]["fragments_per_target"] == 2.0
+    assert summary["fragmentation"]["id_switches"] == 2
+    report = format_report(full).splitlines()
+    assert len({len(line) for line in report}) == 1
+    before = [line.split() for line in format_report(plain).splitlines()]
+    assert [line.split() for line in report[: len(before)]] == before  # the old rows first
+    tg = next(line for line in report if line.startswith("T-GOSPA (c=3, p=2, gamma=2)"))
+    assert tg.endswith(f"{math.sqrt(8.0):.4f}")
+    assert any(line.startswith("identity switches") and line.endswith(" 2") for line in report)
+    lower = evaluate(truth, estimates, c=3.0, switch_cost=2.0, tgospa_method="lp")
+    assert "LP lower bound" in format_report(lower)
+    with pytest.raises(InputError, match="^switch_cost "):
+        evaluate(truth, estimates, c=3.0, switch_cost=0.0)
+    with pytest.raises(InputError, match="^method "):
+        evaluate(truth, estimates, c=3.0, switch_cost=1.0, tgospa_method="simplex")
