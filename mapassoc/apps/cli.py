@@ -174,7 +174,12 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         summary = evaluate_tables(
-            read_truth_file(args.truth), read_tracks_file(args.tracks), c=args.cutoff, p=args.order
+            read_truth_file(args.truth),
+            read_tracks_file(args.tracks),
+            c=args.cutoff,
+            p=args.order,
+            switch_cost=args.cutoff if args.switch_cost is None else args.switch_cost,
+            tgospa_method=args.tgospa_method,
         )
     for warning in caught:
         print(f"mapassoc: warning: {warning.message}", file=sys.stderr)
@@ -461,9 +466,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "evaluate",
-        help="compare tracks with truth (GOSPA, RMSE, cardinality)",
+        help="compare tracks with truth (GOSPA, T-GOSPA, RMSE, cardinality, fragments)",
         description="GOSPA (alpha = 2) with its localisation, missed and false parts, "
-        "position RMSE over assigned pairs and the cardinality error, averaged over time.",
+        "position RMSE over assigned pairs and the cardinality error, averaged over time; "
+        "then T-GOSPA of the trajectories (the same c and p, switching cost gamma) with its "
+        "switching part, the fragments (track ids) per tracked target and the identity "
+        "switches of its assignment.",
     )
     p.add_argument(
         "tracks", help="tracks file, CSV or Parquet by its suffix (as `mapassoc run` writes)"
@@ -473,6 +481,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--cutoff", type=float, default=10.0, help="GOSPA cut-off c (default 10)")
     p.add_argument("--order", type=float, default=2.0, help="GOSPA order p (default 2)")
+    p.add_argument(
+        "--switch-cost",
+        type=float,
+        default=None,
+        metavar="GAMMA",
+        help="T-GOSPA switching cost gamma: a track switch costs gamma^p (default: the cut-off)",
+    )
+    p.add_argument(
+        "--tgospa-method",
+        choices=("milp", "lp"),
+        default="milp",
+        help="milp: exact T-GOSPA (default); lp: its LP relaxation, a lower bound for huge runs",
+    )
     p.add_argument("--json", help="also write the metrics to this JSON file")
     p.set_defaults(func=_cmd_evaluate)
 

@@ -239,6 +239,8 @@ _FORMAT_COLUMNS = (
     ("gospa_missed", "miss^p", "{:7.2f}"),
     ("gospa_false", "false^p", "{:7.2f}"),
     ("ospa2", "OSPA2", "{:6.2f}"),
+    ("tgospa", "T-GOSPA", "{:7.2f}"),
+    ("fragments_per_target", "frag", "{:5.2f}"),
     ("mota", "MOTA", "{:6.3f}"),
     ("id_switches", "IDsw", "{:5.1f}"),
     ("k_brier", "Brier", "{:6.3f}"),

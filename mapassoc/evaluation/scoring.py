@@ -4,10 +4,11 @@
 :class:`~mapassoc.data.io.TruthTable`: GOSPA (:mod:`mapassoc.evaluation.metrics`), OSPA and
 OSPA(2) (:mod:`mapassoc.evaluation.ospa`), CLEAR-MOT (:mod:`mapassoc.evaluation.clear_mot`,
 needs the optional extra ``metrics``) and, for trackers that report p(K | Z), the count
-scores of :mod:`mapassoc.evaluation.calibration`.  Positions are the ``x``, ``y`` (and
-``z``) columns both tables have, and a track written twice at one time keeps its last row
-(:mod:`mapassoc.evaluation.tables`).  :meth:`TrackingScores.as_row` gives a flat dictionary
-for one row of a pandas DataFrame.
+scores of :mod:`mapassoc.evaluation.calibration`, and T-GOSPA of the trajectories with the
+fragments per target of its assignment (:mod:`mapassoc.evaluation.tgospa`).  Positions are
+the ``x``, ``y`` (and ``z``) columns both tables have, and a track written twice at one time
+keeps its last row (:mod:`mapassoc.evaluation.tables`).  :meth:`TrackingScores.as_row` gives a
+flat dictionary for one row of a pandas DataFrame.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from mapassoc.evaluation.tables import (
     track_points,
     truth_points,
 )
+from mapassoc.evaluation.tgospa import _check_method, fragmentation_of, tgospa
 from mapassoc.trackers.base import TrackerOutput
 from mapassoc.validation import check_positive
 
@@ -69,6 +71,17 @@ class TrackingScores:
         Distinct track ids of the output.
     seconds : float
         The tracker's wall time.
+    tgospa : float
+        T-GOSPA of the whole run (same ``c`` and ``p``, switching cost ``tgospa_gamma``).
+    tgospa_switching : float
+        Its switching part (a p-th power: ``gamma^p`` per switch).
+    tgospa_gamma : float
+        The switching cost gamma used.
+    fragments_per_target : float
+        Mean distinct track ids per true target tracked at least once, from the T-GOSPA
+        assignment (1.0 is ideal; ``nan`` when no target was tracked).
+    tgospa_id_switches : int
+        Changes of a target's track id between consecutive times in that assignment.
     """
 
     c: float
@@ -92,6 +105,11 @@ class TrackingScores:
     k_hit_rate: float | None
     num_tracks: int
     seconds: float
+    tgospa: float
+    tgospa_switching: float
+    tgospa_gamma: float
+    fragments_per_target: float
+    tgospa_id_switches: int
 
     def as_row(self) -> dict[str, float | int | None]:
         """The fields as a flat dictionary (one DataFrame row), in declaration order."""
@@ -108,6 +126,8 @@ def score_tracks(
     clear_mot_scores: bool = True,
     ospa2_window: int | None = None,
     num_bins: int = DEFAULT_BINS,
+    switch_cost: float | None = None,
+    tgospa_method: str = "milp",
 ) -> TrackingScores:
     """Score a tracker's output against the truth.
 
@@ -130,6 +150,10 @@ def score_tracks(
         Evaluation times per OSPA(2) sliding window; ``None`` scores the whole run at once.
     num_bins : int
         Bins of the expected calibration error of p(K | Z).
+    switch_cost : float, optional
+        T-GOSPA switching cost gamma (> 0); ``None`` uses ``c``.
+    tgospa_method : {"milp", "lp"}
+        Exact T-GOSPA, or its LP relaxation (a lower bound) for very large runs.
 
     Returns
     -------
@@ -155,6 +179,8 @@ def score_tracks(
     threshold = cutoff if motp_threshold is None else check_positive(
         "motp_threshold", motp_threshold
     )
+    gamma = cutoff if switch_cost is None else check_positive("switch_cost", switch_cost)
+    method = _check_method(tgospa_method)
     if not isinstance(clear_mot_scores, bool):
         raise InputError(f"clear_mot_scores must be True or False, got {clear_mot_scores!r}")
     names = position_names(truth, output.tracks)
@@ -173,6 +199,8 @@ def score_tracks(
             truth_run, track_run, c=cutoff, p=order, window_length=ospa2_window
         ).mean_total
 
+    trajectory = tgospa(truth_run, track_run, c=cutoff, gamma=gamma, p=order, method=method)
+    fragmentation = fragmentation_of(trajectory)
     mot = clear_mot(truth_run, track_run, threshold=threshold) if clear_mot_scores else None
     counts = (
         None
@@ -201,5 +229,10 @@ def score_tracks(
         k_hit_rate=None if counts is None else counts.hit_rate,
         num_tracks=int(np.unique(output.tracks.track_ids).size),
         seconds=float(output.seconds),
+        tgospa=trajectory.total,
+        tgospa_switching=trajectory.switching,
+        tgospa_gamma=gamma,
+        fragments_per_target=fragmentation.fragments_per_target,
+        tgospa_id_switches=fragmentation.num_id_switches,
     )
 

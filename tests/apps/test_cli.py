@@ -88,6 +88,15 @@ def test_run_then_evaluate(
     data = json.loads(metrics.read_text())
     # Three targets that the estimator tracks well: GOSPA well below the cut-off scale.
     assert data["gospa"]["mean_total"] < 3.0
+    # T-GOSPA of the trajectories, switching cost defaulting to the cut-off, and fragments.
+    assert "T-GOSPA (c=10, p=2, gamma=10)" in printed and "identity switches" in printed
+    assert data["tgospa"]["gamma"] == 10.0 and data["tgospa"]["method"] == "milp"
+    parts = ("localisation", "missed", "false", "switching")
+    assert data["tgospa"]["total"] ** 2 == pytest.approx(sum(data["tgospa"][k] for k in parts))
+    assert data["fragmentation"]["fragments_per_target"] >= 1.0
+    assert main(["evaluate", str(out / "tracks.csv"), str(scenario_dir / "truth.csv"),
+                 "--switch-cost", "3", "--tgospa-method", "lp"]) == 0
+    assert "gamma=3, LP lower bound" in capsys.readouterr().out
 
 
 def test_run_is_byte_identical_without_timings(scenario_dir: Path, tmp_path: Path) -> None:

@@ -16,6 +16,7 @@ from mapassoc.evaluation.ospa import ospa2, ospa2_over_time, ospa_over_time
 from mapassoc.evaluation.scenarios import build_scenario
 from mapassoc.evaluation.scoring import TrackingScores, score_tracks
 from mapassoc.evaluation.tables import position_names, track_points, truth_points
+from mapassoc.evaluation.tgospa import fragmentation_of, tgospa
 from mapassoc.trackers.base import CountSeries, TrackerOutput
 from mapassoc.trackers.oracle import OracleTracker
 
@@ -177,3 +178,25 @@ def test_bad_arguments(crossing: tuple[TruthTable, TrackerOutput]) -> None:
     )
     with pytest.raises(InputError, match="truth has no records"):
         score_tracks(empty, output, c=10.0)
+
+
+def test_tgospa_columns(crossing: tuple[TruthTable, TrackerOutput]) -> None:
+    truth, output = crossing
+    scores = score_tracks(truth, output, c=10.0, p=2.0, switch_cost=4.0)
+    names = position_names(truth, output.tracks)
+    direct = tgospa(
+        truth_points(truth, names), track_points(output.tracks, names), c=10.0, gamma=4.0
+    )
+    assert scores.tgospa == pytest.approx(direct.total, rel=1e-12) and scores.tgospa > 0.0
+    assert scores.tgospa_switching == pytest.approx(direct.switching)
+    assert scores.tgospa_gamma == 4.0
+    assert scores.fragments_per_target == fragmentation_of(direct).fragments_per_target
+    assert scores.tgospa_id_switches == fragmentation_of(direct).num_id_switches
+    assert score_tracks(truth, output, c=10.0).tgospa_gamma == 10.0  # gamma defaults to c
+    perfect = score_tracks(truth, truth_as_tracks(truth), c=10.0)
+    assert perfect.tgospa == 0.0 and perfect.tgospa_switching == 0.0
+    assert perfect.fragments_per_target == 1.0 and perfect.tgospa_id_switches == 0
+    with pytest.raises(InputError, match="^switch_cost "):
+        score_tracks(truth, output, c=10.0, switch_cost=-1.0)
+    with pytest.raises(InputError, match="^method "):
+        score_tracks(truth, output, c=10.0, tgospa_method="exact")
