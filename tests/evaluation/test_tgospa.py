@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from mapassoc.errors import InputError
+from mapassoc.evaluation import tgospa as tgospa_module
 from mapassoc.evaluation.metrics import TimedPoints, evaluate, format_report
 from mapassoc.evaluation.tgospa import fragmentation_of, tgospa, track_fragmentation
 
@@ -207,7 +208,10 @@ def random_pair(
     ("seed", "nx", "ny", "steps", "p"),
     [(0, 2, 2, 3, 2.0), (1, 2, 2, 4, 1.0), (2, 2, 3, 3, 2.0), (3, 3, 2, 3, 1.5), (4, 1, 3, 4, 2.0)],
 )
-def test_the_integer_program_equals_brute_force(seed, nx, ny, steps, p) -> None:
+@pytest.mark.parametrize("solver", ["dynamic programming", "integer program"])
+def test_the_exact_metric_equals_brute_force(seed, nx, ny, steps, p, solver, monkeypatch) -> None:
+    if solver == "integer program":  # no component is small enough for the Viterbi path
+        monkeypatch.setattr(tgospa_module, "_MAX_DP_STATES", 0)
     rng = np.random.default_rng(seed)
     for _ in range(3):
         truth, estimates = random_pair(rng, nx, ny, steps)
