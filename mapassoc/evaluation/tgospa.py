@@ -493,7 +493,7 @@ def _solve_component(
         )
         if res.status != 0 or res.x is None:
             raise InputError(f"the T-GOSPA linear program was not solved: {res.message}")
-        weights = np.clip(res.x[:num_w], 0.0, 1.0)  # rounding noise of HiGHS only
+        weights = res.x[:num_w]
     w = weights.reshape(num_times, per_time)[:, :num_edges]
     return w, float(res.fun)
 
