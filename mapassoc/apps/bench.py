@@ -203,6 +203,14 @@ class RunResult:
         Fraction of windows whose ``marginal_k`` is the true number of targets.
     k_mean_p_true : float
         Mean over windows of p(true K | Z).
+    tgospa, oracle_tgospa : float or None
+        T-GOSPA of the estimate's and of the oracle's trajectories (c = gamma =
+        ``GOSPA_CUTOFF``, p = 2; :mod:`mapassoc.evaluation.tgospa`); in the JSON only, not
+        in the printed line.  ``None`` for runs built without it.
+    fragments_per_target : float or None
+        Mean track ids per tracked true target in the estimate's T-GOSPA assignment.
+    tgospa_id_switches : int or None
+        Track-id changes of a target between consecutive scans in that assignment.
     """
 
     family: str
@@ -236,6 +244,10 @@ class RunResult:
     k_brier: float
     k_hit_rate: float
     k_mean_p_true: float
+    tgospa: float | None = None
+    oracle_tgospa: float | None = None
+    fragments_per_target: float | None = None
+    tgospa_id_switches: int | None = None
 
 
 @dataclass(frozen=True)
@@ -551,16 +563,20 @@ def bench_scenario(
     windows = result.windows
     window_seconds = np.array([w.generate_seconds + w.solve_seconds for w in windows])
     statuses = Counter(str(w.status) for w in windows)
-    estimate = GospaParts.from_series(
-        evaluate_tables(scenario.truth, result.tracks, c=GOSPA_CUTOFF).gospa
+    estimate_evaluation = evaluate_tables(
+        scenario.truth, result.tracks, c=GOSPA_CUTOFF, switch_cost=GOSPA_CUTOFF
     )
-    oracle = GospaParts.from_series(
-        evaluate_tables(
-            scenario.truth,
-            oracle_tracks(scenario.scans, scenario.origins, scenario.config),
-            c=GOSPA_CUTOFF,
-        ).gospa
+    oracle_evaluation = evaluate_tables(
+        scenario.truth,
+        oracle_tracks(scenario.scans, scenario.origins, scenario.config),
+        c=GOSPA_CUTOFF,
+        switch_cost=GOSPA_CUTOFF,
     )
+    estimate = GospaParts.from_series(estimate_evaluation.gospa)
+    oracle = GospaParts.from_series(oracle_evaluation.gospa)
+    trajectory = estimate_evaluation.tgospa
+    oracle_trajectory = oracle_evaluation.tgospa
+    fragmentation = estimate_evaluation.fragmentation
     counts = count_scores(windows, window_target_counts(scenario.truth, windows))
     sizes = [scan.size for scan in scenario.scans]
     n_scans = len(scenario.scans)
@@ -596,6 +612,10 @@ def bench_scenario(
         k_brier=counts.brier,
         k_hit_rate=counts.hit_rate,
         k_mean_p_true=counts.mean_p_true,
+        tgospa=None if trajectory is None else trajectory.total,
+        oracle_tgospa=None if oracle_trajectory is None else oracle_trajectory.total,
+        fragments_per_target=None if fragmentation is None else fragmentation.fragments_per_target,
+        tgospa_id_switches=None if fragmentation is None else fragmentation.num_id_switches,
     )
 
 
