@@ -30,6 +30,7 @@ from mapassoc.evaluation.scenarios import (
 from mapassoc.evaluation.scoring import score_tracks
 from mapassoc.evaluation.simulate import Scenario
 from mapassoc.trackers.registry import DEFAULT_TRACKERS, TRACKERS, build_tracker
+from mapassoc.validation import check_positive
 
 __all__ = ["COMPARE_COLUMNS", "compare", "format_summary", "summarize"]
 
@@ -144,12 +145,8 @@ def compare(
         raise InputError(f"scans must be an integer >= 1, got {scans!r}")
     if window_length is not None and (not _is_int(window_length) or window_length < 1):
         raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
-    if time_limit is not None and (
-        isinstance(time_limit, bool)
-        or not isinstance(time_limit, (int, float))
-        or not (np.isfinite(time_limit) and time_limit > 0)
-    ):
-        raise InputError(f"time_limit must be a finite number of seconds > 0, got {time_limit!r}")
+    if time_limit is not None:
+        time_limit = check_positive("time_limit", time_limit, key="time_limit")
     if ospa2_window is not None and (not _is_int(ospa2_window) or ospa2_window < 1):
         raise InputError(f"ospa2_window must be an integer >= 1, got {ospa2_window!r}")
     # CLEAR-MOT needs the optional motmetrics; without it its columns are empty instead of

@@ -70,7 +70,7 @@ from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError, MapassocError
 from mapassoc.models.sensor import Sensor
-from mapassoc.validation import check_probability
+from mapassoc.validation import check_positive, check_probability
 
 __all__ = [
     "DEFAULT_PD_START",
@@ -473,9 +473,8 @@ def estimate_parameters(
             "detection_probability to estimate what the configuration asks",
             key="auto",
         )
-    for name, value in (("rate_tolerance", rate_tolerance), ("pd_tolerance", pd_tolerance)):
-        if isinstance(value, bool) or not (isinstance(value, (int, float)) and value > 0):
-            raise InputError(f"{name} must be a number > 0, got {value!r}", key=name)
+    rate_tolerance = check_positive("rate_tolerance", rate_tolerance, key="rate_tolerance")
+    pd_tolerance = check_positive("pd_tolerance", pd_tolerance, key="pd_tolerance")
     for name, count in (("max_passes", max_passes), ("sample_scans", sample_scans),
                         ("sample_blocks_count", sample_blocks_count)):  # fmt: skip
         if isinstance(count, bool) or not isinstance(count, int) or count < 1:
