@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from support import MINIMAL_CONFIG_TOML
 
 from mapassoc.data.config import Config, config_to_toml, load_config, parse_config, write_config
 from mapassoc.data.settings import BirthModel, EstimatorSettings
@@ -25,20 +26,7 @@ from mapassoc.models.motion import (
 )
 from mapassoc.models.sensor import Region, Sensor
 
-FULL_TOML = """
-[motion]
-model = "constant_velocity"
-ndim = 2
-noise_intensity = 0.5
-
-[[sensors]]
-name = "radar"
-measurement = "position"
-noise_std = 1.0
-detection_probability = 0.9
-false_alarms_per_scan = 10.0
-region = [[-100.0, 100.0], [-100.0, 100.0]]
-
+FULL_TOML = MINIMAL_CONFIG_TOML + """
 [[sensors]]
 name = "esm"
 measurement = "range_bearing"
