@@ -9,8 +9,13 @@ seeds.
 The hard families stress one difficulty each: ``"parallel"`` (a close formation, targets
 2.5 noise standard deviations apart), ``"dense_pd08"`` (missed detections in heavy
 clutter), ``"scale20"`` / ``"scale50"`` / ``"scale100"`` (size at a fixed density) and
-``"burst"`` (one scan flooded by 2,000 extra false alarms).  :func:`generic_config` gives
-the configuration the benchmark runs them with, the same recipe for every family.
+``"burst"`` (one scan flooded by 2,000 extra false alarms).  The realistic families combine
+them as users' data does: ``"converging"`` (six targets closing to 1.5 apart, Pd 0.7),
+``"meeting"`` (four targets through one point), ``"parallel_pd08"`` (the ``"parallel"``
+lanes at Pd 0.8), ``"dense_radar"`` (10 targets, Pd 0.8, 50 false alarms over a 1 km
+square at 10 m noise, 100 scans) and ``"staggered"`` (births and deaths all through,
+crossings).  :func:`generic_config` gives the configuration the benchmark runs them with,
+the same recipe for every family.
 
 Every scenario's configuration matches its simulation: the same motion model and noise,
 the simulated sensors, a :class:`~mapassoc.data.settings.BirthModel` derived from the targets
@@ -24,7 +29,7 @@ sensors and clutter whose targets are a stationary birth-death population with t
 native character (section "long recordings" below), built in time linear in N.
 :func:`scenario_scan_period` and :func:`scans_for_duration` turn a duration into N.
 
-Speeds are 1-3 length units per unit time (about 1 in the hard families) with position
+Speeds are 0.7-3 length units per unit time (about 1 in the hard families) with position
 noise of standard deviation 1 (think 10 m) and scans one time unit apart, so every target
 is trackable on its own; the difficulty comes from crossings, close formations, false
 alarms and missed detections.
@@ -66,6 +71,9 @@ __all__ = [
     "scenario_scan_period",
     "scans_for_duration",
     "PARALLEL_SPACING",
+    "CONVERGING_SPACING",
+    "CONVERGING_TIME",
+    "MEETING_TIME",
     "SCALE_AREA_PER_TARGET",
     "SCALE_FALSE_ALARMS_PER_AREA",
     "BURST_SCAN",
@@ -100,6 +108,29 @@ _SLOW_CV_NOISE = 5e-4
 
 #: Across-track distance of neighbouring targets in ``"parallel"`` (noise std units).
 PARALLEL_SPACING = 2.5
+# Acceleration noise intensity of "meeting", as low as the formation's so that every
+# realisation has the designed encounter: a target drifts by sqrt(q t^3 / 3) ~ 0.42 units
+# (std per axis) from its noise-free path over the 30 scans to the meeting.
+_ENCOUNTER_NOISE = _FORMATION_NOISE
+# The same for "converging", half as much: two targets' relative drift is 0.65 (std per
+# axis) at the closest time t = 40 and 1.8 at the last scan, against designed distances
+# of 1.5 and 7.4 between neighbours.
+_CONVERGING_NOISE = 1e-5
+#: Distance of each "converging" target from its neighbours on the ring at their closest
+#: (noise std units): the six targets sit on a regular hexagon of this radius.
+CONVERGING_SPACING = 1.5
+#: Time at which the "converging" targets are closest (the middle of the 80 scans).
+CONVERGING_TIME = 40.0
+# Rate (rad per unit time) at which the "converging" group turns in its own frame: every
+# pairwise distance is its closest value times sqrt(1 + (0.12 (t - 40))^2), so neighbours
+# are within 2 of each other for 15 scans, within 3 for 29, and 7.4 apart at the ends.
+_CONVERGING_TWIST = 0.12
+#: Time at which the four "meeting" targets pass the same point (the middle of 60 scans).
+MEETING_TIME = 30.0
+# Acceleration noise intensity of "dense_radar" (0.01 m^2/s^3 at 10 m per unit): over its
+# 100 scans a velocity component wanders by sqrt(q t) ~ 0.1 (1 m/s) and a position by
+# sqrt(q t^3 / 3) ~ 5.8 (std), so the noise-free paths keep a 12.5-unit margin.
+_RADAR_NOISE = 1e-4
 # Time between two scans of one sensor in every built-in scenario.
 _INTERVAL = 1.0
 # Fixed seed of the layouts of lengthened scenarios (``build_scenario(..., scans=N)``).
@@ -281,14 +312,16 @@ def _random_layout(
     n_singles: int,
     n_scans: int,
     speeds: tuple[float, float] = (1.0, 3.0),
+    margin: float = 0.9,
 ) -> list[TargetSpec]:
     """Crossing pairs plus independent targets, all inside 90% of the region over their life.
 
     A pair's two noise-free paths meet at the same point at the same time (a crossing in
     time, not only in space), with headings 30 to 150 degrees apart.  Speeds are uniform in
-    ``speeds`` (default [1, 3]) per unit time, headings uniform.
+    ``speeds`` (default [1, 3]) per unit time, headings uniform.  ``margin`` is the share
+    of the half width the noise-free paths stay inside (default 0.9).
     """
-    limit = 0.9 * half_width
+    limit = margin * half_width
     targets: list[TargetSpec] = []
 
     def fits(spec: TargetSpec) -> bool:
@@ -338,7 +371,9 @@ class _Geometry:
     :func:`_long_targets` lengthens it: a stationary birth-death population of the
     same kind of targets (``"straight"``: constant-velocity singles and crossing pairs;
     ``"turning"``: coordinated-turn singles; ``"formation"``: successive formations
-    abreast) inside 90% of the ``[-half_width, half_width]^2`` square.
+    abreast; ``"episodes"``: the native targets again and again, one native run after
+    another, each turned and moved at random) inside 90% of the
+    ``[-half_width, half_width]^2`` square.
     """
 
     motion: MotionModel
@@ -589,6 +624,178 @@ def _burst_geometry() -> _Geometry:
     )
 
 
+# --------------------------------------------------------------------------- realistic families
+#
+# Each combines difficulties the way recorded data does (the brief behind them: as hard as
+# real users' data).  Same units as above; "dense_radar" reads them as 10 m and 1 s.
+
+
+def _converging_targets() -> list[TargetSpec]:
+    """Six targets that converge, fly as a tight group and separate, all alive throughout.
+
+    At ``CONVERGING_TIME`` (t = 40) their noise-free positions are the corners of a
+    regular hexagon of radius ``CONVERGING_SPACING`` (1.5) around the origin, so each is
+    1.5 from its two neighbours (2.6 and 3.0 from the others).  Their velocities are
+    ``(1, 0)`` plus the group turning at ``_CONVERGING_TWIST`` (0.12 rad per unit time)
+    about its centre, perpendicular to every pairwise offset: the noise-free paths are
+    straight, never cross, and every pairwise distance is its value at t = 40 times
+    ``sqrt(1 + (0.12 (t - 40))^2)``: neighbours within 2 of each other from t = 33 to 47,
+    within 3 from t = 26 to 54, and 7.4 apart at the first and last scans.  Speeds 0.82 to
+    1.18, headings within 10 degrees of +x.
+    """
+    targets = []
+    for k in range(6):
+        angle = math.pi / 6.0 + k * math.pi / 3.0
+        ox, oy = CONVERGING_SPACING * math.cos(angle), CONVERGING_SPACING * math.sin(angle)
+        velocity = (1.0 - _CONVERGING_TWIST * oy, _CONVERGING_TWIST * ox)
+        targets.append(_through((ox, oy), CONVERGING_TIME, velocity, 0.0, math.inf))
+    return targets
+
+
+def _converging_geometry() -> _Geometry:
+    """Six targets closely spaced for a while (Xia, Garcia-Fernandez and Svensson, IEEE
+    TAES 2024, batch TPMBM by MCMC: Pd 0.7, 30 false alarms per scan over 400 x 400)."""
+    motion = ConstantVelocity(ndim=2, noise_intensity=_CONVERGING_NOISE)
+    return _Geometry(
+        motion=motion,
+        sensors=(_position_sensor(motion, 200.0, 30.0, detection_probability=0.7),),
+        targets=tuple(_converging_targets()),
+        scans_per_sensor=80,
+        offsets=None,
+        # Lengthened as one converging group after another (turned and moved at random):
+        # a stationary population of independent targets would lose the group.
+        kind="episodes",
+        half_width=200.0,
+        pair_share=0.0,
+        long_seed=_LONG_LAYOUT_SEED + 7,
+    )
+
+
+def _meeting_targets() -> list[TargetSpec]:
+    """Four targets at speed 1 through the origin at ``MEETING_TIME`` (t = 30).
+
+    Two come from the west with headings +15 and -15 degrees, two from the east with
+    headings 165 and 195 degrees: each side's pair closes at 0.52 per unit time (within 3
+    of each other from t = 25 to 35), the opposite ones pass head-on at about 2 per unit
+    time.  All alive from t = 0 (30 units from the origin) to the end (29 units out).
+    """
+    headings = [math.radians(d) for d in (15.0, -15.0, 165.0, 195.0)]
+    return [
+        _through((0.0, 0.0), MEETING_TIME, (math.cos(h), math.sin(h)), 0.0, math.inf)
+        for h in headings
+    ]
+
+
+def _meeting_geometry() -> _Geometry:
+    motion = ConstantVelocity(ndim=2, noise_intensity=_ENCOUNTER_NOISE)
+    return _Geometry(
+        motion=motion,
+        sensors=(_position_sensor(motion, 50.0, 10.0),),
+        targets=tuple(_meeting_targets()),
+        scans_per_sensor=60,
+        offsets=None,
+        # Lengthened as one meeting after another (turned and moved at random), as for
+        # "converging": independent crossing pairs would not meet four at a time.
+        kind="episodes",
+        half_width=50.0,
+        pair_share=0.0,
+        long_seed=_LONG_LAYOUT_SEED + 8,
+    )
+
+
+def _parallel_pd08_geometry() -> _Geometry:
+    """The ``"parallel"`` formation and clutter with Pd 0.8 instead of 0.9."""
+    base = _parallel_geometry()
+    motion = base.motion
+    half_width = base.half_width
+    return _Geometry(
+        motion=motion,
+        sensors=(_position_sensor(motion, half_width, 20.0, detection_probability=0.8),),
+        targets=base.targets,
+        scans_per_sensor=base.scans_per_sensor,
+        offsets=None,
+        # Lengthened as "parallel" (one formation after another), with the same targets.
+        kind="formation",
+        half_width=half_width,
+        pair_share=0.0,
+        long_seed=base.long_seed,
+    )
+
+
+def _dense_radar_geometry() -> _Geometry:
+    """10 targets (3 crossing pairs) in a 100 x 100 region (1 km at 10 m), 100 scans.
+
+    Speeds uniform in [0.7, 1] (7-10 m/s at one scan per second), so the birth model's
+    velocity standard deviation, 1.5 times the top speed, is 1.47 (15 m/s).  The
+    noise-free paths stay inside 75% of the half width: 100 scans of process noise move a
+    target further than the 40 of "dense_pd08".
+    """
+    motion = ConstantVelocity(ndim=2, noise_intensity=_RADAR_NOISE)
+    n_scans = 100
+    half_width = 50.0
+    layout = np.random.default_rng(_LAYOUT_SEED + 3000)
+    targets = _random_layout(
+        layout,
+        half_width,
+        n_pairs=3,
+        n_singles=4,
+        n_scans=n_scans,
+        speeds=(0.7, 1.0),
+        margin=0.75,
+    )
+    return _Geometry(
+        motion=motion,
+        sensors=(_position_sensor(motion, half_width, 50.0, detection_probability=0.8),),
+        targets=tuple(targets),
+        scans_per_sensor=n_scans,
+        offsets=None,
+        # Lengthened like "dense": independent targets and crossing pairs, births and
+        # deaths all through, which is what this family is.
+        kind="straight",
+        half_width=half_width,
+        pair_share=0.6,
+        long_seed=_LONG_LAYOUT_SEED + 3000,
+    )
+
+
+def _staggered_targets() -> list[TargetSpec]:
+    """Eight targets born and dying all through 80 scans; three crossing pairs.
+
+    Births at t = 0, 0, 6, 22, 30, 35, 48, 52; deaths after t = 40, 50, 62, 68 and 75, three
+    alive to the end; 2 to 6 alive at a time.  Pairs (1, 2), (4, 5) and (6, 7) meet at one
+    point at t = 20, 45 and 65 (headings 37, 90 and 91 degrees apart); 3 and 8 are alone.
+    Speeds 1.3 to 1.6, every noise-free path inside +-70.
+    """
+    inf = math.inf
+    return [
+        _through((-30.0, 20.0), 20.0, (1.5, 0.5), 0.0, 40.0),
+        _through((-30.0, 20.0), 20.0, (1.2, -0.9), 6.0, 62.0),
+        _through((40.0, 50.0), 25.0, (-1.0, -1.2), 0.0, 50.0),
+        _through((25.0, -30.0), 45.0, (0.0, 1.6), 22.0, inf),
+        _through((25.0, -30.0), 45.0, (-1.4, 0.6), 30.0, 68.0),
+        _through((-20.0, -50.0), 65.0, (1.3, 0.4), 48.0, inf),
+        _through((-20.0, -50.0), 65.0, (-0.8, 1.0), 52.0, inf),
+        _through((-50.0, 40.0), 55.0, (0.9, -1.1), 35.0, 75.0),
+    ]
+
+
+def _staggered_geometry() -> _Geometry:
+    motion = ConstantVelocity(ndim=2, noise_intensity=_SLOW_CV_NOISE)
+    return _Geometry(
+        motion=motion,
+        sensors=(_position_sensor(motion, 100.0, 10.0),),
+        targets=tuple(_staggered_targets()),
+        scans_per_sensor=80,
+        offsets=None,
+        # Lengthened like "crossing": a stationary birth-death population with the native
+        # share of crossing pairs, which keeps births and deaths all through the run.
+        kind="straight",
+        half_width=100.0,
+        pair_share=0.75,
+        long_seed=_LONG_LAYOUT_SEED + 4000,
+    )
+
+
 def _native(name: str, geometry: _Geometry, seed: int) -> Scenario:
     plan = geometry.plan(geometry.scans_per_sensor)
     return _scenario(name, geometry.motion, geometry.sensors, geometry.targets, plan, seed)
@@ -687,6 +894,50 @@ def burst(seed: int, extra_false_alarms: int = BURST_FALSE_ALARMS) -> Scenario:
     return add_false_alarms(base, BURST_SCAN, extra_false_alarms, seed=seed)
 
 
+def converging(seed: int) -> Scenario:
+    """6 CV targets converging to 1.5 apart at t = 40 and separating; Pd 0.7, 80 scans.
+
+    30 false alarms per scan over 400 x 400 (the closely spaced case of Xia,
+    Garcia-Fernandez and Svensson, IEEE TAES 2024); the geometry is
+    :func:`_converging_targets`, with acceleration noise ``1e-5`` (half that of
+    ``"parallel"``) so that the group forms and separates in every realisation.
+    """
+    return _native("converging", _converging_geometry(), seed)
+
+
+def meeting(seed: int) -> Scenario:
+    """4 CV targets at speed 1 through one point at t = 30; Pd 0.9, 60 scans.
+
+    10 false alarms per scan over 100 x 100; two pairs 30 degrees apart from opposite
+    sides (:func:`_meeting_targets`), acceleration noise ``2e-5``.
+    """
+    return _native("meeting", _meeting_geometry(), seed)
+
+
+def parallel_pd08(seed: int) -> Scenario:
+    """The ``"parallel"`` formation (5 abreast 2.5 apart, 20 false alarms/scan) at Pd 0.8."""
+    return _native("parallel_pd08", _parallel_pd08_geometry(), seed)
+
+
+def dense_radar(seed: int) -> Scenario:
+    """10 CV targets (3 crossing pairs), Pd 0.8, 50 false alarms/scan, 100 scans.
+
+    Read as a radar: 1 km x 1 km region (100 x 100 units of the 10 m position noise),
+    one scan per second, speeds 7-10 m/s, birth velocity standard deviation 14.7 m/s,
+    3 targets at the start, 7 born in the first third, 5 dying before the end
+    (:func:`_dense_radar_geometry`).
+    """
+    return _native("dense_radar", _dense_radar_geometry(), seed)
+
+
+def staggered(seed: int) -> Scenario:
+    """8 CV targets born and dying all through 80 scans, 3 crossing pairs; Pd 0.9.
+
+    10 false alarms per scan over 200 x 200 (:func:`_staggered_targets`).
+    """
+    return _native("staggered", _staggered_geometry(), seed)
+
+
 # --------------------------------------------------------------------------- long recordings
 #
 # A lengthened scenario (``build_scenario(name, seed, scans=N)`` with N above the native
@@ -708,6 +959,8 @@ def burst(seed: int, extra_false_alarms: int = BURST_FALSE_ALARMS) -> Scenario:
 #   the native share of them born in crossing pairs (both paths through one point at one
 #   time); coordinated-turn targets with the native speeds and turn rates; or, for the
 #   formation, one formation of five abreast after another, each for the native length;
+#   or, for the encounters ("converging", "meeting"), the native targets again, one native
+#   run after another, each turned about the origin and moved at random;
 # * every noise-free path inside 90% of the region (drawn again until it is).
 #
 # The layout is drawn from a fixed seed per scenario, in time order, so the targets of a
@@ -841,6 +1094,37 @@ def _draw_formation(
     raise InputError(f"cannot place a formation inside the region after {_MAX_DRAWS} draws")
 
 
+def _draw_episode(rng: np.random.Generator, geometry: _Geometry, start: float) -> list[TargetSpec]:
+    """The native targets turned about the origin and moved, their times shifted by ``start``.
+
+    For 2-D constant-velocity targets ``(x, y, vx, vy)``; a native target alive to the end
+    dies at the native last scan (``scans_per_sensor - 1`` after ``start``).
+    """
+    last = float(geometry.scans_per_sensor - 1)
+    half_width = geometry.half_width
+    for _ in range(_MAX_DRAWS):
+        angle = rng.uniform(-math.pi, math.pi)
+        rotation = np.array(
+            [[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]]
+        )
+        shift = rng.uniform(-0.3 * half_width, 0.3 * half_width, size=2)
+        members = []
+        for spec in geometry.targets:
+            state = spec.initial_state
+            members.append(
+                TargetSpec(
+                    initial_state=np.concatenate(
+                        [rotation @ state[:2] + shift, rotation @ state[2:4]]
+                    ),
+                    birth_time=start + spec.birth_time,
+                    death_time=start + min(spec.death_time, last),
+                )
+            )
+        if all(_straight_fits(spec, 0.9 * half_width) for spec in members):
+            return members
+    raise InputError(f"cannot place an episode inside the region after {_MAX_DRAWS} draws")
+
+
 def _at_time_zero(motion: MotionModel, spec: TargetSpec) -> TargetSpec | None:
     """A burn-in target seen from time 0: moved there noise-free, or None if dead by then."""
     if spec.birth_time >= 0.0:
@@ -863,6 +1147,12 @@ def _long_targets(geometry: _Geometry, last_time: float) -> list[TargetSpec]:
             drawn.extend(_draw_formation(rng, geometry, birth, life))
             birth += life + _INTERVAL
         return drawn
+    if geometry.kind == "episodes":
+        start = 0.0
+        while start <= last_time:
+            drawn.extend(_draw_episode(rng, geometry, start))
+            start += float(geometry.scans_per_sensor) * _INTERVAL
+        return [spec for spec in drawn if spec.birth_time <= last_time]
     native_plan = geometry.plan(geometry.scans_per_sensor)
     steady = _mean_alive(geometry.targets, native_plan)
     share = geometry.pair_share
@@ -1152,6 +1442,11 @@ SCENARIOS: dict[str, Callable[[int], Scenario]] = {
     "scale50": scale50,
     "scale100": scale100,
     "burst": burst,
+    "converging": converging,
+    "meeting": meeting,
+    "parallel_pd08": parallel_pd08,
+    "dense_radar": dense_radar,
+    "staggered": staggered,
 }
 
 _DESCRIPTIONS: dict[str, str] = {
@@ -1199,6 +1494,26 @@ _DESCRIPTIONS: dict[str, str] = {
         "10 constant-velocity targets (2 crossing pairs) in a 200x200 region; Pd 0.9, 20 "
         "false alarms/scan and 2,000 extra in scan 20 of 40"
     ),
+    "converging": (
+        "6 constant-velocity targets converging to 1.5 apart (a hexagon) at t=40 and "
+        "separating; Pd 0.7, 30 false alarms/scan over 400x400, 80 scans"
+    ),
+    "meeting": (
+        "4 constant-velocity targets at speed 1 through one point at t=30, two from each "
+        "side 30 degrees apart; Pd 0.9, 10 false alarms/scan over 100x100, 60 scans"
+    ),
+    "parallel_pd08": (
+        "the 'parallel' formation (5 abreast, 2.5 apart, 20 false alarms/scan over 15,000 "
+        "units^2, 40 scans) at Pd 0.8"
+    ),
+    "dense_radar": (
+        "10 constant-velocity targets (3 crossing pairs) at speed 0.7-1 in a 100x100 region "
+        "(1 km at 10 m), births and deaths; Pd 0.8, 50 false alarms/scan, 100 scans"
+    ),
+    "staggered": (
+        "8 constant-velocity targets born and dying all through the run, 3 crossing pairs; "
+        "Pd 0.9, 10 false alarms/scan over 200x200, 80 scans"
+    ),
 }
 
 
@@ -1232,6 +1547,11 @@ _GEOMETRIES: dict[str, Callable[[], _Geometry]] = {
     "scale50": lambda: _scale_geometry(50),
     "scale100": lambda: _scale_geometry(100),
     "burst": _burst_geometry,
+    "converging": _converging_geometry,
+    "meeting": _meeting_geometry,
+    "parallel_pd08": _parallel_pd08_geometry,
+    "dense_radar": _dense_radar_geometry,
+    "staggered": _staggered_geometry,
 }
 """The fixed geometry of each built-in scenario (what a lengthened run keeps)."""
 
@@ -1327,8 +1647,10 @@ def build_scenario(
     stationary birth-death population with the native character replaces the native
     targets (which would leave the region): about the native average number of targets
     alive at any time, each alive for half to all of the native run, the native speeds
-    (and turn rates), the native share of crossing pairs, for ``"parallel"`` one
-    formation after another, for ``"burst"`` a burst in scan 20 of every 40.  Its layout
+    (and turn rates), the native share of crossing pairs, for ``"parallel"`` and
+    ``"parallel_pd08"`` one formation after another, for ``"converging"`` and
+    ``"meeting"`` one native run after another (turned and moved at random), for
+    ``"burst"`` a burst in scan 20 of every 40.  Its layout
     is fixed (drawn from a fixed seed, in time order), its configuration is derived from
     its targets as for every scenario (:func:`birth_model_for`, :func:`max_tracks_for`),
     and building it is linear in the number of scans (10,000 scans of ``"crossing"``, about
