@@ -1,0 +1,450 @@
+"""Posterior marginals of a packing problem's hypotheses: the frontier search run forward
+and backward, and the messages between independent clusters.
+
+A feasible set S of a cluster has log-weight ``w(S) = sum_{h in S} log_weight_h`` and
+``k(S)`` counted hypotheses.  Given a *seed* ``g[k]`` (log space, k = 0..kmax: what the
+rest of the window makes of a cluster with k counted hypotheses, see
+:func:`cluster_messages`), :func:`frontier_marginals` computes for every hypothesis h
+
+    log N_h = log sum_{S feasible, h in S} exp(w(S) + g[k(S)])
+
+and ``log Z = log sum_S exp(w(S) + g[k(S)])``, so that ``N_h / Z`` is the marginal
+probability that h is in the set under the weights ``exp(w(S) + g[k(S)])``.
+
+It is the dynamic program of :mod:`mapassoc.formulations.frontier` (same resource
+order, same frontiers) run twice: the forward pass stores, per step, every frontier's
+per-k log-mass ``alpha`` (sets of the decisions so far); the backward pass, seeded at
+the last step with ``g``, carries ``beta[frontier, j]``: the log of the summed weight of
+every completion from that frontier, times ``g`` at ``j`` plus the completion's count.
+A hypothesis h is taken at the step of its first resource from some frontier ``f`` into
+a frontier ``f'``; its sets are exactly the paths through one such transition, so
+
+    N_h = sum_{transitions (f -> f') taking h} sum_j alpha[f, j] e^{w_h} beta[f', j + c_h]
+
+with ``c_h`` whether h counts.  Forward, backward and this combination each cost about
+one k-entry per (frontier, decision) pair: about three times the plain search, whatever
+kmax, because the seed folds the per-k sum into the backward messages (a per-k table of
+sets containing h would cost kmax times more).
+
+With ``max_frontiers`` (and ``entry_margin``) the forward pass is the beam of
+:func:`~mapassoc.formulations.frontier.frontier_search`; the backward pass then runs only
+through the (frontier, k) entries the beam kept, so ``log_mass``, ``N_h`` and ``Z`` are
+all sums over the *same* subset of feasible sets (each counted once): lower bounds of
+the full sums, and ``N_h / Z`` the marginal among the sets captured.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapassoc.formulations.convolution import sum_product
+from mapassoc.formulations.frontier import SearchLimitExceeded, resource_order
+from mapassoc.formulations.packing import PackingProblem
+
+__all__ = [
+    "FrontierMarginals",
+    "frontier_marginals",
+    "cluster_messages",
+    "log_subtract",
+]
+
+_NEG_INF = -math.inf
+_WORD_BITS = 64
+_ENTRIES_PER_TRANSITION = 8
+"""Work is counted as in the vectorised frontier search: eight k-entries a transition."""
+
+
+@dataclass(frozen=True, eq=False)
+class FrontierMarginals:
+    """Per-hypothesis log-masses of the sets containing it, for one or more seeds.
+
+    Attributes
+    ----------
+    log_mass : ndarray, shape (kmax + 1,)
+        Per k, the log-mass of the sets summed (all feasible sets when ``exact``).
+    log_total : ndarray, shape (S,)
+        ``log Z`` for each of the S seeds: ``logsumexp_k(log_mass[k] + seed[k])``.
+    log_containing : ndarray, shape (S, H)
+        ``log N_h`` for each seed and hypothesis (``-inf``: no set summed contains h).
+    exact : bool
+        Whether every feasible set was summed (False when the beam dropped something).
+    work : int
+        Transitions of the forward pass (the backward pass and the combination cost
+        about as much again each).
+    """
+
+    log_mass: NDArray[np.float64]
+    log_total: NDArray[np.float64]
+    log_containing: NDArray[np.float64]
+    exact: bool
+    work: int
+
+
+def log_subtract(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``log(exp(a) - exp(b))`` elementwise, for ``b <= a``; ``-inf`` where ``b == a``.
+
+    Raises
+    ------
+    ValueError
+        Where ``b > a`` (the difference would be negative).
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    if np.any(b > a):
+        raise ValueError("log_subtract needs b <= a elementwise")
+    out = np.full(np.broadcast(a, b).shape, _NEG_INF)
+    live = np.broadcast_to(np.isfinite(a), out.shape)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        diff = np.broadcast_to(b, out.shape) - np.broadcast_to(a, out.shape)
+        out[live] = np.broadcast_to(a, out.shape)[live] + np.log(-np.expm1(diff[live]))
+    return out
+
+
+def _row_logsumexp(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """logsumexp along axis 1, ``-inf`` for rows that are all ``-inf`` (no warning)."""
+    if x.shape[1] == 0:
+        return np.full(x.shape[0], _NEG_INF)
+    top = np.max(x, axis=1)
+    out = np.full(x.shape[0], _NEG_INF)
+    live = np.isfinite(top)
+    if np.any(live):
+        out[live] = top[live] + np.log(np.sum(np.exp(x[live] - top[live, None]), axis=1))
+    return out
+
+
+def _with_private_resources(problem: PackingProblem) -> PackingProblem:
+    """The problem with every hypothesis that uses no resource given one of its own
+    (at most once): the feasible sets, weights and counts are unchanged."""
+    lengths = np.diff(problem.resource_indptr)
+    lone = np.flatnonzero(lengths == 0)
+    if lone.size == 0:
+        return problem
+    R = problem.num_resources
+    new_lengths = np.where(lengths == 0, 1, lengths)
+    indptr = np.concatenate([[0], np.cumsum(new_lengths)]).astype(np.int64)
+    indices = np.empty(int(indptr[-1]), dtype=np.int64)
+    owner_old = np.repeat(np.arange(problem.num_hypotheses), lengths)
+    offset_old = np.arange(problem.resource_indices.size) - problem.resource_indptr[owner_old]
+    indices[indptr[owner_old] + offset_old] = problem.resource_indices
+    indices[indptr[lone]] = R + np.arange(lone.size)
+    return PackingProblem(
+        scores=problem.scores,
+        resource_indptr=indptr,
+        resource_indices=indices,
+        exactly_one=np.r_[problem.exactly_one, np.zeros(lone.size, dtype=bool)],
+        counts=problem.counts,
+        log_weights=problem.log_weights,
+    )
+
+
+@dataclass
+class _Step:
+    """What the backward pass needs of one forward step."""
+
+    alpha: NDArray[np.float64]  # (F, cols): log-mass per frontier before the step
+    source: NDArray[np.int64]  # candidate -> frontier row before the step
+    decision: NDArray[np.int64]  # candidate -> hypothesis taken (-1: none)
+    target: NDArray[np.int64]  # candidate -> frontier row after the step (-1: dropped)
+
+
+def frontier_marginals(
+    problem: PackingProblem,
+    seeds: NDArray[np.float64],
+    *,
+    max_frontiers: int | None = None,
+    entry_margin: float | None = None,
+    work_limit: int | None = None,
+    deadline: float | None = None,
+) -> FrontierMarginals:
+    """Forward-backward frontier search: ``log N_h`` and ``log Z`` for each seed.
+
+    Parameters
+    ----------
+    problem : PackingProblem
+        Log-weights are summed (scores are not used).
+    seeds : ndarray, shape (S, kmax + 1) or (kmax + 1,)
+        Log-factor of a set by its number of counted hypotheses k; sets with more than
+        kmax counted are not followed (their factor is 0).  ``-inf`` entries allowed.
+    max_frontiers, entry_margin : optional
+        The beam of :func:`~mapassoc.formulations.frontier.frontier_search` (frontiers
+        ranked by their heaviest entry, ties by frontier word); every result is then a
+        sum over the sets the beam kept (``exact`` False when it dropped any).
+    work_limit : int, optional
+        Most transitions of the forward pass, as in the frontier search.
+    deadline : float, optional
+        ``time.perf_counter()`` value past which the search stops.
+
+    Returns
+    -------
+    FrontierMarginals
+
+    Raises
+    ------
+    SearchLimitExceeded
+        Past ``work_limit`` or ``deadline``.
+    """
+    seeds = np.asarray(seeds, dtype=float)
+    if seeds.ndim == 1:
+        seeds = seeds[None, :]
+    if seeds.ndim != 2 or seeds.shape[1] < 1 or np.any(np.isnan(seeds)):
+        raise ValueError("seeds must be a (S, kmax + 1) array without NaN")
+    if max_frontiers is not None and max_frontiers < 1:
+        raise ValueError(f"max_frontiers must be >= 1, got {max_frontiers!r}")
+    with np.errstate(invalid="ignore", over="ignore"):
+        return _forward_backward(
+            _with_private_resources(problem),
+            seeds,
+            max_frontiers,
+            entry_margin,
+            work_limit,
+            deadline,
+        )
+
+
+def _forward_backward(
+    problem: PackingProblem,
+    seeds: NDArray[np.float64],
+    max_frontiers: int | None,
+    entry_margin: float | None,
+    work_limit: int | None,
+    deadline: float | None,
+) -> FrontierMarginals:
+    H = problem.num_hypotheses
+    S, width = seeds.shape
+    kmax = width - 1
+    order = resource_order(problem)
+    R = order.size
+    position = np.empty(R, dtype=np.int64)
+    position[order] = np.arange(R)
+    owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
+    spots = position[problem.resource_indices]
+    first = np.full(H, R, dtype=np.int64)
+    np.minimum.at(first, owner, spots)
+    last = np.zeros(H, dtype=np.int64)
+    np.maximum.at(last, owner, spots)
+    offsets = spots - first[owner]
+    # Frontier words relative to the current position: one uint64 when every hypothesis
+    # spans fewer than 64 positions, Python integers (object arrays) otherwise.
+    if H == 0 or np.all(last - first < _WORD_BITS):
+        relative = np.zeros(H, dtype=np.uint64)
+        np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets.astype(np.uint64)))
+        one: object = np.uint64(1)
+        word = np.uint64
+    else:
+        codes = [0] * H
+        for h, o in zip(owner.tolist(), offsets.tolist(), strict=True):
+            codes[h] |= 1 << o
+        relative = np.empty(H, dtype=object)
+        relative[:] = codes
+        one, word = 1, object
+    counts = problem.counts.astype(np.int64)
+    weights = np.asarray(problem.log_weights, dtype=float)
+    by_start = np.argsort(first, kind="stable")
+    bounds = np.searchsorted(first[by_start], np.arange(R + 1))
+    exactly_one = problem.exactly_one[order]
+
+    exact = True
+    covers = np.zeros(1, dtype=word)
+    mass = np.zeros((1, 1))
+    steps: list[_Step] = []
+    work = 0
+    empty = FrontierMarginals(
+        log_mass=np.full(width, _NEG_INF),
+        log_total=np.full(S, _NEG_INF),
+        log_containing=np.full((S, H), _NEG_INF),
+        exact=True,
+        work=0,
+    )
+    for step in range(R):
+        covered = (covers & one).astype(bool)
+        keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(covers.size)
+        starting = by_start[bounds[step] : bounds[step + 1]]
+        open_rows = np.flatnonzero(~covered)
+        if starting.size and open_rows.size:
+            fits = (covers[open_rows, None] & relative[starting][None, :]) == 0
+            pair_row, pair_h = np.nonzero(fits.astype(bool))
+            pair_row, pair_h = open_rows[pair_row], starting[pair_h]
+        else:
+            pair_row = pair_h = np.zeros(0, dtype=np.int64)
+        reach = mass.shape[1] - 1
+        grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and reach < kmax)
+        cols = reach + 1 + grow
+        source = np.concatenate([keep, pair_row]).astype(np.int64)
+        work += -(-source.size * cols // _ENTRIES_PER_TRANSITION)
+        _check(work, work_limit, deadline)
+        if source.size == 0:  # an exactly-once resource no frontier can satisfy
+            return FrontierMarginals(
+                empty.log_mass, empty.log_total, empty.log_containing, exact, work
+            )
+        cand = np.full((source.size, cols), _NEG_INF)
+        cand[: keep.size, : reach + 1] = mass[keep]
+        taken = keep.size + np.arange(pair_h.size)
+        for c in (0, 1):
+            sel = counts[pair_h] == c
+            if not np.any(sel):
+                continue
+            span = min(reach + 1, cols - c)
+            cand[taken[sel], c : c + span] = mass[pair_row[sel], :span] + weights[pair_h[sel], None]
+        cand_covers = np.concatenate(
+            [covers[keep] >> one, (covers[pair_row] | relative[pair_h]) >> one]
+        ).astype(word)
+        decision = np.concatenate([np.full(keep.size, -1, dtype=np.int64), pair_h])
+        ranked = np.argsort(cand_covers, kind="stable")
+        sorted_covers = cand_covers[ranked]
+        new_frontier = np.r_[True, sorted_covers[1:] != sorted_covers[:-1]]
+        starts = np.flatnonzero(new_frontier)
+        target = np.empty(source.size, dtype=np.int64)
+        target[ranked] = np.cumsum(new_frontier) - 1
+        new_mass = np.logaddexp.reduceat(cand[ranked], starts, axis=0)
+        new_covers = sorted_covers[starts]
+        if entry_margin is not None:
+            light = new_mass < new_mass.max(axis=1, keepdims=True) - entry_margin
+            if np.any(light):
+                new_mass[light] = _NEG_INF
+                exact = False
+        if max_frontiers is not None and new_covers.size > max_frontiers:
+            heaviest = new_mass.max(axis=1)
+            kept = np.sort(np.argsort(-heaviest, kind="stable")[:max_frontiers])
+            renumber = np.full(new_covers.size, -1, dtype=np.int64)
+            renumber[kept] = np.arange(kept.size)
+            target = renumber[target]
+            new_covers, new_mass = new_covers[kept], new_mass[kept]
+            exact = False
+        steps.append(_Step(mass, source, decision, target))
+        covers, mass = new_covers, new_mass
+
+    # Every frontier word is 0 after the last position: one frontier remains.
+    log_mass = np.full(width, _NEG_INF)
+    if covers.size:
+        log_mass[: mass.shape[1]] = mass[0]
+    total = np.array([_lse(log_mass + seed) for seed in seeds])
+    containing = np.full((S, H), _NEG_INF)
+    for s, seed in enumerate(seeds):
+        containing[s] = _backward(steps, mass, seed, counts, weights, H)
+    return FrontierMarginals(log_mass, total, containing, exact, work)
+
+
+def _lse(values: NDArray[np.float64]) -> float:
+    top = float(np.max(values)) if values.size else _NEG_INF
+    if not math.isfinite(top):
+        return _NEG_INF
+    return top + math.log(float(np.sum(np.exp(values - top))))
+
+
+def _backward(
+    steps: Sequence[_Step],
+    final_mass: NDArray[np.float64],
+    seed: NDArray[np.float64],
+    counts: NDArray[np.int64],
+    weights: NDArray[np.float64],
+    H: int,
+) -> NDArray[np.float64]:
+    """``log N_h`` for one seed (see the module docstring)."""
+    containing = np.full(H, _NEG_INF)
+    cols = final_mass.shape[1]
+    beta = seed[None, :cols].copy()
+    after = final_mass  # forward masses of the frontiers after the current step
+    for rec in reversed(steps):
+        # Paths run only through (frontier, k) entries the forward pass kept.
+        beta = np.where(np.isfinite(after), beta, _NEG_INF)
+        frontiers, width = rec.alpha.shape
+        padded = np.full((beta.shape[0], width + 1), _NEG_INF)
+        n = min(beta.shape[1], width + 1)
+        padded[:, :n] = beta[:, :n]
+        live = rec.target >= 0
+        taken = np.maximum(rec.decision, 0)
+        c = np.where(rec.decision >= 0, counts[taken], 0)
+        w = np.where(rec.decision >= 0, weights[taken], 0.0)
+        cand = np.full((rec.source.size, width), _NEG_INF)
+        for shift in (0, 1):
+            sel = live & (c == shift)
+            if np.any(sel):
+                cand[sel] = padded[rec.target[sel], shift : shift + width] + w[sel, None]
+        pairs = np.flatnonzero(rec.decision >= 0)
+        if pairs.size:
+            through = _row_logsumexp(rec.alpha[rec.source[pairs]] + cand[pairs])
+            np.logaddexp.at(containing, rec.decision[pairs], through)
+        by_source = np.argsort(rec.source, kind="stable")
+        sorted_source = rec.source[by_source]
+        starts = np.flatnonzero(np.r_[True, sorted_source[1:] != sorted_source[:-1]])
+        beta = np.full((frontiers, width), _NEG_INF)
+        beta[sorted_source[starts]] = np.logaddexp.reduceat(cand[by_source], starts, axis=0)
+        after = rec.alpha
+    return containing
+
+
+def _check(work: int, work_limit: int | None, deadline: float | None) -> None:
+    if work_limit is not None and work > work_limit:
+        raise SearchLimitExceeded(
+            f"frontier marginals exceeded the work limit of {work_limit} transitions",
+            reason="work",
+            work=work,
+        )
+    if deadline is not None and time.perf_counter() > deadline:
+        raise SearchLimitExceeded(
+            "frontier marginals ran past the deadline", reason="deadline", work=work
+        )
+
+
+def cluster_messages(
+    tables: Sequence[NDArray[np.float64]], log_track_weights: NDArray[np.float64]
+) -> tuple[list[NDArray[np.float64]], float]:
+    """What the rest of the window makes of each independent cluster, per its own k.
+
+    The window's sets are the products of one set per cluster, with count ``T`` the sum
+    of the clusters' counts and weight ``exp(sum of log-weights) * W(T)``.  For cluster
+    ``c`` with per-k log-masses ``m_c``, the message
+
+        G_c[k] = log sum_T W(T) R_c[T - k],   R_c = the sum-product convolution of the
+                                               other clusters' masses,
+
+    makes ``sum_k exp(m_c[k] + G_c[k])`` the window's total for every c, and turns a
+    per-k mass of sets of c containing h into that of the window's sets containing h.
+    Computed with prefix convolutions forward and correlations with ``W`` backward: one
+    pass each over the clusters, ``O(len(W) * table length)`` per cluster.
+
+    Parameters
+    ----------
+    tables : sequence of ndarray, each shape (k_c + 1,)
+        Per-k log-masses of the clusters (``-inf`` where none).
+    log_track_weights : ndarray, shape (L,)
+        ``log W(T)`` for T = 0..L-1; ``W(T) = 0`` beyond.
+
+    Returns
+    -------
+    messages : list of ndarray, the c-th of shape (k_c + 1,)
+    log_total : float
+        ``log sum_T W(T) (convolution of every table)[T]``.
+    """
+    log_w = np.asarray(log_track_weights, dtype=float)
+    L = log_w.shape[0]
+    C = len(tables)
+    # backward[c][j] = log sum_T W(T) (conv of tables c..C-1)[T - j], j = 0..L-1.
+    backward: list[NDArray[np.float64]] = [np.empty(0)] * (C + 1)
+    backward[C] = log_w
+    for c in range(C - 1, -1, -1):
+        table = np.asarray(tables[c], dtype=float)
+        nxt = backward[c + 1]
+        out = np.full(L, _NEG_INF)
+        for i in np.flatnonzero(np.isfinite(table[:L])).tolist():
+            window = out[: L - i]
+            np.logaddexp(window, nxt[i:] + table[i], out=window)
+        backward[c] = out
+    messages: list[NDArray[np.float64]] = []
+    prefix = np.full(L, _NEG_INF)
+    prefix[0] = 0.0
+    for c in range(C):
+        table = np.asarray(tables[c], dtype=float)
+        nxt = backward[c + 1]
+        message = np.full(table.shape[0], _NEG_INF)
+        for k in range(min(table.shape[0], L)):
+            message[k] = _lse(prefix[: L - k] + nxt[k:])
+        messages.append(message)
+        prefix = sum_product(prefix, table, L)
+    return messages, float(backward[0][0]) if L else _NEG_INF

@@ -1,0 +1,194 @@
+"""The forward-backward frontier search and the cluster messages
+(``mapassoc.formulations.marginals``) against brute force."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from scipy.special import logsumexp
+from support import random_problem
+
+from mapassoc.formulations.convolution import sum_product
+from mapassoc.formulations.frontier import frontier_search
+from mapassoc.formulations.marginals import (
+    cluster_messages,
+    frontier_marginals,
+    log_subtract,
+)
+from mapassoc.formulations.packing import PackingProblem
+
+TOLERANCE = 1e-9
+
+
+def brute_force(problem: PackingProblem, seed: np.ndarray) -> tuple[float, np.ndarray]:
+    """log Z and log N_h by enumerating every subset of hypotheses."""
+    kmax = seed.shape[0] - 1
+    H = problem.num_hypotheses
+    total: list[float] = []
+    containing: list[list[float]] = [[] for _ in range(H)]
+    for r in range(H + 1):
+        for sel in itertools.combinations(range(H), r):
+            chosen = np.array(sel, dtype=np.int64)
+            if not problem.is_feasible(chosen):
+                continue
+            k = int(np.count_nonzero(problem.counts[chosen]))
+            if k > kmax:
+                continue
+            value = float(np.sum(problem.log_weights[chosen])) + float(seed[k])  # type: ignore[index]
+            total.append(value)
+            for h in sel:
+                containing[h].append(value)
+    z = float(logsumexp(total)) if total else -math.inf
+    n = np.array([float(logsumexp(c)) if c else -math.inf for c in containing])
+    return z, n
+
+
+def assert_log_close(a: np.ndarray, b: np.ndarray) -> None:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    assert np.array_equal(np.isneginf(a), np.isneginf(b)), (a, b)
+    finite = np.isfinite(a)
+    np.testing.assert_allclose(a[finite], b[finite], rtol=0, atol=TOLERANCE)
+
+
+@pytest.mark.parametrize("trial", range(60))
+def test_frontier_marginals_equal_enumeration(trial: int) -> None:
+    rng = np.random.default_rng(1000 + trial)
+    problem = random_problem(
+        rng, int(rng.integers(1, 13)), int(rng.integers(1, 6)), int(rng.integers(0, 3))
+    )
+    if trial % 3 == 0:  # merged-style log-weights that differ from the scores
+        problem = PackingProblem(
+            problem.scores,
+            problem.resource_indptr,
+            problem.resource_indices,
+            problem.exactly_one,
+            problem.counts,
+            log_weights=problem.scores + rng.uniform(0.0, 2.0, size=problem.num_hypotheses),
+        )
+    kmax = int(rng.integers(0, 6))
+    seeds = rng.normal(0.0, 2.0, size=(2, kmax + 1))
+    seeds[1, rng.integers(0, kmax + 1)] = -math.inf  # a count the rest cannot take
+    found = frontier_marginals(problem, seeds)
+    assert found.exact
+    for s in range(2):
+        z, n = brute_force(problem, seeds[s])
+        assert_log_close(np.array([found.log_total[s]]), np.array([z]))
+        assert_log_close(found.log_containing[s], n)
+    # The per-k masses are the frontier search's.
+    reference = frontier_search(problem, kmax)
+    assert_log_close(found.log_mass[: reference.log_mass.shape[0]], reference.log_mass)
+
+
+def test_hypotheses_without_resources_are_free() -> None:
+    """Two lone hypotheses (no resource) and one that conflicts with nothing either."""
+    problem = PackingProblem(
+        scores=np.array([0.5, -1.0, 2.0]),
+        resource_indptr=np.array([0, 0, 0, 1]),
+        resource_indices=np.array([0]),
+        exactly_one=np.array([False]),
+        counts=np.array([True, False, True]),
+    )
+    seed = np.array([0.0, -0.3, 0.7])
+    found = frontier_marginals(problem, seed)
+    z, n = brute_force(problem, seed)
+    assert_log_close(found.log_total, np.array([z]))
+    assert_log_close(found.log_containing[0], n)
+
+
+def test_vectorised_sizes_agree_with_leaving_each_hypothesis_out() -> None:
+    """On problems too large to enumerate (the numpy path, >= 40 hypotheses), the mass
+    of the sets holding h is the total minus the mass of the problem without h, both
+    from the plain frontier search."""
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        problem = random_problem(rng, 60, 25, 4)
+        kmax = 8
+        seed = rng.normal(0.0, 1.0, size=kmax + 1)
+        found = frontier_marginals(problem, seed)
+
+        def total(p: PackingProblem, seed: np.ndarray = seed) -> float:
+            mass = frontier_search(p, seed.shape[0] - 1).log_mass
+            return float(logsumexp(mass + seed[: mass.shape[0]]))
+
+        z = total(problem)
+        assert abs(found.log_total[0] - z) <= TOLERANCE
+        for h in range(problem.num_hypotheses):
+            rest = np.delete(np.arange(problem.num_hypotheses), h)
+            without = total(problem.subproblem(rest))
+            # Resources only h used vanish from the subproblem: an exactly-once one makes
+            # every set hold h.
+            expected = log_subtract(np.array(z), np.array(min(without, z)))
+            if np.isfinite(expected) and expected > z - 20.0:  # no cancellation
+                assert abs(found.log_containing[0, h] - expected) <= 1e-7, h
+
+
+def test_hypotheses_spanning_more_than_64_resources() -> None:
+    """One hypothesis uses all 70 resources (frontiers wider than a machine word): the
+    sets are any subset of the 70 singletons, or the big one alone."""
+    n = 70
+    rng = np.random.default_rng(3)
+    w = rng.normal(0.0, 1.0, size=n + 1)
+    indptr = np.r_[np.arange(n + 1), 2 * n].astype(np.int64)
+    indices = np.r_[np.arange(n), np.arange(n)].astype(np.int64)
+    problem = PackingProblem(w, indptr, indices, np.zeros(n, dtype=bool), np.zeros(n + 1, bool))
+    found = frontier_marginals(problem, np.zeros(1))
+    free = np.logaddexp(0.0, w[:n])
+    z = np.logaddexp(np.sum(free), w[n])
+    assert abs(found.log_total[0] - z) <= TOLERANCE
+    expected = np.r_[w[:n] + np.sum(free) - free, w[n]]
+    np.testing.assert_allclose(found.log_containing[0], expected, rtol=0, atol=TOLERANCE)
+
+
+def test_beam_sums_a_subset() -> None:
+    """With a beam, every sum is over the sets kept: at most the exact one, and the
+    captured total is the captured per-k masses weighted by the seed."""
+    rng = np.random.default_rng(11)
+    problem = random_problem(rng, 60, 20, 3)
+    seed = rng.normal(0.0, 1.0, size=7)
+    exact = frontier_marginals(problem, seed)
+    beam = frontier_marginals(problem, seed, max_frontiers=2, entry_margin=5.0)
+    assert not beam.exact
+    assert beam.log_total[0] < exact.log_total[0]
+    assert np.all(beam.log_containing <= exact.log_containing + 1e-12)
+    assert np.all(beam.log_containing <= beam.log_total[:, None] + 1e-12)
+    width = beam.log_mass.shape[0]
+    assert abs(beam.log_total[0] - logsumexp(beam.log_mass + seed[:width])) <= TOLERANCE
+
+
+@pytest.mark.parametrize("trial", range(10))
+def test_cluster_messages_equal_direct_convolution(trial: int) -> None:
+    rng = np.random.default_rng(trial)
+    tables = []
+    for _ in range(int(rng.integers(1, 6))):
+        table = rng.normal(0.0, 2.0, size=int(rng.integers(1, 5)))
+        table[rng.random(table.shape[0]) < 0.2] = -math.inf
+        tables.append(table)
+    L = int(rng.integers(1, 12))
+    log_w = rng.normal(0.0, 1.0, size=L)
+    messages, total = cluster_messages(tables, log_w)
+    everything = np.r_[0.0, np.full(L - 1, -math.inf)]
+    for t in tables:
+        everything = sum_product(everything, t, L)
+    reached = np.any(np.isfinite(everything + log_w))
+    direct_total = float(logsumexp(everything + log_w)) if reached else -math.inf
+    assert (total == direct_total == -math.inf) or abs(total - direct_total) <= TOLERANCE
+    for c, table in enumerate(tables):
+        rest = np.r_[0.0, np.full(L - 1, -math.inf)]
+        for j, t in enumerate(tables):
+            if j != c:
+                rest = sum_product(rest, t, L)
+        for k in range(table.shape[0]):
+            terms = [log_w[T] + rest[T - k] for T in range(k, L)]
+            expected = float(logsumexp(terms)) if terms else -math.inf
+            got = messages[c][k]
+            assert (got == expected == -math.inf) or abs(got - expected) <= TOLERANCE
+
+
+def test_log_subtract_refuses_a_negative_difference() -> None:
+    np.testing.assert_allclose(log_subtract(np.log(3.0), np.log(1.0)), np.log(2.0))
+    assert log_subtract(np.array(1.0), np.array(1.0)) == -math.inf
+    with pytest.raises(ValueError):
+        log_subtract(np.array(0.0), np.array(1.0))
