@@ -3,7 +3,8 @@
 * ``formulations/`` never imports a solver library or ``mapassoc.solvers``, nor domain code;
 * ``solvers/`` never imports domain code (only ``mapassoc.formulations.program``);
 * domain modules never import formulations or solvers: only the pipeline (with its
-  per-cluster strategy, ``cluster_solving``), the trackers of ``mapassoc/trackers/`` that
+  per-cluster strategy, ``cluster_solving``, its posterior marginals, ``marginals``, and
+  the whole recording's refinement, ``refinement``), the trackers of ``mapassoc/trackers/`` that
   solve programs (MHT, network flow, LP relaxation) and the applications of
   ``mapassoc/apps/`` (command line, benchmark, demo) wire the three together.
 """
@@ -17,7 +18,12 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 SOLVER_LIBRARIES = ("cvxpy", "clarabel", "highspy", "networkx", "scipy.optimize", "pyomo", "pulp")
-WIRING_MODULES = {"estimator/pipeline.py", "estimator/cluster_solving.py"}
+WIRING_MODULES = {
+    "estimator/pipeline.py",
+    "estimator/cluster_solving.py",
+    "estimator/marginals.py",
+    "estimator/refinement.py",
+}
 WIRING_FOLDERS = ("trackers", "apps")
 
 

@@ -159,6 +159,14 @@ class EstimatorSettings:
     beam_width : int
         Frontiers kept by the beam search that gives a cluster too large for the exact
         search its lower bounds on the mass per K.
+    refine_passes : int
+        Sweeps of the whole recording's refinement after the forward pass
+        (:mod:`mapassoc.estimator.refinement`: window re-solves with both boundaries and
+        fragment linking, each accepted only where the recording objective J rises);
+        0 turns it off and gives the forward pass's tracks.
+    refine_link_gap : int
+        Most scans between one track's last detection and another's first for the
+        refinement to try joining them (0: no fragment linking).
     """
 
     window_length: int = 5
@@ -175,6 +183,8 @@ class EstimatorSettings:
     time_limit: float = 2.0
     exact_work_limit: int = 500_000
     beam_width: int = 200
+    refine_passes: int = 2
+    refine_link_gap: int = 10
 
     def __post_init__(self) -> None:
         _check_int("window_length", self.window_length, minimum=1)
@@ -206,6 +216,8 @@ class EstimatorSettings:
         check_positive("time_limit", self.time_limit, key="time_limit")
         _check_int("exact_work_limit", self.exact_work_limit, minimum=1)
         _check_int("beam_width", self.beam_width, minimum=1)
+        _check_int("refine_passes", self.refine_passes, minimum=0)
+        _check_int("refine_link_gap", self.refine_link_gap, minimum=0)
 
     def k_estimator(self) -> KEstimator:
         """The estimator of K these settings name."""

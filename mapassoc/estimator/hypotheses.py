@@ -733,6 +733,7 @@ class HypothesisGenerator:
         carried: Sequence[CarriedTrack] = (),
         *,
         population: WindowPopulation | None = None,
+        end_gain: float = 0.0,
     ) -> WindowHypotheses:
         """Build every kept hypothesis of the window.
 
@@ -747,15 +748,23 @@ class HypothesisGenerator:
             The undetected-target intensity of the window's scans (a new track's first
             detection at scan ``j`` is scored against ``first_detection_means[j]``);
             default: :meth:`population` of a window that starts the recording.
+        end_gain : float
+            What a path alive at the window's last scan may still gain after it, >= 0
+            (0 for a sliding window, whose later scans are another window's business;
+            the refinement of the whole recording, :mod:`mapassoc.estimator.refinement`,
+            passes what joining a track that continues after the window can add).  It is
+            added to every :meth:`remaining_gain_bounds` of the bound pruning.
 
         Returns
         -------
         WindowHypotheses
         """
         scans, first_detection = self._validated(scans, carried, population)
+        if not (end_gain >= 0 and math.isfinite(end_gain)):
+            raise InputError(f"end_gain must be a finite number >= 0, got {end_gain!r}")
         detections, offsets = _window_detections(scans)
         tree_track_ids: list[int] = [t.track_id for t in carried]
-        remaining_gain = self.remaining_gain_bounds(scans)
+        remaining_gain = self.remaining_gain_bounds(scans) + end_gain
         frontier = self._carried_frontier(carried)
         kept_layers: list[HypothesisNodes] = []
         node_count = generated = pruned = capped = 0

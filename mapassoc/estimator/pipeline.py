@@ -23,7 +23,9 @@ For each window of ``window_length`` consecutive scans:
    carry the tracks alive at the last committed scan, and the undetected-target
    intensity after it, into the next window.
 
-At the end every track is smoothed (RTS) over the detections it used.
+At the end the whole recording's track set is refined where the recording objective J
+rises (``refine_passes``, :mod:`mapassoc.estimator.refinement`) and every track is
+smoothed (RTS) over the detections it used.
 """
 
 from __future__ import annotations
@@ -44,7 +46,9 @@ from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError
 from mapassoc.estimator.cluster_solving import ClusterReport, ClusterSolver, ClusterStatus
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
+from mapassoc.estimator.marginals import WindowCluster
 from mapassoc.estimator.posterior import FULL_LENGTH_KMAX, KPosterior, k_posterior
+from mapassoc.estimator.refinement import RefinementReport, refine_track_rows
 from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.formulations.cardinality import (
     ClusterTable,
@@ -172,6 +176,9 @@ class WindowSolution:
         deadline had passed (conservatively: also when the bound would have kept every
         hypothesis anyway).  Its mass then depends on the clock, so the window's status
         is ``time_limit`` even where every cluster was solved exactly.
+    clusters : tuple of WindowCluster
+        Each cluster's hypotheses, merge, bound-pruning mask and table (what
+        :func:`~mapassoc.estimator.marginals.window_marginals` needs).
     """
 
     hypotheses: WindowHypotheses
@@ -186,6 +193,7 @@ class WindowSolution:
     bound_pruned: int = 0
     timed_out: bool = False
     pruning_cut_short: bool = False
+    clusters: tuple[WindowCluster, ...] = ()
 
     @property
     def status(self) -> WindowStatus:
@@ -460,6 +468,9 @@ class EstimateResult:
     num_scans : int
     tally : WindowTally
         Totals over the windows (what :meth:`summary` reports).
+    refinement : RefinementReport or None
+        What the whole recording's refinement did (None when ``refine_passes = 0``);
+        ``tracks`` and ``track_rows`` are then the refined ones.
     """
 
     tracks: TrackTable
@@ -468,6 +479,7 @@ class EstimateResult:
     seconds: float
     num_scans: int
     tally: WindowTally
+    refinement: RefinementReport | None = None
 
     def summary(self, *, timings: bool = True) -> dict[str, object]:
         t = self.tally
@@ -490,6 +502,8 @@ class EstimateResult:
             out["seconds"] = self.seconds
             out["scans_per_second"] = self.num_scans / self.seconds if self.seconds > 0 else None
             out["windows_over_time_limit"] = t.over_time_limit
+        if self.refinement is not None:
+            out["refinement"] = self.refinement.to_json(timings=timings)
         return out
 
 
@@ -656,6 +670,7 @@ class WindowEstimator:
             required,
         )
         independent: list[int] = []  # lone hypotheses that may be taken or not
+        parts: list[WindowCluster] = []
         for members in clusters:
             if len(members) == 1:
                 h = int(members[0])
@@ -670,10 +685,11 @@ class WindowEstimator:
                     min(kmax, 1),
                 )
                 tables.append(single.remapped(members))
+                parts.append(WindowCluster("single", members, single))
                 continue
             # Interchangeable hypotheses (same detections, e.g. "ended" and "missed to
             # the end") merge exactly: best score for the MAP, summed weight for the mass.
-            merged = merge_interchangeable(problem.subproblem(members))
+            merged = unpruned = merge_interchangeable(problem.subproblem(members))
             keep = self.cluster_solver.bound_prune(merged.problem, deadline)
             if keep is None and time.perf_counter() >= deadline and self._prunable(merged):
                 pruning_cut_short = True  # the clock, not the bound, left it unpruned
@@ -689,6 +705,7 @@ class WindowEstimator:
             if report.status is not ClusterStatus.EXACT:
                 reports.append(report)
             tables.append(table.remapped(members[merged.representative]))
+            parts.append(WindowCluster("cluster", members, table, report.status, unpruned, keep))
         if independent:
             lone = np.asarray(independent, dtype=np.int64)
             tables.append(
@@ -698,6 +715,7 @@ class WindowEstimator:
                     lone,  # type: ignore[index]
                 )
             )
+            parts.append(WindowCluster("independent", lone, tables[-1]))
         table = combine_tables(tables, kmax)
         posterior = k_posterior(
             table.best,
@@ -722,6 +740,7 @@ class WindowEstimator:
             bound_pruned=bound_pruned,
             timed_out=t2 > deadline,
             pruning_cut_short=pruning_cut_short,
+            clusters=tuple(parts),
         )
 
     def _prunable(self, merged: MergedProblem) -> bool:
@@ -929,8 +948,9 @@ class WindowEstimator:
         state: RunState,
         *,
         windows: Sequence[WindowReport] = (),
+        refine: bool = True,
     ) -> EstimateResult:
-        """Smooth every track of a done run and return the result.
+        """Refine (``refine_passes > 0``) and smooth every track of a done run.
 
         Warns (RuntimeWarning) when p(K = Kmax | Z) exceeded 1% in some window.
 
@@ -942,6 +962,10 @@ class WindowEstimator:
             Done.
         windows : sequence of WindowReport, optional
             The reports to keep in the result (:meth:`run` passes all of them).
+        refine : bool
+            False leaves the forward pass's tracks as they are whatever
+            ``refine_passes`` says (a segment of a longer recording, refined once
+            stitched: :mod:`mapassoc.estimator.segments`).
         """
         if not state.done:
             raise InputError(
@@ -952,15 +976,20 @@ class WindowEstimator:
         message = tally.kmax_warning(self.settings.max_tracks)
         if message is not None:
             warnings.warn(message, RuntimeWarning, stacklevel=3)
-        tracks = self._smooth(scans, state.records)
+        track_rows = {tid: tuple(r.rows) for tid, r in sorted(state.records.items()) if r.rows}
+        refinement = None
+        if refine and self.settings.refine_passes > 0 and track_rows:
+            track_rows, refinement = refine_track_rows(self.config, scans, track_rows)
+        tracks = self._smooth(scans, track_rows)
         tally.seconds += time.perf_counter() - t_start
         return EstimateResult(
             tracks=tracks,
             windows=tuple(windows),
-            track_rows={tid: tuple(r.rows) for tid, r in sorted(state.records.items()) if r.rows},
+            track_rows=track_rows,
             seconds=tally.seconds,
             num_scans=state.total_scans,
             tally=tally,
+            refinement=refinement,
         )
 
     def _commit(
@@ -987,12 +1016,12 @@ class WindowEstimator:
         new_carried.sort(key=lambda t: t.track_id)
         return new_carried, next_id
 
-    def _smooth(self, scans: Sequence[Scan], records: dict[int, _TrackRecord]) -> TrackTable:
+    def _smooth(
+        self, scans: Sequence[Scan], track_rows: dict[int, tuple[int, ...]]
+    ) -> TrackTable:
         """RTS-smooth every track over the detections it used."""
         where = {
             int(row): (k, j) for k, scan in enumerate(scans) for j, row in enumerate(scan.rows)
         }
-        associations = {
-            tid: dict(where[row] for row in rec.rows) for tid, rec in records.items() if rec.rows
-        }
+        associations = {tid: dict(where[row] for row in rows) for tid, rows in track_rows.items()}
         return smooth_tracks(scans, associations, self.config)

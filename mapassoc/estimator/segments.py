@@ -42,6 +42,7 @@ from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import InputError
 from mapassoc.estimator.pipeline import EstimateResult, WindowEstimator, WindowReport, WindowTally
+from mapassoc.estimator.refinement import refine_track_rows
 from mapassoc.filtering.smoothing import smooth_tracks
 
 __all__ = [
@@ -176,7 +177,7 @@ def solve_segment(
         if stop is not None and stop():
             return None
         reports.append(estimator.step(scans, state))
-    result = estimator.finish(scans, state, windows=reports)
+    result = estimator.finish(scans, state, windows=reports, refine=False)
     return SegmentResult(
         segment=segment,
         track_rows=dict(result.track_rows),
@@ -265,11 +266,15 @@ def stitch_segments(
                 pieces.setdefault(find((seg.index, tid)), []).extend(owned)
     ordered = sorted(pieces.values(), key=lambda p: min(p))
     associations = {tid: dict(sorted(p)) for tid, p in enumerate(ordered, start=1)}
-    tracks = smooth_tracks(scans, associations, config)
     track_rows = {
         tid: tuple(int(scans[k].rows[j]) for k, j in sorted(a.items()))
         for tid, a in associations.items()
     }
+    refinement = None
+    if config.estimator.refine_passes > 0 and track_rows:
+        track_rows, refinement = refine_track_rows(config, scans, track_rows)
+        associations = {tid: dict(where(r) for r in rows) for tid, rows in track_rows.items()}
+    tracks = smooth_tracks(scans, associations, config)
 
     windows: list[WindowReport] = []
     tally = WindowTally()
@@ -297,6 +302,7 @@ def stitch_segments(
         seconds=tally.seconds,
         num_scans=len(scans),
         tally=tally,
+        refinement=refinement,
     )
 
 

@@ -46,6 +46,8 @@ BAD_ESTIMATOR: dict[str, tuple[object, dict[str, object]]] = {
     "time_limit": (0.0, {}),
     "exact_work_limit": (0, {}),
     "beam_width": (0, {}),
+    "refine_passes": (-1, {}),
+    "refine_link_gap": (-1, {}),
 }
 
 CASES = [

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -43,8 +45,14 @@ def _line_scans(n: int) -> list[Scan]:
 
 
 def test_stitching_by_hand() -> None:
-    """Pieces sharing detections in the overlap chain; the owned ranges decide the rest."""
+    """Pieces sharing detections in the overlap chain; the owned ranges decide the rest.
+
+    (The stitched set is not refined here: ``refine_passes = 0``.)"""
     scenario = build_scenario("crossing", 0)
+    config = dataclasses.replace(
+        scenario.config,
+        estimator=dataclasses.replace(scenario.config.estimator, refine_passes=0),
+    )
     scans = _line_scans(12)
     first, second = Segment(0, 0, 8, 0, 6), Segment(1, 4, 12, 6, 12)
     a = tuple(10 * k for k in range(12))
@@ -55,13 +63,13 @@ def test_stitching_by_hand() -> None:
         # Segment 1 (scans 4..11): B is its track 1 from scan 4, A its track 2 from scan 5.
         SegmentResult(second, {1: b[4:], 2: a[5:]}, (), 2.0),
     ]
-    stitched = stitch_segments(scans, results, scenario.config)
+    stitched = stitch_segments(scans, results, config)
     assert stitched.track_rows == {1: a, 2: b}  # one track each, numbered by first detection
     assert stitched.seconds == 3.0
     # Without shared detections in the overlap, pieces stay apart: B's second piece starts
     # at the cut (scan 6), its own track.
     results[1] = SegmentResult(second, {1: b[7:], 2: a[5:]}, (), 2.0)
-    stitched = stitch_segments(scans, results, scenario.config)
+    stitched = stitch_segments(scans, results, config)
     assert stitched.track_rows == {1: a, 2: b[:6], 3: b[7:]}
 
 

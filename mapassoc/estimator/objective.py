@@ -1,0 +1,598 @@
+"""The whole recording's objective: J(omega) = log p(omega | Z) + const for a track set.
+
+A sliding window scores its hypotheses with the terms of Perry's MAP formulation under
+mapassoc's birth model (``docs/model.md``, sections 2-3).  Over a whole recording the
+same terms add up, track by track, to the log-posterior of a track set ``omega`` against
+the empty one (every detection a false alarm, no target ever detected):
+
+    J(omega) = log p(omega | Z) - log p(empty | Z) = sum_{tau in omega} v(tau),
+
+because under the birth model the targets never detected form a Poisson process whose
+law does not depend on ``omega`` (its factor cancels in the ratio; ``docs/model.md``,
+eq. (B), with the window replaced by the recording), and the false-alarm factor of
+Perry's eq. (10) becomes ``lambda^{-T_m}`` per scan once the shuffle of the scan is
+accounted for (eq. (★) there), which each track takes as its ``- log lambda`` per
+detection.  A track ``tau`` with detections at scans ``f = m_1 < m_2 < ... < m_L`` has
+
+    v(tau) = log u_f + log Pd_f - log lambda_bar_f                    (first detection)
+           + sum_{m = f+1}^{m_L} [ dt_m log Ps + c_m ]                  (every later scan)
+           + tail(m_L),
+
+with ``c_m = log Pd_m + log N(nu_m; 0, S_m) - log lambda_m`` where it is detected
+(Kalman innovation of its own filter; ``-inf`` outside the gate, which the window model
+never associates), ``c_m = log(1 - Pd_m P_G)`` where it is missed, ``u_f`` the
+undetected-target mean of :mod:`mapassoc.models.population` from the recording's first
+scan, and
+
+    tail(m) = max( log(1 - Ps^{t_{m+1} - t_m}),
+                   (t_{m+1} - t_m) log Ps + log(1 - Pd_{m+1} P_G) + tail(m + 1) ),
+    tail(last scan) = 0,
+
+the best of the track's endings after its last detection (it ends in the gap after scan
+``m``, or is missed at scan ``m + 1`` and ends later, or lives to the recording's end).
+The death time is thus part of ``omega`` and maximised over, as the windows' "ended"
+and "missed to the end" hypotheses are.  These are exactly the terms the hypothesis
+trees use (:mod:`mapassoc.estimator.hypotheses`), computed with the same filter, so a
+recording no longer than one window gets J equal to its window's best objective.
+
+J is defined under the birth model (the default ``k_prior``); a named prior on K
+reweights each window's count of targets and has no whole-recording counterpart.
+
+Code that scores a track set found in any way (the forward pass, a refinement, another
+tracker's hard associations) calls :meth:`RecordingObjective.value`;
+:mod:`mapassoc.estimator.refinement` uses the batched continuation
+(:meth:`RecordingObjective.continue_paths`) to score joins exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mapassoc.data.config import Config, check_config
+from mapassoc.data.scans import Scan
+from mapassoc.errors import InputError
+from mapassoc.filtering.kalman import (
+    gate_threshold,
+    pairwise_gate_and_loglik,
+    predict_motion,
+    update,
+)
+from mapassoc.models.birth import (
+    birth_states,
+    convert_initiated,
+    initiation_measurement,
+    initiation_model,
+    needs_conversion,
+)
+from mapassoc.models.measurement import LinearMeasurement
+from mapassoc.models.motion import MotionModel
+from mapassoc.models.population import recording_start, window_population
+
+__all__ = [
+    "TrackPath",
+    "PathState",
+    "Trajectory",
+    "TRAJECTORY_CACHE",
+    "CONVERGED",
+    "RecordingObjective",
+    "paths_from_rows",
+    "rows_from_paths",
+]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+_LOG_2PI = math.log(2.0 * math.pi)
+
+TrackPath = tuple[tuple[int, int], ...]
+"""A track's detections as ``((scan index, index in that scan), ...)`` in increasing scan
+order, at most one per scan."""
+
+
+TRAJECTORY_CACHE = 20_000
+"""Most track runs :meth:`RecordingObjective.trajectory` keeps."""
+
+CONVERGED = 1e-9
+"""Relative agreement of two filtered states taken as equal by
+:meth:`RecordingObjective.continue_converging`."""
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """One track's filter run (:meth:`RecordingObjective.trajectory`).
+
+    Attributes
+    ----------
+    path : TrackPath
+    means, covariances : tuple of ndarray
+        Filtered state after each detection (its dimension may change once for a
+        coordinated-turn track, at its conversion).
+    initiated : ndarray of bool, shape (L,)
+    first_time : float
+    values : ndarray, shape (L,)
+        Sum of the track's terms up to and including each detection.
+    value : float
+        ``v(tau)``: ``values[-1]`` plus the best ending after the last detection.
+    """
+
+    path: TrackPath
+    means: tuple[FloatArray, ...]
+    covariances: tuple[FloatArray, ...]
+    initiated: NDArray[np.bool_]
+    first_time: float
+    values: FloatArray
+    value: float
+
+    def state(self, k: int) -> PathState:
+        """The state after detection ``k`` as a batch of one."""
+        return PathState(
+            scan=self.path[k][0],
+            means=self.means[k][None, :],
+            covariances=self.covariances[k][None, :, :],
+            initiated=bool(self.initiated[k]),
+            first_time=np.array([self.first_time]),
+            value=np.array([self.values[k]]),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class PathState:
+    """Filtered states of a batch of tracks at one scan, and their values so far.
+
+    Attributes
+    ----------
+    scan : int
+        Index of the scan (in the recording) the states are at.
+    means : ndarray, shape (B, n)
+    covariances : ndarray, shape (B, n, n)
+    initiated : bool
+        Whether the states are in the motion model's own space (False only for a
+        coordinated-turn track before its conversion); one value for the batch.
+    first_time : ndarray, shape (B,)
+        Time of each track's first detection.
+    value : ndarray, shape (B,)
+        Sum of the track's terms up to and including this scan (``-inf``: impossible).
+    """
+
+    scan: int
+    means: FloatArray
+    covariances: FloatArray
+    initiated: bool
+    first_time: FloatArray
+    value: FloatArray
+
+    def __len__(self) -> int:
+        return int(self.value.shape[0])
+
+    def take(self, index: IntArray) -> PathState:
+        """The tracks at ``index``."""
+        return PathState(
+            scan=self.scan,
+            means=self.means[index],
+            covariances=self.covariances[index],
+            initiated=self.initiated,
+            first_time=self.first_time[index],
+            value=self.value[index],
+        )
+
+
+class RecordingObjective:
+    """J(omega) of track sets over one recording (module docstring).
+
+    Parameters
+    ----------
+    config : Config
+        Motion model, sensors, birth model and the estimator's ``gate_probability``:
+        the model the windows use.
+    scans : sequence of Scan
+        The whole recording, sorted by (time, sensor).
+
+    Attributes
+    ----------
+    birth_terms : ndarray, shape (M,)
+        ``log u_m + log Pd_m - log lambda_bar_m`` per scan (``-inf`` where ``u_m = 0``).
+    miss_terms : ndarray, shape (M,)
+        ``log(1 - Pd_m P_G)``.
+    survival_terms : ndarray, shape (M,)
+        ``dt log Ps`` of the step from scan ``m - 1`` to scan ``m`` (0 for ``m = 0``).
+    end_terms : ndarray, shape (M,)
+        ``log(1 - Ps^dt)`` of ending in the gap from scan ``m`` to scan ``m + 1``
+        (``-inf`` after the last scan).
+    tails : ndarray, shape (M,)
+        ``tail(m)``: the best value of a track's endings after its last detection at ``m``.
+    tail_masses : ndarray, shape (M,)
+        The log of the *summed* probability of those endings (``tail`` with log-sum-exp
+        for max): what a track's endings weigh in a sum over track sets.
+    undetected_after : tuple of UndetectedTargets, length M
+        The targets never detected, just after each scan (where a window starting at
+        the next scan continues from).
+    """
+
+    def __init__(self, *, config: Config, scans: Sequence[Scan]) -> None:
+        self.config = check_config(config)
+        self.scans = tuple(scans)
+        if not self.scans:
+            raise InputError("a recording objective needs at least one scan")
+        birth = config.birth
+        self.motion = config.motion
+        self.birth = birth
+        self.gate_probability = float(config.estimator.gate_probability)
+        self._init_model = initiation_model(self.motion)
+        self._converts = needs_conversion(self.motion)
+        M = len(self.scans)
+        self.times = np.array([s.time for s in self.scans], dtype=float)
+        sensors = [config.sensors[s.sensor] for s in self.scans]
+        self._sensors = sensors
+        pd = np.array([s.detection_probability for s in sensors], dtype=float)
+        population = window_population(
+            self.scans, pd.tolist(), birth, recording_start(birth, self.scans[0].time)
+        )
+        u = np.asarray(population.first_detection_means, dtype=float)
+        self.undetected_after = population.after_scan
+        log_ps = math.log(birth.survival_probability)
+        with np.errstate(divide="ignore"):
+            self.birth_terms = (
+                np.log(u)
+                + np.log(pd)
+                - np.log([s.false_alarms_per_scan for s in sensors])
+            )
+            self.miss_terms = np.log1p(-(pd * self.gate_probability))
+            gaps = np.diff(self.times)
+            self.survival_terms = np.concatenate([[0.0], gaps * log_ps])
+            self.end_terms = np.concatenate([np.log(-np.expm1(gaps * log_ps)), [-math.inf]])
+        self.log_pd = np.log(pd)
+        self.log_clutter = np.array([s.log_clutter_density for s in sensors], dtype=float)
+        tails = np.zeros(M)
+        for m in range(M - 2, -1, -1):
+            missed = self.survival_terms[m + 1] + self.miss_terms[m + 1] + tails[m + 1]
+            tails[m] = max(self.end_terms[m], missed)
+        self.tails = tails
+        tail_masses = np.zeros(M)
+        for m in range(M - 2, -1, -1):
+            missed = self.survival_terms[m + 1] + self.miss_terms[m + 1] + tail_masses[m + 1]
+            tail_masses[m] = np.logaddexp(self.end_terms[m], missed)
+        self.tail_masses = tail_masses
+        self._thresholds = [
+            gate_threshold(self.gate_probability, s.measurement.measurement_dim) for s in sensors
+        ]
+        self._trajectories: dict[TrackPath, Trajectory] = {}
+        self._motion_cache: dict[tuple[int, float], tuple[FloatArray, FloatArray]] = {}
+        self._row_of = {
+            int(row): (m, j) for m, scan in enumerate(self.scans) for j, row in enumerate(scan.rows)
+        }
+
+    # -- the pieces --------------------------------------------------------------------
+    def misses_between(self, first: int, last: int) -> float:
+        """Sum of ``dt log Ps + log(1 - Pd P_G)`` over scans ``first..last`` (0 if empty)."""
+        if last < first:
+            return 0.0
+        steps = slice(first, last + 1)
+        return float(np.sum(self.survival_terms[steps]) + np.sum(self.miss_terms[steps]))
+
+    def start_path(self, path: TrackPath) -> PathState:
+        """The state of a track at its first detection, valued by the first-detection term."""
+        m, j = path[0]
+        scan = self.scans[m]
+        z = scan.detections[j][None, :]
+        x, P = birth_states(self.motion, self._sensors[m].measurement, z, self.birth)
+        return PathState(
+            scan=m,
+            means=x,
+            covariances=P,
+            initiated=not self._converts,
+            first_time=np.array([scan.time]),
+            value=np.array([self.birth_terms[m]]),
+        )
+
+    def continue_paths(self, start: PathState, path: Iterable[tuple[int, int]]) -> PathState:
+        """Advance a batch of tracks through ``path``: the same detections for each.
+
+        Every scan after ``start.scan`` up to the last scan of ``path`` is a step: the
+        survival term and a miss, or the continuation by the path's detection at that
+        scan (Kalman/EKF prediction and update, as the hypothesis trees do).
+
+        Parameters
+        ----------
+        start : PathState
+            States at scan ``start.scan``; ``path`` must start after it.
+        path : iterable of (int, int)
+            ``(scan, index in scan)`` in increasing scan order.
+
+        Returns
+        -------
+        PathState
+            At the last scan of ``path`` (``start`` itself when ``path`` is empty).
+        """
+        state = start
+        for m, j in path:
+            if m <= state.scan:
+                raise InputError(
+                    f"path detection at scan {m} is not after the track's state at scan "
+                    f"{state.scan}"
+                )
+            if m > state.scan + 1:
+                state = self.advance_missed(state, m - 1)
+            state = self._detect(state, m, j)
+        return state
+
+    def advance_missed(self, state: PathState, until: int) -> PathState:
+        """Misses at scans ``state.scan + 1 .. until``; states predicted to ``until``."""
+        if until <= state.scan:
+            return state
+        x, P = self._predict(state, until)
+        return PathState(
+            scan=until,
+            means=x,
+            covariances=P,
+            initiated=state.initiated,
+            first_time=state.first_time,
+            value=state.value + self.misses_between(state.scan + 1, until),
+        )
+
+    def _predict(self, state: PathState, to_scan: int) -> tuple[FloatArray, FloatArray]:
+        """Predict the states from scan ``state.scan`` to ``to_scan`` (skipping dt = 0).
+
+        The hypothesis trees predict scan by scan; prediction over several steps at once
+        is the same for a linear model only, so the steps are taken one by one.
+        """
+        model = self.motion if state.initiated else self._init_model
+        x, P = state.means, state.covariances
+        for m in range(state.scan + 1, to_scan + 1):
+            dt = float(self.times[m] - self.times[m - 1])
+            if dt <= 0:
+                continue
+            matrices = self._linear_motion(model, dt)
+            if matrices is None:
+                x, P, _ = predict_motion(model, x, P, dt)
+            else:
+                F, Q = matrices
+                x = x @ F.T
+                P = F @ P @ F.T + Q
+                P = 0.5 * (P + np.swapaxes(P, -1, -2))
+        return x, P
+
+    def _linear_motion(self, model: MotionModel, dt: float) -> tuple[FloatArray, FloatArray] | None:
+        """``(F, Q)`` of a linear motion model over ``dt`` (cached), None for a nonlinear one."""
+        if not model.is_linear:
+            return None
+        key = (id(model), dt)
+        cached = self._motion_cache.get(key)
+        if cached is None:
+            F = np.asarray(model.transition_matrix(dt), dtype=float)  # type: ignore[attr-defined]
+            cached = (F, np.asarray(model.process_noise(dt), dtype=float))
+            self._motion_cache[key] = cached
+        return cached
+
+    def _linear_step(
+        self, x: FloatArray, P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Kalman update of a batch by one detection through a linear measurement.
+
+        The same algebra as :func:`~mapassoc.filtering.kalman.update` (gain through
+        ``S^-1``, Joseph-form covariance) with a batched inverse of the small S instead of
+        Cholesky solves: for one track at a time, numpy's per-call overhead is the cost.
+
+        Returns
+        -------
+        d2, loglik : ndarray, shape (B,)
+            Squared Mahalanobis distance and ``log N(nu; 0, S)``.
+        x_post, P_post
+        """
+        HP = H @ P  # (B, d, n)
+        S = HP @ H.T + R
+        S = 0.5 * (S + np.swapaxes(S, -1, -2))
+        nu = z - x @ H.T
+        sign, logdet = np.linalg.slogdet(S)
+        if np.any(sign <= 0):
+            raise InputError("innovation covariance S is not positive-definite")
+        S_inv = np.linalg.inv(S)
+        y = np.einsum("bij,bj->bi", S_inv, nu)
+        d2 = np.einsum("bi,bi->b", nu, y)
+        loglik = -0.5 * (nu.shape[-1] * _LOG_2PI + logdet + d2)
+        K = np.swapaxes(HP, -1, -2) @ S_inv  # (B, n, d)
+        x_post = x + np.einsum("bij,bj->bi", K, nu)
+        A = np.eye(P.shape[-1]) - K @ H
+        P_post = A @ P @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+        return d2, loglik, x_post, 0.5 * (P_post + np.swapaxes(P_post, -1, -2))
+
+    def _detect(self, state: PathState, m: int, j: int) -> PathState:
+        """The step to scan ``m`` = ``state.scan + 1`` continued by its detection ``j``."""
+        sensor = self._sensors[m]
+        scan = self.scans[m]
+        initiated = state.initiated
+        measurement = (
+            sensor.measurement
+            if initiated
+            else initiation_measurement(self.motion, sensor.measurement)
+        )
+        x, P = self._predict(state, m)
+        z = scan.detections[j]
+        R = sensor.measurement.noise_covariance
+        if isinstance(measurement, LinearMeasurement):
+            d2, loglik, xu, Pu = self._linear_step(x, P, z, measurement.H, R)
+        else:
+            H = measurement.jacobian(x)
+            z_hat = measurement.predict(x)
+            S = H @ P @ np.swapaxes(H, -1, -2) + R
+            S = 0.5 * (S + np.swapaxes(S, -1, -2))
+            nu = measurement.residual(z[None, None, :], z_hat[:, None, :])
+            d2, loglik = pairwise_gate_and_loglik(nu, S)
+            d2, loglik, nu = d2[:, 0], loglik[:, 0], nu[:, 0]
+            xu, Pu = update(x, P, nu, S, H, R)
+        term = self.log_pd[m] + loglik - self.log_clutter[m]
+        term = np.where(d2 <= self._thresholds[m], term, -math.inf)
+        value = state.value + self.survival_terms[m] + term
+        if not initiated:
+            # A coordinated-turn track converts at its first detection later than its
+            # first one, as in the hypothesis trees; batches share the first time only
+            # when they share the path, so the flag is checked per track.
+            convert = scan.time > state.first_time
+            if np.any(convert) and not np.all(convert):
+                raise InputError("a batch of tracks must convert to the turn state together")
+            if np.all(convert):
+                converted = [
+                    convert_initiated(self.motion, xu[b], Pu[b], self.birth) for b in range(len(xu))
+                ]
+                xu = np.array([c[0] for c in converted]).reshape(len(xu), -1)
+                n = xu.shape[1]
+                Pu = np.array([c[1] for c in converted]).reshape(len(xu), n, n)
+                initiated = True
+        return PathState(
+            scan=m,
+            means=xu,
+            covariances=Pu,
+            initiated=initiated,
+            first_time=state.first_time,
+            value=value,
+        )
+
+    # -- whole tracks --------------------------------------------------------------------
+    def track_value(self, path: TrackPath) -> float:
+        """``v(tau)``: the track's terms from its first detection to its best ending."""
+        return self.trajectory(path).value
+
+    def trajectory(self, path: TrackPath) -> Trajectory:
+        """The track's filter run: its state and value after each of its detections.
+
+        Kept in a cache of the most recent :data:`TRAJECTORY_CACHE` paths (refinement
+        asks again and again for the tracks it has not changed).
+        """
+        path = tuple(path)
+        cached = self._trajectories.pop(path, None)
+        if cached is None:
+            if not path:
+                raise InputError("a track needs at least one detection")
+            state = self.start_path(path)
+            states = [state]
+            for m, j in path[1:]:
+                state = self.continue_paths(state, ((m, j),))
+                states.append(state)
+            cached = Trajectory(
+                path=path,
+                means=tuple(s.means[0] for s in states),
+                covariances=tuple(s.covariances[0] for s in states),
+                initiated=np.array([s.initiated for s in states], dtype=bool),
+                first_time=float(states[0].first_time[0]),
+                values=np.array([float(s.value[0]) for s in states]),
+                value=float(states[-1].value[0] + self.tails[path[-1][0]]),
+            )
+            if len(self._trajectories) >= TRAJECTORY_CACHE:
+                del self._trajectories[next(iter(self._trajectories))]
+        self._trajectories[path] = cached
+        return cached
+
+    def continue_converging(
+        self,
+        start: PathState,
+        reference: Trajectory,
+        first: int,
+        *,
+        max_detections: int | None = None,
+    ) -> FloatArray:
+        """Values of a batch of tracks continued through ``reference.path[first:]``.
+
+        Each track of ``start`` is advanced detection by detection through the
+        reference's detections from index ``first`` on, exactly as
+        :meth:`continue_paths` does, until its filtered state equals the reference's own
+        state after the same detection (every entry of the mean and the covariance
+        within :data:`CONVERGED` relative to ``1 + |entry|``).  From there on the two
+        filters see the same detections from the same state, so the remaining terms
+        are the reference's own: their sum is taken from the reference instead of
+        being computed again.  The Kalman filter forgets where it started
+        geometrically fast, so a join of a long track costs a few steps rather than
+        its whole length; the error is that of two states equal to about 1e-9, far
+        below the acceptance threshold of a refinement move.
+
+        Parameters
+        ----------
+        start : PathState
+            States before ``reference.path[first]`` (at an earlier scan).
+        reference : Trajectory
+            A track whose detections from ``first`` on are the ones to continue with.
+        first : int
+            Index into ``reference.path``.
+        max_detections : int, optional
+            Re-filter at most this many detections; past them the reference's own terms
+            are taken whether or not the states agree (an approximation: the Kalman
+            filter's memory of its start decays geometrically, but is not gone).  The
+            refinement proposes moves with it and accepts them on exact values.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            Each track's value so far plus the terms of the reference's detections from
+            ``first`` on and its best ending (``-inf`` where a detection is out of gate).
+        """
+        B = len(start)
+        out = np.full(B, -math.inf)
+        rows = np.arange(B)
+        state = start
+        last = len(reference.path) - 1
+        stop = last if max_detections is None else min(last, first + max_detections - 1)
+        for k in range(first, stop + 1):
+            state = self.continue_paths(state, reference.path[k : k + 1])
+            finite = np.flatnonzero(np.isfinite(state.value))
+            if finite.size < len(state):
+                state, rows = state.take(finite), rows[finite]
+            if len(state) == 0:
+                return out
+            if k == stop < last:  # cut short: the reference's terms from here on
+                out[rows] = state.value + (reference.values[last] - reference.values[k])
+                return out + self.tails[reference.path[last][0]]
+            if k < last and state.initiated == bool(reference.initiated[k]):
+                mean, cov = reference.means[k], reference.covariances[k]
+                if state.means.shape[1:] == mean.shape:
+                    same = np.all(
+                        np.abs(state.means - mean) <= CONVERGED * (1.0 + np.abs(mean)), axis=1
+                    ) & np.all(
+                        np.abs(state.covariances - cov) <= CONVERGED * (1.0 + np.abs(cov)),
+                        axis=(1, 2),
+                    )
+                    if np.any(same):
+                        rest = reference.values[last] - reference.values[k]
+                        out[rows[same]] = state.value[same] + rest
+                        keep = np.flatnonzero(~same)
+                        state, rows = state.take(keep), rows[keep]
+                        if len(state) == 0:
+                            break
+        if len(state):
+            out[rows] = state.value
+        return out + self.tails[reference.path[last][0]]
+
+    def value(self, tracks: Mapping[int, TrackPath] | Iterable[TrackPath]) -> float:
+        """J(omega) = sum of the tracks' values (0 for no track; ``-inf`` if impossible)."""
+        paths = tracks.values() if isinstance(tracks, Mapping) else tracks
+        return float(sum(self.track_value(p) for p in paths))
+
+    # -- detection ids -------------------------------------------------------------------
+    def path_of_rows(self, rows: Sequence[int]) -> TrackPath:
+        """The path of a track given its detection ids (any order)."""
+        try:
+            pairs = sorted(self._row_of[int(r)] for r in rows)
+        except KeyError as exc:
+            raise InputError(f"detection id {exc.args[0]} is not in the recording") from None
+        scans_used = [m for m, _ in pairs]
+        if len(set(scans_used)) != len(scans_used):
+            raise InputError(f"a track uses two detections of one scan (ids {list(rows)})")
+        return tuple(pairs)
+
+
+def paths_from_rows(
+    objective: RecordingObjective, track_rows: Mapping[int, Sequence[int]]
+) -> dict[int, TrackPath]:
+    """Track id -> path, from track id -> detection ids (``EstimateResult.track_rows``)."""
+    return {tid: objective.path_of_rows(rows) for tid, rows in track_rows.items() if len(rows)}
+
+
+def rows_from_paths(
+    scans: Sequence[Scan], tracks: Mapping[int, TrackPath]
+) -> dict[int, tuple[int, ...]]:
+    """Track id -> detection ids in scan order, from track id -> path."""
+    return {
+        tid: tuple(int(scans[m].rows[j]) for m, j in path) for tid, path in sorted(tracks.items())
+    }

@@ -1,0 +1,970 @@
+"""Refinement of a whole recording's track set: revise past decisions where J rises.
+
+The forward pass (:class:`~mapassoc.estimator.pipeline.WindowEstimator`) decides like an
+online tracker: each window commits its oldest scans for good.  Offline, every
+decision can be revisited.  This module climbs the recording objective
+J(omega) = log p(omega | Z) + const of :mod:`mapassoc.estimator.objective` from the
+forward pass's track set with two exact moves, each accepted only when J rises:
+
+**Window re-solve with both boundaries** (:meth:`Refiner.resolve_window`).  The
+associations of the scans ``a..b-1`` are freed.  A track with detections before ``a``
+enters the window as a carried track (its filtered state at scan ``a - 1``, its misses
+up to there scored, and ending before the window still open: it may have ended at any
+gap since its last detection).  A track with detections after ``b - 1``, or starting
+within ``lookahead`` scans after it, becomes an **anchor**: a track piece that a window
+hypothesis alive at the window's last scan may join.  The join's score is the exact
+change of J: the anchor's detections re-filtered from the joining hypothesis' state
+(:meth:`~mapassoc.estimator.objective.RecordingObjective.continue_paths`, batched over
+every joining hypothesis), minus the anchor's value as a track of its own, whose
+first-detection term the join replaces.  A hypothesis that joins nothing and is alive at
+the window's end gets its best ending (``tail``).  The window's hypothesis trees are
+grown as in the forward pass (carried and new trees, the same scoring, gating and
+pruning; the new trees' bound pruning allows for the most a join can add), and one
+integer program (detections at most once, carried tracks exactly once, anchors at most
+once) picks the best set.  Because every selected item's score is its exact change of
+J, the program's optimum is the best J over the window's kept hypotheses; the new
+track set is valued again track by track and replaces the old one only when J rises.
+This also lets a track that started late pick up the detections it was missed at.
+
+**Fragment linking** (:meth:`Refiner.link_fragments`).  A track that ends and one that
+starts within ``link_gap`` scans after it are candidates for a join; the exact change of
+J of each join comes from re-filtering the later track from the earlier one's state.
+The best set of joins (each end to at most one start) is an assignment
+(:func:`scipy.optimize.linear_sum_assignment`); joins that share no track are applied
+where J rises, and linking repeats until none does.
+
+Sweeps go forward over the recording's windows (``window_length`` scans, every
+``stride`` scans), then backward, and so on, re-solving only windows near a change,
+until a sweep changes nothing or ``passes`` sweeps are done.  Every move is accepted
+only when the exact J of the changed tracks rises, so J never decreases; with the
+integer program's time limit (``EstimatorSettings.time_limit``) and the pass budget the
+work is bounded, and without a time limit reached the result is a function of the input
+alone.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+from mapassoc.data.config import Config, check_config
+from mapassoc.data.scans import Scan
+from mapassoc.errors import InputError
+from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
+from mapassoc.estimator.objective import (
+    PathState,
+    RecordingObjective,
+    TrackPath,
+    Trajectory,
+    rows_from_paths,
+)
+from mapassoc.formulations.clusters import cluster_hypotheses
+from mapassoc.formulations.frontier import SearchLimitExceeded, frontier_search
+from mapassoc.formulations.marginals import frontier_marginals
+from mapassoc.formulations.packing import PackingProblem, decode_selection, set_packing_program
+from mapassoc.solvers import get_solver
+
+__all__ = [
+    "RefinementSettings",
+    "RefinementReport",
+    "TrackConfidence",
+    "ASSOCIATION_FLOOR",
+    "Refiner",
+    "refine_track_rows",
+]
+
+FloatArray = NDArray[np.float64]
+
+_IMPROVEMENT = 1e-6
+"""A move is accepted when J rises by more than this many nats plus 1e-9 of ``|J of the
+changed tracks|``: below it, the change is rounding (and the 1e-9 agreement at which
+:meth:`~mapassoc.estimator.objective.RecordingObjective.continue_converging` stops
+re-filtering)."""
+
+
+_MARGINALS_WORK = 50_000
+"""Transitions of the exact forward-backward search per cluster of the confidence pass;
+past them the cluster's marginals come from the beam of :data:`_MARGINALS_BEAM`
+frontiers."""
+
+_MARGINALS_BEAM = 32
+
+_BEAM_MARGIN = 40.0
+"""Per-frontier entries more than this many nats below a frontier's best are dropped by the
+beam that computes a cluster's marginals past ``exact_work_limit``."""
+
+_SMALL_CLUSTER = 12
+"""Clusters of at most this many hypotheses are searched exactly by the frontier search;
+larger ones go to the integer program together."""
+
+
+def _rises(old: float, new: float) -> bool:
+    """Whether ``new`` beats ``old`` by more than rounding (:data:`_IMPROVEMENT`)."""
+    return new > old + _IMPROVEMENT + 1e-9 * abs(old)
+
+
+@dataclass(frozen=True)
+class RefinementSettings:
+    """How the whole recording's track set is refined after the forward pass.
+
+    Parameters
+    ----------
+    passes : int
+        Most sweeps over the recording's windows (forward, backward, forward, ...); 0
+        turns refinement off.
+    window_length : int or None
+        Scans per re-solved window; ``None``: the estimator's ``window_length``.
+    stride : int or None
+        Scans between the starts of consecutive re-solved windows; ``None``: about half
+        the window (``(window_length + 1) // 2``), so that every window boundary of one
+        sweep lies inside a window of the next.
+    link_gap : int
+        Most scans between a track's last detection and another's first for a
+        fragment-linking candidate; 0 turns fragment linking off.
+    refilter_detections : int
+        How many of a joined track piece's detections are re-filtered from the joining
+        state when a move is *proposed*; past them the piece's own filter's terms are
+        taken (:meth:`~mapassoc.estimator.objective.RecordingObjective.continue_converging`).
+        Moves are *accepted* on the exact J of the changed tracks (every detection
+        re-filtered), so this trades the proposals' accuracy against speed, never J's
+        monotonicity.
+    """
+
+    passes: int = 2
+    window_length: int | None = None
+    stride: int | None = None
+    link_gap: int = 10
+    refilter_detections: int = 15
+
+    def __post_init__(self) -> None:
+        for name, minimum in (("passes", 0), ("link_gap", 0), ("refilter_detections", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+                raise InputError(
+                    f"refine {name} must be an integer >= {minimum}, got {value!r}",
+                    key=f"refine_{name}",
+                )
+        for name in ("window_length", "stride"):
+            value = getattr(self, name)
+            if value is not None and (
+                isinstance(value, bool) or not isinstance(value, int) or value < 1
+            ):
+                raise InputError(
+                    f"refine {name} must be an integer >= 1 or None, got {value!r}",
+                    key=f"refine_{name}",
+                )
+
+
+@dataclass
+class RefinementReport:
+    """What the refinement did (``summary.json``'s ``refinement``).
+
+    Attributes
+    ----------
+    objective_forward : float
+        J of the forward pass's track set.
+    objective_after_pass : list of float
+        J after each sweep (window re-solves, then fragment linking); non-decreasing.
+    windows_solved, windows_improved : int
+    windows_time_limited : int
+        Re-solves whose integer program stopped at the time limit (its incumbent was
+        used only where it raised J).
+    links : int
+        Fragment joins made.
+    seconds : float
+    """
+
+    objective_forward: float = 0.0
+    objective_after_pass: list[float] = field(default_factory=list)
+    windows_solved: int = 0
+    windows_improved: int = 0
+    windows_time_limited: int = 0
+    links: int = 0
+    seconds: float = 0.0
+
+    @property
+    def objective(self) -> float:
+        """J of the refined track set."""
+        if self.objective_after_pass:
+            return self.objective_after_pass[-1]
+        return self.objective_forward
+
+    def to_json(self, *, timings: bool = True) -> dict[str, object]:
+        out: dict[str, object] = {
+            "objective_forward": self.objective_forward,
+            "objective_after_pass": list(self.objective_after_pass),
+            "objective": self.objective,
+            "passes": len(self.objective_after_pass),
+            "windows_solved": self.windows_solved,
+            "windows_improved": self.windows_improved,
+            "windows_time_limited": self.windows_time_limited,
+            "links": self.links,
+        }
+        if timings:
+            out["seconds"] = self.seconds
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class TrackConfidence:
+    """How sure the refined track set is of each track and detection (:meth:`Refiner.confidence`).
+
+    Every probability is a posterior marginal of one window of ``window_length`` scans,
+    the track set outside it held at the refined one: the sum, over every track set of
+    the window's kept hypotheses (joins to the tracks after it included), of
+    ``exp(J)``, normalised.
+
+    Attributes
+    ----------
+    existence : dict of int to float
+        Per track: the probability that a target's first detection is the track's first
+        detection (the new track tree rooted there is in the set), in the window that
+        holds it.
+    associations : dict of int to dict of int to float
+        Per track: detection id -> the probability that the detection belongs to the
+        track (the track's tree in the window of the detection uses it), for its own
+        detections and for every other detection the track could take with probability
+        at least :data:`ASSOCIATION_FLOOR`.
+    exact : bool
+        Whether every window's marginals were exact over its kept hypotheses (False when
+        a cluster needed the beam search: its probabilities are then among the sets the
+        beam kept).
+    windows : int
+    """
+
+    existence: dict[int, float]
+    associations: dict[int, dict[int, float]]
+    exact: bool
+    windows: int
+
+
+ASSOCIATION_FLOOR = 1e-4
+"""Association probabilities below this are left out of :attr:`TrackConfidence.associations`."""
+
+
+@dataclass(frozen=True, eq=False)
+class _Carried:
+    """A track entering a re-solved window: its detections before it and its state."""
+
+    track_id: int
+    prefix: TrackPath
+    reference: Trajectory
+    """The track's current filter run (its first ``len(prefix)`` detections are the prefix)."""
+    state: CarriedTrack
+    value_alive: float
+    """The prefix's terms with the track alive at scan ``a - 1`` (misses included)."""
+    value_ended: float
+    """The best value of the prefix ending at a gap before scan ``a - 1``'s (``-inf`` if none)."""
+    mass_ended: float
+    """The log of the summed probability of those endings."""
+
+
+@dataclass(frozen=True, eq=False)
+class _Anchor:
+    """A track piece after a re-solved window that a window hypothesis may join."""
+
+    origin: int
+    path: TrackPath
+    whole: bool
+    """Whether the piece is the whole track (else the suffix of a track crossing the window)."""
+    value: float
+    """Its value as a track of its own."""
+    reference: Trajectory
+    """The current filter run of the track it belongs to."""
+    offset: int
+    """Index of the piece's first detection in ``reference.path``."""
+
+
+class Refiner:
+    """Climbs J(omega) of a whole recording from a given track set (module docstring).
+
+    Parameters
+    ----------
+    config : Config
+        The model and the estimator settings the forward pass used.
+    scans : sequence of Scan
+        The whole recording.
+    settings : RefinementSettings
+    objective : RecordingObjective, optional
+        Built from ``config`` and ``scans`` when not given.
+    """
+
+    def __init__(
+        self,
+        *,
+        config: Config,
+        scans: Sequence[Scan],
+        settings: RefinementSettings,
+        objective: RecordingObjective | None = None,
+    ) -> None:
+        self.config = check_config(config)
+        self.scans = tuple(scans)
+        self.settings = settings
+        est = config.estimator
+        self.window_length = settings.window_length or est.window_length
+        self.stride = settings.stride or max(1, (self.window_length + 1) // 2)
+        self.lookback = self.window_length
+        self.lookahead = self.window_length
+        self.objective = objective or RecordingObjective(config=config, scans=self.scans)
+        self.generator = HypothesisGenerator(
+            motion=config.motion,
+            sensors=config.sensors,
+            birth=config.birth,
+            gate_probability=est.gate_probability,
+            max_hypotheses_per_tree=est.max_hypotheses_per_tree,
+            prune_log_ratio=est.prune_log_ratio,
+        )
+        try:
+            self.solver = get_solver(est.solver)
+        except ValueError as exc:
+            raise InputError(f"estimator solver: {exc}") from None
+        self.time_limit = est.time_limit
+        self._refilter = settings.refilter_detections
+        self.exact_work_limit = est.exact_work_limit
+        self.beam_width = est.beam_width
+        self._gain_bounds = np.array(
+            [
+                max(0.0, self.generator.continuation_gain_bound(config.sensors[s.sensor]))
+                for s in self.scans
+            ]
+        )
+
+    # -- the whole refinement ------------------------------------------------------------
+    def refine(
+        self, tracks: Mapping[int, TrackPath], *, next_id: int | None = None
+    ) -> tuple[dict[int, TrackPath], RefinementReport]:
+        """Refine ``tracks`` (track id -> path) and return the new set and a report.
+
+        Track ids are kept where a track keeps its first detection before a re-solved
+        window; new pieces get ids from ``next_id`` on (default: one past the largest).
+        """
+        t0 = time.perf_counter()
+        current = {int(tid): tuple(path) for tid, path in tracks.items() if path}
+        values = self._exact_values(current)
+        self._next_id = next_id if next_id is not None else max(current, default=0) + 1
+        report = RefinementReport(objective_forward=float(sum(values.values())))
+        N = min(self.window_length, len(self.scans))
+        starts = self.window_starts()
+        dirty = set(starts)
+        for sweep in range(self.settings.passes):
+            order = starts if sweep % 2 == 0 else starts[::-1]
+            changed = False
+            for a in order:
+                if a not in dirty:
+                    continue
+                dirty.discard(a)
+                report.windows_solved += 1
+                improved, limited = self.resolve_window(current, values, a, a + N)
+                report.windows_time_limited += int(limited)
+                if improved:
+                    report.windows_improved += 1
+                    changed = True
+                    low, high = a - self.lookback - N, a + N + self.lookahead
+                    dirty.update(s for s in starts if low <= s <= high and s != a)
+            if self.settings.link_gap > 0:
+                links = self.link_fragments(current, values)
+                report.links += links
+                changed = changed or links > 0
+            values = self._exact_values(current)
+            report.objective_after_pass.append(float(sum(values.values())))
+            if not changed:
+                break
+            if not dirty:
+                dirty = set(starts)
+        tracks_out = dict(sorted(current.items()))
+        report.seconds = time.perf_counter() - t0
+        return tracks_out, report
+
+    def window_starts(self) -> list[int]:
+        """First scans of the re-solved windows: every ``stride`` scans, the last window
+        ending at the recording's last scan."""
+        M = len(self.scans)
+        N = min(self.window_length, M)
+        starts = list(range(0, M - N + 1, self.stride))
+        if starts[-1] != M - N:
+            starts.append(M - N)
+        return starts
+
+    def _exact_values(self, tracks: Mapping[int, TrackPath]) -> dict[int, float]:
+        """Every track's value from its whole filter run (no convergence shortcut)."""
+        return {tid: self.objective.track_value(path) for tid, path in tracks.items()}
+
+    # -- window re-solve -------------------------------------------------------------------
+    def resolve_window(
+        self, tracks: dict[int, TrackPath], values: dict[int, float], a: int, b: int
+    ) -> tuple[bool, bool]:
+        """Re-solve scans ``a..b-1`` with both boundaries; update ``tracks`` in place.
+
+        Returns
+        -------
+        improved : bool
+            Whether J rose (and ``tracks``, ``values`` were changed).
+        time_limited : bool
+            Whether the integer program stopped at the time limit.
+        """
+        obj = self.objective
+        if not 0 <= a < b <= len(self.scans):
+            raise InputError(f"window {a}..{b - 1} is not within the recording's scans")
+        hyps, carried, anchors, touched = self._window_hypotheses(tracks, values, a, b)
+        problem, joins = self._program(hyps, carried, anchors, a)
+        if problem.num_hypotheses == 0:
+            return False, False
+        selection, limited = self._best_set(problem)
+        if selection is None:
+            return False, limited
+        pieces = self._decode(hyps, selection, joins, carried, anchors, a)
+        if {path for _, path in pieces} == {tracks[tid] for tid in touched}:
+            return False, limited  # the window's best set is the current one
+        # Accepted on exact values: every changed track's whole filter run.
+        new_values = [obj.track_value(path) for _, path in pieces]
+        old = sum(values[tid] for tid in touched)
+        if not _rises(old, float(sum(new_values))):
+            return False, limited
+        for tid in touched:
+            del tracks[tid]
+            del values[tid]
+        for (tid, path), value in zip(pieces, new_values, strict=True):
+            if tid is None:
+                tid = self._next_id
+                self._next_id += 1
+            tracks[tid] = path
+            values[tid] = value
+        return True, limited
+
+    def _best_set(self, problem: PackingProblem) -> tuple[NDArray[np.int64] | None, bool]:
+        """The best feasible set of the re-solve's program, and whether a solve was cut
+        short by the time limit (None: no feasible set was found).
+
+        The program has no cardinality row, so it splits into independent clusters; each
+        of at most :data:`_SMALL_CLUSTER` hypotheses is searched exactly by the frontier
+        search with every hypothesis uncounted (one table entry: the best set over all
+        sizes), the larger ones by one integer program.
+        """
+        uncounted = PackingProblem(
+            scores=problem.scores,
+            resource_indptr=problem.resource_indptr,
+            resource_indices=problem.resource_indices,
+            exactly_one=problem.exactly_one,
+            counts=np.zeros(problem.num_hypotheses, dtype=bool),
+        )
+        chosen: list[NDArray[np.int64]] = []
+        large: list[NDArray[np.int64]] = []
+        for members in cluster_hypotheses(uncounted):
+            if len(members) > _SMALL_CLUSTER:
+                large.append(members)
+                continue
+            try:
+                found = frontier_search(
+                    uncounted.subproblem(members), 0, work_limit=self.exact_work_limit
+                )
+            except SearchLimitExceeded:
+                large.append(members)
+                continue
+            best = found.best_sets[0]
+            if best is None:
+                return None, False
+            chosen.append(members[np.asarray(best, dtype=np.int64)])
+        limited = False
+        if large:
+            # One integer program for every large cluster: a solver call costs about a
+            # millisecond whatever its size.
+            members = np.concatenate(large)
+            program = set_packing_program(problem.subproblem(members), None)
+            result = self.solver.solve(program, time_limit=self.time_limit)
+            limited = not result.is_optimal
+            if result.solution is None:
+                return None, limited
+            chosen.append(members[decode_selection(result.solution)])
+        if not chosen:
+            return np.zeros(0, dtype=np.int64), limited
+        return np.sort(np.concatenate(chosen)), limited
+
+    def _split(
+        self, tracks: Mapping[int, TrackPath], values: Mapping[int, float], a: int, b: int
+    ) -> tuple[list[_Carried], list[_Anchor], list[int]]:
+        """The carried tracks, the anchors and the ids of every track the window touches."""
+        obj = self.objective
+        carried: list[_Carried] = []
+        anchors: list[_Anchor] = []
+        touched: list[int] = []
+        for tid in sorted(tracks):
+            path = tracks[tid]
+            first, last = path[0][0], path[-1][0]
+            if last < a - self.lookback or first > b - 1 + self.lookahead:
+                continue
+            prefix = tuple(p for p in path if p[0] < a)
+            middle = [p for p in path if a <= p[0] < b]
+            suffix = tuple(p for p in path if p[0] >= b)
+            reference = obj.trajectory(path)
+            if not prefix and not middle:
+                anchors.append(_Anchor(tid, suffix, True, values[tid], reference, 0))
+                touched.append(tid)
+                continue
+            if prefix:
+                entering = self._carried(tid, prefix, reference, a)
+                if entering is None:
+                    if middle or suffix:  # the track as it is would be impossible
+                        raise InputError(
+                            f"track {tid} cannot be alive at scan {a - 1} between its "
+                            "detections (a miss there has probability 0)"
+                        )
+                    continue  # ended before the window, and nothing in it can change that
+                carried.append(entering)
+            touched.append(tid)
+            if suffix:
+                offset = len(path) - len(suffix)
+                alone = obj.continue_converging(
+                    obj.start_path(suffix), reference, offset + 1, max_detections=self._refilter
+                )
+                anchors.append(_Anchor(tid, suffix, False, float(alone[0]), reference, offset))
+        return carried, anchors, touched
+
+    def _carried(
+        self, tid: int, prefix: TrackPath, reference: Trajectory, a: int
+    ) -> _Carried | None:
+        """The prefix's state at scan ``a - 1``, or None when it cannot be alive there."""
+        obj = self.objective
+        at_last = reference.state(len(prefix) - 1)
+        alive = obj.advance_missed(at_last, a - 1)
+        value_alive = float(alive.value[0])
+        if not math.isfinite(value_alive):
+            return None
+        last = at_last.scan
+        ended = mass_ended = -math.inf
+        running = float(at_last.value[0])
+        for g in range(last, a - 1):  # end in the gap after scan g < a - 1
+            ended = max(ended, running + float(obj.end_terms[g]))
+            mass_ended = float(np.logaddexp(mass_ended, running + float(obj.end_terms[g])))
+            running += float(obj.survival_terms[g + 1] + obj.miss_terms[g + 1])
+        state = CarriedTrack(
+            track_id=tid,
+            mean=alive.means[0].copy(),
+            covariance=alive.covariances[0].copy(),
+            time=float(obj.times[a - 1]),
+            initiated=alive.initiated,
+            num_detections=len(prefix),
+            first_detection_time=float(at_last.first_time[0]),
+        )
+        return _Carried(tid, prefix, reference, state, value_alive, ended, mass_ended)
+
+    def _program(
+        self,
+        hyps: WindowHypotheses,
+        carried: Sequence[_Carried],
+        anchors: Sequence[_Anchor],
+        a: int,
+        *,
+        masses: bool = False,
+    ) -> tuple[PackingProblem, list[tuple[int, int]]]:
+        """The packing problem of the re-solve; ``joins[i]`` = (hypothesis, anchor) of the
+        program's hypothesis ``H + i``.
+
+        With ``masses`` the problem's log-weights are for sums over track sets (the
+        endings summed rather than maximised) and joins no better than their hypothesis
+        alone are kept (they are never in a best set, but they carry probability).
+        """
+        obj = self.objective
+        nodes = hyps.nodes
+        H = hyps.count
+        D = hyps.detections.count
+        C = len(carried)
+        N = len(hyps.scans)
+        leaves = hyps.leaf
+        alive = nodes.alive[leaves]
+        layer = nodes.layer[leaves]
+        scores = hyps.scores.astype(float).copy()
+        tails = np.where(alive, obj.tails[a + np.maximum(layer, 0)], 0.0)
+        plain = scores + tails
+        weights = scores + np.where(alive, obj.tail_masses[a + np.maximum(layer, 0)], 0.0)
+        is_carried = hyps.tree < C
+        for h in np.flatnonzero(is_carried & ~hyps.counts_toward_k):
+            c = carried[int(hyps.tree[h])]
+            plain[h] = max(scores[h], c.value_ended - c.value_alive)
+            weights[h] = float(np.logaddexp(scores[h], c.mass_ended - c.value_alive))
+        resources: list[list[int]] = []
+        for h in range(H):
+            res = hyps.detections_of(h).tolist()
+            if is_carried[h]:
+                res.append(D + int(hyps.tree[h]))
+            resources.append(res)
+        join_scores: list[float] = []
+        joins: list[tuple[int, int]] = []
+        ends = np.flatnonzero(alive & (layer == N - 1))
+        for i, anchor in enumerate(anchors):
+            if ends.size == 0:
+                break
+            gain = self._join_gains(hyps, ends, scores[ends], anchor, a + N - 1)
+            # An anchor that cannot stand alone (its own filter gates out one of its
+            # detections: value -inf) must be joined; its resource is then exactly-once
+            # and its joins are scored without the baseline.
+            baseline = anchor.value if math.isfinite(anchor.value) else 0.0
+            joined = scores[ends] + gain - baseline
+            # A join no better than its hypothesis left alone is dominated: it uses more.
+            if masses:
+                better = np.flatnonzero(np.isfinite(joined))
+            else:
+                better = np.flatnonzero(np.isfinite(joined) & (joined > plain[ends]))
+            for k in better:
+                h = int(ends[k])
+                joins.append((h, i))
+                join_scores.append(float(joined[k]))
+                resources.append(resources[h] + [D + C + i])
+        lengths = [len(r) for r in resources]
+        indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+        indices = np.array([r for res in resources for r in res], dtype=np.int64)
+        all_scores = np.concatenate([plain, np.asarray(join_scores, dtype=float)])
+        # A join's score holds no ending of its own: the anchor's ending is in both its
+        # terms and the baseline, and cancels.  Its weight is its score.
+        problem = PackingProblem(
+            scores=all_scores,
+            log_weights=np.concatenate([weights, np.asarray(join_scores, dtype=float)])
+            if masses
+            else None,
+            resource_indptr=indptr,
+            resource_indices=indices,
+            exactly_one=np.r_[
+                np.zeros(D, bool),
+                np.ones(C, bool),
+                [not math.isfinite(anchor.value) for anchor in anchors],
+            ],
+            counts=np.ones(all_scores.shape[0], dtype=bool),
+        )
+        return problem, joins
+
+    def _join_gains(
+        self,
+        hyps: WindowHypotheses,
+        ends: NDArray[np.int64],
+        end_scores: FloatArray,
+        anchor: _Anchor,
+        last_scan: int,
+    ) -> FloatArray:
+        """The anchor's terms and best ending after each leaf in ``ends`` (alive at the
+        window's last scan, ``last_scan`` of the recording), re-filtered from its state.
+
+        The joins to one anchor compete for it as the nodes of one tree compete for its
+        place, and they are pruned the same way (``prune_log_ratio``): after the anchor's
+        first detection, a join whose score so far (its hypothesis' score, ``end_scores``,
+        plus the join's first terms) is more than ``prune_log_ratio`` below the best join
+        is not followed further (``-inf``).  The joins followed are scored exactly.
+        """
+        obj = self.objective
+        nodes = hyps.nodes
+        leaves = hyps.leaf[ends]
+        out = np.full(len(ends), -math.inf)
+        firsts: list[tuple[NDArray[np.int64], PathState]] = []
+        for initiated in (True, False):
+            group = np.flatnonzero(nodes.initiated[leaves] == initiated)
+            if group.size == 0:
+                continue
+            # Uninitiated states convert per track at their next later detection; they
+            # are advanced one by one so that a batch never mixes conversion times.
+            batches = [group] if initiated else [group[k : k + 1] for k in range(group.size)]
+            for batch in batches:
+                v = leaves[batch]
+                d = int(nodes.state_dims[v[0]])
+                start = PathState(
+                    scan=last_scan,
+                    means=nodes.means[v, :d],
+                    covariances=nodes.covariances[v, :d, :d],
+                    initiated=initiated,
+                    first_time=nodes.first_time[v],
+                    value=np.zeros(len(v)),
+                )
+                first = obj.continue_paths(start, anchor.path[:1])
+                ok = np.flatnonzero(np.isfinite(first.value))
+                if ok.size:
+                    firsts.append((batch[ok], first.take(ok)))
+        if not firsts:
+            return out
+        so_far = np.concatenate([end_scores[b] + s.value for b, s in firsts])
+        floor = float(np.max(so_far)) - self.generator.prune_log_ratio
+        for batch, first in firsts:
+            keep = np.flatnonzero(end_scores[batch] + first.value >= floor)
+            if keep.size:
+                out[batch[keep]] = obj.continue_converging(
+                    first.take(keep),
+                    anchor.reference,
+                    anchor.offset + 1,
+                    max_detections=self._refilter,
+                )
+        return out
+
+    def _decode(
+        self,
+        hyps: WindowHypotheses,
+        selection: NDArray[np.int64],
+        joins: Sequence[tuple[int, int]],
+        carried: Sequence[_Carried],
+        anchors: Sequence[_Anchor],
+        a: int,
+    ) -> list[tuple[int | None, TrackPath]]:
+        """The tracks of a selected set: (track id, or None for a new id; path).
+
+        A carried track keeps its id; a new tree that joins an anchor takes the id of the
+        anchor's track unless a carried piece of that track kept it; an anchor left alone
+        keeps its track's id under the same condition.
+        """
+        H = hyps.count
+        C = len(carried)
+        det = hyps.detections
+        chosen: list[tuple[int, int | None]] = [
+            (s, None) if s < H else joins[s - H] for s in selection.tolist()
+        ]
+        kept_ids = {carried[int(hyps.tree[h])].track_id for h, _ in chosen if hyps.tree[h] < C}
+        pieces: list[tuple[int | None, TrackPath]] = []
+        joined: set[int] = set()
+        for h, anchor_index in chosen:
+            dets = hyps.detections_of(h)
+            path: TrackPath = tuple(
+                (a + int(det.scan_position[d]), int(det.index_in_scan[d])) for d in dets
+            )
+            tree = int(hyps.tree[h])
+            tid: int | None = None
+            if tree < C:
+                tid = carried[tree].track_id
+                path = carried[tree].prefix + path
+            if anchor_index is not None:
+                anchor = anchors[anchor_index]
+                joined.add(anchor_index)
+                path = path + anchor.path
+                if tid is None and anchor.origin not in kept_ids:
+                    tid = anchor.origin
+                    kept_ids.add(tid)
+            if path:
+                pieces.append((tid, path))
+        for i, anchor in enumerate(anchors):
+            if i in joined:
+                continue
+            tid = None if anchor.origin in kept_ids else anchor.origin
+            if tid is not None:
+                kept_ids.add(tid)
+            pieces.append((tid, anchor.path))
+        return pieces
+
+    # -- how sure ------------------------------------------------------------------------
+    def confidence(self, tracks: Mapping[int, TrackPath]) -> TrackConfidence:
+        """Existence and association probabilities of a (refined) track set.
+
+        One pass over the recording in windows of ``window_length`` scans: each window's
+        program is built as in :meth:`resolve_window` (the tracks outside it fixed, the
+        tracks crossing it carried in and anchored after it), and the posterior marginal
+        of every hypothesis and join is computed by the frontier search run forward and
+        backward (:func:`mapassoc.formulations.marginals.frontier_marginals`) with the
+        weights ``exp(J)`` (endings summed).  A track's existence is the probability of
+        its first detection's new tree; a detection's association to a track is the
+        probability of the track's tree (carried, or new at the track's first detection)
+        using it.
+        """
+        current = {int(tid): tuple(path) for tid, path in tracks.items() if path}
+        values = self._exact_values(current)
+        first_of = {path[0]: tid for tid, path in current.items()}
+        existence: dict[int, float] = {}
+        associations: dict[int, dict[int, float]] = {tid: {} for tid in current}
+        exact = True
+        windows = 0
+        M = len(self.scans)
+        for a in range(0, M, self.window_length):
+            b = min(a + self.window_length, M)
+            windows += 1
+            hyps, carried, anchors, _ = self._window_hypotheses(current, values, a, b)
+            problem, joins = self._program(hyps, carried, anchors, a, masses=True)
+            if problem.num_hypotheses == 0:
+                continue
+            probabilities, window_exact = self._marginals(problem)
+            exact = exact and window_exact
+            base = np.r_[np.arange(hyps.count), np.array([h for h, _ in joins], dtype=np.int64)]
+            owner = self._tree_owners(hyps, carried, first_of, a)
+            det = hyps.detections
+            for k, h in enumerate(base.tolist()):
+                tid = owner.get(int(hyps.tree[h]))
+                p = float(probabilities[k])
+                if tid is None or p <= 0.0:
+                    continue
+                for d in hyps.detections_of(h).tolist():
+                    row = int(det.rows[d])
+                    into = associations[tid]
+                    into[row] = into.get(row, 0.0) + p
+            for tree, tid in owner.items():
+                root = current[tid][0]
+                if tree >= len(carried) and a <= root[0] < b:
+                    in_tree = hyps.tree[base] == tree
+                    existence[tid] = float(np.sum(probabilities[in_tree]))
+        for tid in current:
+            existence.setdefault(tid, math.nan)  # its first detection's tree was pruned
+            own = {int(self.scans[m].rows[j]) for m, j in current[tid]}
+            associations[tid] = {
+                row: min(1.0, p)
+                for row, p in sorted(associations[tid].items())
+                if p >= ASSOCIATION_FLOOR or row in own
+            }
+        return TrackConfidence(existence, associations, exact, windows)
+
+    def _window_hypotheses(
+        self, tracks: Mapping[int, TrackPath], values: Mapping[int, float], a: int, b: int
+    ) -> tuple[WindowHypotheses, list[_Carried], list[_Anchor], list[int]]:
+        """The hypothesis trees of scans ``a..b-1`` with both boundaries (module docstring)."""
+        obj = self.objective
+        carried, anchors, touched = self._split(tracks, values, a, b)
+        window_scans = self.scans[a:b]
+        carried_states = [c.state for c in carried]
+        undetected = obj.undetected_after[a - 1] if a > 0 else None
+        population = self.generator.population(window_scans, carried_states, undetected)
+        end_gain = 0.0
+        for anchor in anchors:
+            first = anchor.path[0][0]
+            end_gain = max(end_gain, self._gain_bounds[first] - obj.birth_terms[first])
+        hyps = self.generator.generate(
+            window_scans, carried_states, population=population, end_gain=end_gain
+        )
+        return hyps, carried, anchors, touched
+
+    def _tree_owners(
+        self,
+        hyps: WindowHypotheses,
+        carried: Sequence[_Carried],
+        first_of: Mapping[tuple[int, int], int],
+        a: int,
+    ) -> dict[int, int]:
+        """Window tree -> the track it stands for: a carried tree's track, and a new tree
+        rooted at a track's first detection."""
+        owner = {t: c.track_id for t, c in enumerate(carried)}
+        nodes = hyps.nodes
+        det = hyps.detections
+        for v in np.flatnonzero((nodes.parent < 0) & (nodes.tree >= len(carried))).tolist():
+            d = int(nodes.detection[v])
+            if d < 0:
+                continue
+            tid = first_of.get((a + int(det.scan_position[d]), int(det.index_in_scan[d])))
+            if tid is not None:
+                owner[int(nodes.tree[v])] = tid
+        return owner
+
+    def _marginals(self, problem: PackingProblem) -> tuple[FloatArray, bool]:
+        """P(h in the set) of every hypothesis under the weights exp(log_weights), and
+        whether they are exact (clusters past ``exact_work_limit`` use the beam)."""
+        weights = problem.log_weights
+        uncounted = PackingProblem(
+            scores=problem.scores,
+            resource_indptr=problem.resource_indptr,
+            resource_indices=problem.resource_indices,
+            exactly_one=problem.exactly_one,
+            counts=np.zeros(problem.num_hypotheses, dtype=bool),
+            log_weights=weights,
+        )
+        out = np.zeros(problem.num_hypotheses)
+        exact = True
+        seed = np.zeros(1)
+        for members in cluster_hypotheses(uncounted):
+            sub = uncounted.subproblem(members)
+            try:
+                found = frontier_marginals(sub, seed, work_limit=_MARGINALS_WORK)
+            except SearchLimitExceeded:
+                found = frontier_marginals(
+                    sub, seed, max_frontiers=_MARGINALS_BEAM, entry_margin=_BEAM_MARGIN
+                )
+            exact = exact and found.exact
+            out[members] = np.exp(found.log_containing[0] - found.log_total[0])
+        return out, exact
+
+    # -- fragment linking -------------------------------------------------------------------
+    def link_fragments(self, tracks: dict[int, TrackPath], values: dict[int, float]) -> int:
+        """Join tracks that end to tracks that start within ``link_gap`` scans where J rises.
+
+        Returns the number of joins made; ``tracks`` and ``values`` are updated in place.
+        """
+        obj = self.objective
+        gap = self.settings.link_gap
+        made = 0
+        while True:
+            ids = sorted(tracks)
+            by_first: dict[int, list[int]] = {}
+            for tid in ids:
+                by_first.setdefault(tracks[tid][0][0], []).append(tid)
+            pairs: list[tuple[int, int, float]] = []
+            for t1 in ids:
+                last = tracks[t1][-1][0]
+                later = [t2 for m in range(last + 1, last + gap + 1) for t2 in by_first.get(m, [])]
+                if not later:
+                    continue
+                path1 = tracks[t1]
+                end = obj.trajectory(path1).state(len(path1) - 1)
+                for t2 in later:
+                    reference = obj.trajectory(tracks[t2])
+                    joined = float(
+                        obj.continue_converging(end, reference, 0, max_detections=self._refilter)[0]
+                    )
+                    if _rises(values[t1] + values[t2], joined):
+                        pairs.append((t1, t2, joined - values[t1] - values[t2]))
+            if not pairs:
+                return made
+            ends = sorted({p[0] for p in pairs})
+            starts = sorted({p[1] for p in pairs})
+            gain = np.full((len(ends), len(starts)), -1e300)
+            for t1, t2, delta in pairs:
+                gain[ends.index(t1), starts.index(t2)] = delta
+            rows, cols = linear_sum_assignment(gain, maximize=True)
+            chosen = sorted(
+                ((float(gain[r, c]), ends[r], starts[c]) for r, c in zip(rows, cols, strict=True)
+                 if gain[r, c] > 0),
+                reverse=True,
+            )
+            used: set[int] = set()
+            joined_now = 0
+            for _delta, t1, t2 in chosen:
+                if t1 in used or t2 in used:
+                    continue  # a chain: its joins are not independent; the next round
+                used.update((t1, t2))
+                path = tracks[t1] + tracks[t2]
+                value = obj.track_value(path)  # accepted on the exact value
+                if not _rises(values[t1] + values[t2], value):
+                    continue
+                del tracks[t2]
+                del values[t2]
+                tracks[t1] = path
+                values[t1] = value
+                joined_now += 1
+            made += joined_now
+            if joined_now == 0:
+                return made
+
+
+def refine_track_rows(
+    config: Config,
+    scans: Sequence[Scan],
+    track_rows: Mapping[int, Sequence[int]],
+    *,
+    settings: RefinementSettings | None = None,
+) -> tuple[dict[int, tuple[int, ...]], RefinementReport]:
+    """Refine a track set given as track id -> detection ids (what the estimator keeps).
+
+    Parameters
+    ----------
+    config : Config
+    scans : sequence of Scan
+        The whole recording.
+    track_rows : mapping of int to sequence of int
+        Detection ids of every track.
+    settings : RefinementSettings, optional
+        Default: the estimator's ``refine_passes`` and ``refine_link_gap``.
+
+    Returns
+    -------
+    track_rows : dict of int to tuple of int
+        The refined tracks' detection ids in scan order, by track id.
+    report : RefinementReport
+    """
+    if settings is None:
+        est = config.estimator
+        settings = RefinementSettings(passes=est.refine_passes, link_gap=est.refine_link_gap)
+    objective = RecordingObjective(config=config, scans=scans)
+    paths = {tid: objective.path_of_rows(rows) for tid, rows in track_rows.items() if len(rows)}
+    refiner = Refiner(config=config, scans=scans, settings=settings, objective=objective)
+    refined, report = refiner.refine(paths)
+    return rows_from_paths(scans, refined), report

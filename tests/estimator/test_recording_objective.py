@@ -1,0 +1,292 @@
+"""The whole recording's objective J and its refinement, against independent references.
+
+* J of every track set of tiny recordings equals a value written here from the
+  generative model without the library's filter: each track's detections scored by
+  their joint Gaussian law (the state-space model stacked over the track's scans, not
+  the Kalman recursion), the birth, miss, survival and best-ending terms enumerated;
+* J of a recording no longer than a window equals the window's best objective;
+* refinement: never lowers J, returns feasible track sets, finds the global MAP when its
+  window covers the recording, and leaves no single-window move that improves J.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from support import NO_TIME_LIMIT, make_config, make_scans, partitions
+
+from mapassoc.estimator.objective import RecordingObjective, paths_from_rows
+from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.estimator.refinement import RefinementSettings, Refiner, refine_track_rows
+from mapassoc.evaluation.scenarios import build_scenario
+from mapassoc.models.motion import ConstantVelocity
+
+NOISE_INTENSITY = 0.4
+
+
+def _tiny_recording(seed: int, num_scans: int = 3, most: int = 2):
+    """A random 1-D or 2-D recording of ``num_scans`` scans with 0..``most`` detections each."""
+    rng = np.random.default_rng(seed)
+    ndim = int(rng.choice([1, 2]))
+    motion = ConstantVelocity(ndim=ndim, noise_intensity=NOISE_INTENSITY)
+    times = np.cumsum(np.r_[0.0, rng.uniform(0.5, 1.5, size=num_scans - 1)]).tolist()
+    counts = [int(rng.integers(0, most + 1)) for _ in range(num_scans)]
+    # Targets that move a little plus clutter, so that some track sets score well.
+    start = rng.uniform(-3.0, 3.0, size=ndim)
+    detections = []
+    for t, c in zip(times, counts, strict=True):
+        points = [start + 0.5 * t + rng.normal(0, 0.4, size=ndim) for _ in range(c)]
+        if c and rng.random() < 0.5:
+            points[-1] = rng.uniform(-6.0, 6.0, size=ndim)
+        detections.append([p.tolist() for p in points])
+    config = make_config(
+        motion=motion,
+        noise_std=float(rng.uniform(0.3, 0.8)),
+        detection_probability=float(rng.uniform(0.5, 0.95)),
+        false_alarms_per_scan=float(rng.uniform(0.3, 2.0)),
+        region=[[-8.0, 8.0]] * ndim,
+        rate=float(rng.uniform(0.1, 0.8)),
+        initial_count=float(rng.uniform(0.0, 2.0)),
+        velocity_std=float(rng.uniform(0.5, 1.5)),
+        survival_probability=float(rng.uniform(0.6, 0.99)),
+        window_length=num_scans,
+    )
+    config = dataclasses.replace(
+        config, estimator=dataclasses.replace(config.estimator, time_limit=NO_TIME_LIMIT)
+    )
+    return config, make_scans(times, detections, ndim)
+
+
+def _joint_log_likelihood(config, scans, track) -> float:
+    """log p(z_2..z_L | z_1) of a track's detections, stacked (no Kalman recursion).
+
+    The state at the first detection is Gaussian: position = z_1 with covariance R
+    (single-point initiation under a uniform position prior), velocity from the birth
+    prior; later states follow x_k = F x_{k-1} + w_k with the constant-velocity F and
+    Q of continuous white acceleration noise of intensity q, written out here.
+    """
+    sensor = config.sensors["s"]
+    R = np.asarray(sensor.measurement.noise_covariance)
+    d = R.shape[0]
+    q = NOISE_INTENSITY
+    first_scan, first_index = track[0]
+    m0 = np.r_[scans[first_scan].detections[first_index], np.zeros(d)]
+    P0 = np.zeros((2 * d, 2 * d))
+    P0[:d, :d] = R
+    P0[d:, d:] = config.birth.velocity_std**2 * np.eye(d)
+    steps = range(first_scan, track[-1][0] + 1)
+    means = {first_scan: m0}
+    covs = {(first_scan, first_scan): P0}
+    for k in steps:
+        if k == first_scan:
+            continue
+        dt = scans[k].time - scans[k - 1].time
+        F = np.block([[np.eye(d), dt * np.eye(d)], [np.zeros((d, d)), np.eye(d)]])
+        eye = np.eye(d)
+        Q = q * np.block([[dt**3 / 3 * eye, dt**2 / 2 * eye], [dt**2 / 2 * eye, dt * eye]])
+        means[k] = F @ means[k - 1]
+        for j in range(first_scan, k):
+            covs[(k, j)] = F @ covs[(k - 1, j)]
+            covs[(j, k)] = covs[(k, j)].T
+        covs[(k, k)] = F @ covs[(k - 1, k - 1)] @ F.T + Q
+    later = track[1:]
+    if not later:
+        return 0.0
+    H = np.c_[np.eye(d), np.zeros((d, d))]
+    mean = np.concatenate([H @ means[k] for k, _ in later])
+    cov = np.block([[H @ covs[(k, j)] @ H.T for j, _ in later] for k, _ in later])
+    cov += np.kron(np.eye(len(later)), R)
+    z = np.concatenate([scans[k].detections[i] for k, i in later])
+    sign, logdet = np.linalg.slogdet(2 * math.pi * cov)
+    assert sign > 0
+    r = z - mean
+    return float(-0.5 * (logdet + r @ np.linalg.solve(cov, r)))
+
+
+def _reference_value(config, scans, track) -> float:
+    """A track's value from the generative model (module docstring), independently."""
+    sensor = config.sensors["s"]
+    birth = config.birth
+    pd, ps = sensor.detection_probability, birth.survival_probability
+    lam_bar = sensor.false_alarms_per_scan
+    lam = lam_bar / sensor.region.volume
+    times = [s.time for s in scans]
+    # Expected number of targets alive and never detected, just before each scan.
+    u = []
+    remaining, previous = birth.initial_count, times[0]
+    for t in times:
+        u.append(remaining * ps ** (t - previous) + birth.rate)
+        remaining, previous = u[-1] * (1 - pd), t
+    first, last = track[0][0], track[-1][0]
+    detected = {k for k, _ in track}
+    value = math.log(u[first] * pd / lam_bar)
+    for k in range(first + 1, last + 1):
+        value += (times[k] - times[k - 1]) * math.log(ps)
+        value += math.log(pd / lam) if k in detected else math.log(1 - pd)
+    value += _joint_log_likelihood(config, scans, track)
+    # The best ending: in the gap after scan g >= last, or alive to the end.
+    endings = []
+    running = 0.0
+    for g in range(last, len(scans)):
+        if g == len(scans) - 1:
+            endings.append(running)
+        else:
+            endings.append(running + math.log(1 - ps ** (times[g + 1] - times[g])))
+            running += (times[g + 1] - times[g]) * math.log(ps) + math.log(1 - pd)
+    return value + max(endings)
+
+
+def _all_track_sets(scans):
+    """Every track set of a recording, as lists of ((scan, index), ...) paths."""
+    where = [(k, i) for k, scan in enumerate(scans) for i in range(scan.size)]
+    for partition in partitions([k for k, _ in where]):
+        yield [tuple(where[d] for d in track) for track in partition]
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_objective_equals_the_generative_model_on_every_track_set(seed: int) -> None:
+    config, scans = _tiny_recording(seed)
+    objective = RecordingObjective(config=config, scans=scans)
+    count = 0
+    for tracks in _all_track_sets(scans):
+        expected = sum(_reference_value(config, scans, t) for t in tracks)
+        assert objective.value(tracks) == pytest.approx(expected, abs=1e-9, rel=1e-12)
+        count += 1
+    assert count >= 1
+
+
+@pytest.mark.parametrize("name", ["crossing", "dense", "turning", "two_sensors"])
+def test_objective_of_one_window_equals_its_best_objective(name: str) -> None:
+    scenario = build_scenario(name, seed=1)
+    config = scenario.config
+    config = dataclasses.replace(
+        config,
+        estimator=dataclasses.replace(
+            config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
+        ),
+    )
+    scans = scenario.scans[: config.estimator.window_length]
+    estimator = WindowEstimator(config=config)
+    solution = estimator.solve_window(scans)
+    _, tracks = estimator.k_estimator.choose(solution.posterior)
+    result = estimator.run(scans)
+    objective = RecordingObjective(config=config, scans=scans)
+    value = objective.value(paths_from_rows(objective, result.track_rows))
+    assert value == pytest.approx(float(solution.table.best[tracks]), abs=1e-9)
+
+
+def _feasible(tracks) -> bool:
+    used = [p for path in tracks.values() for p in path]
+    scans_ok = all(
+        len({k for k, _ in path}) == len(path) and list(path) == sorted(path)
+        for path in tracks.values()
+    )
+    return scans_ok and len(used) == len(set(used))
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_refinement_over_the_whole_recording_finds_the_global_map(seed: int) -> None:
+    config, scans = _tiny_recording(seed, num_scans=4, most=2)
+    objective = RecordingObjective(config=config, scans=scans)
+    best = max(objective.value(tracks) for tracks in _all_track_sets(scans))
+    # Start from a poor set: every detection its own track.
+    singles = {
+        i + 1: ((k, j),) for i, (k, j) in enumerate(
+            (k, j) for k, scan in enumerate(scans) for j in range(scan.size)
+        )
+    }
+    refiner = Refiner(
+        config=config,
+        scans=scans,
+        settings=RefinementSettings(passes=2, window_length=len(scans)),
+        objective=objective,
+    )
+    refined, report = refiner.refine(singles)
+    assert _feasible(refined)
+    assert objective.value(refined) == pytest.approx(best, abs=1e-9)
+    assert report.objective == pytest.approx(best, abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_refinement_never_lowers_the_objective(seed: int) -> None:
+    """Random short stretches of the built-in scenarios, forward pass then refinement."""
+    rng = np.random.default_rng(100 + seed)
+    name = ["crossing", "dense", "parallel", "dense_pd08"][seed % 4]
+    scenario = build_scenario(name, seed=int(rng.integers(0, 5)))
+    start = int(rng.integers(0, len(scenario.scans) - 16))
+    scans = scenario.scans[start : start + 16]
+    config = dataclasses.replace(
+        scenario.config,
+        estimator=dataclasses.replace(
+            scenario.config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
+        ),
+    )
+    forward = WindowEstimator(config=config).run(scans)
+    objective = RecordingObjective(config=config, scans=scans)
+    before = objective.value(paths_from_rows(objective, forward.track_rows))
+    rows, report = refine_track_rows(
+        config, scans, forward.track_rows, settings=RefinementSettings(passes=3)
+    )
+    after = objective.value(paths_from_rows(objective, rows))
+    assert report.objective_forward == pytest.approx(before, abs=1e-9)
+    assert after == pytest.approx(report.objective, abs=1e-9)
+    assert after >= before - 1e-9
+    history = [report.objective_forward, *report.objective_after_pass]
+    assert all(b >= a - 1e-9 for a, b in zip(history, history[1:], strict=False))
+    assert _feasible(paths_from_rows(objective, rows))
+
+
+@pytest.mark.slow
+def test_no_single_window_move_improves_a_converged_refinement() -> None:
+    scenario = build_scenario("parallel", seed=0)
+    scans = scenario.scans[:30]
+    config = dataclasses.replace(
+        scenario.config,
+        estimator=dataclasses.replace(
+            scenario.config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
+        ),
+    )
+    forward = WindowEstimator(config=config).run(scans)
+    objective = RecordingObjective(config=config, scans=scans)
+    refiner = Refiner(
+        config=config, scans=scans, settings=RefinementSettings(passes=20), objective=objective
+    )
+    refined, report = refiner.refine(paths_from_rows(objective, forward.track_rows))
+    assert report.objective > report.objective_forward  # parallel lanes: it must improve
+    values = {tid: objective.track_value(path) for tid, path in refined.items()}
+    N = refiner.window_length
+    for a in refiner.window_starts():
+        improved, _ = refiner.resolve_window(refined, values, a, a + N)
+        assert not improved, f"window {a}..{a + N - 1} still improves J"
+
+
+def test_converging_continuation_agrees_with_the_whole_filter_run() -> None:
+    scenario = build_scenario("crossing", seed=2)
+    config, scans = scenario.config, scenario.scans
+    result = WindowEstimator(
+        config=dataclasses.replace(
+            config,
+            estimator=dataclasses.replace(
+                config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
+            ),
+        )
+    ).run(scans)
+    objective = RecordingObjective(config=config, scans=scans)
+    paths = list(paths_from_rows(objective, result.track_rows).values())
+    checked = 0
+    for path in paths:
+        for cut in range(1, len(path), 7):
+            head, tail = path[:cut], path[cut:]
+            # The tail started anew, then continued towards the whole track's run.
+            reference = objective.trajectory(path)
+            alone = objective.continue_converging(objective.start_path(tail), reference, cut + 1)
+            assert float(alone[0]) == pytest.approx(objective.track_value(tail), abs=1e-6)
+            # The head's state continued through the tail: the whole track again.
+            state = objective.trajectory(head).state(len(head) - 1)
+            whole = objective.continue_converging(state, reference, cut)
+            assert float(whole[0]) == pytest.approx(objective.track_value(path), abs=1e-6)
+            checked += 1
+    assert checked > 10
