@@ -61,6 +61,7 @@ an answer at any T, the estimator's set (:class:`Decision` says which).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Sequence
@@ -596,7 +597,13 @@ class LpRelaxationTracker:
         )
         self.gap_tolerance = _check_positive("gap_tolerance", gap_tolerance)
         self.time_limit = None if time_limit is None else _check_positive("time_limit", time_limit)
-        self.estimator = WindowEstimator(config=config)
+        # The windows' LP-rounded sets as they are: refining the whole recording
+        # afterwards (refine_passes) would show the refinement, not the relaxation.
+        self.estimator = WindowEstimator(
+            config=dataclasses.replace(
+                config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
+            )
+        )
         self.lp_solver = CvxpySolver(backend="CLARABEL")
         self.ip_solver = HighsSolver()
 

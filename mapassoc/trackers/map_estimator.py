@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 
@@ -11,7 +12,7 @@ from mapassoc.data.scans import Scan
 from mapassoc.estimator.pipeline import EstimateResult, WindowEstimator
 from mapassoc.trackers.base import CountSeries, TrackerOutput, check_scans
 
-__all__ = ["MapTracker", "rows_to_associations"]
+__all__ = ["MapTracker", "MapForwardTracker", "rows_to_associations"]
 
 
 def rows_to_associations(
@@ -60,3 +61,18 @@ class MapTracker:
             counts=count_series(result),
             details=result,
         )
+
+
+class MapForwardTracker(MapTracker):
+    """The MAP estimator's forward pass alone: each window's decision is final.
+
+    The same estimator with ``refine_passes = 0`` (no refinement of the whole
+    recording, :mod:`mapassoc.estimator.refinement`): in comparisons it shows what the
+    refinement adds.
+    """
+
+    def __init__(self, *, config: Config, name: str = "map-forward") -> None:
+        forward = dataclasses.replace(
+            config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
+        )
+        super().__init__(config=forward, name=name)

@@ -10,7 +10,9 @@ here.
 =========  =====================================  ======================================
 name       class                                  method
 =========  =====================================  ======================================
-``map``    :class:`~.map_estimator.MapTracker`    sliding-window MAP track sets, p(K | Z)
+``map``    :class:`~.map_estimator.MapTracker`    sliding-window MAP track sets, p(K | Z),
+                                                  refined over the whole recording
+``map-forward`` :class:`~.map_estimator.MapForwardTracker`  the forward pass alone
 ``gnn``    :class:`~.gnn.GnnTracker`              global nearest neighbour (2-D assignment)
 ``jpda``   :class:`~.jpda.JpdaTracker`            joint probabilistic data association
 ``mht``    :class:`~.mht.MhtTracker`              track-oriented MHT, N-scan pruning
@@ -78,6 +80,12 @@ TRACKERS: dict[str, TrackerSpec] = {
             "mapassoc.trackers.map_estimator",
             "MapTracker",
             "sliding-window MAP track sets with the posterior over K (this library)",
+        ),
+        TrackerSpec(
+            "map-forward",
+            "mapassoc.trackers.map_estimator",
+            "MapForwardTracker",
+            "the MAP estimator's forward pass alone (no refinement of the whole recording)",
         ),
         TrackerSpec(
             "gnn",
