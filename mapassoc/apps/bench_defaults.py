@@ -7,7 +7,12 @@ estimator.
 
 from __future__ import annotations
 
-__all__ = ["DEFAULT_FAMILIES", "DEFAULT_K_PRIORS", "DEFAULT_PARAMETER_FAMILIES"]
+__all__ = [
+    "DEFAULT_FAMILIES",
+    "DEFAULT_K_PRIORS",
+    "DEFAULT_PARAMETER_FAMILIES",
+    "DEFAULT_REFINEMENT_FAMILIES",
+]
 
 #: Families run by default, in this order.
 DEFAULT_FAMILIES: tuple[str, ...] = (
@@ -28,3 +33,18 @@ DEFAULT_PARAMETER_FAMILIES = ("crossing", "parallel", "dense_pd08", "dense", "sc
 """Families of ``mapassoc bench-parameters`` (one sensor each): sparse and dense clutter,
 closely spaced lanes, low Pd, many targets, and a clutter burst (a rate that is not
 constant, where "true" is only the background rate)."""
+
+DEFAULT_REFINEMENT_FAMILIES = (
+    "converging",
+    "meeting",
+    "parallel",
+    "parallel_pd08",
+    "dense_pd08",
+    "dense_radar",
+    "staggered",
+    "crossing",
+)
+"""Families of ``mapassoc bench-refinement``, as hard as users' data: targets that converge
+and travel closely spaced at Pd 0.7 in clutter, four targets meeting at one point,
+parallel lanes (at Pd 0.9 and 0.8), Pd 0.8 among dense clutter, births and deaths
+throughout, and crossing pairs."""

@@ -230,6 +230,18 @@ def _cmd_bench_parameters(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_bench_refinement(args: argparse.Namespace) -> int:
+    from mapassoc.apps.bench_refinement import run_refinement_benchmark
+
+    run_refinement_benchmark(
+        families=args.families,
+        seeds=args.seeds,
+        time_limit=args.time_limit,
+        json_path=Path(args.json) if args.json else None,
+    )
+    return 0
+
+
 def _cmd_bench_reprocess(args: argparse.Namespace) -> int:
     from mapassoc.apps.bench_reprocess import run_reprocess_benchmark
 
@@ -608,6 +620,27 @@ def build_parser() -> argparse.ArgumentParser:
                    help="estimator time limit per window (default 2.0)")
     p.add_argument("--json", metavar="PATH", help="also write the runs to this JSON file")
     p.set_defaults(func=_cmd_bench_parameters)
+
+    from mapassoc.apps.bench_defaults import DEFAULT_REFINEMENT_FAMILIES
+
+    p = sub.add_parser(
+        "bench-refinement",
+        help="the forward pass, the refined recording and MHT side by side on hard families",
+        description="Per family and seed (generic configuration): GOSPA and its parts, "
+        "T-GOSPA, fragments, identity switches, track ids per target, seconds and the "
+        "recording objective J of the forward pass alone, of its refinement, of MHT and of "
+        "the oracle, then the means beside the goals.",
+        allow_abbrev=False,
+    )
+    p.add_argument("--families", type=_comma_separated,
+                   default=",".join(DEFAULT_REFINEMENT_FAMILIES), metavar="NAME,...",
+                   help=f"scenario families (default {','.join(DEFAULT_REFINEMENT_FAMILIES)})")
+    p.add_argument("--seeds", type=int, default=5, metavar="N",
+                   help="seeds 0..N-1 per family (default 5)")
+    p.add_argument("--time-limit", type=float, default=2.0, metavar="SECONDS",
+                   help="estimator time limit per window (default 2.0)")
+    p.add_argument("--json", metavar="PATH", help="also write the runs to this JSON file")
+    p.set_defaults(func=_cmd_bench_refinement)
 
     p = sub.add_parser(
         "bench-reprocess",

@@ -1,0 +1,295 @@
+"""``mapassoc bench-refinement``: the forward pass, the refined recording and MHT side by side.
+
+For every family (a built-in scenario; by default the hard ones: targets that converge
+and travel closely spaced at low Pd in clutter, targets meeting at one point, parallel
+lanes, Pd 0.8 among dense clutter, births and deaths throughout) and seed, with the
+benchmark's untuned configuration (:func:`mapassoc.evaluation.scenarios.generic_config`)
+it runs
+
+* ``forward``: the window estimator with ``refine_passes = 0`` (each window's decision
+  final);
+* ``refined``: the whole recording's refinement of that forward pass
+  (:mod:`mapassoc.estimator.refinement`, the estimator's default), timed on its own;
+* ``mht``: the project's track-oriented MHT (:mod:`mapassoc.trackers.mht`);
+* ``oracle``: the smoother on the true associations,
+
+and prints per run GOSPA (c = :data:`GOSPA_CUTOFF`, p = 2) with its localisation, missed
+and false parts, T-GOSPA (switching cost c), fragments per tracked target, identity
+switches, track ids per true target, seconds, and the recording objective J
+(:mod:`mapassoc.estimator.objective`) of every method's track set: J(refined) >=
+J(forward) always, and J(oracle) beside them says whether what is left is the search's
+fault (J of the truth higher) or the model's (lower).  Then per family the means over
+seeds beside the goals: refined GOSPA <= 1.2 x the oracle's and <= MHT's, T-GOSPA <=
+MHT's, ids <= 1.15 x the true targets, refinement time <= the forward pass's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, TextIO
+
+import numpy as np
+
+from mapassoc.apps.bench_defaults import DEFAULT_REFINEMENT_FAMILIES
+from mapassoc.errors import InputError
+
+if TYPE_CHECKING:  # the estimator is imported when the benchmark runs
+    from mapassoc.estimator.objective import RecordingObjective
+
+__all__ = [
+    "REFINEMENT_FAMILIES",
+    "GOSPA_CUTOFF",
+    "METHODS",
+    "RefinementRun",
+    "run_refinement_benchmark",
+]
+
+REFINEMENT_FAMILIES = DEFAULT_REFINEMENT_FAMILIES
+"""The default families: as hard as users' data (README, "Benchmark")."""
+
+GOSPA_CUTOFF = 10.0
+METHODS = ("forward", "refined", "mht", "oracle")
+
+
+@dataclass(frozen=True)
+class RefinementRun:
+    """One method on one family and seed.
+
+    Attributes
+    ----------
+    family, seed, method : str, int, str
+    gospa, localisation, missed, false : float
+        Mean GOSPA over time and the means of its squared parts.
+    tgospa : float
+        T-GOSPA of the trajectories (switching cost = the cut-off).
+    fragments_per_target : float
+    id_switches : int
+    tracks, targets : int
+        Track ids of the output; true targets.
+    seconds : float
+        For ``refined``: the refinement alone (add the forward run's for the total).
+    objective : float
+        J of the method's track set (``nan`` for a method without hard associations).
+    """
+
+    family: str
+    seed: int
+    method: str
+    gospa: float
+    localisation: float
+    missed: float
+    false: float
+    tgospa: float
+    fragments_per_target: float
+    id_switches: int
+    tracks: int
+    targets: int
+    seconds: float
+    objective: float
+
+
+def run_refinement_benchmark(
+    *,
+    families: Sequence[str] = REFINEMENT_FAMILIES,
+    seeds: int = 5,
+    time_limit: float = 2.0,
+    scans: int | None = None,
+    json_path: Path | str | None = None,
+    out: TextIO | None = None,
+) -> list[RefinementRun]:
+    """Run and print the benchmark (module docstring); optionally write JSON rows.
+
+    Raises
+    ------
+    InputError
+        An unknown family, ``seeds < 1``.
+    """
+    from mapassoc.estimator.objective import RecordingObjective  # noqa: F811
+    from mapassoc.estimator.pipeline import WindowEstimator
+    from mapassoc.estimator.refinement import refine_track_rows
+    from mapassoc.evaluation.oracle import oracle_tracks
+    from mapassoc.evaluation.scenarios import build_scenario, generic_config, scenario_names
+    from mapassoc.filtering.smoothing import smooth_tracks
+    from mapassoc.trackers.registry import build_tracker
+
+    stream = out if out is not None else sys.stdout
+    unknown = [name for name in families if name not in scenario_names()]
+    if unknown:
+        raise InputError(f"unknown families {unknown}; known: {', '.join(scenario_names())}")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise InputError(f"seeds must be an integer >= 1, got {seeds!r}")
+    rows: list[RefinementRun] = []
+
+    def say(text: str) -> None:
+        print(text, file=stream, flush=True)
+
+    say(
+        f"bench-refinement: {len(families)} families x {seeds} seeds, generic configuration, "
+        f"time limit {time_limit} s; GOSPA c = {GOSPA_CUTOFF:g}, p = 2"
+    )
+    for family in families:
+        for seed in range(seeds):
+            scenario = build_scenario(family, seed, scans=scans)
+            config = generic_config(scenario, time_limit=time_limit)
+            forward_config = dataclasses.replace(
+                config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
+            )
+            objective = RecordingObjective(config=config, scans=scenario.scans)
+            where = {
+                int(row): (k, j)
+                for k, scan in enumerate(scenario.scans)
+                for j, row in enumerate(scan.rows)
+            }
+
+            started = time.perf_counter()
+            forward = WindowEstimator(config=forward_config).run(scenario.scans)
+            forward_seconds = time.perf_counter() - started
+            started = time.perf_counter()
+            refined_rows, report = refine_track_rows(config, scenario.scans, forward.track_rows)
+            refined_tracks = smooth_tracks(
+                scenario.scans,
+                {tid: dict(where[r] for r in rows) for tid, rows in refined_rows.items()},
+                config,
+            )
+            refine_seconds = time.perf_counter() - started
+            started = time.perf_counter()
+            mht = build_tracker("mht", config=config).track(scenario.scans)
+            mht_seconds = time.perf_counter() - started
+            mht_rows = {
+                tid: tuple(int(scenario.scans[k].rows[j]) for k, j in sorted(a.items()))
+                for tid, a in (mht.associations or {}).items()
+                if a
+            }
+            truth_rows: dict[int, list[int]] = {}  # the true associations
+            for row, origin in zip(
+                scenario.origins.rows.tolist(), scenario.origins.target_ids.tolist(), strict=True
+            ):
+                if origin >= 0:
+                    truth_rows.setdefault(int(origin), []).append(int(row))
+            oracle = oracle_tracks(scenario.scans, scenario.origins, config)
+            targets = len(np.unique(scenario.truth.target_ids))
+            runs = (
+                ("forward", forward.tracks, forward_seconds, _value(objective, forward.track_rows)),
+                ("refined", refined_tracks, refine_seconds, report.objective),
+                ("mht", mht.tracks, mht_seconds, _value(objective, mht_rows)),
+                ("oracle", oracle, 0.0, _value(objective, truth_rows)),
+            )
+            for method, tracks, seconds, objective_value in runs:
+                rows.append(_score(family, seed, method, scenario, tracks, targets, seconds,
+                                   objective_value))  # fmt: skip
+            say(_run_line(family, seed, rows[-len(runs):]))
+    _print_summary(rows, families, say)
+    if json_path is not None:
+        Path(json_path).write_text(
+            json.dumps([r.__dict__ for r in rows], indent=2) + "\n", encoding="utf-8"
+        )
+    return rows
+
+
+def _value(objective: RecordingObjective, track_rows: Mapping[int, Sequence[int]]) -> float:
+    """J of a track set given as detection ids (``-inf`` where the model's gate or a
+    miss of probability 0 excludes one of its tracks)."""
+    return objective.value([objective.path_of_rows(r) for r in track_rows.values() if len(r)])
+
+
+def _score(
+    family: str,
+    seed: int,
+    method: str,
+    scenario: object,
+    tracks: object,
+    targets: int,
+    seconds: float,
+    objective: float,
+) -> RefinementRun:
+    from mapassoc.evaluation.tables import evaluate_tables
+
+    ev = evaluate_tables(
+        scenario.truth,  # type: ignore[attr-defined]
+        tracks,  # type: ignore[arg-type]
+        c=GOSPA_CUTOFF,
+        switch_cost=GOSPA_CUTOFF,
+    )
+    g = ev.gospa
+    frag = ev.fragmentation
+    tgospa = ev.tgospa
+    return RefinementRun(
+        family=family,
+        seed=seed,
+        method=method,
+        gospa=g.mean_total,
+        localisation=g.mean_localisation,
+        missed=g.mean_missed,
+        false=g.mean_false,
+        tgospa=float(tgospa.total) if tgospa is not None else math.nan,
+        fragments_per_target=float(frag.fragments_per_target) if frag is not None else math.nan,
+        id_switches=int(frag.num_id_switches) if frag is not None else 0,
+        tracks=len(np.unique(tracks.track_ids)),  # type: ignore[attr-defined]
+        targets=targets,
+        seconds=seconds,
+        objective=objective,
+    )
+
+
+def _run_line(family: str, seed: int, runs: Sequence[RefinementRun]) -> str:
+    parts = [
+        f"{r.method} GOSPA {r.gospa:.3f} (loc {r.localisation:.2f} miss {r.missed:.2f} "
+        f"false {r.false:.2f}) T-GOSPA {r.tgospa:.1f} frag {r.fragments_per_target:.2f} "
+        f"idsw {r.id_switches} ids {r.tracks}/{r.targets} {r.seconds:.1f} s J {r.objective:.1f}"
+        for r in runs
+    ]
+    return f"  {family} seed {seed}:\n    " + "\n    ".join(parts)
+
+
+def _print_summary(rows: list[RefinementRun], families: Sequence[str], say: object) -> None:
+    header = (
+        f"{'family':14s} {'method':8s} {'GOSPA':>7s} {'/oracle':>8s} {'loc':>6s} "
+        f"{'miss':>7s} {'false':>7s} {'T-GOSPA':>8s} {'frag':>5s} {'idsw':>5s} "
+        f"{'ids/tgt':>8s} {'seconds':>8s} {'J':>10s}"
+    )
+    lines = [
+        "",
+        "Means over seeds. Goals: refined GOSPA <= 1.2 x oracle and <= mht; refined "
+        "T-GOSPA <= mht; ids/targets <= 1.15; refinement seconds <= forward seconds; "
+        "J(refined) >= J(forward) in every run",
+        header,
+        "-" * len(header),
+    ]
+    for family in families:
+        mine = [r for r in rows if r.family == family]
+        oracle = float(np.mean([r.gospa for r in mine if r.method == "oracle"]))
+        for method in METHODS:
+            runs = [r for r in mine if r.method == method]
+            if not runs:
+                continue
+            gospa = float(np.mean([r.gospa for r in runs]))
+            ratio = gospa / oracle if oracle > 0 else math.nan
+            lines.append(
+                f"{family:14s} {method:8s} {gospa:7.3f} {ratio:8.2f} "
+                f"{np.mean([r.localisation for r in runs]):6.2f} "
+                f"{np.mean([r.missed for r in runs]):7.2f} "
+                f"{np.mean([r.false for r in runs]):7.2f} "
+                f"{np.mean([r.tgospa for r in runs]):8.1f} "
+                f"{np.mean([r.fragments_per_target for r in runs]):5.2f} "
+                f"{np.mean([r.id_switches for r in runs]):5.1f} "
+                f"{np.mean([r.tracks / r.targets for r in runs]):8.2f} "
+                f"{np.mean([r.seconds for r in runs]):8.1f} "
+                f"{np.mean([r.objective for r in runs]):10.1f}"
+            )
+        forward = {r.seed: r for r in mine if r.method == "forward"}
+        refined = [r for r in mine if r.method == "refined"]
+        never_lower = all(r.objective >= forward[r.seed].objective - 1e-6 for r in refined)
+        lines.append(
+            f"{family:14s} J(refined) >= J(forward) in every run: {never_lower}; "
+            "refinement / forward time: "
+            f"{np.mean([r.seconds / forward[r.seed].seconds for r in refined]):.2f}"
+        )
+    for line in lines:
+        say(line)  # type: ignore[operator]
