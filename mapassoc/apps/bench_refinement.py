@@ -9,7 +9,10 @@ it runs
 * ``forward``: the window estimator with ``refine_passes = 0`` (each window's decision
   final);
 * ``refined``: the whole recording's refinement of that forward pass
-  (:mod:`mapassoc.estimator.refinement`, the estimator's default), timed on its own;
+  (:mod:`mapassoc.estimator.refinement`, the estimator's default), timed on its own
+  (existence and association probabilities included);
+* ``r>=0.5``: the refined tracks whose existence probability is at least
+  :data:`MIN_EXISTENCE` (the extraction rule ``min_existence``);
 * ``mht``: the project's track-oriented MHT (:mod:`mapassoc.trackers.mht`);
 * ``oracle``: the smoother on the true associations,
 
@@ -20,7 +23,9 @@ switches, track ids per true target, seconds, and the recording objective J
 J(forward) always, and J(oracle) beside them says whether what is left is the search's
 fault (J of the truth higher) or the model's (lower).  Then per family the means over
 seeds beside the goals: refined GOSPA <= 1.2 x the oracle's and <= MHT's, T-GOSPA <=
-MHT's, ids <= 1.15 x the true targets, refinement time <= the forward pass's.
+MHT's, ids <= 1.15 x the true targets, refinement time <= the forward pass's; and the
+calibration of the existence probabilities: of the refined tracks in each existence bin,
+the share that follow a true target (at least half their detections that target's).
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ from mapassoc.apps.bench_defaults import DEFAULT_REFINEMENT_FAMILIES
 from mapassoc.errors import InputError
 
 if TYPE_CHECKING:  # the estimator is imported when the benchmark runs
+    from mapassoc.data.io import TrackTable
     from mapassoc.estimator.objective import RecordingObjective
 
 __all__ = [
@@ -55,7 +61,10 @@ REFINEMENT_FAMILIES = DEFAULT_REFINEMENT_FAMILIES
 """The default families: as hard as users' data (README, "Benchmark")."""
 
 GOSPA_CUTOFF = 10.0
-METHODS = ("forward", "refined", "mht", "oracle")
+MIN_EXISTENCE = 0.5
+"""The extraction rule measured beside the refined set: tracks of existence >= this."""
+RELIABILITY_BINS = 5
+METHODS = ("forward", "refined", f"r>={MIN_EXISTENCE:g}", "mht", "oracle")
 
 
 @dataclass(frozen=True)
@@ -126,6 +135,7 @@ def run_refinement_benchmark(
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise InputError(f"seeds must be an integer >= 1, got {seeds!r}")
     rows: list[RefinementRun] = []
+    reliability: list[tuple[float, bool]] = []  # (existence, matches a true target) per track
 
     def say(text: str) -> None:
         print(text, file=stream, flush=True)
@@ -152,7 +162,8 @@ def run_refinement_benchmark(
             forward = WindowEstimator(config=forward_config).run(scenario.scans)
             forward_seconds = time.perf_counter() - started
             started = time.perf_counter()
-            refined_rows, report = refine_track_rows(config, scenario.scans, forward.track_rows)
+            refined = refine_track_rows(config, scenario.scans, forward.track_rows)
+            refined_rows, report = refined.track_rows, refined.report
             refined_tracks = smooth_tracks(
                 scenario.scans,
                 {tid: dict(where[r] for r in rows) for tid, rows in refined_rows.items()},
@@ -175,9 +186,21 @@ def run_refinement_benchmark(
                     truth_rows.setdefault(int(origin), []).append(int(row))
             oracle = oracle_tracks(scenario.scans, scenario.origins, config)
             targets = len(np.unique(scenario.truth.target_ids))
+            existence = refined.confidence.existence if refined.confidence else {}
+            sure_ids = [t for t in refined_rows if existence.get(t, 1.0) >= MIN_EXISTENCE]
+            sure_rows = {t: refined_rows[t] for t in sure_ids}
+            sure_tracks = _only(refined_tracks, sure_ids)
+            origins = scenario.origins
+            origin = dict(zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True))
+            for tid, used in refined_rows.items():
+                owners = [origin.get(r, -1) for r in used]
+                top = max(set(owners), key=owners.count)
+                matches = top >= 0 and 2 * owners.count(top) >= len(used)
+                reliability.append((existence.get(tid, math.nan), matches))
             runs = (
                 ("forward", forward.tracks, forward_seconds, _value(objective, forward.track_rows)),
                 ("refined", refined_tracks, refine_seconds, report.objective),
+                (METHODS[2], sure_tracks, refine_seconds, _value(objective, sure_rows)),
                 ("mht", mht.tracks, mht_seconds, _value(objective, mht_rows)),
                 ("oracle", oracle, 0.0, _value(objective, truth_rows)),
             )
@@ -186,11 +209,52 @@ def run_refinement_benchmark(
                                    objective_value))  # fmt: skip
             say(_run_line(family, seed, rows[-len(runs):]))
     _print_summary(rows, families, say)
+    _print_reliability(reliability, say)
     if json_path is not None:
         Path(json_path).write_text(
             json.dumps([r.__dict__ for r in rows], indent=2) + "\n", encoding="utf-8"
         )
     return rows
+
+
+def _only(tracks: TrackTable, ids: Sequence[int]) -> TrackTable:
+    """The records of ``tracks`` whose track id is in ``ids``."""
+    from mapassoc.data.io import TrackTable  # noqa: F811
+
+    keep = np.isin(tracks.track_ids, np.asarray(list(ids), dtype=np.int64))
+    return TrackTable(
+        track_ids=tracks.track_ids[keep],
+        times=tracks.times[keep],
+        sensors=tuple(s for s, k in zip(tracks.sensors, keep, strict=True) if k),
+        states=tracks.states[keep],
+        variances=tracks.variances[keep],
+        detection_rows=tracks.detection_rows[keep],
+        state_names=tracks.state_names,
+        existence=None if tracks.existence is None else tracks.existence[keep],
+    )
+
+
+def _print_reliability(reliability: Sequence[tuple[float, bool]], say: object) -> None:
+    """How often a refined track of each existence bin is a true target's."""
+    edges = np.linspace(0.0, 1.0, RELIABILITY_BINS + 1)
+    lines = [
+        "",
+        "Existence calibration (refined tracks of every run): a track matches a true target "
+        "when at least half its detections are that target's; goal: the share within its bin",
+        f"{'existence':>12s} {'tracks':>7s} {'matching':>9s}",
+    ]
+    values = np.array([r for r, _ in reliability], dtype=float)
+    matches = np.array([m for _, m in reliability], dtype=bool)
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        inside = (values >= lo) & ((values < hi) | ((hi == 1.0) & (values <= hi)))
+        count = int(np.count_nonzero(inside))
+        share = f"{np.mean(matches[inside]):9.2f}" if count else f"{'-':>9s}"
+        lines.append(f"  [{lo:.1f}, {hi:.1f}{']' if hi == 1.0 else ')'} {count:7d} {share}")
+    unknown = int(np.count_nonzero(np.isnan(values)))
+    if unknown:
+        lines.append(f"  unknown      {unknown:7d}")
+    for line in lines:
+        say(line)  # type: ignore[operator]
 
 
 def _value(objective: RecordingObjective, track_rows: Mapping[int, Sequence[int]]) -> float:

@@ -98,10 +98,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
         return 0
     resumed = f" (resumed at scan {outcome.resumed_at})" if outcome.resumed_at else ""
+    associations = ", associations.csv" if "confidence" in summary else ""
     print(
         f"{_count(summary['tracks'], 'track')} over {_count(summary['scans'], 'scan')} in "
         f"{_count(summary['windows'], 'window')}{resumed} -> {args.out}/tracks."
-        f"{args.tracks_format}, windows.jsonl, summary.json, manifest.json"
+        f"{args.tracks_format}{associations}, windows.jsonl, summary.json, manifest.json"
     )
     return 0
 

@@ -48,6 +48,8 @@ WINDOWS_NAME = "windows.jsonl"
 TRACKS_FORMATS = {"csv": "tracks.csv", "parquet": "tracks.parquet"}
 """File of the tracks in each ``tracks_format``."""
 SUMMARY_NAME = "summary.json"
+ASSOCIATIONS_NAME = "associations.csv"
+"""The refined tracks' association probabilities (``detection_id,track_id,probability``)."""
 
 
 class RunInterrupted(MapassocError):
@@ -292,6 +294,14 @@ def _integer_solvers() -> tuple[str, ...]:
     return tuple(spec.name for spec in SOLVERS if spec.supports_integer)
 
 
+def _ignore_resource_warnings() -> None:
+    """Leave ResourceWarnings out of a run's recorded warnings: they report objects the
+    interpreter finalises while the run goes on (an unclosed pipe of the caller, say),
+    not the run's input or output, and would make ``summary.json`` depend on when the
+    garbage collector ran."""
+    warnings.filterwarnings("ignore", category=ResourceWarning)
+
+
 def json_dump(data: object, path: Path) -> None:
     """Write ``data`` as indented JSON; an OSError becomes an OutputError naming ``path``."""
     try:
@@ -451,9 +461,11 @@ def run_files(
     from mapassoc.data.checks import detections_outside_region
     from mapassoc.data.config import load_config
     from mapassoc.data.formats import read_detections_file, write_tracks_file
+    from mapassoc.data.io import write_associations
 
     with warnings.catch_warnings(record=True) as config_warnings:
         warnings.simplefilter("always")
+        _ignore_resource_warnings()
         config = load_config(config_path, solver_names=_integer_solvers(), content=config_bytes)
     detections_bytes, detections_identity = read_input(detections_path, stop=stop)
     inputs = {"config": config_identity, "detections": detections_identity}
@@ -494,6 +506,7 @@ def run_files(
         else:
             with warnings.catch_warnings(record=True) as estimation_warnings:
                 warnings.simplefilter("always")  # the passes' own, kept for summary.json
+                _ignore_resource_warnings()
                 estimate = estimate_with_progress(config, scans, stop=stop, progress=progress)
             parameters = estimate.to_json(timings=timings)
             precomputed = estimate.result if segments == 1 else None
@@ -502,6 +515,7 @@ def run_files(
         config = _with_estimates(config, parameters)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        _ignore_resource_warnings()
         from mapassoc.estimator.pipeline import WindowEstimator
 
         estimator = WindowEstimator(config=config)
@@ -558,6 +572,14 @@ def run_files(
                 }
                 session.writing = folder.partial / TRACKS_FORMATS[tracks_format]
                 write_tracks_file(session.writing, result.tracks)
+                if result.confidence is not None:
+                    session.writing = folder.partial / ASSOCIATIONS_NAME
+                    kept = {
+                        tid: rows
+                        for tid, rows in result.confidence.associations.items()
+                        if tid in result.track_rows
+                    }
+                    write_associations(session.writing, kept)
                 session.writing = folder.partial / SUMMARY_NAME
                 json_dump(summary, session.writing)
                 session.save("complete")

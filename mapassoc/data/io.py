@@ -69,13 +69,14 @@ into :class:`Origins` (false alarms get target id -1).
 per track per scan (``time``, ``sensor``) at which the track is alive; ``var_*`` are the
 marginal variances (diagonal of the covariance); ``detection_row`` is the id of the
 detection the track used at that scan (for a detections CSV file, its line), empty when
-the track missed.  Read into
-:class:`TrackTable`.
+the track missed.  An optional last column ``existence`` holds the track's existence
+probability (empty where unknown).  Read into :class:`TrackTable`.
 """
 
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import math
 import os
@@ -105,6 +106,8 @@ __all__ = [
     "write_origins",
     "read_tracks",
     "write_tracks",
+    "ASSOCIATIONS_HEADER",
+    "write_associations",
 ]
 
 PathLike = str | os.PathLike[str]
@@ -120,6 +123,7 @@ _TRUTH_FIXED = ("target_id", "time")
 _ORIGINS_HEADER = ("row", "target_id")
 _TRACK_FIXED = ("track_id", "time", "sensor")
 _TRACK_ROW = "detection_row"
+_EXISTENCE = "existence"
 _VAR_PREFIX = "var_"
 
 _FLOAT_PATTERN = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
@@ -864,6 +868,9 @@ class TrackTable(_StateRecords):
         detections CSV file, its line), or -1 for a miss.
     state_names : tuple of str, length n
         Column names of the state components.
+    existence : ndarray, shape (N,), optional
+        The track's existence probability (the same on every record of a track; ``nan``
+        where it is unknown), written as the optional last column ``existence``.
 
     A (track_id, time, sensor) triple appears at most once.
     """
@@ -875,9 +882,10 @@ class TrackTable(_StateRecords):
     variances: FloatArray
     detection_rows: IntArray
     state_names: tuple[str, ...]
+    existence: FloatArray | None = None
 
     def __post_init__(self) -> None:
-        names = _check_state_names(self.state_names, (*_TRACK_FIXED, _TRACK_ROW))
+        names = _check_state_names(self.state_names, (*_TRACK_FIXED, _TRACK_ROW, _EXISTENCE))
         ids = _int_array("track_ids", self.track_ids, minimum=0, length=None)
         count = ids.shape[0]
         times = _float_array("times", self.times, (count,))
@@ -918,6 +926,23 @@ class TrackTable(_StateRecords):
         object.__setattr__(self, "states", states)
         object.__setattr__(self, "variances", variances)
         object.__setattr__(self, "detection_rows", rows)
+        if self.existence is not None:
+            existence = np.asarray(self.existence, dtype=float)
+            if existence.shape != (count,):
+                raise InputError(
+                    f"existence must have shape ({count},), got {existence.shape}"
+                )
+            if np.any(~np.isnan(existence) & ((existence < 0) | (existence > 1))):
+                raise InputError("existence must hold probabilities in [0, 1] (or nan)")
+            existence = existence.copy()
+            existence.setflags(write=False)
+            object.__setattr__(self, "existence", existence)
+
+    def with_existence(self, by_track: Mapping[int, float]) -> TrackTable:
+        """This table with each record's ``existence`` taken from ``by_track`` (track id ->
+        probability; ``nan`` for a track it does not name)."""
+        values = np.array([by_track.get(int(t), math.nan) for t in self.track_ids], dtype=float)
+        return dataclasses.replace(self, existence=values)
 
     @classmethod
     def from_steps(
@@ -1139,12 +1164,13 @@ def read_origins(path: PathLike) -> Origins:
 # --------------------------------------------------------------------------- tracks
 
 
-def _tracks_header(state_names: Sequence[str]) -> list[str]:
+def _tracks_header(state_names: Sequence[str], existence: bool = False) -> list[str]:
     return [
         *_TRACK_FIXED,
         *state_names,
         *(_VAR_PREFIX + name for name in state_names),
         _TRACK_ROW,
+        *((_EXISTENCE,) if existence else ()),
     ]
 
 
@@ -1161,10 +1187,12 @@ def write_tracks(path: PathLike, table: TrackTable) -> None:
     if not isinstance(table, TrackTable):
         raise InputError(f"table must be a TrackTable, got {table!r}")
 
+    existence = table.existence
+
     def rows() -> Iterator[list[str]]:
         for index in range(table.size):
             row = int(table.detection_rows[index])
-            yield [
+            cells = [
                 str(int(table.track_ids[index])),
                 _float_text(table.times[index]),
                 table.sensors[index],
@@ -1172,11 +1200,49 @@ def write_tracks(path: PathLike, table: TrackTable) -> None:
                 *(_float_text(v) for v in table.variances[index]),
                 "" if row < 0 else str(row),
             ]
+            if existence is not None:
+                value = float(existence[index])
+                cells.append("" if math.isnan(value) else _float_text(value))
+            yield cells
 
-    _write_rows(path, _tracks_header(table.state_names), rows())
+    _write_rows(path, _tracks_header(table.state_names, existence is not None), rows())
 
 
-_TRACKS_EXPECTED = "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row"
+ASSOCIATIONS_HEADER = ("detection_id", "track_id", "probability")
+"""Columns of an associations file: the probability that a detection belongs to a track."""
+
+
+def write_associations(path: PathLike, by_track: Mapping[int, Mapping[int, float]]) -> None:
+    """Write an associations file: one line per (detection, track) pair with its probability.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file (overwritten).
+    by_track : mapping of int to mapping of int to float
+        Track id -> detection id -> probability in [0, 1]
+        (:attr:`mapassoc.estimator.refinement.TrackConfidence.associations`).  Lines are
+        sorted by detection id, then track id.
+    """
+    path = os.fspath(path)
+    pairs = sorted(
+        (int(row), int(track), float(p))
+        for track, rows in by_track.items()
+        for row, p in rows.items()
+    )
+    for row, track, p in pairs:
+        if not 0.0 <= p <= 1.0:
+            raise InputError(
+                f"association probability {p!r} of detection {row} and track {track} is not "
+                "in [0, 1]"
+            )
+    rows = ([str(row), str(track), _float_text(p)] for row, track, p in pairs)
+    _write_rows(path, ASSOCIATIONS_HEADER, rows)
+
+
+_TRACKS_EXPECTED = (
+    "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row[,existence]"
+)
 
 
 def _track_state_names(
@@ -1185,6 +1251,8 @@ def _track_state_names(
     """State and variance column names of a tracks table's columns ``header`` (also used
     for Parquet)."""
     expected = _TRACKS_EXPECTED
+    if header and header[-1] == _EXISTENCE:
+        header = header[:-1]
     for position, name in enumerate(_TRACK_FIXED):
         if position >= len(header) or header[position] != name:
             found = header[position] if position < len(header) else None
@@ -1247,7 +1315,9 @@ def read_tracks(path: PathLike) -> TrackTable:
     lines = _lines(path)
     header = _read_header(path, lines, _TRACKS_EXPECTED)
     names, var_names = _track_state_names(path, header, row=1)
+    has_existence = header[-1] == _EXISTENCE
     count = len(names)
+    existence: list[float] = []
     ids: list[int] = []
     times: list[float] = []
     sensors: list[str] = []
@@ -1275,6 +1345,18 @@ def read_tracks(path: PathLike) -> TrackTable:
             )
         first_line[key] = line
         state_cells = cells[len(_TRACK_FIXED) : len(_TRACK_FIXED) + count]
+        if has_existence:
+            cell = cells[-1]
+            value = math.nan if cell == "" else _float_cell(path, line, _EXISTENCE, cell)
+            if not (math.isnan(value) or 0.0 <= value <= 1.0):
+                raise DataFileError(
+                    path,
+                    f"existence {cell!r} is not a probability; expected a value in [0, 1]",
+                    row=line,
+                    column=_EXISTENCE,
+                )
+            existence.append(value)
+            cells = cells[:-1]
         var_cells = cells[len(_TRACK_FIXED) + count : -1]
         state = [_float_cell(path, line, n, c) for n, c in zip(names, state_cells, strict=True)]
         variance = []
@@ -1307,4 +1389,5 @@ def read_tracks(path: PathLike) -> TrackTable:
         variances=np.array(variances, dtype=float).reshape(size, count),
         detection_rows=np.array(detection_rows, dtype=np.int64),
         state_names=tuple(names),
+        existence=np.array(existence, dtype=float) if has_existence else None,
     )

@@ -17,7 +17,8 @@ The tables have the columns of the CSV files of :mod:`mapassoc.data.io`, typed:
 2. Truth: ``target_id`` (int64), ``time`` (float64), the state components (float64).
 3. Tracks: ``track_id`` (int64), ``time`` (float64), ``sensor`` (string), the state
    components, ``var_`` + each state component (float64), ``detection_row`` (int64, the id
-   of the detection used; null for a miss).
+   of the detection used; null for a miss), and optionally ``existence`` (float64, the
+   track's existence probability; null where unknown).
 
 Readers accept any integer type for integer columns and any numeric type for float
 columns, and string or dictionary-encoded string columns for ``sensor``; a column that
@@ -40,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.data.io import (
+    _EXISTENCE,
     _ORIGINS_HEADER,
     _TRACK_FIXED,
     _TRACK_ROW,
@@ -321,6 +323,16 @@ def read_tracks_parquet(path: PathLike) -> TrackTable:
     path = os.fspath(path)
     reader = _Reader(path)
     names, var_names = _track_state_names(path, list(reader.names), row=None)
+    existence = None
+    if reader.names and reader.names[-1] == _EXISTENCE:
+        values, missing = reader.floats(_EXISTENCE, nullable=True)
+        existence = np.where(missing, np.nan, values)
+        bad = ~np.isnan(existence) & ((existence < 0) | (existence > 1))
+        if np.any(bad):
+            i = _first(bad)
+            raise _error(
+                path, f"existence {float(existence[i])!r} is not in [0, 1]", _EXISTENCE, i
+            )
     reader.check_distinct(",".join(reader.names))
     ids, _ = reader.ints("track_id", nullable=False, minimum=0)
     times, _ = reader.floats("time", nullable=False)
@@ -349,6 +361,7 @@ def read_tracks_parquet(path: PathLike) -> TrackTable:
             variances=_stack(variances, reader.size),
             detection_rows=rows,
             state_names=tuple(names),
+            existence=existence,
         )
     except InputError as exc:
         raise DataFileError(path, str(exc)) from None
@@ -522,6 +535,10 @@ def write_tracks_parquet(path: PathLike, table: TrackTable) -> None:
         **_float_columns(pa, table.state_names, table.variances, prefix=_VAR_PREFIX),
         _TRACK_ROW: pa.array(rows, type=pa.int64(), mask=rows < 0),
     }
+    if table.existence is not None:
+        columns[_EXISTENCE] = pa.array(
+            table.existence, type=pa.float64(), mask=np.isnan(table.existence)
+        )
     _write(pq, pa, path, pa.table(columns))
 
 

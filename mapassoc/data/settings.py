@@ -167,6 +167,10 @@ class EstimatorSettings:
     refine_link_gap : int
         Most scans between one track's last detection and another's first for the
         refinement to try joining them (0: no fragment linking).
+    min_existence : float
+        After the refinement, report only the tracks whose existence probability
+        (:meth:`mapassoc.estimator.refinement.Refiner.confidence`) is at least this, in
+        [0, 1]; 0 reports every track of the refined set.
     """
 
     window_length: int = 5
@@ -185,6 +189,7 @@ class EstimatorSettings:
     beam_width: int = 200
     refine_passes: int = 2
     refine_link_gap: int = 10
+    min_existence: float = 0.0
 
     def __post_init__(self) -> None:
         _check_int("window_length", self.window_length, minimum=1)
@@ -218,6 +223,7 @@ class EstimatorSettings:
         _check_int("beam_width", self.beam_width, minimum=1)
         _check_int("refine_passes", self.refine_passes, minimum=0)
         _check_int("refine_link_gap", self.refine_link_gap, minimum=0)
+        check_probability("min_existence", self.min_existence, key="min_existence")
 
     def k_estimator(self) -> KEstimator:
         """The estimator of K these settings name."""

@@ -48,7 +48,7 @@ from mapassoc.estimator.cluster_solving import ClusterReport, ClusterSolver, Clu
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
 from mapassoc.estimator.marginals import WindowCluster
 from mapassoc.estimator.posterior import FULL_LENGTH_KMAX, KPosterior, k_posterior
-from mapassoc.estimator.refinement import RefinementReport, refine_track_rows
+from mapassoc.estimator.refinement import RefinementReport, TrackConfidence, refine_track_rows
 from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.formulations.cardinality import (
     ClusterTable,
@@ -471,6 +471,11 @@ class EstimateResult:
     refinement : RefinementReport or None
         What the whole recording's refinement did (None when ``refine_passes = 0``);
         ``tracks`` and ``track_rows`` are then the refined ones.
+    confidence : TrackConfidence or None
+        Existence and association probabilities of the refined tracks (``tracks`` carries
+        the existence column); None without refinement.
+    dropped : tuple of int
+        Refined tracks left out for an existence below ``min_existence``.
     """
 
     tracks: TrackTable
@@ -480,6 +485,8 @@ class EstimateResult:
     num_scans: int
     tally: WindowTally
     refinement: RefinementReport | None = None
+    confidence: TrackConfidence | None = None
+    dropped: tuple[int, ...] = ()
 
     def summary(self, *, timings: bool = True) -> dict[str, object]:
         t = self.tally
@@ -504,6 +511,14 @@ class EstimateResult:
             out["windows_over_time_limit"] = t.over_time_limit
         if self.refinement is not None:
             out["refinement"] = self.refinement.to_json(timings=timings)
+        if self.confidence is not None:
+            known = [r for r in self.confidence.existence.values() if not math.isnan(r)]
+            out["confidence"] = {
+                "exact": self.confidence.exact,
+                "windows": self.confidence.windows,
+                "mean_existence": float(np.mean(known)) if known else None,
+                "tracks_below_min_existence": len(self.dropped),
+            }
         return out
 
 
@@ -977,10 +992,13 @@ class WindowEstimator:
         if message is not None:
             warnings.warn(message, RuntimeWarning, stacklevel=3)
         track_rows = {tid: tuple(r.rows) for tid, r in sorted(state.records.items()) if r.rows}
-        refinement = None
+        refined = None
         if refine and self.settings.refine_passes > 0 and track_rows:
-            track_rows, refinement = refine_track_rows(self.config, scans, track_rows)
+            refined = refine_track_rows(self.config, scans, track_rows)
+            track_rows = refined.track_rows
         tracks = self._smooth(scans, track_rows)
+        if refined is not None and refined.confidence is not None:
+            tracks = tracks.with_existence(refined.confidence.existence)
         tally.seconds += time.perf_counter() - t_start
         return EstimateResult(
             tracks=tracks,
@@ -989,7 +1007,9 @@ class WindowEstimator:
             seconds=tally.seconds,
             num_scans=state.total_scans,
             tally=tally,
-            refinement=refinement,
+            refinement=None if refined is None else refined.report,
+            confidence=None if refined is None else refined.confidence,
+            dropped=() if refined is None else refined.dropped,
         )
 
     def _commit(

@@ -76,6 +76,7 @@ __all__ = [
     "TrackConfidence",
     "ASSOCIATION_FLOOR",
     "Refiner",
+    "RefinedTracks",
     "refine_track_rows",
 ]
 
@@ -102,6 +103,17 @@ beam that computes a cluster's marginals past ``exact_work_limit``."""
 _SMALL_CLUSTER = 12
 """Clusters of at most this many hypotheses are searched exactly by the frontier search;
 larger ones go to the integer program together."""
+
+
+def _probability(total: float) -> float:
+    """A sum of the probabilities of exclusive events, rounded into [0, 1].
+
+    The hypotheses of one tree are exclusive, so the sum is at most 1 but for rounding
+    (a few ulps); more than 1e-9 over is a fault, not rounding, and raises.
+    """
+    if not -1e-9 <= total <= 1.0 + 1e-9:
+        raise RuntimeError(f"a sum of exclusive probabilities came out {total!r}")
+    return min(1.0, max(0.0, total))
 
 
 def _rises(old: float, new: float) -> bool:
@@ -795,12 +807,12 @@ class Refiner:
                 root = current[tid][0]
                 if tree >= len(carried) and a <= root[0] < b:
                     in_tree = hyps.tree[base] == tree
-                    existence[tid] = float(np.sum(probabilities[in_tree]))
+                    existence[tid] = _probability(float(np.sum(probabilities[in_tree])))
         for tid in current:
             existence.setdefault(tid, math.nan)  # its first detection's tree was pruned
             own = {int(self.scans[m].rows[j]) for m, j in current[tid]}
             associations[tid] = {
-                row: min(1.0, p)
+                row: _probability(p)
                 for row, p in sorted(associations[tid].items())
                 if p >= ASSOCIATION_FLOOR or row in own
             }
@@ -935,13 +947,38 @@ class Refiner:
                 return made
 
 
+@dataclass(frozen=True, eq=False)
+class RefinedTracks:
+    """What :func:`refine_track_rows` returns.
+
+    Attributes
+    ----------
+    track_rows : dict of int to tuple of int
+        The refined tracks' detection ids in scan order, by track id (those below
+        ``min_existence`` left out).
+    report : RefinementReport
+    confidence : TrackConfidence or None
+        Existence and association probabilities of the refined set (before the
+        ``min_existence`` cut); None when not asked for.
+    dropped : tuple of int
+        Ids of the tracks left out for an existence below ``min_existence``.
+    """
+
+    track_rows: dict[int, tuple[int, ...]]
+    report: RefinementReport
+    confidence: TrackConfidence | None
+    dropped: tuple[int, ...] = ()
+
+
 def refine_track_rows(
     config: Config,
     scans: Sequence[Scan],
     track_rows: Mapping[int, Sequence[int]],
     *,
     settings: RefinementSettings | None = None,
-) -> tuple[dict[int, tuple[int, ...]], RefinementReport]:
+    confidence: bool = True,
+    min_existence: float | None = None,
+) -> RefinedTracks:
     """Refine a track set given as track id -> detection ids (what the estimator keeps).
 
     Parameters
@@ -953,18 +990,31 @@ def refine_track_rows(
         Detection ids of every track.
     settings : RefinementSettings, optional
         Default: the estimator's ``refine_passes`` and ``refine_link_gap``.
+    confidence : bool
+        Whether to compute the refined set's existence and association probabilities
+        (:meth:`Refiner.confidence`).
+    min_existence : float, optional
+        Leave out the tracks whose existence probability is below this (needs
+        ``confidence``); default: the estimator's ``min_existence``.
 
     Returns
     -------
-    track_rows : dict of int to tuple of int
-        The refined tracks' detection ids in scan order, by track id.
-    report : RefinementReport
+    RefinedTracks
     """
+    est = config.estimator
     if settings is None:
-        est = config.estimator
         settings = RefinementSettings(passes=est.refine_passes, link_gap=est.refine_link_gap)
+    if min_existence is None:
+        min_existence = est.min_existence
     objective = RecordingObjective(config=config, scans=scans)
     paths = {tid: objective.path_of_rows(rows) for tid, rows in track_rows.items() if len(rows)}
     refiner = Refiner(config=config, scans=scans, settings=settings, objective=objective)
     refined, report = refiner.refine(paths)
-    return rows_from_paths(scans, refined), report
+    sure = refiner.confidence(refined) if confidence else None
+    dropped: tuple[int, ...] = ()
+    if sure is not None and min_existence > 0:
+        dropped = tuple(
+            tid for tid in refined if sure.existence.get(tid, math.nan) < min_existence
+        )
+        refined = {tid: path for tid, path in refined.items() if tid not in dropped}
+    return RefinedTracks(rows_from_paths(scans, refined), report, sure, dropped)

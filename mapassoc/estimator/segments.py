@@ -270,11 +270,14 @@ def stitch_segments(
         tid: tuple(int(scans[k].rows[j]) for k, j in sorted(a.items()))
         for tid, a in associations.items()
     }
-    refinement = None
+    refined = None
     if config.estimator.refine_passes > 0 and track_rows:
-        track_rows, refinement = refine_track_rows(config, scans, track_rows)
+        refined = refine_track_rows(config, scans, track_rows)
+        track_rows = refined.track_rows
         associations = {tid: dict(where(r) for r in rows) for tid, rows in track_rows.items()}
     tracks = smooth_tracks(scans, associations, config)
+    if refined is not None and refined.confidence is not None:
+        tracks = tracks.with_existence(refined.confidence.existence)
 
     windows: list[WindowReport] = []
     tally = WindowTally()
@@ -302,7 +305,9 @@ def stitch_segments(
         seconds=tally.seconds,
         num_scans=len(scans),
         tally=tally,
-        refinement=refinement,
+        refinement=None if refined is None else refined.report,
+        confidence=None if refined is None else refined.confidence,
+        dropped=() if refined is None else refined.dropped,
     )
 
 

@@ -72,6 +72,7 @@ class MapForwardTracker(MapTracker):
     """
 
     def __init__(self, *, config: Config, name: str = "map-forward") -> None:
+        config = check_config(config)
         forward = dataclasses.replace(
             config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
         )
