@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mapassoc.apps.cli import main
@@ -118,8 +120,38 @@ def test_run_is_byte_identical_without_timings(scenario_dir: Path, tmp_path: Pat
             == 0
         )
         outs.append(out)
-    for name in ("tracks.csv", "windows.jsonl", "summary.json"):
+    for name in ("tracks.csv", "associations.csv", "windows.jsonl", "summary.json"):
         assert (outs[0] / name).read_bytes() == (outs[1] / name).read_bytes(), name
+
+
+def test_run_writes_the_refinement_the_existence_and_the_associations(
+    scenario_dir: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "out"
+    args = ["run", str(scenario_dir / "config.toml"), str(scenario_dir / "detections.csv")]
+    assert main([*args, "--out", str(out), "--no-progress"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    refinement = summary["refinement"]
+    history = [refinement["objective_forward"], *refinement["objective_after_pass"]]
+    assert all(b >= a for a, b in zip(history, history[1:], strict=False))
+    assert refinement["objective"] == history[-1]
+    tracks = read_tracks(out / "tracks.csv")
+    assert tracks.existence is not None
+    assert np.all((tracks.existence >= 0) & (tracks.existence <= 1))
+    with (out / "associations.csv").open() as handle:
+        pairs = {
+            (int(r["detection_id"]), int(r["track_id"])): float(r["probability"])
+            for r in csv.DictReader(handle)
+        }
+    assert all(0.0 <= p <= 1.0 for p in pairs.values())
+    used = tracks.detection_rows >= 0
+    for row, track in zip(tracks.detection_rows[used], tracks.track_ids[used], strict=True):
+        assert (int(row), int(track)) in pairs  # every track's own detections are listed
+    # Per detection the probabilities over tracks are of exclusive events.
+    per_detection: dict[int, float] = {}
+    for (row, _), p in pairs.items():
+        per_detection[row] = per_detection.get(row, 0.0) + p
+    assert max(per_detection.values()) <= 1.0 + 1e-9
 
 
 def test_bad_input_exits_2_with_a_message(

@@ -291,3 +291,56 @@ def test_converging_continuation_agrees_with_the_whole_filter_run() -> None:
             assert float(whole[0]) == pytest.approx(objective.track_value(path), abs=1e-6)
             checked += 1
     assert checked > 10
+
+
+def _reference_mass(config, scans, track) -> float:
+    """A track's log-weight in sums over track sets: its endings summed, not maximised."""
+    best = _reference_value(config, scans, track)
+    sensor = config.sensors["s"]
+    pd, ps = sensor.detection_probability, config.birth.survival_probability
+    times = [s.time for s in scans]
+    last = track[-1][0]
+    endings = []
+    running = 0.0
+    for g in range(last, len(scans)):
+        if g == len(scans) - 1:
+            endings.append(running)
+        else:
+            endings.append(running + math.log(1 - ps ** (times[g + 1] - times[g])))
+            running += (times[g + 1] - times[g]) * math.log(ps) + math.log(1 - pd)
+    return best - max(endings) + float(np.logaddexp.reduce(endings))
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_existence_and_associations_equal_enumeration_over_every_track_set(seed: int) -> None:
+    """With the confidence window covering the recording and nothing pruned, a track's
+    existence and its associations are sums over every track set of the recording."""
+    config, scans = _tiny_recording(seed, num_scans=3, most=2)
+    objective = RecordingObjective(config=config, scans=scans)
+    sets = list(_all_track_sets(scans))
+    weights = np.array([sum(_reference_mass(config, scans, t) for t in s) for s in sets])
+    probabilities = np.exp(weights - np.logaddexp.reduce(weights))
+    # Any track set names the trees to ask about: the best one with a track.
+    best = max((s for s in sets if s), key=objective.value)
+    tracks = {i + 1: path for i, path in enumerate(best)}
+    refiner = Refiner(
+        config=config,
+        scans=scans,
+        settings=RefinementSettings(window_length=len(scans)),
+        objective=objective,
+    )
+    sure = refiner.confidence(tracks)
+    assert sure.exact
+    for tid, path in tracks.items():
+        started_here = [
+            p for s, p in zip(sets, probabilities, strict=True) if any(t[0] == path[0] for t in s)
+        ]
+        assert sure.existence[tid] == pytest.approx(sum(started_here), abs=1e-9)
+        for m, j in path:
+            row = int(scans[m].rows[j])
+            with_it = sum(
+                p
+                for s, p in zip(sets, probabilities, strict=True)
+                if any(t[0] == path[0] and (m, j) in t for t in s)
+            )
+            assert sure.associations[tid][row] == pytest.approx(with_it, abs=1e-9)
