@@ -128,10 +128,18 @@ class RefinementSettings:
     Parameters
     ----------
     passes : int
-        Most sweeps over the recording's windows (forward, backward, forward, ...); 0
-        turns refinement off.
+        Most sweeps over the recording's windows; 0 turns refinement off.  Sweeps
+        alternate between the short and the long windows (short, long, short, ...), and
+        between forward and backward every two; they stop once a sweep of each length
+        changed nothing.
     window_length : int or None
-        Scans per re-solved window; ``None``: the estimator's ``window_length``.
+        Scans per short re-solved window; ``None``: the estimator's ``window_length``.
+    long_window_length : int or None
+        Scans per long re-solved window; ``None``: twice the short one; a value no longer
+        than the short one leaves the long sweeps out.  Long windows let a target that no
+        forward window found worth a track (low Pd in dense clutter: its first scans
+        score below zero) start a track that pays over more scans, and join fragments
+        further apart.
     stride : int or None
         Scans between the starts of consecutive re-solved windows; ``None``: about half
         the window (``(window_length + 1) // 2``), so that every window boundary of one
@@ -148,8 +156,9 @@ class RefinementSettings:
         monotonicity.
     """
 
-    passes: int = 2
+    passes: int = 4
     window_length: int | None = None
+    long_window_length: int | None = None
     stride: int | None = None
     link_gap: int = 10
     refilter_detections: int = 15
@@ -162,7 +171,7 @@ class RefinementSettings:
                     f"refine {name} must be an integer >= {minimum}, got {value!r}",
                     key=f"refine_{name}",
                 )
-        for name in ("window_length", "stride"):
+        for name in ("window_length", "long_window_length", "stride"):
             value = getattr(self, name)
             if value is not None and (
                 isinstance(value, bool) or not isinstance(value, int) or value < 1
@@ -320,9 +329,12 @@ class Refiner:
         self.settings = settings
         est = config.estimator
         self.window_length = settings.window_length or est.window_length
+        self.long_window_length = (
+            2 * self.window_length
+            if settings.long_window_length is None
+            else settings.long_window_length
+        )
         self.stride = settings.stride or max(1, (self.window_length + 1) // 2)
-        self.lookback = self.window_length
-        self.lookahead = self.window_length
         self.objective = objective or RecordingObjective(config=config, scans=self.scans)
         self.generator = HypothesisGenerator(
             motion=config.motion,
@@ -361,44 +373,52 @@ class Refiner:
         values = self._exact_values(current)
         self._next_id = next_id if next_id is not None else max(current, default=0) + 1
         report = RefinementReport(objective_forward=float(sum(values.values())))
-        N = min(self.window_length, len(self.scans))
-        starts = self.window_starts()
-        dirty = set(starts)
+        lengths = [self.window_length]
+        if self.long_window_length > self.window_length:
+            lengths.append(self.long_window_length)
+        lengths = [min(n, len(self.scans)) for n in lengths]
+        starts = {n: self.window_starts(n) for n in lengths}
+        dirty = {n: set(starts[n]) for n in lengths}
+        unchanged = 0
         for sweep in range(self.settings.passes):
-            order = starts if sweep % 2 == 0 else starts[::-1]
+            N = lengths[sweep % len(lengths)]
+            order = starts[N] if (sweep // len(lengths)) % 2 == 0 else starts[N][::-1]
             changed = False
             for a in order:
-                if a not in dirty:
+                if a not in dirty[N]:
                     continue
-                dirty.discard(a)
+                dirty[N].discard(a)
                 report.windows_solved += 1
                 improved, limited = self.resolve_window(current, values, a, a + N)
                 report.windows_time_limited += int(limited)
                 if improved:
                     report.windows_improved += 1
                     changed = True
-                    low, high = a - self.lookback - N, a + N + self.lookahead
-                    dirty.update(s for s in starts if low <= s <= high and s != a)
+                    for n in lengths:  # windows of every length near the change
+                        low, high = a - 2 * n, a + N + n
+                        dirty[n].update(s for s in starts[n] if low <= s <= high)
+                    dirty[N].discard(a)
             if self.settings.link_gap > 0:
                 links = self.link_fragments(current, values)
                 report.links += links
                 changed = changed or links > 0
             values = self._exact_values(current)
             report.objective_after_pass.append(float(sum(values.values())))
-            if not changed:
-                break
-            if not dirty:
-                dirty = set(starts)
+            unchanged = 0 if changed else unchanged + 1
+            if unchanged >= len(lengths):
+                break  # a sweep of every window length changed nothing
         tracks_out = dict(sorted(current.items()))
         report.seconds = time.perf_counter() - t0
         return tracks_out, report
 
-    def window_starts(self) -> list[int]:
-        """First scans of the re-solved windows: every ``stride`` scans, the last window
-        ending at the recording's last scan."""
+    def window_starts(self, length: int | None = None) -> list[int]:
+        """First scans of the re-solved windows of ``length`` scans (default
+        ``window_length``): every ``(length + 1) // 2`` scans (``stride`` for the default
+        length), the last window ending at the recording's last scan."""
         M = len(self.scans)
-        N = min(self.window_length, M)
-        starts = list(range(0, M - N + 1, self.stride))
+        N = min(length or self.window_length, M)
+        step = self.stride if N == min(self.window_length, M) else max(1, (N + 1) // 2)
+        starts = list(range(0, M - N + 1, step))
         if starts[-1] != M - N:
             starts.append(M - N)
         return starts
@@ -508,7 +528,9 @@ class Refiner:
         for tid in sorted(tracks):
             path = tracks[tid]
             first, last = path[0][0], path[-1][0]
-            if last < a - self.lookback or first > b - 1 + self.lookahead:
+            # Tracks within a window's length of it may be carried in or joined.
+            reach = b - a
+            if last < a - reach or first > b - 1 + reach:
                 continue
             prefix = tuple(p for p in path if p[0] < a)
             middle = [p for p in path if a <= p[0] < b]
@@ -769,14 +791,18 @@ class Refiner:
         tracks crossing it carried in and anchored after it), and the posterior marginal
         of every hypothesis and join is computed by the frontier search run forward and
         backward (:func:`mapassoc.formulations.marginals.frontier_marginals`) with the
-        weights ``exp(J)`` (endings summed).  A track's existence is the probability of
-        its first detection's new tree; a detection's association to a track is the
-        probability of the track's tree (carried, or new at the track's first detection)
-        using it.
+        weights ``exp(J)`` (endings summed).  A track's existence is the probability that
+        its detections in the window of its first detection are not all false alarms: that
+        some track uses at least one of them (one minus the mass of the sets that use none,
+        over the total).  A fragment of a target's track that the MAP set keeps apart
+        thus keeps its existence, and a track of false alarms gets the probability that
+        they are something else.  A detection's association to a track is the
+        probability that the track's tree (carried, or new at one of the track's
+        detections) uses it.
         """
         current = {int(tid): tuple(path) for tid, path in tracks.items() if path}
         values = self._exact_values(current)
-        first_of = {path[0]: tid for tid, path in current.items()}
+        track_of = {p: tid for tid, path in current.items() for p in path}
         existence: dict[int, float] = {}
         associations: dict[int, dict[int, float]] = {tid: {} for tid in current}
         exact = True
@@ -789,10 +815,10 @@ class Refiner:
             problem, joins = self._program(hyps, carried, anchors, a, masses=True)
             if problem.num_hypotheses == 0:
                 continue
-            probabilities, window_exact = self._marginals(problem)
+            probabilities, window_exact, clusters = self._marginals(problem)
             exact = exact and window_exact
             base = np.r_[np.arange(hyps.count), np.array([h for h, _ in joins], dtype=np.int64)]
-            owner = self._tree_owners(hyps, carried, first_of, a)
+            owner = self._tree_owners(hyps, carried, track_of, a)
             det = hyps.detections
             for k, h in enumerate(base.tolist()):
                 tid = owner.get(int(hyps.tree[h]))
@@ -803,11 +829,21 @@ class Refiner:
                     row = int(det.rows[d])
                     into = associations[tid]
                     into[row] = into.get(row, 0.0) + p
-            for tree, tid in owner.items():
-                root = current[tid][0]
-                if tree >= len(carried) and a <= root[0] < b:
-                    in_tree = hyps.tree[base] == tree
-                    existence[tid] = _probability(float(np.sum(probabilities[in_tree])))
+            # Window detection of every (scan, index), and the program's hypotheses per
+            # window detection.
+            window_index = {
+                (a + int(det.scan_position[d]), int(det.index_in_scan[d])): d
+                for d in range(det.count)
+            }
+            uses = np.zeros((problem.num_hypotheses, det.count), dtype=bool)
+            for k, h in enumerate(base.tolist()):
+                uses[k, hyps.detections_of(h)] = True
+            for tid in sorted(current):
+                if not a <= current[tid][0][0] < b:
+                    continue
+                mine = [window_index[p] for p in current[tid] if p in window_index]
+                touching = np.flatnonzero(uses[:, mine].any(axis=1))
+                existence[tid] = self._any_of(problem, clusters, touching)
         for tid in current:
             existence.setdefault(tid, math.nan)  # its first detection's tree was pruned
             own = {int(self.scans[m].rows[j]) for m, j in current[tid]}
@@ -841,11 +877,12 @@ class Refiner:
         self,
         hyps: WindowHypotheses,
         carried: Sequence[_Carried],
-        first_of: Mapping[tuple[int, int], int],
+        track_of: Mapping[tuple[int, int], int],
         a: int,
     ) -> dict[int, int]:
         """Window tree -> the track it stands for: a carried tree's track, and a new tree
-        rooted at a track's first detection."""
+        rooted at one of a track's detections (the same target, maybe started at another
+        of its detections)."""
         owner = {t: c.track_id for t, c in enumerate(carried)}
         nodes = hyps.nodes
         det = hyps.detections
@@ -853,14 +890,17 @@ class Refiner:
             d = int(nodes.detection[v])
             if d < 0:
                 continue
-            tid = first_of.get((a + int(det.scan_position[d]), int(det.index_in_scan[d])))
+            tid = track_of.get((a + int(det.scan_position[d]), int(det.index_in_scan[d])))
             if tid is not None:
                 owner[int(nodes.tree[v])] = tid
         return owner
 
-    def _marginals(self, problem: PackingProblem) -> tuple[FloatArray, bool]:
-        """P(h in the set) of every hypothesis under the weights exp(log_weights), and
-        whether they are exact (clusters past ``exact_work_limit`` use the beam)."""
+    def _marginals(
+        self, problem: PackingProblem
+    ) -> tuple[FloatArray, bool, list[tuple[NDArray[np.int64], float]]]:
+        """P(h in the set) of every hypothesis under the weights exp(log_weights), whether
+        they are exact (clusters past :data:`_MARGINALS_WORK` use the beam), and each
+        cluster's members with its log-mass."""
         weights = problem.log_weights
         uncounted = PackingProblem(
             scores=problem.scores,
@@ -873,6 +913,7 @@ class Refiner:
         out = np.zeros(problem.num_hypotheses)
         exact = True
         seed = np.zeros(1)
+        clusters: list[tuple[NDArray[np.int64], float]] = []
         for members in cluster_hypotheses(uncounted):
             sub = uncounted.subproblem(members)
             try:
@@ -883,7 +924,49 @@ class Refiner:
                 )
             exact = exact and found.exact
             out[members] = np.exp(found.log_containing[0] - found.log_total[0])
-        return out, exact
+            clusters.append((members, float(found.log_total[0])))
+        return out, exact, clusters
+
+    def _any_of(
+        self,
+        problem: PackingProblem,
+        clusters: Sequence[tuple[NDArray[np.int64], float]],
+        chosen: NDArray[np.int64],
+    ) -> float:
+        """P(at least one of the hypotheses ``chosen`` is in the set): one minus the mass
+        of the sets without any of them over the total, cluster by cluster."""
+        if chosen.size == 0:
+            return 0.0
+        log_none = 0.0
+        drop = np.zeros(problem.num_hypotheses, dtype=bool)
+        drop[chosen] = True
+        for members, log_total in clusters:
+            if not np.any(drop[members]):
+                continue
+            rest = members[~drop[members]]
+            if rest.size == 0:
+                log_none += -log_total  # only the empty set is left: weight 1
+                continue
+            sub = PackingProblem(
+                scores=problem.scores[rest],
+                resource_indptr=np.concatenate(
+                    [[0], np.cumsum(np.diff(problem.resource_indptr)[rest])]
+                ).astype(np.int64),
+                resource_indices=np.concatenate(
+                    [problem.resources_of(int(h)) for h in rest]
+                ).astype(np.int64),
+                exactly_one=problem.exactly_one,
+                counts=np.zeros(rest.size, dtype=bool),
+                log_weights=problem.log_weights[rest],
+            )
+            try:
+                found = frontier_search(sub, 0, work_limit=_MARGINALS_WORK)
+            except SearchLimitExceeded:
+                found = frontier_search(
+                    sub, 0, max_frontiers=_MARGINALS_BEAM, entry_margin=_BEAM_MARGIN
+                )
+            log_none += float(found.log_mass[0]) - log_total
+        return _probability(-math.expm1(min(0.0, log_none)))
 
     # -- fragment linking -------------------------------------------------------------------
     def link_fragments(self, tracks: dict[int, TrackPath], values: dict[int, float]) -> int:

@@ -314,7 +314,8 @@ def _reference_mass(config, scans, track) -> float:
 @pytest.mark.parametrize("seed", range(8))
 def test_existence_and_associations_equal_enumeration_over_every_track_set(seed: int) -> None:
     """With the confidence window covering the recording and nothing pruned, a track's
-    existence and its associations are sums over every track set of the recording."""
+    existence (some track uses one of its detections) and its associations (the
+    detection's track starts at one of its detections) are sums over every track set."""
     config, scans = _tiny_recording(seed, num_scans=3, most=2)
     objective = RecordingObjective(config=config, scans=scans)
     sets = list(_all_track_sets(scans))
@@ -332,15 +333,19 @@ def test_existence_and_associations_equal_enumeration_over_every_track_set(seed:
     sure = refiner.confidence(tracks)
     assert sure.exact
     for tid, path in tracks.items():
-        started_here = [
-            p for s, p in zip(sets, probabilities, strict=True) if any(t[0] == path[0] for t in s)
+        # Existence: some track uses one of the track's detections.
+        used = [
+            p
+            for s, p in zip(sets, probabilities, strict=True)
+            if any(q in path for t in s for q in t)
         ]
-        assert sure.existence[tid] == pytest.approx(sum(started_here), abs=1e-9)
+        assert sure.existence[tid] == pytest.approx(sum(used), abs=1e-9)
+        # Association: the detection's track starts at one of the track's detections.
         for m, j in path:
             row = int(scans[m].rows[j])
             with_it = sum(
                 p
                 for s, p in zip(sets, probabilities, strict=True)
-                if any(t[0] == path[0] and (m, j) in t for t in s)
+                if any(t[0] in path and (m, j) in t for t in s)
             )
             assert sure.associations[tid][row] == pytest.approx(with_it, abs=1e-9)
