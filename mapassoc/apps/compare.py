@@ -251,7 +251,7 @@ def format_summary(summary: pd.DataFrame) -> str:
     ``loc^p``, ``miss^p`` and ``false^p`` are the means of GOSPA's p-th power parts (at
     each time they add up to GOSPA^p), so they are not on the scale of the GOSPA column.
     """
-    header = f"{'scenario':12s} {'tracker':8s} {'runs':>4s}"
+    header = f"{'scenario':12s} {'tracker':11s} {'runs':>4s}"
     widths = []
     for _, label, fmt in _FORMAT_COLUMNS:
         width = len(fmt.format(0.0))
@@ -259,7 +259,7 @@ def format_summary(summary: pd.DataFrame) -> str:
         header += " " + label.rjust(width)
     lines = [header, "-" * len(header)]
     for _, row in summary.iterrows():
-        line = f"{row['scenario']:12s} {row['tracker']:8s} {int(row['runs']):4d}"
+        line = f"{row['scenario']:12s} {row['tracker']:11s} {int(row['runs']):4d}"
         for (column, _, fmt), width in zip(_FORMAT_COLUMNS, widths, strict=True):
             value = row.get(column)
             ok = value is not None and not pd.isna(value)

@@ -128,7 +128,16 @@ TRACKERS: dict[str, TrackerSpec] = {
 }
 
 
-DEFAULT_TRACKERS: tuple[str, ...] = ("map", "gnn", "jpda", "mht", "flow", "lp", "oracle")
+DEFAULT_TRACKERS: tuple[str, ...] = (
+    "map",
+    "map-forward",
+    "gnn",
+    "jpda",
+    "mht",
+    "flow",
+    "lp",
+    "oracle",
+)
 """The methods ``mapassoc compare`` runs when none are named."""
 
 
