@@ -33,13 +33,19 @@ The best set of joins (each end to at most one start) is an assignment
 (:func:`scipy.optimize.linear_sum_assignment`); joins that share no track are applied
 where J rises, and linking repeats until none does.
 
-Sweeps go forward over the recording's windows (``window_length`` scans, every
-``stride`` scans), then backward, and so on, re-solving only windows near a change,
-until a sweep changes nothing or ``passes`` sweeps are done.  Every move is accepted
-only when the exact J of the changed tracks rises, so J never decreases; with the
-integer program's time limit (``EstimatorSettings.time_limit``) and the pass budget the
-work is bounded, and without a time limit reached the result is a function of the input
-alone.
+Sweeps go over the recording's windows of ``window_length`` scans (every ``stride``
+scans), then over windows twice as long, forward, then both backward, re-solving only
+windows near a change, until a sweep of each length changes nothing or ``passes`` sweeps
+are done.  The long windows start the targets that no short window found worth a
+track.  Every move is accepted only when the exact J of the changed tracks rises, so J
+never decreases; with the integer program's time limit (``EstimatorSettings.time_limit``)
+and the pass budget the work is bounded, and without a time limit reached the result is a
+function of the input alone.
+
+Proposals re-filter at most ``refilter_detections`` of an anchor's detections (the
+acceptance re-filters all of them), and the joins to one anchor are pruned like the
+nodes of one tree (``prune_log_ratio`` below the best after the anchor's first
+detection): the window's program is exact over the hypotheses and joins it keeps.
 """
 
 from __future__ import annotations
@@ -843,7 +849,13 @@ class Refiner:
                     continue
                 mine = [window_index[p] for p in current[tid] if p in window_index]
                 touching = np.flatnonzero(uses[:, mine].any(axis=1))
-                existence[tid] = self._any_of(problem, clusters, touching)
+                value = self._any_of(problem, clusters, touching)
+                if math.isnan(value):
+                    # A cluster had only the beam's marginals: the largest probability
+                    # that one of the detections is used, a lower bound of the union.
+                    used = probabilities[:, None] * uses[:, mine]
+                    value = _probability(float(np.max(used.sum(axis=0), initial=0.0)))
+                existence[tid] = value
         for tid in current:
             existence.setdefault(tid, math.nan)  # its first detection's tree was pruned
             own = {int(self.scans[m].rows[j]) for m, j in current[tid]}
@@ -900,7 +912,7 @@ class Refiner:
     ) -> tuple[FloatArray, bool, list[tuple[NDArray[np.int64], float]]]:
         """P(h in the set) of every hypothesis under the weights exp(log_weights), whether
         they are exact (clusters past :data:`_MARGINALS_WORK` use the beam), and each
-        cluster's members with its log-mass."""
+        cluster's members with its log-mass (``nan`` where the beam gave only a part)."""
         weights = problem.log_weights
         uncounted = PackingProblem(
             scores=problem.scores,
@@ -924,7 +936,7 @@ class Refiner:
                 )
             exact = exact and found.exact
             out[members] = np.exp(found.log_containing[0] - found.log_total[0])
-            clusters.append((members, float(found.log_total[0])))
+            clusters.append((members, float(found.log_total[0]) if found.exact else math.nan))
         return out, exact, clusters
 
     def _any_of(
@@ -943,6 +955,8 @@ class Refiner:
         for members, log_total in clusters:
             if not np.any(drop[members]):
                 continue
+            if math.isnan(log_total):
+                return math.nan  # the beam's part of the mass: no ratio to take
             rest = members[~drop[members]]
             if rest.size == 0:
                 log_none += -log_total  # only the empty set is left: weight 1
@@ -962,9 +976,7 @@ class Refiner:
             try:
                 found = frontier_search(sub, 0, work_limit=_MARGINALS_WORK)
             except SearchLimitExceeded:
-                found = frontier_search(
-                    sub, 0, max_frontiers=_MARGINALS_BEAM, entry_margin=_BEAM_MARGIN
-                )
+                return math.nan  # (its order differs from the whole cluster's)
             log_none += float(found.log_mass[0]) - log_total
         return _probability(-math.expm1(min(0.0, log_none)))
 
