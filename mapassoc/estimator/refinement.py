@@ -111,6 +111,20 @@ _SMALL_CLUSTER = 12
 larger ones go to the integer program together."""
 
 
+def _uncounted(problem: PackingProblem) -> PackingProblem:
+    """``problem`` with no hypothesis counted: its per-k tables have one entry, k = 0,
+    the best set and the mass over every size (the re-solve's program has no
+    cardinality row)."""
+    return PackingProblem(
+        scores=problem.scores,
+        resource_indptr=problem.resource_indptr,
+        resource_indices=problem.resource_indices,
+        exactly_one=problem.exactly_one,
+        counts=np.zeros(problem.num_hypotheses, dtype=bool),
+        log_weights=problem.log_weights,
+    )
+
+
 def _probability(total: float) -> float:
     """A sum of the probabilities of exclusive events, rounded into [0, 1].
 
@@ -484,13 +498,7 @@ class Refiner:
         search with every hypothesis uncounted (one table entry: the best set over all
         sizes), the larger ones by one integer program.
         """
-        uncounted = PackingProblem(
-            scores=problem.scores,
-            resource_indptr=problem.resource_indptr,
-            resource_indices=problem.resource_indices,
-            exactly_one=problem.exactly_one,
-            counts=np.zeros(problem.num_hypotheses, dtype=bool),
-        )
+        uncounted = _uncounted(problem)
         chosen: list[NDArray[np.int64]] = []
         large: list[NDArray[np.int64]] = []
         for members in cluster_hypotheses(uncounted):
@@ -913,15 +921,7 @@ class Refiner:
         """P(h in the set) of every hypothesis under the weights exp(log_weights), whether
         they are exact (clusters past :data:`_MARGINALS_WORK` use the beam), and each
         cluster's members with its log-mass (``nan`` where the beam gave only a part)."""
-        weights = problem.log_weights
-        uncounted = PackingProblem(
-            scores=problem.scores,
-            resource_indptr=problem.resource_indptr,
-            resource_indices=problem.resource_indices,
-            exactly_one=problem.exactly_one,
-            counts=np.zeros(problem.num_hypotheses, dtype=bool),
-            log_weights=weights,
-        )
+        uncounted = _uncounted(problem)
         out = np.zeros(problem.num_hypotheses)
         exact = True
         seed = np.zeros(1)
@@ -961,18 +961,7 @@ class Refiner:
             if rest.size == 0:
                 log_none += -log_total  # only the empty set is left: weight 1
                 continue
-            sub = PackingProblem(
-                scores=problem.scores[rest],
-                resource_indptr=np.concatenate(
-                    [[0], np.cumsum(np.diff(problem.resource_indptr)[rest])]
-                ).astype(np.int64),
-                resource_indices=np.concatenate(
-                    [problem.resources_of(int(h)) for h in rest]
-                ).astype(np.int64),
-                exactly_one=problem.exactly_one,
-                counts=np.zeros(rest.size, dtype=bool),
-                log_weights=problem.log_weights[rest],
-            )
+            sub = _uncounted(problem).subproblem(rest)
             try:
                 found = frontier_search(sub, 0, work_limit=_MARGINALS_WORK)
             except SearchLimitExceeded:

@@ -127,7 +127,15 @@ def _reference_value(config, scans, track) -> float:
         value += (times[k] - times[k - 1]) * math.log(ps)
         value += math.log(pd / lam) if k in detected else math.log(1 - pd)
     value += _joint_log_likelihood(config, scans, track)
-    # The best ending: in the gap after scan g >= last, or alive to the end.
+    return value + max(_endings(config, scans, last))
+
+
+def _endings(config, scans, last: int) -> list[float]:
+    """Log-probability of each ending after a last detection at scan ``last``: dying in
+    the gap after scan g >= last (missed at the scans between), or alive to the end."""
+    pd = config.sensors["s"].detection_probability
+    ps = config.birth.survival_probability
+    times = [s.time for s in scans]
     endings = []
     running = 0.0
     for g in range(last, len(scans)):
@@ -136,7 +144,7 @@ def _reference_value(config, scans, track) -> float:
         else:
             endings.append(running + math.log(1 - ps ** (times[g + 1] - times[g])))
             running += (times[g + 1] - times[g]) * math.log(ps) + math.log(1 - pd)
-    return value + max(endings)
+    return endings
 
 
 def _all_track_sets(scans):
@@ -295,19 +303,8 @@ def test_converging_continuation_agrees_with_the_whole_filter_run() -> None:
 
 def _reference_mass(config, scans, track) -> float:
     """A track's log-weight in sums over track sets: its endings summed, not maximised."""
+    endings = _endings(config, scans, track[-1][0])
     best = _reference_value(config, scans, track)
-    sensor = config.sensors["s"]
-    pd, ps = sensor.detection_probability, config.birth.survival_probability
-    times = [s.time for s in scans]
-    last = track[-1][0]
-    endings = []
-    running = 0.0
-    for g in range(last, len(scans)):
-        if g == len(scans) - 1:
-            endings.append(running)
-        else:
-            endings.append(running + math.log(1 - ps ** (times[g + 1] - times[g])))
-            running += (times[g + 1] - times[g]) * math.log(ps) + math.log(1 - pd)
     return best - max(endings) + float(np.logaddexp.reduce(endings))
 
 
