@@ -34,7 +34,7 @@ from mapassoc.errors import InputError
 __all__ = ["ChildRun", "run_child", "run_reprocess_benchmark"]
 
 BATCH_FAMILIES = ("crossing", "dense", "turning")
-RESULT_FILES = ("tracks.csv", "windows.jsonl", "summary.json")
+RESULT_FILES = ("tracks.csv", "associations.csv", "windows.jsonl", "summary.json")
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from mapassoc.apps.run_folders import read_manifest
 from mapassoc.apps.runs import run_files
 from mapassoc.errors import InputError, OutputError
 
-RESULT_FILES = ("tracks.csv", "windows.jsonl", "summary.json")
+RESULT_FILES = ("tracks.csv", "associations.csv", "windows.jsonl", "summary.json")
 QUIET = BatchOptions(timings=False)
 
 
@@ -35,6 +35,8 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("recordings")
     assert main(["simulate", "crossing", "--out", str(root / "alpha"), "--seed", "0"]) == 0
     assert main(["simulate", "turning", "--out", str(root / "beta"), "--seed", "1"]) == 0
+    for name in ("alpha", "beta"):  # the tests compare batch and single runs byte for byte
+        _no_time_limit(root / name / "config.toml")
     for name in ("truth.csv", "origins.csv"):
         (root / "alpha" / name).unlink()
     # A flat file on the shared config (crossing's), and a broken one beside it.

@@ -18,7 +18,7 @@ from mapassoc.apps.run_folders import CHECKPOINT_NAME, MANIFEST_NAME, read_manif
 from mapassoc.apps.runs import RunInterrupted, run_files
 from mapassoc.errors import InputError, OutputError
 
-RESULT_FILES = ("tracks.csv", "windows.jsonl", "summary.json")
+RESULT_FILES = ("tracks.csv", "associations.csv", "windows.jsonl", "summary.json")
 
 
 @pytest.fixture(scope="module")
