@@ -26,6 +26,9 @@ J, the program's optimum is the best J over the window's kept hypotheses; the ne
 track set is valued again track by track and replaces the old one only when J rises.
 This also lets a track that started late pick up the detections it was missed at.
 
+**Dropping** a track whose value is negative (J rises by minus its value: its detections
+are likelier false alarms, which windows shorter than the track cannot see whole).
+
 **Fragment linking** (:meth:`Refiner.link_fragments`).  A track that ends and one that
 starts within ``link_gap`` scans after it are candidates for a join; the exact change of
 J of each join comes from re-filtering the later track from the earlier one's state.
@@ -218,6 +221,9 @@ class RefinementReport:
         used only where it raised J).
     links : int
         Fragment joins made.
+    dropped : int
+        Tracks removed because their value was negative (their detections are likelier
+        false alarms).
     seconds : float
     """
 
@@ -227,6 +233,7 @@ class RefinementReport:
     windows_improved: int = 0
     windows_time_limited: int = 0
     links: int = 0
+    dropped: int = 0
     seconds: float = 0.0
 
     @property
@@ -246,6 +253,7 @@ class RefinementReport:
             "windows_improved": self.windows_improved,
             "windows_time_limited": self.windows_time_limited,
             "links": self.links,
+            "tracks_dropped": self.dropped,
         }
         if timings:
             out["seconds"] = self.seconds
@@ -422,6 +430,14 @@ class Refiner:
                 links = self.link_fragments(current, values)
                 report.links += links
                 changed = changed or links > 0
+            # A track worth less than its detections as false alarms (v < 0, which
+            # windows shorter than the track cannot see whole) goes: J rises by -v.
+            dropped = [tid for tid, value in values.items() if _rises(value, 0.0)]
+            for tid in dropped:
+                del current[tid]
+                del values[tid]
+            report.dropped += len(dropped)
+            changed = changed or bool(dropped)
             values = self._exact_values(current)
             report.objective_after_pass.append(float(sum(values.values())))
             unchanged = 0 if changed else unchanged + 1
