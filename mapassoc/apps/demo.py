@@ -99,8 +99,8 @@ def run_demo(
         folder.release()
     png = " tracks.png," if plot else ""
     print(
-        f"outputs in {out_dir}/: run/ (tracks.csv, windows.jsonl, summary.json, "
-        f"manifest.json),{png} oracle_tracks.csv, scenario/"
+        f"outputs in {out_dir}/: run/ (tracks.csv, associations.csv, windows.jsonl, "
+        f"summary.json, manifest.json),{png} oracle_tracks.csv, scenario/"
     )
     return rows
 
