@@ -968,6 +968,7 @@ class Refiner:
         log_none = 0.0
         drop = np.zeros(problem.num_hypotheses, dtype=bool)
         drop[chosen] = True
+        uncounted = _uncounted(problem)
         for members, log_total in clusters:
             if not np.any(drop[members]):
                 continue
@@ -977,7 +978,7 @@ class Refiner:
             if rest.size == 0:
                 log_none += -log_total  # only the empty set is left: weight 1
                 continue
-            sub = _uncounted(problem).subproblem(rest)
+            sub = uncounted.subproblem(rest)
             try:
                 found = frontier_search(sub, 0, work_limit=_MARGINALS_WORK)
             except SearchLimitExceeded:
