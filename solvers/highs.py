@@ -9,6 +9,16 @@ here: OPTIMAL means the incumbent met the dual bound.  scipy's ``milp`` document
 verbatim" with a RuntimeWarning, which this module expects and filters for that one
 option only.
 
+Relaxation first.  An integer program is first solved as its LP relaxation (dual
+simplex, no MIP presolve); when the LP optimum is a vertex whose integer variables are
+integral to :data:`RELAXATION_INTEGRALITY` and the rounded point is feasible with the LP's
+value, that point is optimal (no integer point can beat the relaxation) and is returned
+as OPTIMAL with the LP optimum as its bound.  Otherwise ``milp`` solves the program.  On
+the set-packing programs of track association the relaxation is mostly integral, and
+HiGHS's MIP presolve alone can cost twenty times the LP (about 1 s against 0.05 s on
+programs of 3,000 hypotheses and 200 detections); ``relaxation_first=False`` turns this
+off.
+
 Integer variables of an OPTIMAL point are rounded to exact integers (HiGHS returns them
 within its integrality tolerance 1e-6; farther raises :class:`SolverError`) and the
 objective is recomputed from the rounded point with the program's constant.  A point
@@ -36,7 +46,11 @@ from mapassoc.solvers._common import (
 )
 from mapassoc.solvers.results import LPResult, SolveResult, SolveStatus, validate_time_limit
 
-__all__ = ["HighsSolver"]
+__all__ = ["HighsSolver", "RELAXATION_INTEGRALITY"]
+
+RELAXATION_INTEGRALITY = 1e-9
+"""Largest distance from an integer of an integer variable of an LP optimum taken as
+integral by the relaxation-first solve (module docstring)."""
 
 # scipy.optimize.milp status codes (scipy/optimize/_milp.py).
 _SCIPY_OPTIMAL = 0
@@ -66,6 +80,9 @@ class HighsSolver:
         Whether HiGHS presolves.
     node_limit : int or None, default None
         Maximum branch-and-bound nodes; reaching it gives :attr:`SolveStatus.WORK_LIMIT`.
+    relaxation_first : bool, default True
+        Solve an integer program's LP relaxation first and return its optimum when it is
+        integral (module docstring).
     """
 
     name = "highs"
@@ -81,6 +98,7 @@ class HighsSolver:
         mip_abs_gap: float = 0.0,
         presolve: bool = True,
         node_limit: int | None = None,
+        relaxation_first: bool = True,
     ) -> None:
         for label, gap in (("mip_rel_gap", mip_rel_gap), ("mip_abs_gap", mip_abs_gap)):
             if not (math.isfinite(gap) and gap >= 0):
@@ -91,11 +109,15 @@ class HighsSolver:
         self.mip_abs_gap = float(mip_abs_gap)
         self.presolve = bool(presolve)
         self.node_limit = None if node_limit is None else int(node_limit)
+        if not isinstance(relaxation_first, bool):
+            raise ValueError(f"relaxation_first must be a bool, got {relaxation_first!r}")
+        self.relaxation_first = relaxation_first
 
     def __repr__(self) -> str:
         return (
             f"HighsSolver(mip_rel_gap={self.mip_rel_gap}, mip_abs_gap={self.mip_abs_gap}, "
-            f"presolve={self.presolve}, node_limit={self.node_limit})"
+            f"presolve={self.presolve}, node_limit={self.node_limit}, "
+            f"relaxation_first={self.relaxation_first})"
         )
 
     def solve(self, program: Program, *, time_limit: float | None = None) -> SolveResult:
@@ -120,6 +142,12 @@ class HighsSolver:
         started = time.perf_counter()
         if program.num_variables == 0:
             return self._empty(program, time.perf_counter() - started)
+        if self.relaxation_first and program.is_integer:
+            relaxed = self._integral_relaxation(program, limit, started)
+            if relaxed is not None:
+                return relaxed
+            if limit is not None:
+                limit = max(0.0, limit - (time.perf_counter() - started))
 
         constraints = []
         if program.A_ub.shape[0]:
@@ -210,6 +238,42 @@ class HighsSolver:
             bound=value,
             ineq_duals=-np.asarray(raw.ineqlin.marginals) if has_ub else np.zeros(0),
             eq_duals=-np.asarray(raw.eqlin.marginals) if has_eq else np.zeros(0),
+        )
+
+    def _integral_relaxation(
+        self, program: Program, limit: float | None, started: float
+    ) -> SolveResult | None:
+        """The LP relaxation's optimum as the integer optimum, when it is integral; an
+        INFEASIBLE result when the relaxation is infeasible; None otherwise (``milp``
+        decides)."""
+        lp = self.solve_relaxation(program, time_limit=limit)
+        if lp.status is SolveStatus.INFEASIBLE:
+            return SolveResult(
+                status=SolveStatus.INFEASIBLE,
+                objective=math.nan,
+                solution=None,
+                solve_seconds=time.perf_counter() - started,
+                solver=self.name,
+                message=f"LP relaxation infeasible: {lp.message}",
+            )
+        if lp.status is not SolveStatus.OPTIMAL or lp.solution is None:
+            return None
+        if integrality_violation(program, lp.solution) > RELAXATION_INTEGRALITY:
+            return None
+        point = snap_integer_variables(program, lp.solution, self.name)
+        value = program.value(point)
+        if not program.is_feasible(point) or value < lp.objective - 1e-9 * (
+            1.0 + abs(lp.objective)
+        ):
+            return None
+        return SolveResult(
+            status=SolveStatus.OPTIMAL,
+            objective=value,
+            solution=point,
+            solve_seconds=time.perf_counter() - started,
+            solver=self.name,
+            message="LP relaxation optimum is integral",
+            bound=max(value, lp.objective),
         )
 
     def _empty(self, program: Program, seconds: float) -> SolveResult:

@@ -19,6 +19,7 @@ clamped or pseudo-inverted.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -277,13 +278,13 @@ def gated_pairs_and_loglik(
     L = cholesky(S, "innovation covariance S")
     radius = np.sqrt(threshold * np.linalg.eigvalsh(S)[:, -1])
     tree = cKDTree(Z)
-    hits = tree.query_ball_point(z_hat, radius)
-    counts = np.fromiter((len(h) for h in hits), dtype=np.int64, count=T)
+    hits = tree.query_ball_point(z_hat, radius, return_sorted=True)
+    counts = np.fromiter(map(len, hits), dtype=np.int64, count=T)
     track = np.repeat(np.arange(T, dtype=np.int64), counts)
-    detection = (
-        np.concatenate([np.sort(np.asarray(h, dtype=np.int64)) for h in hits])
-        if counts.sum()
-        else np.zeros(0, dtype=np.int64)
+    # One pass over the sorted hit lists (a sort and an array per track cost more than
+    # the whole query when most tracks have a few hits).
+    detection = np.fromiter(
+        itertools.chain.from_iterable(hits), dtype=np.int64, count=int(counts.sum())
     )
     nu = Z[detection] - z_hat[track]
     Linv = np.linalg.inv(L)

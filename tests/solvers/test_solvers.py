@@ -174,6 +174,41 @@ def test_highs_matches_enumerator_on_random_set_packing(seed: int) -> None:
         assert program.is_feasible(via_cvxpy.solution)
 
 
+@pytest.mark.parametrize("seed", range(0, NUM_RANDOM_PROGRAMS, 3))
+def test_relaxation_first_agrees_with_branch_and_bound(seed: int) -> None:
+    """The integral-relaxation shortcut changes nothing but the time: same status and
+    optimum as HiGHS's branch and bound alone, on programs whose LP is integral and on
+    those where it is fractional (which fall through to milp)."""
+    for program in (random_set_packing(seed), independent_set_program(seed, n=12)):
+        plain = HighsSolver(relaxation_first=False).solve(program)
+        first = HIGHS.solve(program)
+        assert first.status is plain.status
+        if plain.status is SolveStatus.OPTIMAL:
+            assert first.objective == pytest.approx(plain.objective, abs=1e-9)
+            assert program.is_feasible(first.solution)
+            assert first.bound >= first.objective - 1e-12
+
+
+def test_relaxation_first_takes_an_integral_lp_and_not_a_fractional_one() -> None:
+    # Two disjoint pairs: the LP optimum is the integral point (1, 0, 0, 1).
+    pairs = make_program([2.0, 1.0, 1.0, 3.0], A_ub=[[1, 1, 0, 0], [0, 0, 1, 1]], b_ub=[1, 1])
+    result = HIGHS.solve(pairs)
+    assert result.status is SolveStatus.OPTIMAL and list(result.solution) == [1, 0, 0, 1]
+    assert "relaxation" in result.message and result.bound == pytest.approx(5.0)
+    # A triangle of conflicts with unit weights: the LP takes 1/2 of each (1.5), the
+    # integer optimum is one vertex (1); the answer comes from branch and bound.
+    triangle = make_program([1.0, 1.0, 1.0], A_ub=[[1, 1, 0], [0, 1, 1], [1, 0, 1]],
+                            b_ub=[1, 1, 1])
+    result = HIGHS.solve(triangle)
+    assert result.status is SolveStatus.OPTIMAL and result.objective == pytest.approx(1.0)
+    assert "relaxation" not in result.message
+    # An infeasible relaxation is an infeasible program.
+    infeasible = make_program([1.0, 1.0], A_eq=[[1, 1]], b_eq=[3])
+    assert HIGHS.solve(infeasible).status is SolveStatus.INFEASIBLE
+    with pytest.raises(ValueError, match="relaxation_first"):
+        HighsSolver(relaxation_first=1)  # type: ignore[arg-type]
+
+
 def test_random_programs_cover_both_outcomes() -> None:
     statuses = [ENUMERATOR.solve(random_set_packing(s)).status for s in range(NUM_RANDOM_PROGRAMS)]
     assert statuses.count(SolveStatus.OPTIMAL) >= 60
