@@ -320,6 +320,77 @@ class RecordingObjective:
             state = self._detect(state, m, j)
         return state
 
+    def continue_each(
+        self, start: PathState, detections: Sequence[tuple[int, int]]
+    ) -> list[tuple[IntArray, PathState]]:
+        """Each detection ``(m, j)`` (after ``start.scan``) tried as the next one of every
+        track of ``start``.
+
+        Returns, per detection, the tracks (positions in ``start``) whose gate it falls
+        in and their states after it: what ``continue_paths(start, [(m, j)])`` gives,
+        restricted to its finite values.  With linear models the prediction to each scan
+        and the innovation covariances are computed once for all the detections of that
+        scan, and only the tracks in a detection's gate are updated (refinement tries the
+        first detection of every anchor after every leaf of a window this way).
+        """
+        out: list[tuple[IntArray, PathState]] = []
+        by_scan: dict[int, list[int]] = {}
+        for i, (m, _) in enumerate(detections):
+            if m <= start.scan:
+                raise InputError(
+                    f"path detection at scan {m} is not after the track's state at scan "
+                    f"{start.scan}"
+                )
+            by_scan.setdefault(int(m), []).append(i)
+        found: dict[int, tuple[IntArray, PathState]] = {}
+        for m, indices in by_scan.items():
+            measurement = self._sensors[m].measurement
+            if not (
+                start.initiated
+                and self.motion.is_linear
+                and isinstance(measurement, LinearMeasurement)
+            ):
+                for i in indices:
+                    state = self.continue_paths(start, (detections[i],))
+                    ok = np.flatnonzero(np.isfinite(state.value))
+                    found[i] = (ok, state.take(ok))
+                continue
+            missed = self.advance_missed(start, m - 1)
+            x, P = self._predict(missed, m)
+            H, R = measurement.H, measurement.noise_covariance
+            S = H @ P @ H.T + R
+            S_inv, _ = _inverse_and_logdet(0.5 * (S + np.swapaxes(S, -1, -2)))
+            predicted = x @ H.T
+            # A slightly wider gate first; the exact one is applied by the update.
+            wide = self._thresholds[m] * (1.0 + 1e-9)
+            for i in indices:
+                z = self.scans[m].detections[detections[i][1]]
+                nu = z - predicted
+                rows = np.flatnonzero(np.einsum("bi,bij,bj->b", nu, S_inv, nu) <= wide)
+                if rows.size:
+                    d2, loglik, xu, Pu = self._linear_step(x[rows], P[rows], z, H, R)
+                    term = self.log_pd[m] + loglik - self.log_clutter[m]
+                    value = (
+                        missed.value[rows]
+                        + self.survival_terms[m]
+                        + np.where(d2 <= self._thresholds[m], term, -math.inf)
+                    )
+                    ok = np.flatnonzero(np.isfinite(value))
+                    rows = rows[ok]
+                    state = PathState(
+                        scan=m,
+                        means=xu[ok],
+                        covariances=Pu[ok],
+                        initiated=True,
+                        first_time=start.first_time[rows],
+                        value=value[ok],
+                    )
+                else:
+                    state = start.take(rows)
+                found[i] = (rows, state)
+        out = [found[i] for i in range(len(detections))]
+        return out
+
     def advance_missed(self, state: PathState, until: int) -> PathState:
         """Misses at scans ``state.scan + 1 .. until``; states predicted to ``until``."""
         if until <= state.scan:
@@ -560,6 +631,142 @@ class RecordingObjective:
         if len(state):
             out[rows] = state.value
         return out + self.tails[reference.path[last][0]]
+
+    def continue_converging_many(
+        self,
+        requests: Sequence[tuple[PathState, Trajectory, int]],
+        *,
+        max_detections: int | None = None,
+    ) -> list[FloatArray]:
+        """:meth:`continue_converging` of several ``(start, reference, first)`` at once.
+
+        Returns what ``continue_converging(start, reference, first, max_detections=...)``
+        returns for each request, up to rounding (the same filter steps taken in one
+        batch: each track at its own scan, with its own detections).  Batching pays where
+        each request holds a few tracks: refinement scores the joins to every anchor of a
+        window this way, one Kalman step for all of them rather than one per anchor.
+        Requests that a batch cannot take (a nonlinear motion or measurement model, a
+        state not yet in the motion model's space) are continued one by one.
+        """
+        out: list[FloatArray] = [np.full(len(start), -math.inf) for start, _, _ in requests]
+        batchable: list[int] = []
+        for i, (start, reference, first) in enumerate(requests):
+            if len(start) == 0:
+                continue
+            if self._batchable(start, reference, first):
+                batchable.append(i)
+            else:
+                out[i] = self.continue_converging(
+                    start, reference, first, max_detections=max_detections
+                )
+        if batchable:
+            self._converge_batch(requests, batchable, out, max_detections)
+        return out
+
+    def _batchable(self, start: PathState, reference: Trajectory, first: int) -> bool:
+        """Whether a request's steps are all linear Kalman steps in one state space."""
+        if not (start.initiated and self.motion.is_linear) or first >= len(reference.path):
+            return False
+        n = self.motion.state_dim
+        if start.means.shape[1] != n or not bool(np.all(reference.initiated[first:])):
+            return False
+        return all(
+            isinstance(self._sensors[m].measurement, LinearMeasurement)
+            for m, _ in reference.path[first:]
+        )
+
+    def _converge_batch(
+        self,
+        requests: Sequence[tuple[PathState, Trajectory, int]],
+        chosen: Sequence[int],
+        out: list[FloatArray],
+        max_detections: int | None,
+    ) -> None:
+        """The batched body of :meth:`continue_converging_many` (linear steps only)."""
+        owner = np.concatenate(
+            [np.full(len(requests[i][0]), i, dtype=np.int64) for i in chosen]
+        )
+        slot = np.concatenate([np.arange(len(requests[i][0])) for i in chosen])
+        x = np.concatenate([requests[i][0].means for i in chosen])
+        P = np.concatenate([requests[i][0].covariances for i in chosen])
+        value = np.concatenate([requests[i][0].value for i in chosen])
+        scan = np.concatenate(
+            [np.full(len(requests[i][0]), requests[i][0].scan, dtype=np.int64) for i in chosen]
+        )
+        k = np.concatenate(
+            [np.full(len(requests[i][0]), requests[i][2], dtype=np.int64) for i in chosen]
+        )
+        last = np.array([len(requests[i][1].path) - 1 for i in owner.tolist()], dtype=np.int64)
+        stop = last if max_detections is None else np.minimum(last, k + max_detections - 1)
+        for i in chosen:  # a path must be after its start
+            start, reference, first = requests[i]
+            if reference.path[first][0] <= start.scan:
+                raise InputError(
+                    f"path detection at scan {reference.path[first][0]} is not after the "
+                    f"track's state at scan {start.scan}"
+                )
+        while owner.size:
+            refs = [requests[i][1] for i in owner.tolist()]
+            target = np.array([r.path[kk][0] for r, kk in zip(refs, k.tolist(), strict=True)])
+            # Predict scan by scan (as the trees do), every track from its own scan.
+            while True:
+                moving = np.flatnonzero(scan < target)
+                if moving.size == 0:
+                    break
+                nxt = scan[moving] + 1
+                dts = self.times[nxt] - self.times[nxt - 1]
+                for dt in np.unique(dts[dts > 0]).tolist():
+                    rows = moving[dts == dt]
+                    F, Q = self._linear_motion(self.motion, float(dt))  # type: ignore[misc]
+                    x[rows] = x[rows] @ F.T
+                    Pr = F @ P[rows] @ F.T + Q
+                    P[rows] = 0.5 * (Pr + np.swapaxes(Pr, -1, -2))
+                missed = nxt < target[moving]
+                value[moving[missed]] += (
+                    self.survival_terms[nxt[missed]] + self.miss_terms[nxt[missed]]
+                )
+                scan[moving] = nxt
+            # Update each track by its reference's detection, one sensor at a time.
+            d2 = np.empty(owner.size)
+            loglik = np.empty(owner.size)
+            sensor_of = np.array([self.scans[m].sensor for m in target.tolist()])
+            for sensor in np.unique(sensor_of).tolist():
+                rows = np.flatnonzero(sensor_of == sensor)
+                measurement = self._sensors[int(target[rows[0]])].measurement
+                z = np.stack(
+                    [
+                        self.scans[int(target[b])].detections[refs[b].path[int(k[b])][1]]
+                        for b in rows.tolist()
+                    ]
+                )
+                d2[rows], loglik[rows], x[rows], P[rows] = self._linear_step(
+                    x[rows], P[rows], z, measurement.H, measurement.noise_covariance  # type: ignore[attr-defined]
+                )
+            term = self.log_pd[target] + loglik - self.log_clutter[target]
+            thresholds = np.array([self._thresholds[m] for m in target.tolist()])
+            value += self.survival_terms[target] + np.where(d2 <= thresholds, term, -math.inf)
+            # Tracks out of gate, converged, cut short or at their reference's end leave.
+            done = ~np.isfinite(value)
+            rest = np.array(
+                [r.values[-1] - r.values[kk] for r, kk in zip(refs, k.tolist(), strict=True)]
+            )
+            tails = np.array([self.tails[r.path[-1][0]] for r in refs])
+            ended = (k == last) | (k == stop)
+            result = np.where(done, -math.inf, value + rest + tails)
+            same = np.zeros(owner.size, dtype=bool)
+            check = np.flatnonzero(~done & ~ended)
+            if check.size:
+                mean = np.stack([refs[b].means[int(k[b])] for b in check.tolist()])
+                cov = np.stack([refs[b].covariances[int(k[b])] for b in check.tolist()])
+                same[check] = np.all(
+                    np.abs(x[check] - mean) <= CONVERGED * (1.0 + np.abs(mean)), axis=1
+                ) & np.all(np.abs(P[check] - cov) <= CONVERGED * (1.0 + np.abs(cov)), axis=(1, 2))
+            leave = done | ended | same
+            for b in np.flatnonzero(leave).tolist():
+                out[int(owner[b])][int(slot[b])] = result[b]
+            keep = np.flatnonzero(~leave)
+            owner, slot, x, P, value = owner[keep], slot[keep], x[keep], P[keep], value[keep]
+            scan, k, last, stop = scan[keep], k[keep] + 1, last[keep], stop[keep]
 
     def value(self, tracks: Mapping[int, TrackPath] | Iterable[TrackPath]) -> float:
         """J(omega) = sum of the tracks' values (0 for no track; ``-inf`` if impossible)."""

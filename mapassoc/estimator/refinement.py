@@ -56,7 +56,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -583,10 +583,19 @@ class Refiner:
             touched.append(tid)
             if suffix:
                 offset = len(path) - len(suffix)
-                alone = obj.continue_converging(
-                    obj.start_path(suffix), reference, offset + 1, max_detections=self._refilter
-                )
-                anchors.append(_Anchor(tid, suffix, False, float(alone[0]), reference, offset))
+                anchors.append(_Anchor(tid, suffix, False, math.nan, reference, offset))
+        # An anchor's value alone: its first detection started anew, every anchor's
+        # re-filter in one batch.
+        alone = [i for i, anchor in enumerate(anchors) if not anchor.whole]
+        values = obj.continue_converging_many(
+            [
+                (obj.start_path(anchors[i].path), anchors[i].reference, anchors[i].offset + 1)
+                for i in alone
+            ],
+            max_detections=self._refilter,
+        )
+        for i, value in zip(alone, values, strict=True):
+            anchors[i] = replace(anchors[i], value=float(value[0]))
         return carried, anchors, touched
 
     def _carried(
@@ -660,10 +669,11 @@ class Refiner:
         join_scores: list[float] = []
         joins: list[tuple[int, int]] = []
         ends = np.flatnonzero(alive & (layer == N - 1))
+        gains = self._join_gains(hyps, ends, scores[ends], anchors, a + N - 1)
         for i, anchor in enumerate(anchors):
             if ends.size == 0:
                 break
-            gain = self._join_gains(hyps, ends, scores[ends], anchor, a + N - 1)
+            gain = gains[i]
             # An anchor that cannot stand alone (its own filter gates out one of its
             # detections: value -inf) must be joined; its resource is then exactly-once
             # and its joins are scored without the baseline.
@@ -706,23 +716,29 @@ class Refiner:
         hyps: WindowHypotheses,
         ends: NDArray[np.int64],
         end_scores: FloatArray,
-        anchor: _Anchor,
+        anchors: Sequence[_Anchor],
         last_scan: int,
-    ) -> FloatArray:
-        """The anchor's terms and best ending after each leaf in ``ends`` (alive at the
-        window's last scan, ``last_scan`` of the recording), re-filtered from its state.
+    ) -> list[FloatArray]:
+        """Per anchor, its terms and best ending after each leaf in ``ends`` (alive at
+        the window's last scan, ``last_scan`` of the recording), re-filtered from the
+        leaf's state.
 
         The joins to one anchor compete for it as the nodes of one tree compete for its
         place, and they are pruned the same way (``prune_log_ratio``): after the anchor's
         first detection, a join whose score so far (its hypothesis' score, ``end_scores``,
-        plus the join's first terms) is more than ``prune_log_ratio`` below the best join
-        is not followed further (``-inf``).  The joins followed are scored exactly.
+        plus the join's first terms) is more than ``prune_log_ratio`` below the anchor's
+        best join is not followed further (``-inf``).  The joins followed are scored
+        exactly, every anchor's in one batch
+        (:meth:`~mapassoc.estimator.objective.RecordingObjective.continue_converging_many`).
         """
         obj = self.objective
+        gains = [np.full(len(ends), -math.inf) for _ in anchors]
+        if ends.size == 0 or not anchors:
+            return gains
         nodes = hyps.nodes
         leaves = hyps.leaf[ends]
-        out = np.full(len(ends), -math.inf)
-        firsts: list[tuple[NDArray[np.int64], PathState]] = []
+        firsts: list[list[tuple[NDArray[np.int64], PathState]]] = [[] for _ in anchors]
+        targets = [anchor.path[0] for anchor in anchors]
         for initiated in (True, False):
             group = np.flatnonzero(nodes.initiated[leaves] == initiated)
             if group.size == 0:
@@ -741,24 +757,26 @@ class Refiner:
                     first_time=nodes.first_time[v],
                     value=np.zeros(len(v)),
                 )
-                first = obj.continue_paths(start, anchor.path[:1])
-                ok = np.flatnonzero(np.isfinite(first.value))
-                if ok.size:
-                    firsts.append((batch[ok], first.take(ok)))
-        if not firsts:
-            return out
-        so_far = np.concatenate([end_scores[b] + s.value for b, s in firsts])
-        floor = float(np.max(so_far)) - self.generator.prune_log_ratio
-        for batch, first in firsts:
-            keep = np.flatnonzero(end_scores[batch] + first.value >= floor)
-            if keep.size:
-                out[batch[keep]] = obj.continue_converging(
-                    first.take(keep),
-                    anchor.reference,
-                    anchor.offset + 1,
-                    max_detections=self._refilter,
-                )
-        return out
+                for i, (rows, state) in enumerate(obj.continue_each(start, targets)):
+                    if rows.size:
+                        firsts[i].append((batch[rows], state))
+        pending: list[tuple[int, NDArray[np.int64], PathState]] = []
+        for i, reached in enumerate(firsts):
+            if not reached:
+                continue
+            so_far = np.concatenate([end_scores[b] + s.value for b, s in reached])
+            floor = float(np.max(so_far)) - self.generator.prune_log_ratio
+            for batch, first in reached:
+                keep = np.flatnonzero(end_scores[batch] + first.value >= floor)
+                if keep.size:
+                    pending.append((i, batch[keep], first.take(keep)))
+        values = obj.continue_converging_many(
+            [(state, anchors[i].reference, anchors[i].offset + 1) for i, _, state in pending],
+            max_detections=self._refilter,
+        )
+        for (i, batch, _), value in zip(pending, values, strict=True):
+            gains[i][batch] = value
+        return gains
 
     def _decode(
         self,

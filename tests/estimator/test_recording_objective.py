@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from support import NO_TIME_LIMIT, make_config, make_scans, partitions
 
-from mapassoc.estimator.objective import RecordingObjective, paths_from_rows
+from mapassoc.estimator.objective import PathState, RecordingObjective, paths_from_rows
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.estimator.refinement import RefinementSettings, Refiner, refine_track_rows
 from mapassoc.evaluation.scenarios import build_scenario
@@ -299,6 +299,54 @@ def test_converging_continuation_agrees_with_the_whole_filter_run() -> None:
             assert float(whole[0]) == pytest.approx(objective.track_value(path), abs=1e-6)
             checked += 1
     assert checked > 10
+
+
+@pytest.mark.parametrize("family", ["crossing", "dense_pd08", "two_sensors"])
+def test_batched_continuation_equals_one_request_at_a_time(family: str) -> None:
+    """continue_converging_many gives what continue_converging gives per request, with
+    and without a cap, for requests that start at different scans, continue different
+    references (two sensors: different measurement models in one batch) and leave at
+    different steps."""
+    scenario = build_scenario(family, seed=1)
+    config, scans = scenario.config, scenario.scans[:40]
+    result = WindowEstimator(
+        config=dataclasses.replace(
+            config,
+            estimator=dataclasses.replace(
+                config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
+            ),
+        )
+    ).run(scans)
+    objective = RecordingObjective(config=config, scans=scans)
+    paths = [p for p in paths_from_rows(objective, result.track_rows).values() if len(p) > 3]
+    assert len(paths) >= 2
+    requests = []
+    for i, path in enumerate(paths):
+        reference = objective.trajectory(path)
+        other = objective.trajectory(paths[i - 1])
+        for cut in (1, 2, len(path) // 2):
+            # This track's own state and a fresh start at the same detection (one request
+            # of two tracks), and another track's last state before it (mostly gated out).
+            own, fresh = reference.state(cut - 1), objective.start_path(path[cut - 1 : cut])
+            pair = PathState(
+                scan=own.scan,
+                means=np.concatenate([own.means, fresh.means]),
+                covariances=np.concatenate([own.covariances, fresh.covariances]),
+                initiated=True,
+                first_time=np.concatenate([own.first_time, fresh.first_time]),
+                value=np.concatenate([own.value, fresh.value]),
+            )
+            requests.append((pair, reference, cut))
+            before = [k for k in range(len(other.path)) if other.path[k][0] < path[cut][0]]
+            if before:
+                requests.append((other.state(before[-1]), reference, cut))
+    for cap in (None, 3):
+        many = objective.continue_converging_many(requests, max_detections=cap)
+        for (start, reference, first), got in zip(requests, many, strict=True):
+            one = objective.continue_converging(start, reference, first, max_detections=cap)
+            np.testing.assert_allclose(got, one, rtol=1e-9, atol=1e-9)
+    assert any(np.isneginf(v).any() for v in many)  # some requests leave at the gate
+    assert any(np.isfinite(v).any() for v in many)
 
 
 def _reference_mass(config, scans, track) -> float:
