@@ -186,7 +186,7 @@ def test_an_interrupted_batch_resumes_to_the_same_folders(tmp_path: Path) -> Non
     source = tmp_path / "source"
     for seed in range(3):
         assert main(["simulate", "dense", "--out", str(source / f"p{seed}"),
-                     "--seed", str(seed)]) == 0
+                     "--seed", str(seed), "--scans", "30"]) == 0
         _no_time_limit(source / f"p{seed}" / "config.toml")
     out = tmp_path / "out"
     command = [sys.executable, "-m", "mapassoc.apps.cli", "batch", str(source), "--out",

@@ -86,8 +86,9 @@ def test_one_segment_is_the_sequential_run() -> None:
 
 @pytest.mark.slow
 def test_segments_agree_with_the_sequential_run() -> None:
-    """On a long crossing recording three segments find the sequential run's tracks."""
-    scenario = build_scenario("crossing", 1, scans=600)
+    """On a long crossing recording three segments find the sequential run's tracks
+    (300 scans: segments of 100, each far longer than a window)."""
+    scenario = build_scenario("crossing", 1, scans=300)
     sequential = WindowEstimator(config=scenario.config).run(scenario.scans)
     segmented = run_segmented(scenario.config, scenario.scans, segments=3)
     same = set(sequential.track_rows.values()) & set(segmented.track_rows.values())
