@@ -7,8 +7,11 @@ in ``lambda_bar`` floods dense recordings with false tracks or erases their targ
 offline recording holds the answer, and this module finds it by expectation-maximisation
 around the estimator itself (hard, or classification, EM):
 
-1. *E step*: run the window estimator with the current parameters; its committed,
-   smoothed tracks say which detection is a target's (:func:`association_counts`).
+1. *E step*: run the window estimator's forward pass with the current parameters; its
+   committed, smoothed tracks say which detection is a target's
+   (:func:`association_counts`).  The whole recording's refinement is left out of the
+   passes (it would cost one to three times each pass again) and runs once, on the last
+   pass's run.
 2. *M step*: the parameters that maximise the complete-data likelihood of those
    associations under the sensor model of the n-object measurement model (Poisson false
    alarms, uniform over the region; each target detected with probability ``Pd``):
@@ -59,8 +62,10 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.special import gammaln
@@ -71,6 +76,14 @@ from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError, MapassocError
 from mapassoc.models.sensor import Sensor
 from mapassoc.validation import check_positive, check_probability
+
+if TYPE_CHECKING:  # the pipeline imports this module's users; imported when estimating
+    from mapassoc.estimator.pipeline import (
+        EstimateResult,
+        RunState,
+        WindowEstimator,
+        WindowReport,
+    )
 
 __all__ = [
     "DEFAULT_PD_START",
@@ -293,9 +306,12 @@ class ParameterEstimate:
         Scans the passes ran on (all of them when the recording is no longer than the
         sample).
     result : EstimateResult or None
-        The last pass's run when it covered the whole recording (that run is the
-        estimator's answer under the returned configuration, so a caller need not run
-        again); None when the passes ran on a sample.
+        The last pass's run when it covered the whole recording, finished as
+        :meth:`~mapassoc.estimator.pipeline.WindowEstimator.run` finishes it (the whole
+        recording's refinement included: the passes themselves count the forward pass's
+        associations, and the refinement runs once, here), so it is the estimator's
+        answer under the returned configuration and a caller need not run again; None
+        when the passes ran on a sample.
     warnings : tuple of str
         What could not be estimated, and why.
     """
@@ -520,13 +536,16 @@ def estimate_parameters(
     passes: list[EstimationPass] = []
     converged = False
     retried = False
-    last_result = None
+    last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None = None
     pd_estimable = dict.fromkeys(pds, False)
     while len(passes) < max_passes + retried:  # the probe at a quarter is not counted
         started = time.perf_counter()
         trial = with_sensor_parameters(config, current)
         estimator = WindowEstimator(config=trial)
-        results = [estimator.run(piece, progress=check_stop) for piece in pieces]
+        # The passes count associations of the forward pass; the whole recording's
+        # refinement runs once, on the last pass's run (below).
+        runs = [_forward_run(estimator, piece, check_stop) for piece in pieces]
+        results = [result for result, _, _ in runs]
         counts_by_piece = [
             association_counts(piece, result.tracks, asked)
             for piece, result in zip(pieces, results, strict=True)
@@ -558,7 +577,7 @@ def estimate_parameters(
         passes.append(record)
         if on_pass is not None:
             on_pass(record)
-        last_result = results[0] if whole else None
+        last_run = (estimator, *runs[0][1:]) if whole else None
         hidden = [
             name for name in rates
             if not retried and current[name][0] == upper[name] and updated[name][0] == upper[name]
@@ -596,6 +615,15 @@ def estimate_parameters(
             pd_estimated=name in pds and pd_estimable[name],
             notes=tuple(notes[name]),
         )
+    last_result = None
+    if last_run is not None:
+        # The estimator's answer under the returned values: the last pass's windows,
+        # finished as a run finishes them (refined when refine_passes > 0).  Its
+        # warnings were given when the pass itself finished.
+        estimator, state, reports = last_run
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            last_result = estimator.finish(scans, state, windows=reports)
     return ParameterEstimate(
         config=with_sensor_parameters(config, passes[-1].used),
         sensors=estimates,
@@ -605,6 +633,19 @@ def estimate_parameters(
         result=last_result,
         warnings=tuple(messages),
     )
+
+
+def _forward_run(
+    estimator: WindowEstimator, scans: Sequence[Scan], check_stop: Callable[[int, int], None]
+) -> tuple[EstimateResult, RunState, list[WindowReport]]:
+    """The window estimator's forward pass over ``scans`` (no refinement): its result, its
+    done run state and its window reports; ``check_stop`` polled after every window."""
+    state = estimator.start(scans)
+    reports: list[WindowReport] = []
+    while not state.done:
+        reports.append(estimator.step(scans, state))
+        check_stop(state.next_scan, state.total_scans)
+    return estimator.finish(scans, state, windows=reports, refine=False), state, reports
 
 
 def _merge(parts: Sequence[AssociationCounts]) -> AssociationCounts:
