@@ -211,6 +211,10 @@ class RunResult:
         Mean track ids per tracked true target in the estimate's T-GOSPA assignment.
     tgospa_id_switches : int or None
         Track-id changes of a target between consecutive scans in that assignment.
+    forward_scans_per_second : float or None
+        Scans per second of the forward pass alone (the windows, up to the last one's
+        commit; ``scans_per_second`` adds the whole recording's refinement and the
+        smoothing).  ``None`` for runs built without it.
     """
 
     family: str
@@ -248,6 +252,7 @@ class RunResult:
     oracle_tgospa: float | None = None
     fragments_per_target: float | None = None
     tgospa_id_switches: int | None = None
+    forward_scans_per_second: float | None = None
 
 
 @dataclass(frozen=True)
@@ -281,6 +286,9 @@ class FamilySummary:
         Mean over seeds of the runs' fraction of windows with ``marginal_k`` right.
     speed_goal : float or None
         Scans-per-second goal of the family (:data:`SPEED_GOALS`), if any.
+    forward_scans_per_second : float or None
+        Mean over seeds of the forward pass's own throughput (``None`` when a run
+        lacks it).
     """
 
     family: str
@@ -300,6 +308,7 @@ class FamilySummary:
     k_brier_mean: float
     k_hit_rate_mean: float
     speed_goal: float | None
+    forward_scans_per_second: float | None = None
 
     @property
     def speed_met(self) -> bool | None:
@@ -556,9 +565,15 @@ def bench_scenario(
     run_config = replace(run_config, estimator=replace(run_config.estimator, k_prior=prior))
 
     estimator = WindowEstimator(config=run_config)
+    committed = [0.0]  # when the last window was committed: the forward pass's end
+
+    def on_window(report: object) -> None:
+        committed[0] = time.perf_counter()
+
     start = time.perf_counter()
-    result = estimator.run(scenario.scans)
+    result = estimator.run(scenario.scans, on_window=on_window)
     seconds = time.perf_counter() - start
+    forward_seconds = committed[0] - start
 
     windows = result.windows
     window_seconds = np.array([w.generate_seconds + w.solve_seconds for w in windows])
@@ -616,6 +631,7 @@ def bench_scenario(
         oracle_tgospa=None if oracle_trajectory is None else oracle_trajectory.total,
         fragments_per_target=None if fragmentation is None else fragmentation.fragments_per_target,
         tgospa_id_switches=None if fragmentation is None else fragmentation.num_id_switches,
+        forward_scans_per_second=n_scans / forward_seconds if forward_seconds > 0 else math.inf,
     )
 
 
@@ -667,6 +683,9 @@ def summarize_family(runs: Sequence[RunResult]) -> FamilySummary:
         k_brier_mean=float(np.mean([run.k_brier for run in runs])),
         k_hit_rate_mean=float(np.mean([run.k_hit_rate for run in runs])),
         speed_goal=SPEED_GOALS.get(family),
+        forward_scans_per_second=None
+        if any(run.forward_scans_per_second is None for run in runs)
+        else float(np.mean([run.forward_scans_per_second for run in runs])),
     )
 
 
@@ -743,6 +762,8 @@ def _run_line(r: RunResult) -> str:
 
 def _family_line(s: FamilySummary, time_limit: float) -> str:
     speed = f"{s.scans_per_second:.1f} scans/s"
+    if s.forward_scans_per_second is not None:
+        speed += f" (forward pass alone {s.forward_scans_per_second:.1f})"
     if s.speed_goal is not None:
         speed += f" [goal >= {s.speed_goal:g}: {_mark(s.speed_met)}]"
     return (

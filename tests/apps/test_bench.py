@@ -210,6 +210,9 @@ def test_smoke_run_measures_the_crossing_scenario(smoke) -> None:
     assert 0 <= run.windows_over_limit <= run.windows
     assert run.window_p50_ms <= run.window_p95_ms <= run.window_max_ms
     assert run.scans_per_second > 0 and run.seconds_per_scan > 0
+    # The forward pass is a part of the run: its own throughput is at least the run's.
+    assert run.forward_scans_per_second is not None
+    assert run.forward_scans_per_second >= run.scans_per_second
     assert run.oracle_gospa.total >= 0 and run.gospa.total >= 0
     assert run.gospa_ratio == pytest.approx(run.gospa.total / run.oracle_gospa.total)
     # The generic configuration: Kmax twice the most detections of the scans run.
