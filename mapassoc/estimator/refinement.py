@@ -177,6 +177,9 @@ class RefinementSettings:
         Moves are *accepted* on the exact J of the changed tracks (every detection
         re-filtered), so this trades the proposals' accuracy against speed, never J's
         monotonicity.
+    prune_log_ratio : float
+        Pruning width of the re-solved windows' trees and of the joins to one anchor
+        (``EstimatorSettings.refine_prune_log_ratio``; >= 0, ``inf`` disables).
     """
 
     passes: int = 4
@@ -185,6 +188,7 @@ class RefinementSettings:
     stride: int | None = None
     link_gap: int = 10
     refilter_detections: int = 15
+    prune_log_ratio: float = 18.0
 
     def __post_init__(self) -> None:
         for name, minimum in (("passes", 0), ("link_gap", 0), ("refilter_detections", 1)):
@@ -203,6 +207,12 @@ class RefinementSettings:
                     f"refine {name} must be an integer >= 1 or None, got {value!r}",
                     key=f"refine_{name}",
                 )
+        ratio = self.prune_log_ratio
+        if isinstance(ratio, bool) or not (isinstance(ratio, (int, float)) and ratio >= 0):
+            raise InputError(
+                f"refine prune_log_ratio must be a number >= 0 (inf disables), got {ratio!r}",
+                key="refine_prune_log_ratio",
+            )
 
 
 @dataclass
@@ -370,7 +380,7 @@ class Refiner:
             birth=config.birth,
             gate_probability=est.gate_probability,
             max_hypotheses_per_tree=est.max_hypotheses_per_tree,
-            prune_log_ratio=est.prune_log_ratio,
+            prune_log_ratio=settings.prune_log_ratio,
         )
         try:
             self.solver = get_solver(est.solver)
@@ -1122,7 +1132,11 @@ def refine_track_rows(
     """
     est = config.estimator
     if settings is None:
-        settings = RefinementSettings(passes=est.refine_passes, link_gap=est.refine_link_gap)
+        settings = RefinementSettings(
+            passes=est.refine_passes,
+            link_gap=est.refine_link_gap,
+            prune_log_ratio=est.refine_prune_log_ratio,
+        )
     if min_existence is None:
         min_existence = est.min_existence
     objective = RecordingObjective(config=config, scans=scans)

@@ -48,6 +48,7 @@ BAD_ESTIMATOR: dict[str, tuple[object, dict[str, object]]] = {
     "beam_width": (0, {}),
     "refine_passes": (-1, {}),
     "refine_link_gap": (-1, {}),
+    "refine_prune_log_ratio": (-1.0, {}),
     "min_existence": (1.5, {}),
 }
 
