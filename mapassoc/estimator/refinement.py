@@ -18,8 +18,11 @@ change of J: the anchor's detections re-filtered from the joining hypothesis' st
 every joining hypothesis), minus the anchor's value as a track of its own, whose
 first-detection term the join replaces.  A hypothesis that joins nothing and is alive at
 the window's end gets its best ending (``tail``).  The window's hypothesis trees are
-grown as in the forward pass (carried and new trees, the same scoring, gating and
-pruning; the new trees' bound pruning allows for the most a join can add), and one
+grown as in the forward pass (carried and new trees, the same scoring and gating), but
+pruned at the refinement's own, wider ``prune_log_ratio``
+(``EstimatorSettings.refine_prune_log_ratio``: a re-solve that keeps only what the
+forward pass kept can mostly confirm it; the new trees' bound pruning allows for the most
+a join can add), and one
 integer program (detections at most once, carried tracks exactly once, anchors at most
 once) picks the best set.  Because every selected item's score is its exact change of
 J, the program's optimum is the best J over the window's kept hypotheses; the new
@@ -47,8 +50,8 @@ function of the input alone.
 
 Proposals re-filter at most ``refilter_detections`` of an anchor's detections (the
 acceptance re-filters all of them), and the joins to one anchor are pruned like the
-nodes of one tree (``prune_log_ratio`` below the best after the anchor's first
-detection): the window's program is exact over the hypotheses and joins it keeps.
+nodes of one tree (the refinement's ``prune_log_ratio`` below the best after the
+anchor's first detection): the window's program is exact over the hypotheses and joins it keeps.
 """
 
 from __future__ import annotations
