@@ -618,11 +618,13 @@ def estimate_parameters(
     last_result = None
     if last_run is not None:
         # The estimator's answer under the returned values: the last pass's windows,
-        # finished as a run finishes them (refined when refine_passes > 0).  Its
-        # warnings were given when the pass itself finished.
+        # finished as a run finishes them (refined when refine_passes > 0).  The Kmax
+        # warning of its windows was given when the pass itself finished.
         estimator, state, reports = last_run
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
+            warnings.filterwarnings(
+                "ignore", message=r"p\(K = Kmax \| Z\) exceeded", category=RuntimeWarning
+            )
             last_result = estimator.finish(scans, state, windows=reports)
     return ParameterEstimate(
         config=with_sensor_parameters(config, passes[-1].used),
