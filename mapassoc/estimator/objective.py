@@ -257,9 +257,9 @@ class RecordingObjective:
             missed = self.survival_terms[m + 1] + self.miss_terms[m + 1] + tail_masses[m + 1]
             tail_masses[m] = np.logaddexp(self.end_terms[m], missed)
         self.tail_masses = tail_masses
-        self._thresholds = [
-            gate_threshold(self.gate_probability, s.measurement.measurement_dim) for s in sensors
-        ]
+        self._thresholds = np.array(
+            [gate_threshold(self.gate_probability, s.measurement.measurement_dim) for s in sensors]
+        )
         self._trajectories: dict[TrackPath, Trajectory] = {}
         self._motion_cache: dict[tuple[int, float], tuple[FloatArray, FloatArray]] = {}
         self._row_of = {
@@ -333,7 +333,6 @@ class RecordingObjective:
         scan, and only the tracks in a detection's gate are updated (refinement tries the
         first detection of every anchor after every leaf of a window this way).
         """
-        out: list[tuple[IntArray, PathState]] = []
         by_scan: dict[int, list[int]] = {}
         for i, (m, _) in enumerate(detections):
             if m <= start.scan:
@@ -369,11 +368,10 @@ class RecordingObjective:
                 rows = np.flatnonzero(np.einsum("bi,bij,bj->b", nu, S_inv, nu) <= wide)
                 if rows.size:
                     d2, loglik, xu, Pu = self._linear_step(x[rows], P[rows], z, H, R)
-                    term = self.log_pd[m] + loglik - self.log_clutter[m]
                     value = (
                         missed.value[rows]
                         + self.survival_terms[m]
-                        + np.where(d2 <= self._thresholds[m], term, -math.inf)
+                        + self._detection_term(m, d2, loglik)
                     )
                     ok = np.flatnonzero(np.isfinite(value))
                     rows = rows[ok]
@@ -388,8 +386,7 @@ class RecordingObjective:
                 else:
                     state = start.take(rows)
                 found[i] = (rows, state)
-        out = [found[i] for i in range(len(detections))]
-        return out
+        return [found[i] for i in range(len(detections))]
 
     def advance_missed(self, state: PathState, until: int) -> PathState:
         """Misses at scans ``state.scan + 1 .. until``; states predicted to ``until``."""
@@ -468,6 +465,14 @@ class RecordingObjective:
         P_post = A @ P @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
         return d2, loglik, x_post, 0.5 * (P_post + np.swapaxes(P_post, -1, -2))
 
+    def _detection_term(
+        self, m: int | IntArray, d2: FloatArray, loglik: FloatArray
+    ) -> FloatArray:
+        """``c_m`` of a detection at scan ``m`` (per track, or per track's own scan):
+        ``log Pd + log N(nu; 0, S) - log lambda`` inside the gate, ``-inf`` outside."""
+        term = self.log_pd[m] + loglik - self.log_clutter[m]
+        return np.where(d2 <= self._thresholds[m], term, -math.inf)
+
     def _detect(self, state: PathState, m: int, j: int) -> PathState:
         """The step to scan ``m`` = ``state.scan + 1`` continued by its detection ``j``."""
         sensor = self._sensors[m]
@@ -492,9 +497,7 @@ class RecordingObjective:
             d2, loglik = pairwise_gate_and_loglik(nu, S)
             d2, loglik, nu = d2[:, 0], loglik[:, 0], nu[:, 0]
             xu, Pu = update(x, P, nu, S, H, R)
-        term = self.log_pd[m] + loglik - self.log_clutter[m]
-        term = np.where(d2 <= self._thresholds[m], term, -math.inf)
-        value = state.value + self.survival_terms[m] + term
+        value = state.value + self.survival_terms[m] + self._detection_term(m, d2, loglik)
         if not initiated:
             # A coordinated-turn track converts at its first detection later than its
             # first one, as in the hypothesis trees; batches share the first time only
@@ -742,9 +745,7 @@ class RecordingObjective:
                 d2[rows], loglik[rows], x[rows], P[rows] = self._linear_step(
                     x[rows], P[rows], z, measurement.H, measurement.noise_covariance  # type: ignore[attr-defined]
                 )
-            term = self.log_pd[target] + loglik - self.log_clutter[target]
-            thresholds = np.array([self._thresholds[m] for m in target.tolist()])
-            value += self.survival_terms[target] + np.where(d2 <= thresholds, term, -math.inf)
+            value += self.survival_terms[target] + self._detection_term(target, d2, loglik)
             # Tracks out of gate, converged, cut short or at their reference's end leave.
             done = ~np.isfinite(value)
             rest = np.array(

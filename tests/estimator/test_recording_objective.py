@@ -166,16 +166,20 @@ def test_objective_equals_the_generative_model_on_every_track_set(seed: int) -> 
     assert count >= 1
 
 
-@pytest.mark.parametrize("name", ["crossing", "dense", "turning", "two_sensors"])
-def test_objective_of_one_window_equals_its_best_objective(name: str) -> None:
-    scenario = build_scenario(name, seed=1)
-    config = scenario.config
-    config = dataclasses.replace(
+def _forward_config(config):
+    """``config`` for the forward pass alone (no refinement) and no clock limit."""
+    return dataclasses.replace(
         config,
         estimator=dataclasses.replace(
             config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
         ),
     )
+
+
+@pytest.mark.parametrize("name", ["crossing", "dense", "turning", "two_sensors"])
+def test_objective_of_one_window_equals_its_best_objective(name: str) -> None:
+    scenario = build_scenario(name, seed=1)
+    config = _forward_config(scenario.config)
     scans = scenario.scans[: config.estimator.window_length]
     estimator = WindowEstimator(config=config)
     solution = estimator.solve_window(scans)
@@ -228,12 +232,7 @@ def test_refinement_never_lowers_the_objective(seed: int) -> None:
     scenario = build_scenario(name, seed=int(rng.integers(0, 5)))
     start = int(rng.integers(0, len(scenario.scans) - 16))
     scans = scenario.scans[start : start + 16]
-    config = dataclasses.replace(
-        scenario.config,
-        estimator=dataclasses.replace(
-            scenario.config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
-        ),
-    )
+    config = _forward_config(scenario.config)
     forward = WindowEstimator(config=config).run(scans)
     objective = RecordingObjective(config=config, scans=scans)
     before = objective.value(paths_from_rows(objective, forward.track_rows))
@@ -254,12 +253,7 @@ def test_refinement_never_lowers_the_objective(seed: int) -> None:
 def test_no_single_window_move_improves_a_converged_refinement() -> None:
     scenario = build_scenario("parallel", seed=0)
     scans = scenario.scans[:30]
-    config = dataclasses.replace(
-        scenario.config,
-        estimator=dataclasses.replace(
-            scenario.config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
-        ),
-    )
+    config = _forward_config(scenario.config)
     forward = WindowEstimator(config=config).run(scans)
     objective = RecordingObjective(config=config, scans=scans)
     refiner = Refiner(
@@ -277,14 +271,7 @@ def test_no_single_window_move_improves_a_converged_refinement() -> None:
 def test_converging_continuation_agrees_with_the_whole_filter_run() -> None:
     scenario = build_scenario("crossing", seed=2)
     config, scans = scenario.config, scenario.scans
-    result = WindowEstimator(
-        config=dataclasses.replace(
-            config,
-            estimator=dataclasses.replace(
-                config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
-            ),
-        )
-    ).run(scans)
+    result = WindowEstimator(config=_forward_config(config)).run(scans)
     objective = RecordingObjective(config=config, scans=scans)
     paths = list(paths_from_rows(objective, result.track_rows).values())
     checked = 0
@@ -311,14 +298,7 @@ def test_batched_continuation_equals_one_request_at_a_time(family: str) -> None:
     different steps."""
     scenario = build_scenario(family, seed=1)
     config, scans = scenario.config, scenario.scans[:25]
-    result = WindowEstimator(
-        config=dataclasses.replace(
-            config,
-            estimator=dataclasses.replace(
-                config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
-            ),
-        )
-    ).run(scans)
+    result = WindowEstimator(config=_forward_config(config)).run(scans)
     objective = RecordingObjective(config=config, scans=scans)
     paths = [p for p in paths_from_rows(objective, result.track_rows).values() if len(p) > 3]
     assert len(paths) >= 2
