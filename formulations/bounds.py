@@ -143,7 +143,7 @@ def log_mass_upper_bounds(
     H = problem.num_hypotheses
     owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
     charged = np.bincount(owner, weights=y[problem.resource_indices], minlength=H)
-    reduced = problem.log_weights - charged - mu * problem.counts  # type: ignore[operator]
+    reduced = problem.weights - charged - mu * problem.counts
     group_of, closed = exclusive_groups(problem) if groups is None else groups
     order = np.argsort(group_of, kind="stable")
     starts = np.flatnonzero(np.r_[True, np.diff(group_of[order]) != 0]) if H else np.zeros(0, int)

@@ -321,7 +321,7 @@ def _dictionary_search(
     position = np.empty(problem.num_resources, dtype=np.int64)
     position[order] = np.arange(order.size)
     scores = problem.scores.tolist()
-    weights = problem.log_weights.tolist()  # type: ignore[union-attr]
+    weights = problem.weights.tolist()
     counts = problem.counts.astype(np.int64).tolist()
     exactly_one = problem.exactly_one[order].tolist()
     codes = [1 << (H - 1 - h) for h in range(H)]
@@ -460,7 +460,7 @@ def _vectorised_search(
     np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets))
     counts = problem.counts.astype(np.int64)
     scores = problem.scores
-    weights = problem.log_weights
+    weights = problem.weights
     by_start = np.argsort(first, kind="stable")
     bounds = np.searchsorted(first[by_start], np.arange(R + 1))
     width = kmax + 1
@@ -620,13 +620,13 @@ def _with_lone(
     combined by max-plus and sum-product convolution (fewer of them on exact ties).
     """
     counted = problem.counts[lone]
-    free_scores, free_weights = problem.scores[lone], problem.log_weights[lone]  # type: ignore[index]
+    free_scores, free_weights = problem.scores[lone], problem.weights[lone]
     uncounted = ~counted
     always = lone[uncounted][free_scores[uncounted] > 0]
     shift_best = float(np.sum(np.maximum(free_scores[uncounted], 0.0)))
-    shift_mass = float(np.sum(np.logaddexp(0.0, free_weights[uncounted])))  # type: ignore[index]
+    shift_mass = float(np.sum(np.logaddexp(0.0, free_weights[uncounted])))
     part_best, part_mass, ranked = independent_sums(
-        free_scores[counted], free_weights[counted], lone[counted]  # type: ignore[index]
+        free_scores[counted], free_weights[counted], lone[counted]
     )
     size = kmax + 1
     best, share = max_plus(main.best, part_best, size)

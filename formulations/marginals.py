@@ -39,6 +39,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -234,8 +235,9 @@ def _forward_backward(
     if H == 0 or np.all(last - first < _WORD_BITS):
         relative = np.zeros(H, dtype=np.uint64)
         np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets.astype(np.uint64)))
-        one: object = np.uint64(1)
-        word = np.uint64
+        # A frontier word is a uint64 or a Python integer (an object array's element).
+        one: Any = np.uint64(1)
+        word: Any = np.uint64
     else:
         codes = [0] * H
         for h, o in zip(owner.tolist(), offsets.tolist(), strict=True):
@@ -244,13 +246,13 @@ def _forward_backward(
         relative[:] = codes
         one, word = 1, object
     counts = problem.counts.astype(np.int64)
-    weights = np.asarray(problem.log_weights, dtype=float)
+    weights = problem.weights
     by_start = np.argsort(first, kind="stable")
     bounds = np.searchsorted(first[by_start], np.arange(R + 1))
     exactly_one = problem.exactly_one[order]
 
     exact = True
-    covers = np.zeros(1, dtype=word)
+    covers: NDArray[Any] = np.zeros(1, dtype=word)
     mass = np.zeros((1, 1))
     steps: list[_Step] = []
     work = 0

@@ -18,6 +18,7 @@ cardinality row of seed 002, eq. 14)::
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import scipy.sparse as sp
@@ -100,6 +101,12 @@ class PackingProblem:
         object.__setattr__(self, "log_weights", log_weights)
 
     @property
+    def weights(self) -> NDArray[np.float64]:
+        """The log-weights as construction filled them in: ``log_weights``, or ``scores``
+        where none were given (never None), shape (H,)."""
+        return cast("NDArray[np.float64]", self.log_weights)  # set by __post_init__
+
+    @property
     def num_hypotheses(self) -> int:
         return int(self.scores.shape[0])
 
@@ -136,7 +143,7 @@ class PackingProblem:
             resource_indices=remap[resources],
             exactly_one=self.exactly_one[used],
             counts=self.counts[hyp],
-            log_weights=self.log_weights[hyp],  # type: ignore[index]
+            log_weights=self.weights[hyp],
         )
 
     def is_feasible(self, selection: NDArray[np.int64], k: int | None = None) -> bool:
@@ -203,12 +210,12 @@ def merge_interchangeable(problem: PackingProblem) -> MergedProblem:
     first = rows[new_class]  # the smallest member of each class (ties sorted by index)
     class_of = np.argsort(np.argsort(first))[label]
     scores = problem.scores
-    weights = problem.log_weights
+    weights = problem.weights
     # Within a class: best score first (ties: smallest index) for the representative.
     by_class = np.lexsort((np.arange(H), -scores, class_of))
     starts = np.flatnonzero(np.r_[True, np.diff(class_of[by_class]) != 0])
     reps = by_class[starts].astype(np.int64)
-    merged_weights = np.logaddexp.reduceat(weights[by_class], starts)  # type: ignore[index]
+    merged_weights = np.logaddexp.reduceat(weights[by_class], starts)
     grouped = np.argsort(class_of, kind="stable")  # members by class, ascending index
     members = tuple(
         np.asarray(m, dtype=np.int64)

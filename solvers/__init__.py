@@ -30,6 +30,7 @@ from mapassoc.solvers.registry import (
     SOLVERS,
     SolverSpec,
     available_solvers,
+    get_integer_solver,
     get_solver,
     solver_spec,
 )
@@ -64,6 +65,7 @@ __all__ = [
     "SolverSpec",
     "available_solvers",
     "enumerate_feasible",
+    "get_integer_solver",
     "get_solver",
     "lagrangian_bound",
     "no_good_cut",

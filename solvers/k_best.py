@@ -129,6 +129,8 @@ def solve_k_best(
         results.append(result)
         if result.status is not SolveStatus.OPTIMAL:
             break
+        if result.solution is None:
+            raise SolverError(f"{solver.name}: an OPTIMAL result without its solution")
         cut_row, cut_rhs = no_good_cut(result.solution)
         current = current.with_constraints(A_ub=cut_row, b_ub=cut_rhs)
     return results

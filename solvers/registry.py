@@ -30,19 +30,21 @@ import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 if TYPE_CHECKING:
     from mapassoc.solvers.cvxpy_backend import CvxpySolver
     from mapassoc.solvers.enumeration import EnumerationSolver
     from mapassoc.solvers.highs import HighsSolver
     from mapassoc.solvers.networkx_flow import NetworkxFlowSolver
+    from mapassoc.solvers.results import ProgramSolver
 
 __all__ = [
     "SOLVERS",
     "SOLVER_NAMES",
     "SolverSpec",
     "available_solvers",
+    "get_integer_solver",
     "get_solver",
     "solver_spec",
 ]
@@ -86,7 +88,7 @@ class SolverSpec:
     def build(self) -> HighsSolver | CvxpySolver | EnumerationSolver | NetworkxFlowSolver:
         """A new instance of the backend with this row's options."""
         cls = getattr(importlib.import_module(self.module), self.class_name)
-        return cls(**self.options)  # type: ignore[no-any-return]
+        return cls(**self.options)
 
 
 #: Every registered backend, in preference order.
@@ -218,3 +220,28 @@ def get_solver(
             f"available solvers: {', '.join(available_solvers())}"
         )
     return spec.build()
+
+
+def get_integer_solver(name: str, *, exact: bool = False) -> ProgramSolver:
+    """A backend that solves integer programs (``supports_integer``), with default settings.
+
+    Parameters
+    ----------
+    name : str
+        One of :func:`available_solvers`.
+    exact : bool
+        Also require ``exact`` (an OPTIMAL status is a proven optimum at an integer point).
+
+    Raises
+    ------
+    ValueError
+        Unknown or unavailable name, or a backend without the capabilities; the message
+        names the backends that have them.
+    """
+    spec = solver_spec(name)
+    if not spec.supports_integer or (exact and not spec.exact):
+        wanted = "an exact solver of integer programs" if exact else "a solver of integer programs"
+        capable = [s.name for s in SOLVERS if s.supports_integer and (s.exact or not exact)]
+        raise ValueError(f"solver {name!r} is not {wanted}; choose one of {', '.join(capable)}")
+    # The row's capability flags say the backend implements ProgramSolver.
+    return cast("ProgramSolver", get_solver(name))

@@ -21,10 +21,10 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.formulations.program import FlowProgram, Program
 
@@ -81,12 +81,14 @@ class SolveStatus(enum.Enum):
     FAILED = "failed"
 
 
-def _readonly(array: NDArray | None, dtype: type) -> NDArray | None:
-    if array is None:
-        return None
-    frozen = np.array(array, dtype=dtype, copy=True)
+def _readonly(array: ArrayLike, dtype: type) -> NDArray[Any]:
+    frozen: NDArray[Any] = np.array(array, dtype=dtype, copy=True)
     frozen.setflags(write=False)
     return frozen
+
+
+def _readonly_or_none(array: ArrayLike | None, dtype: type) -> NDArray[Any] | None:
+    return None if array is None else _readonly(array, dtype)
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -124,7 +126,7 @@ class SolveResult:
         object.__setattr__(self, "objective", float(self.objective))
         object.__setattr__(self, "bound", float(self.bound))
         object.__setattr__(self, "solve_seconds", float(self.solve_seconds))
-        object.__setattr__(self, "solution", _readonly(self.solution, np.float64))
+        object.__setattr__(self, "solution", _readonly_or_none(self.solution, np.float64))
         if self.solution is None and not math.isnan(self.objective):
             raise ValueError(
                 f"objective must be nan when there is no solution, got {self.objective}"
@@ -164,8 +166,8 @@ class LPResult(SolveResult):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        object.__setattr__(self, "ineq_duals", _readonly(self.ineq_duals, np.float64))
-        object.__setattr__(self, "eq_duals", _readonly(self.eq_duals, np.float64))
+        object.__setattr__(self, "ineq_duals", _readonly_or_none(self.ineq_duals, np.float64))
+        object.__setattr__(self, "eq_duals", _readonly_or_none(self.eq_duals, np.float64))
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)

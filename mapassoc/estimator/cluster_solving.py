@@ -506,7 +506,7 @@ class ClusterSolver:
         at_most = np.flatnonzero((usage > 0) & ~problem.exactly_one)
         exactly = np.flatnonzero(problem.exactly_one)
         y = np.zeros(problem.num_resources)
-        y[at_most] = lp.ineq_duals  # type: ignore[assignment]
+        y[at_most] = lp.ineq_duals
         eq = np.asarray(lp.eq_duals)
         y[exactly] = eq[: exactly.size]
         return y, float(eq[exactly.size]) if eq.size > exactly.size else 0.0

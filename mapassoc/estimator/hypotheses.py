@@ -266,10 +266,10 @@ class HypothesisNodes:
 
     def take(self, index: IntArray | BoolArray) -> HypothesisNodes:
         """The nodes at ``index`` (positions, or a boolean mask of length ``len(self)``)."""
-        index = np.asarray(index)
-        if index.dtype == bool and index.shape != (len(self),):
-            raise ValueError(f"mask has shape {index.shape}, expected ({len(self)},)")
-        return type(self)(**{name: getattr(self, name)[index] for name in _NODE_FIELDS})
+        chosen = np.asarray(index)
+        if chosen.dtype == bool and chosen.shape != (len(self),):
+            raise ValueError(f"mask has shape {chosen.shape}, expected ({len(self)},)")
+        return type(self)(**{name: getattr(self, name)[chosen] for name in _NODE_FIELDS})
 
     def path(self, leaf: int) -> list[int]:
         """Node ids from the root to ``leaf``."""

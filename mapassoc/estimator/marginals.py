@@ -281,7 +281,7 @@ def window_marginals(
         raise InputError(f"beam_width must be >= 1, got {beam_width!r}")
     length = solution.table.kmax + 1
     log_w = track_count_log_weights(solution, length)
-    weights = problem.log_weights
+    weights = problem.weights
     counts = problem.counts.astype(np.int64)
 
     # The product's factors, each with its per-k lower and upper log-masses.
@@ -413,7 +413,7 @@ def _cluster_marginals(
     window_of = part.members
     for i, m in enumerate(kept.tolist()):
         originals = window_of[merged.members[m]]
-        share = weights[originals] - sub.log_weights[i]  # type: ignore[index]
+        share = weights[originals] - sub.weights[i]
         n_lo[originals] = node_lo[i] + share
         n_hi[originals] = node_hi[i] + share
         z_lo[originals] = cluster_z_lo
@@ -465,7 +465,7 @@ def _pruned_bounds(
     strict = closed[None, :] & ~covered
     size = g_hi.shape[0]
     ks = np.arange(size, dtype=float)
-    log_w = np.asarray(full.log_weights, dtype=float)
+    log_w = full.weights
     bound = np.full((targets.size, size), math.inf)
     with np.errstate(divide="ignore", invalid="ignore"):
         for mu in _MU_GRID:
@@ -509,7 +509,8 @@ def _derived(
     tree = hyps.tree.astype(np.int64)
 
     def per_tree(values: FloatArray) -> FloatArray:
-        return np.bincount(tree[counted], weights=values[counted], minlength=num_trees)
+        sums = np.bincount(tree[counted], weights=values[counted], minlength=num_trees)
+        return np.asarray(sums, dtype=np.float64)  # weighted counts are float already
 
     lengths = np.diff(hyps.detection_indptr)
     owner = np.repeat(np.arange(hyps.count), lengths)
@@ -518,10 +519,10 @@ def _derived(
     pairs, slot = np.unique(key, return_inverse=True)
 
     def per_pair(values: FloatArray) -> FloatArray:
-        return np.bincount(slot, weights=values[owner], minlength=pairs.size)
+        return np.asarray(np.bincount(slot, weights=values[owner], minlength=pairs.size), float)
 
     def per_detection(values: FloatArray) -> FloatArray:
-        return np.bincount(dets, weights=values[owner], minlength=D)
+        return np.asarray(np.bincount(dets, weights=values[owner], minlength=D), float)
 
     assoc = per_pair(probabilities)
     return WindowMarginals(

@@ -431,8 +431,9 @@ class RecordingObjective:
         key = (id(model), dt)
         cached = self._motion_cache.get(key)
         if cached is None:
-            F = np.asarray(model.transition_matrix(dt), dtype=float)  # type: ignore[attr-defined]
-            cached = (F, np.asarray(model.process_noise(dt), dtype=float))
+            # A linear model's Jacobian is F(dt), wherever it is taken.
+            F = np.asarray(model.jacobian(np.zeros(model.state_dim), dt), dtype=np.float64)
+            cached = (F, np.asarray(model.process_noise(dt), dtype=np.float64))
             self._motion_cache[key] = cached
         return cached
 
@@ -817,7 +818,7 @@ def _inverse_and_logdet(S: FloatArray) -> tuple[FloatArray, FloatArray]:
         sign, logdet = np.linalg.slogdet(S)
         if np.any(sign <= 0):
             raise InputError("innovation covariance S is not positive-definite")
-        return np.linalg.inv(S), logdet
+        return np.asarray(np.linalg.inv(S), dtype=np.float64), logdet
     if not np.all(positive):
         raise InputError("innovation covariance S is not positive-definite")
     return inverse, np.log(det)

@@ -64,7 +64,7 @@ from mapassoc.formulations.packing import (
     merge_interchangeable,
 )
 from mapassoc.models.population import UndetectedTargets, WindowPopulation
-from mapassoc.solvers import get_solver
+from mapassoc.solvers import get_integer_solver
 
 __all__ = [
     "WindowStatus",
@@ -575,7 +575,7 @@ def time_scale_warning(config: Config, scans: Sequence[Scan]) -> str | None:
         P = np.zeros((n, n))
         if rest:
             P[np.ix_(rest, rest)] = model.birth_prior(config.birth)[1]
-        F = model.transition_matrix(dt)  # type: ignore[attr-defined]
+        F = model.jacobian(np.zeros(n), dt)  # a linear model's Jacobian is F(dt)
         predicted = F @ P @ F.T + model.process_noise(dt)
         spread = float(np.sqrt(np.max(np.diag(predicted)[position])))
     if math.isfinite(spread) and spread <= SPREAD_WARNING_RATIO * extent:
@@ -614,14 +614,9 @@ class WindowEstimator:
             prune_log_ratio=s.prune_log_ratio,
         )
         try:
-            self.solver = get_solver(s.solver)
+            self.solver = get_integer_solver(s.solver)
         except ValueError as exc:
-            raise InputError(f"estimator solver: {exc}") from None
-        if not self.solver.supports_integer:
-            raise InputError(
-                f"solver '{s.solver}' cannot solve integer programs; choose one of the "
-                "integer-capable backends (for example 'highs')"
-            )
+            raise InputError(f"estimator solver: {exc}", key="solver") from None
         self.cluster_solver = ClusterSolver(
             solver=self.solver,
             exact_work_limit=s.exact_work_limit,
@@ -694,7 +689,7 @@ class WindowEstimator:
                     continue
                 single = single_hypothesis_table(
                     float(problem.scores[h]),
-                    float(problem.log_weights[h]),  # type: ignore[index]
+                    float(problem.weights[h]),
                     bool(problem.counts[h]),
                     bool(has_required[h]),
                     min(kmax, 1),
@@ -723,29 +718,23 @@ class WindowEstimator:
             parts.append(WindowCluster("cluster", members, table, report.status, unpruned, keep))
         if independent:
             lone = np.asarray(independent, dtype=np.int64)
-            tables.append(
-                independent_table(
-                    problem.scores[lone],
-                    problem.log_weights[lone],
-                    lone,  # type: ignore[index]
-                )
-            )
+            tables.append(independent_table(problem.scores[lone], problem.weights[lone], lone))
             parts.append(WindowCluster("independent", lone, tables[-1]))
-        table = combine_tables(tables, kmax)
+        combined = combine_tables(tables, kmax)
         posterior = k_posterior(
-            table.best,
-            table.log_mass,
+            combined.best,
+            combined.log_mass,
             prior=self.count_prior,
             population=population,
-            exact=table.exact,
-            best_upper=table.best_upper,
-            log_mass_upper=table.log_mass_upper,
+            exact=combined.exact,
+            best_upper=combined.best_upper,
+            log_mass_upper=combined.log_mass_upper,
         )
         t2 = time.perf_counter()
         return WindowSolution(
             hypotheses=hyps,
             problem=problem,
-            table=table,
+            table=combined,
             posterior=posterior,
             population=population,
             cluster_sizes=tuple(len(c) for c in clusters),
@@ -851,9 +840,10 @@ class WindowEstimator:
         problem = None
         try:
             with np.errstate(over="raise", invalid="raise"):
-                matrices = (self.config.motion.process_noise(dt),)
-                if self.config.motion.is_linear:
-                    matrices += (self.config.motion.transition_matrix(dt),)  # type: ignore[attr-defined]
+                matrices = [self.config.motion.process_noise(dt)]
+                if self.config.motion.is_linear:  # its Jacobian is F(dt)
+                    n = self.config.motion.state_dim
+                    matrices.append(self.config.motion.jacobian(np.zeros(n), dt))
             if not all(np.all(np.isfinite(m)) for m in matrices):
                 problem = "its matrices are not finite"
         except (OverflowError, FloatingPointError) as exc:

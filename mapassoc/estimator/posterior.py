@@ -169,7 +169,7 @@ class BirthLaw(CountLaw):
     ) -> FloatArray:
         """``nu / (top + 1 - T)``: W_T is the Poisson term alone, whose step
         ``nu / (K + 1 - T)`` falls with K."""
-        return population.undetected_mean / (top + 1.0 - tracks)
+        return np.asarray(population.undetected_mean / (top + 1.0 - tracks), dtype=np.float64)
 
 
 class UniformLaw(CountLaw):
@@ -191,7 +191,7 @@ class UniformLaw(CountLaw):
         if mu <= 0:
             return np.zeros(tracks.shape[0])
         q = population.undetected_mean / mu
-        return q * (top + 1.0) / (top + 1.0 - tracks)
+        return np.asarray(q * (top + 1.0) / (top + 1.0 - tracks), dtype=np.float64)
 
 
 class PoissonLaw(CountLaw):
@@ -210,7 +210,8 @@ class PoissonLaw(CountLaw):
         mu = population.new_target_mean
         if mu <= 0:
             return np.zeros(tracks.shape[0])
-        return prior.mean / mu * population.undetected_mean / (top + 1.0 - tracks)
+        step = prior.mean / mu * population.undetected_mean / (top + 1.0 - tracks)
+        return np.asarray(step, dtype=np.float64)
 
 
 class WeightsLaw(CountLaw):

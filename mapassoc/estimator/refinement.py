@@ -80,7 +80,7 @@ from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.frontier import SearchLimitExceeded, frontier_search
 from mapassoc.formulations.marginals import frontier_marginals
 from mapassoc.formulations.packing import PackingProblem, decode_selection, set_packing_program
-from mapassoc.solvers import get_solver
+from mapassoc.solvers import get_integer_solver
 
 __all__ = [
     "RefinementSettings",
@@ -386,9 +386,9 @@ class Refiner:
             prune_log_ratio=settings.prune_log_ratio,
         )
         try:
-            self.solver = get_solver(est.solver)
+            self.solver = get_integer_solver(est.solver)
         except ValueError as exc:
-            raise InputError(f"estimator solver: {exc}") from None
+            raise InputError(f"estimator solver: {exc}", key="solver") from None
         self.time_limit = est.time_limit
         self._refilter = settings.refilter_detections
         self.exact_work_limit = est.exact_work_limit
@@ -510,12 +510,14 @@ class Refiner:
         for tid in touched:
             del tracks[tid]
             del values[tid]
-        for (tid, path), value in zip(pieces, new_values, strict=True):
-            if tid is None:
-                tid = self._next_id
+        for (kept_id, path), value in zip(pieces, new_values, strict=True):
+            if kept_id is None:
+                new_id = self._next_id
                 self._next_id += 1
-            tracks[tid] = path
-            values[tid] = value
+            else:
+                new_id = kept_id
+            tracks[new_id] = path
+            values[new_id] = value
         return True, limited
 
     def _best_set(self, problem: PackingProblem) -> tuple[NDArray[np.int64] | None, bool]:
@@ -600,14 +602,14 @@ class Refiner:
         # An anchor's value alone: its first detection started anew, every anchor's
         # re-filter in one batch.
         alone = [i for i, anchor in enumerate(anchors) if not anchor.whole]
-        values = obj.continue_converging_many(
+        alone_values = obj.continue_converging_many(
             [
                 (obj.start_path(anchors[i].path), anchors[i].reference, anchors[i].offset + 1)
                 for i in alone
             ],
             max_detections=self._refilter,
         )
-        for i, value in zip(alone, values, strict=True):
+        for i, value in zip(alone, alone_values, strict=True):
             anchors[i] = replace(anchors[i], value=float(value[0]))
         return carried, anchors, touched
 
@@ -669,7 +671,7 @@ class Refiner:
         plain = scores + tails
         weights = scores + np.where(alive, obj.tail_masses[a + np.maximum(layer, 0)], 0.0)
         is_carried = hyps.tree < C
-        for h in np.flatnonzero(is_carried & ~hyps.counts_toward_k):
+        for h in np.flatnonzero(is_carried & ~hyps.counts_toward_k).tolist():
             c = carried[int(hyps.tree[h])]
             plain[h] = max(scores[h], c.value_ended - c.value_alive)
             weights[h] = float(np.logaddexp(scores[h], c.mass_ended - c.value_alive))

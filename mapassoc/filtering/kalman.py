@@ -75,7 +75,7 @@ def cholesky(S: FloatArray, name: str = "covariance") -> FloatArray:
     """
     S = np.asarray(S, dtype=float)
     try:
-        return np.linalg.cholesky(S)
+        return np.asarray(np.linalg.cholesky(S), dtype=np.float64)
     except np.linalg.LinAlgError:
         pass
     flat = S.reshape((-1,) + S.shape[-2:])

@@ -320,7 +320,10 @@ class _LinearKinematic(MotionModel):
             if len(cache) >= _MATRIX_CACHE_SIZE:
                 cache.clear()
             eye = np.eye(self.ndim)
-            F, Q = (np.kron(block, eye) for block in self._axis_blocks(key[0]))
+            F, Q = (
+                np.asarray(np.kron(block, eye), dtype=np.float64)
+                for block in self._axis_blocks(key[0])
+            )
             F.setflags(write=False)
             Q.setflags(write=False)
             found = cache[key] = (F, Q)

@@ -78,7 +78,7 @@ def _check_count(name: str, value: object) -> int:
 
 def _frozen(array: ArrayLike, dtype: type = float) -> NDArray:
     """A read-only copy of ``array`` (so that frozen dataclasses stay frozen)."""
-    out = np.array(array, dtype=dtype, copy=True)
+    out: NDArray = np.array(array, dtype=dtype, copy=True)
     out.flags.writeable = False
     return out
 

@@ -41,6 +41,7 @@ from mapassoc.solvers import (
     LPResult,
     SolveStatus,
     available_solvers,
+    get_integer_solver,
     get_solver,
     lagrangian_bound,
     registry,
@@ -147,6 +148,28 @@ def test_error_messages_list_the_available_solvers(monkeypatch: pytest.MonkeyPat
         "solver 'networkx-flow' is unavailable (cannot import networkx); "
         f"available solvers: {remaining}"
     )
+
+
+def test_integer_solvers_are_the_rows_with_the_capabilities() -> None:
+    integer = [s.name for s in SOLVERS if s.supports_integer]
+    exact = [s.name for s in SOLVERS if s.supports_integer and s.exact]
+    assert "highs" in exact and "networkx-flow" not in integer
+    assert "cvxpy-clarabel" not in integer  # an interior-point LP solver
+    for name in set(available_solvers()) & set(integer):
+        backend = get_integer_solver(name)
+        assert backend.name == name and backend.supports_integer
+    with pytest.raises(ValueError) as flow:
+        get_integer_solver("networkx-flow")
+    assert str(flow.value) == (
+        f"solver 'networkx-flow' is not a solver of integer programs; choose one of "
+        f"{', '.join(integer)}"
+    )
+    inexact = [s.name for s in SOLVERS if s.supports_integer and not s.exact]
+    for name in inexact:
+        with pytest.raises(ValueError, match="not an exact solver of integer programs"):
+            get_integer_solver(name, exact=True)
+    with pytest.raises(ValueError, match="unknown solver 'gurobi'"):
+        get_integer_solver("gurobi")
 
 
 def test_importing_the_solvers_does_not_import_optional_libraries() -> None:
