@@ -8,7 +8,7 @@ For a packing problem (or one of its clusters) and every k = 0..kmax, a
 * ``log_mass[k]``: ``log sum exp(total score)`` over all those sets (``-inf`` if none).
 
 With scores equal to log-likelihood ratios, ``best`` gives the joint MAP track set for
-each K and ``log_mass`` the marginal over track sets (seed 002: the track sets summed
+each K and ``log_mass`` the marginal over track sets (Perry's MAP formulation: the track sets summed
 out).  Independent clusters combine by :func:`convolve`: max-plus for ``best``,
 sum-product (log-sum-exp) for ``log_mass``.
 

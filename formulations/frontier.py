@@ -7,7 +7,7 @@ unused (not allowed for an exactly-once resource) or is taken by one hypothesis 
 about the choices so far is the set of *later* resources they already cover: the
 **frontier**.  Summing (log-sum-exp) and maximising over the choices frontier by
 frontier gives, for every k, the best score, a best set and the log-mass of all
-feasible sets with k counted hypotheses: the quantities of seed 002 (eq. 14 and the
+feasible sets with k counted hypotheses: the quantities of Perry's MAP formulation (eq. 14 and the
 marginal over track sets) for one cluster.
 
 The cost is the number of distinct frontiers, which the order decides.  Resources are

@@ -6,7 +6,7 @@ resources must be used exactly once (carried tracks: a carried track continues,
 misses or ends, but never vanishes) and which hypotheses count toward K.
 
 For a given K the integer program is (Morefield 1977 set packing, plus the
-cardinality row of seed 002, eq. 14)::
+cardinality row of Perry's MAP formulation, eq. 14)::
 
     maximise    sum_h score_h x_h
     subject to  sum_{h uses r} x_h <= 1      every detection r

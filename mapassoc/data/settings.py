@@ -53,7 +53,7 @@ class BirthModel:
     ----------
     rate : float
         Expected number of new targets per scan, >= 0 (0: no target appears after the
-        start, as in seed 002's fixed population).
+        start, as in Perry's fixed population).
     initial_count : float
         Expected number of targets present at the first scan of the recording, >= 0.
     velocity_std : float
@@ -127,9 +127,9 @@ class EstimatorSettings:
         K = 0..Kmax; the reported p(K | Z) is the exact posterior under it
         (:mod:`mapassoc.estimator.posterior`).  ``"birth"`` (default): the law the birth model
         implies (Poisson for a window that starts the recording), no extra factor;
-        ``"uniform"``: uniform on 0..Kmax (seed 002); ``"poisson"``: Poisson with mean
-        ``k_prior_mean``; ``"weights"``: ``k_prior_weights``.  The default was chosen by
-        measurement (README, "Prior on the number of targets").
+        ``"uniform"``: uniform on 0..Kmax (Perry's MAP formulation); ``"poisson"``:
+        Poisson with mean ``k_prior_mean``; ``"weights"``: ``k_prior_weights``.  The
+        default was chosen by measurement (README, "Prior on the number of targets").
     k_prior_mean : float
         Mean of the Poisson prior (used when ``k_prior == "poisson"``).
     k_prior_weights : tuple of float
@@ -138,8 +138,8 @@ class EstimatorSettings:
         Which estimate of K the committed track set uses
         (``mapassoc.estimator.posterior.K_ESTIMATORS``):
         ``argmax p(K | Z)`` (marginal, default), the K of the joint MAP (K, track set)
-        (seed 002, eq. 14) with its set, or the posterior median; for the marginal and
-        the median the set is the MAP track set given that K.
+        (Perry's MAP formulation, eq. 14) with its set, or the posterior median; for the
+        marginal and the median the set is the MAP track set given that K.
     solver : str
         Integer-program backend for clusters too large for the exact search (a name
         from ``mapassoc.solvers.available_solvers()``).

@@ -12,7 +12,7 @@ dead at this one), the track missed, or the track continued by one gated detecti
 The score of a hypothesis (a root-to-leaf path) is its log-likelihood ratio against
 "all its detections are false alarms and the track does not exist"; it is a sum of
 the terms below (derivation: ``docs/model.md``; the sum over a track set plus a
-constant is ``log p(track set, K | Z)`` of seed 002, eqs. 8-14):
+constant is ``log p(track set, K | Z)`` of Perry's MAP formulation, eqs. 8-14):
 
 ====================================  ===============================================
 event at a scan of sensor s           term
@@ -24,7 +24,7 @@ first detection z at scan j           ``log u_j + log Pd_s - log lambda_bar_s``
                                       clutter density ``lambda_s = lambda_bar_s / V_s``)
 survival over dt                      ``dt log Ps``
 continued by detection z              ``log Pd_s + log N(nu; 0, S) - log lambda_s``
-                                      (seed 001 weight; seed 000 eq. 11)
+                                      (the n-object posterior weight; Afzal's survey eq. 11)
 missed                                ``log(1 - Pd_s P_G)`` (P_G: gate probability)
 ended over dt                         ``log(1 - Ps^dt)``
 ====================================  ===============================================
@@ -633,10 +633,10 @@ class HypothesisGenerator:
         * ended over dt: ``log(1 - Ps^dt) <= 0``;
         * missed: ``dt log Ps + log(1 - Pd_k P_G) <= 0`` (``dt >= 0``, ``Ps <= 1``);
         * continued by a detection: ``dt log Ps + log Pd_k + log N(nu; 0, S) - log
-          lambda_k``.  The Gaussian density (seed 000, eq. 3) is
+          lambda_k``.  The Gaussian density (Afzal's survey, eq. 3) is
           ``log N(nu; 0, S) = -0.5 log det(2 pi S) - 0.5 nu^T S^-1 nu
           <= -0.5 log det(2 pi S)``.  The innovation covariance is
-          ``S = H P H^T + R`` (seed 000, section 4.3; for the EKF H is the Jacobian of
+          ``S = H P H^T + R`` (Afzal's survey, section 4.3; for the EKF H is the Jacobian of
           the range-bearing model, the same form), and ``H P H^T`` is positive
           semidefinite, so ``det S = det R det(I + R^-1/2 H P H^T R^-1/2) >= det R``
           (the second factor is a product of eigenvalues >= 1).  With ``dt log Ps <= 0``

@@ -241,7 +241,7 @@ class WindowReport:
     """One line of ``windows.jsonl``.
 
     Two counts are reported.  K is the number of **targets** present in the window
-    (seed 002's K, detected or not): ``p_k`` is p(K | Z) under the configured
+    (Perry's K, detected or not): ``p_k`` is p(K | Z) under the configured
     ``k_prior``, and ``joint_map_k``, ``marginal_k`` and
     ``chosen_k`` are estimates of it.  T is the number of **tracks** of a track set
     (carried tracks alive in the window plus tracks started in it; what the set packing

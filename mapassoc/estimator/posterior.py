@@ -1,4 +1,5 @@
-"""The posterior over the number of targets K in a window (seed 002), under a named prior.
+"""The posterior over the number of targets K in a window (Perry's MAP formulation), under a
+named prior.
 
 The window's per-T tables (T the number of tracks of a track set: carried tracks
 alive in the window plus tracks started in it) give, for T = 0..Kmax,
@@ -173,7 +174,7 @@ class BirthLaw(CountLaw):
 
 
 class UniformLaw(CountLaw):
-    """Uniform on 0..kmax (seed 002)."""
+    """Uniform on 0..kmax (Perry's MAP formulation)."""
 
     name = "uniform"
 
@@ -259,7 +260,7 @@ class CountPrior:
     ----------
     kind : str
         A name of :data:`COUNT_LAWS`: ``"birth"`` (the law the birth model implies),
-        ``"uniform"`` (seed 002), ``"poisson"`` (mean ``mean``) or ``"weights"``.
+        ``"uniform"`` (Perry's MAP formulation), ``"poisson"`` (mean ``mean``) or ``"weights"``.
     kmax : int
         Largest K, >= 0.
     mean : float
@@ -416,7 +417,8 @@ class KEstimator:
 
 
 class MarginalK(KEstimator):
-    """argmax p(K | Z) (seed 002: the track sets summed out), with the MAP set given K."""
+    """argmax p(K | Z) (Perry's MAP formulation: the track sets summed out), with the MAP set
+    given K."""
 
     name = "marginal"
 
@@ -425,7 +427,8 @@ class MarginalK(KEstimator):
 
 
 class JointMapK(KEstimator):
-    """K and the track set of the joint MAP estimate of (K, track set) (seed 002, eq. 14)."""
+    """K and the track set of the joint MAP estimate of (K, track set) (Perry's MAP
+    formulation, eq. 14)."""
 
     name = "joint"
 

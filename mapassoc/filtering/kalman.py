@@ -1,7 +1,7 @@
 """Kalman and extended Kalman filtering, gating and Rauch-Tung-Striebel smoothing.
 
 Pure functions on numpy arrays.  States are ``(..., n)``, covariances ``(..., n, n)``;
-any leading axes are a batch.  Equations follow seed 000, section 4.3:
+any leading axes are a batch.  Equations follow Afzal's survey, section 4.3:
 
 * prediction ``x = f(x)``, ``P = F P F^T + Q`` (linear: ``f(x) = F x``; EKF: F is the
   Jacobian of f at the prior mean);
@@ -9,7 +9,7 @@ any leading axes are a batch.  Equations follow seed 000, section 4.3:
 * gain ``K = P H^T S^-1``; update ``x + K nu`` and the Joseph form
   ``(I - K H) P (I - K H)^T + K R K^T``, which stays symmetric positive-definite where
   the textbook ``P - K H P`` can lose definiteness to round-off;
-* predicted likelihood (seed 000, eq. 3) ``log N(nu; 0, S)`` through a Cholesky factor
+* predicted likelihood (Afzal's survey, eq. 3) ``log N(nu; 0, S)`` through a Cholesky factor
   of S.
 
 A covariance that is not positive-definite raises
@@ -189,7 +189,7 @@ def update(
 
 
 def log_gaussian(nu: FloatArray, S: FloatArray) -> FloatArray:
-    """``log N(nu; 0, S)`` through a Cholesky factor of S (seed 000, eq. 3).
+    """``log N(nu; 0, S)`` through a Cholesky factor of S (Afzal's survey, eq. 3).
 
     Parameters
     ----------

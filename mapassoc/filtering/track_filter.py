@@ -11,7 +11,7 @@ A :class:`FilteredTrack` is immutable: every step returns a new one, so a hypoth
 
 Scores follow the track-score (log-likelihood-ratio) convention of Blackman & Popoli,
 *Design and Analysis of Modern Tracking Systems* (1999), section 6.2, on the models of
-seed 000, eqs. (9)-(13): a detection ``z`` in a track's gate adds
+Afzal's survey, eqs. (9)-(13): a detection ``z`` in a track's gate adds
 ``log Pd + log N(z; h(x), S) - log lambda`` (lambda the clutter intensity, eq. 13) and a
 miss adds ``log(1 - Pd P_G)``, with P_G the gate probability.
 """
@@ -98,7 +98,7 @@ class Innovations:
     d2 : ndarray, shape (m,)
         Squared Mahalanobis distances ``nu^T S^-1 nu``.
     log_likelihood : ndarray, shape (m,)
-        ``log N(nu; 0, S)`` (seed 000, eq. 3).
+        ``log N(nu; 0, S)`` (Afzal's survey, eq. 3).
     """
 
     nu: FloatArray

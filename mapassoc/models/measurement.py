@@ -1,4 +1,4 @@
-"""Measurement models h(x) + v, v ~ N(0, R) (seed 000, section 4, "Measurement Modeling").
+"""Measurement models h(x) + v, v ~ N(0, R) (Afzal's survey, section 4, "Measurement Modeling").
 
 * :class:`LinearMeasurement`: ``z = H x + v``; :meth:`LinearMeasurement.position` builds
   the usual position-only H for a motion model.

@@ -3,7 +3,7 @@
 Every model works for any scan interval ``dt > 0`` and on batches: a state array of
 shape ``(..., n)`` maps to ``(..., n)``, a Jacobian to ``(..., n, n)``.
 
-Linear models (seed 000, section 4.3, "Motion Model"):
+Linear models (Afzal's survey, section 4.3, "Motion Model"):
 
 * :class:`ConstantVelocity` and :class:`ConstantAcceleration` in 1, 2 or 3 spatial
   dimensions, discretised from continuous white-noise acceleration (respectively jerk)
@@ -12,9 +12,10 @@ Linear models (seed 000, section 4.3, "Motion Model"):
 * :class:`Singer`: exponentially correlated (Ornstein-Uhlenbeck) acceleration with time
   constant ``tau`` and standard deviation ``sigma`` (Singer 1970), 1-3 D.
 * :class:`RandomWalk`: ``x_k = x_{k-1} + q``, ``q ~ N(0, noise_intensity * dt * I)``
-  (the scalar model of seeds 001 and 003 with ``dt = 1``).
+  (the scalar model of the n-object posterior's and of single-object tracking in clutter's
+  worked examples, with ``dt = 1``).
 
-Nonlinear model (seed 000, "Coordinated Turn"):
+Nonlinear model (Afzal's survey, "Coordinated Turn"):
 
 * :class:`CoordinatedTurn`: state ``(x, y, speed, heading, turn_rate)``, with the
   Jacobian used by the extended Kalman filter.
@@ -410,7 +411,7 @@ class RandomWalk(_LinearKinematic):
     """Random walk ``x_k = x_{k-1} + q_k`` with ``q_k ~ N(0, noise_intensity * dt * I)``.
 
     Seeds 001 and 003 use the scalar case (``ndim=1``, ``dt=1``), for which
-    ``noise_intensity`` is the per-step motion variance (0.35 in seed 003).
+    ``noise_intensity`` is the per-step motion variance (0.35 in single-object tracking in clutter).
 
     Parameters
     ----------

@@ -5,20 +5,20 @@ which the approximate (pruned, windowed, optimised) estimators are checked.  The
 cost grows combinatorially; use them on small problems only.
 
 * :func:`enumerate_associations` and :func:`association_table`: the data association
-  vectors theta of seed 000, section 5.2 (eq. 18-20), and the object/clutter split of
+  vectors theta of Afzal's survey, section 5.2 (eq. 18-20), and the object/clutter split of
   its Table 1.
 * :func:`n_object_posterior`: the posterior of n objects with independent Gaussian
-  priors after one scan (seed 001).  For each theta the unnormalised weight is::
+  priors after one scan (the n-object posterior).  For each theta the unnormalised weight is::
 
       w~_theta = (1 - Pd)^(#missed) * (Pd / lambda)^(#detected)
                  * prod_{i detected} N(z_theta_i; z^_i, S_i)
 
-  (seed 001; design notes: the combinatorial factors of the Poisson clutter cancel),
-  normalised as ``w_theta = w~_theta / sum_theta' w~_theta'`` (seed 001), and every
+  (the n-object posterior; design notes: the combinatorial factors of the Poisson clutter cancel),
+  normalised as ``w_theta = w~_theta / sum_theta' w~_theta'`` (the n-object posterior), and every
   object's density given theta is its Kalman update with ``z_theta_i`` (prior when
   missed).
 * :func:`single_object_sequences`: one object in clutter over several scans, one
-  hypothesis per sequence of associations theta_1:k (seed 003)::
+  hypothesis per sequence of associations theta_1:k (single-object tracking in clutter)::
 
       w~_theta_1:k = w~_theta_1:k-1 * (1 - Pd)                        if theta_k = 0
       w~_theta_1:k = w~_theta_1:k-1 * (Pd / lambda) N(z_theta_k; z^, S)  otherwise
@@ -28,7 +28,7 @@ probability of exactly 1 gives missed detections ``log 0 = -inf``, hence weight 
 0, without numerical warnings.
 
 Measurement indices follow the seeds: 1-based, with 0 meaning "missed".  The clutter
-intensity lambda is per unit measurement volume (seed 001 uses lambda = 0.3 per unit
+intensity lambda is per unit measurement volume (the n-object posterior uses lambda = 0.3 per unit
 length on [-5, 5], not 0.3 / 10).
 """
 
@@ -84,12 +84,12 @@ def _frozen(array: ArrayLike, dtype: type = float) -> NDArray:
 
 
 # --------------------------------------------------------------------------------------
-# Association vectors (seed 000, section 5.2)
+# Association vectors (Afzal's survey, section 5.2)
 # --------------------------------------------------------------------------------------
 
 
 def enumerate_associations(num_objects: int, num_measurements: int) -> list[tuple[int, ...]]:
-    """Every data association vector theta, in lexicographic order (seed 000, eq. 18-20).
+    """Every data association vector theta, in lexicographic order (Afzal's survey, eq. 18-20).
 
     ``theta[i]`` is 0 when object i is missed and ``j`` in ``1..m`` when it is
     associated with measurement j; no measurement index appears twice (point objects).
@@ -138,7 +138,7 @@ def enumerate_associations(num_objects: int, num_measurements: int) -> list[tupl
 
 @dataclass(frozen=True)
 class AssociationRow:
-    """One row of seed 000, Table 1: who generated which measurement under theta.
+    """One row of Afzal's survey, Table 1: who generated which measurement under theta.
 
     Parameters
     ----------
@@ -164,7 +164,7 @@ class AssociationRow:
 
 
 def association_table(theta: Sequence[int], num_measurements: int) -> AssociationRow:
-    """The object and clutter measurements implied by theta (seed 000, Table 1).
+    """The object and clutter measurements implied by theta (Afzal's survey, Table 1).
 
     Parameters
     ----------
@@ -214,7 +214,7 @@ def association_table(theta: Sequence[int], num_measurements: int) -> Associatio
 
 @dataclass(frozen=True, eq=False)
 class GaussianMixture:
-    """A normalised Gaussian mixture ``sum_c w_c N(x; mu_c, P_c)`` (seed 000, Appendix A).
+    """A normalised Gaussian mixture ``sum_c w_c N(x; mu_c, P_c)`` (Afzal's survey, Appendix A).
 
     Parameters
     ----------
@@ -370,7 +370,7 @@ def _all_updates(
     Returns
     -------
     log_likelihood : ndarray, shape (H, m)
-        ``log N(z_j; z^_h, S_h)`` (seed 000, eq. 3).
+        ``log N(z_j; z^_h, S_h)`` (Afzal's survey, eq. 3).
     post_means : ndarray, shape (H, m, dx)
     post_covs : ndarray, shape (H, m, dx, dx)
     """
@@ -386,13 +386,14 @@ def _all_updates(
 
 
 # --------------------------------------------------------------------------------------
-# n objects, one scan (seed 001)
+# n objects, one scan (the n-object posterior)
 # --------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True, eq=False)
 class NObjectPosterior:
-    """Exact posterior of n objects after one scan: a mixture over associations (seed 001).
+    """Exact posterior of n objects after one scan: a mixture over associations (the
+    n-object posterior).
 
     Parameters
     ----------
@@ -435,7 +436,8 @@ class NObjectPosterior:
         return float(self.weights[index])
 
     def marginal(self, i: int) -> GaussianMixture:
-        """Marginal posterior of object i: one Gaussian component per theta (seed 001).
+        """Marginal posterior of object i: one Gaussian component per theta (the n-object
+        posterior).
 
         Parameters
         ----------
@@ -464,15 +466,16 @@ def n_object_posterior(
     detection_probability: float,
     clutter_intensity: float,
 ) -> NObjectPosterior:
-    """Exact n-object posterior after one scan, enumerating every association (seed 001).
+    """Exact n-object posterior after one scan, enumerating every association.
 
-    For each theta (seed 000, eq. 18-20), the unnormalised weight is (seed 001)::
+    For each theta (Afzal's survey, eq. 18-20), the unnormalised weight is (the n-object
+    posterior)::
 
         log w~_theta = #missed * log(1 - Pd) + #detected * log(Pd / lambda)
                        + sum_{i: theta_i > 0} log N(z_theta_i; z^_i, S_i)
 
     with ``z^_i, S_i`` the predicted measurement and innovation covariance of object i
-    (seed 000, section 4.3), and the normalised weight is ``w~_theta / sum w~``.  Given
+    (Afzal's survey, section 4.3), and the normalised weight is ``w~_theta / sum w~``.  Given
     theta, object i has the Kalman-updated mean and covariance with ``z_theta_i`` if
     ``theta_i > 0`` and its prior otherwise.  Nonlinear measurement models give the
     extended-Kalman approximation of these quantities.
@@ -540,7 +543,7 @@ def n_object_posterior(
 
 
 # --------------------------------------------------------------------------------------
-# One object, several scans (seed 003)
+# One object, several scans (single-object tracking in clutter)
 # --------------------------------------------------------------------------------------
 
 
@@ -554,7 +557,7 @@ class SequencePosterior:
         Every sequence ``(theta_1, ..., theta_K)`` (0 = missed, j = measurement j of that
         scan, 1-based), in lexicographic order.
     log_weights : ndarray, shape (H,)
-        Unnormalised ``log w~_theta_1:K`` (seed 003), -inf where exactly 0.
+        Unnormalised ``log w~_theta_1:K`` (single-object tracking in clutter), -inf where exactly 0.
     weights : ndarray, shape (H,)
         Normalised weights, summing to 1.
     log_normalizer : float
@@ -596,12 +599,12 @@ def single_object_sequences(
     clutter_intensity: float,
     dt: float = 1.0,
 ) -> SequencePosterior:
-    """Exact single-object tracking in clutter: every association sequence (seed 003).
+    """Exact single-object tracking in clutter: every association sequence.
 
-    The prior is the *predicted* density at the first scan (seed 003: "the prior mean
-    at time 1 being 0.5").  Before every later scan each hypothesis is predicted through
-    ``motion`` over ``dt``; then each hypothesis theta_1:k-1 spawns one child per
-    theta_k in ``{0, 1..m_k}`` (seed 003)::
+    The prior is the *predicted* density at the first scan (single-object tracking in
+    clutter: "the prior mean at time 1 being 0.5").  Before every later scan each
+    hypothesis is predicted through ``motion`` over ``dt``; then each hypothesis
+    theta_1:k-1 spawns one child per theta_k in ``{0, 1..m_k}``::
 
         theta_k = 0:  log w~ += log(1 - Pd),  density = predicted density
         theta_k = j:  log w~ += log(Pd / lambda) + log N(z_j; z^, S),  Kalman update

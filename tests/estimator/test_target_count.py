@@ -338,7 +338,7 @@ def test_brute_force_counts_labelled_assignments() -> None:
 
 
 def perry_posterior(w: Window) -> np.ndarray:
-    """Seed 002's p(K | Z), literally: a uniform p(K) on 0..Kmax; K labelled targets
+    """Perry's MAP formulation's p(K | Z), literally: a uniform p(K) on 0..Kmax; K labelled targets
     present at every scan of the window; each detected with probability Pd at every
     scan; a track set omega with T tracks can be given to the K targets in
     K! / (K - T)! ways, and the K - T targets without a track are missed at all N
@@ -373,8 +373,8 @@ def perry_posterior(w: Window) -> np.ndarray:
 @pytest.mark.parametrize("seed", range(30))
 def test_public_configuration_reduces_to_seed_002(seed: int) -> None:
     """rate = 0, survival_probability = 1, k_prior = "uniform", no gate and no pruning,
-    a window that starts the recording: p(K | Z) is seed 002's posterior under its
-    uniform prior, whatever initial_count is (it scales every track set with T
+    a window that starts the recording: p(K | Z) is the posterior of Perry's MAP
+    formulation under its uniform prior, whatever initial_count is (it scales every track set with T
     tracks by initial_count^T, which the uniform prior's reweighting removes)."""
     w = replace(
         random_window(seed),

@@ -6,12 +6,13 @@ What is checked, against what:
    ``WindowEstimator.solve_window`` (computed on clusters with interchangeable hypotheses
    merged) equal, for every K, the optimum of the unmerged set-packing integer program
    (HiGHS) and the exhaustive enumerator's optimum and log-partition function.
-2. An independent evaluation of seed 002's posterior (docs/model.md, eq. (*) with the
-   birth/death extension): every track set of a tiny window is enumerated directly, scored
-   with the literal formula (Poisson false-alarm and birth counts, shuffle factors, Pd/miss
-   powers per scan, an inline Kalman filter) and compared with p(K | Z) and best[K].
-3. The reduction to seed 001: one scan, two carried tracks, weights and components equal
-   ``mapassoc.reference.association.n_object_posterior``.
+2. An independent evaluation of the posterior of Perry's MAP formulation (docs/model.md,
+   eq. (*) with the birth/death extension): every track set of a tiny window is enumerated
+   directly, scored with the literal formula (Poisson false-alarm and birth counts, shuffle
+   factors, Pd/miss powers per scan, an inline Kalman filter) and compared with p(K | Z)
+   and best[K].
+3. The reduction to the n-object posterior: one scan, two carried tracks, weights and
+   components equal ``mapassoc.reference.association.n_object_posterior``.
 4. Invariances: detection order within a scan, normalisation, infeasible K.
 5. Deaths: a carried track whose target leaves is ended, and pruning never makes a window
    infeasible.
@@ -342,7 +343,7 @@ def test_partition_enumeration_counts() -> None:
     assert len(found) == len(list(partitions([0, 0, 1]))) == 2 + 3 + 3 + 4
 
 
-# --------------------------------------------------------------- 3. seed 001 reduction
+# ------------------------------------------------------- 3. the n-object posterior reduction
 
 
 def enumerate_sets(problem: PackingProblem) -> list[np.ndarray]:
@@ -351,12 +352,12 @@ def enumerate_sets(problem: PackingProblem) -> list[np.ndarray]:
 
 
 def test_one_scan_window_reduces_to_seed_001() -> None:
-    """Seed 001's worked example through the public configuration alone (the seed-001
+    """The n-object posterior's worked example through the public configuration alone (its
     column of docs/model.md section 4): rate = 0 and initial_count = 0 (no new target),
     survival_probability = 1, no gate.  The window's feasible track sets are exactly
-    seed 001's seven association vectors with its weights and components, and both
+    the n-object posterior's seven association vectors with its weights and components, and both
     targets are certainly present (p(K = 2 | Z) = 1)."""
-    # Seed 001's example: priors N(-2.5, 0.36), N(2.5, 0.36); measurements -1.6 and 1;
+    # The n-object posterior's example: priors N(-2.5, 0.36), N(2.5, 0.36); measurements -1.6 and 1;
     # R = 0.2; Pd = 0.85; lambda = 0.3 per unit length on [-5, 5].
     config = make_config(
         motion=RandomWalk(ndim=1, noise_intensity=0.01),
@@ -389,7 +390,7 @@ def test_one_scan_window_reduces_to_seed_001() -> None:
     assert np.all(hyps.tree < 2) and len(carried_hyps) == 6
     sub = solution.problem
     sets = [np.flatnonzero(x > 0.5) for x in enumerate_sets(sub)]
-    assert len(sets) == 7  # seed 001: "for two objects and two measurements, seven"
+    assert len(sets) == 7  # the n-object posterior: "for two objects and two measurements, seven"
 
     def theta_of(selection: np.ndarray) -> tuple[int, ...]:
         theta = [0, 0]
@@ -418,7 +419,7 @@ def test_one_scan_window_reduces_to_seed_001() -> None:
     golden = 2 * math.log(0.85 / 0.3) - math.log(2 * math.pi * s) - (0.9**2 + 1.5**2) / (2 * s)
     assert log_w[(1, 2)] == pytest.approx(golden, abs=1e-12)
     assert log_w[(0, 0)] == pytest.approx(2 * math.log(0.15), abs=1e-12)
-    # Components: the leaf states are seed 001's Kalman-updated (or prior) components.
+    # Components: the leaf states are the n-object posterior's Kalman-updated (or prior) components.
     for local in range(len(carried_hyps)):
         h = int(carried_hyps[local])
         obj = int(hyps.tree[h])

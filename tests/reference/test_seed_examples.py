@@ -1,11 +1,11 @@
 """Acceptance tests: the seeds' worked examples, reproduced exactly by
 mapassoc.reference.association.
 
-* seed 000, section 5.2, eq. 18-20 and Table 1: the association vectors and their
+* Afzal's survey, section 5.2, eq. 18-20 and Table 1: the association vectors and their
   object / clutter split;
-* seed 001: the two-object posterior with seven associations (weights derived by hand
+* the n-object posterior: the two-object posterior with seven associations (weights derived by hand
   below, independently of the library);
-* seed 003: single-object tracking in clutter over two scans (checked against a
+* single-object tracking in clutter: one object over two scans (checked against a
   brute-force numerical integration on a grid that uses no Kalman formula).
 """
 
@@ -33,7 +33,7 @@ from mapassoc.reference.association import (
     single_object_sequences,
 )
 
-SCALAR_MEASUREMENT_VAR = 0.2  # seeds 001 and 003
+SCALAR_MEASUREMENT_VAR = 0.2  # the n-object posterior and single-object tracking in clutter
 
 
 def scalar_measurement() -> LinearMeasurement:
@@ -51,7 +51,7 @@ def normal(z: float, mean: float, var: float) -> float:
 
 
 def test_seed000_table1_two_objects_two_measurements() -> None:
-    # (theta, O^1, O^2, C, m^o, m^c) exactly as Table 1 of seed 000.
+    # (theta, O^1, O^2, C, m^o, m^c) exactly as Table 1 of Afzal's survey.
     table1 = [
         ((0, 0), (None, None), (1, 2), 0, 2),
         ((0, 1), (None, 1), (2,), 1, 1),
@@ -107,7 +107,7 @@ def test_association_table_rejects_invalid_theta(theta: tuple) -> None:
 
 
 # --------------------------------------------------------------------------------------
-# Seed 001: two objects, two measurements, seven associations
+# The n-object posterior: two objects, two measurements, seven associations
 # --------------------------------------------------------------------------------------
 
 SEED001_PRIOR_MEANS = np.array([[-2.5], [2.5]])
@@ -128,7 +128,7 @@ def seed001_posterior(pd: float):
 
 
 def seed001_hand_weights(pd: float) -> dict[tuple[int, int], float]:
-    """Unnormalised weights of seed 001, written out term by term."""
+    """Unnormalised weights of the n-object posterior, written out term by term."""
     S = 0.36 + 0.2  # innovation variance H P H^T + R = 0.56 for both objects
     assert S == pytest.approx(0.56)
     miss = 1.0 - pd  # (1 - Pd) per missed object
