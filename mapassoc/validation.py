@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from mapassoc.errors import InputError, NotPositiveDefiniteError
 
 __all__ = [
+    "check_integer",
     "check_probability",
     "check_positive",
     "check_nonnegative",
@@ -86,6 +87,46 @@ def check_nonnegative(name: str, value: object, *, key: str | None = None) -> fl
     if v < 0.0:
         raise InputError(f"{name} must be non-negative, got {value!r}", key=key)
     return v
+
+
+def check_integer(
+    name: str,
+    value: object,
+    *,
+    minimum: int | None = None,
+    maximum: int | None = None,
+    key: str | None = None,
+) -> int:
+    """Return ``value`` as an int after checking it is an integer within the bounds.
+
+    Python and numpy integers are accepted; booleans, floats (even ``3.0``) and strings
+    are not.
+
+    Parameters
+    ----------
+    name : str
+        Argument name used in the error message.
+    value : object
+        The value to check.
+    minimum, maximum : int, optional
+        Inclusive bounds.
+    key : str, optional
+        Field name stored in the raised error's ``InputError.key``.
+    """
+    if minimum is not None and maximum is not None:
+        expected = f"an integer in {minimum}..{maximum}"
+    elif minimum is not None:
+        expected = f"an integer >= {minimum}"
+    elif maximum is not None:
+        expected = f"an integer <= {maximum}"
+    else:
+        expected = "an integer"
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{name} must be {expected}, got {value!r}", key=key)
+    out = int(value)
+    if (minimum is not None and out < minimum) or (maximum is not None and out > maximum):
+        raise InputError(f"{name} must be {expected}, got {value!r}", key=key)
+    return out
 
 
 def check_finite_array(

@@ -19,7 +19,12 @@ from mapassoc.estimator.posterior import (
     KEstimator,
 )
 from mapassoc.models.motion import check_standard_deviation
-from mapassoc.validation import check_nonnegative, check_positive, check_probability
+from mapassoc.validation import (
+    check_integer,
+    check_nonnegative,
+    check_positive,
+    check_probability,
+)
 
 __all__ = ["BirthModel", "EstimatorSettings", "K_PRIORS", "K_ESTIMATES"]
 
@@ -28,9 +33,7 @@ K_ESTIMATES = tuple(K_ESTIMATORS)
 
 
 def _check_int(name: str, value: object, *, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}", key=name)
-    return value
+    return check_integer(name, value, minimum=minimum, key=name)
 
 
 @dataclass(frozen=True)

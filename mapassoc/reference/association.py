@@ -48,6 +48,7 @@ from mapassoc.models.motion import MotionModel
 from mapassoc.validation import (
     check_covariance,
     check_finite_array,
+    check_integer,
     check_positive,
     check_probability,
 )
@@ -69,11 +70,7 @@ IntArray = NDArray[np.int64]
 
 def _check_count(name: str, value: object) -> int:
     """Return ``value`` as an int after checking it is a non-negative integer."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name} must be a non-negative integer, got {value!r}")
-    if value < 0:
-        raise InputError(f"{name} must be a non-negative integer, got {value!r}")
-    return int(value)
+    return check_integer(name, value, minimum=0)
 
 
 def _frozen(array: ArrayLike, dtype: type = float) -> NDArray:
@@ -185,10 +182,7 @@ def association_table(theta: Sequence[int], num_measurements: int) -> Associatio
     m = _check_count("num_measurements", num_measurements)
     entries = tuple(theta)
     for i, value in enumerate(entries):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-            raise InputError(f"theta[{i}] must be an integer in 0..{m}, got {value!r}")
-        if not 0 <= value <= m:
-            raise InputError(f"theta[{i}] must be in 0..{m} (0 = missed), got {value!r}")
+        check_integer(f"theta[{i}] (0 = missed)", value, minimum=0, maximum=m)
     values = tuple(int(v) for v in entries)
     detected = [v for v in values if v > 0]
     if len(set(detected)) != len(detected):
@@ -451,8 +445,7 @@ class NObjectPosterior:
             covariances ``(A, dx, dx)``.
         """
         n = self.num_objects
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < n:
-            raise InputError(f"object index i must be an integer in 0..{n - 1}, got {i!r}")
+        i = check_integer("object index i", i, minimum=0, maximum=n - 1)
         return GaussianMixture(
             weights=self.weights, means=self.means[:, i], covariances=self.covariances[:, i]
         )

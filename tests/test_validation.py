@@ -1,0 +1,45 @@
+"""The shared argument checks of ``mapassoc.validation``: what they accept, the exact
+messages they give, and the configuration key they carry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mapassoc.errors import InputError
+from mapassoc.validation import check_integer
+
+
+@pytest.mark.parametrize("value", [0, 3, np.int64(3), np.int32(-2), np.uint8(7)])
+def test_integers_of_every_kind_are_returned_as_int(value: object) -> None:
+    out = check_integer("n", value)
+    assert type(out) is int and out == value
+
+
+@pytest.mark.parametrize(
+    ("value", "kwargs", "message"),
+    [
+        (True, {}, "n must be an integer, got True"),
+        (3.0, {}, "n must be an integer, got 3.0"),
+        ("3", {"minimum": 0}, "n must be an integer >= 0, got '3'"),
+        (None, {"maximum": 4}, "n must be an integer <= 4, got None"),
+        (-1, {"minimum": 0}, "n must be an integer >= 0, got -1"),
+        (5, {"maximum": 4}, "n must be an integer <= 4, got 5"),
+        (5, {"minimum": 1, "maximum": 4}, "n must be an integer in 1..4, got 5"),
+        (np.int64(0), {"minimum": 1, "maximum": 4}, "n must be an integer in 1..4, got "),
+    ],
+)
+def test_rejections_name_the_argument_the_value_and_the_bounds(
+    value: object, kwargs: dict[str, int], message: str
+) -> None:
+    with pytest.raises(InputError) as error:
+        check_integer("n", value, **kwargs)
+    assert str(error.value).startswith(message)
+    assert error.value.key is None
+
+
+def test_bounds_are_inclusive_and_the_key_is_carried() -> None:
+    assert check_integer("n", 1, minimum=1, maximum=1) == 1
+    with pytest.raises(InputError) as error:
+        check_integer("window_length", 0, minimum=1, key="window_length")
+    assert error.value.key == "window_length"
