@@ -248,7 +248,7 @@ def run_recording(
     else:
         summary = outcome.summary
         seconds = time.perf_counter() - started
-        warnings_list = [str(w) for w in summary.get("warnings", [])]  # type: ignore[union-attr]
+        warnings_list = [str(w) for w in summary.get("warnings", [])]
         row.update(
             status=outcome.status,
             scans=summary["scans"],
@@ -259,7 +259,7 @@ def run_recording(
             warning_messages=" | ".join(warnings_list),
         )
         if outcome.status == "complete":
-            done = int(summary["scans"]) - outcome.resumed_at  # type: ignore[call-overload]
+            done = int(summary["scans"]) - outcome.resumed_at
             row.update(seconds=round(seconds, 3),
                        scans_per_second=round(done / seconds, 2) if seconds > 0 else "")
     return row
@@ -427,7 +427,7 @@ def _row_of(future: Any, recording: Recording, out: Path, *, what: str) -> dict[
     """The row of a finished task (a local or a Dask future); a task that raised past
     :func:`run_recording` (a dead worker, a lost task) becomes a failed row."""
     try:
-        return future.result()  # type: ignore[no-any-return]
+        return future.result()
     except Exception as exc:  # e.g. BrokenProcessPool: the worker died
         return _blank_row(recording, out, status="failed",
                           error=f"{what} failed: {type(exc).__name__}: {exc}")

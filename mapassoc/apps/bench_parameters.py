@@ -28,12 +28,16 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
 from mapassoc.apps.bench_defaults import DEFAULT_PARAMETER_FAMILIES
 from mapassoc.errors import InputError
+
+if TYPE_CHECKING:
+    from mapassoc.data.io import TrackTable
+    from mapassoc.evaluation.simulate import Scenario
 
 __all__ = ["DEFAULT_PARAMETER_FAMILIES", "ParameterRun", "run_parameter_benchmark"]
 
@@ -71,10 +75,10 @@ class ParameterRun:
     true_pd: float
 
 
-def _gospa(scenario: object, tracks: object) -> float:
+def _gospa(scenario: Scenario, tracks: TrackTable) -> float:
     from mapassoc.evaluation.tables import evaluate_tables
 
-    return evaluate_tables(scenario.truth, tracks, c=GOSPA_CUTOFF).gospa.mean_total  # type: ignore[attr-defined]
+    return evaluate_tables(scenario.truth, tracks, c=GOSPA_CUTOFF).gospa.mean_total
 
 
 def run_parameter_benchmark(
@@ -139,10 +143,12 @@ def run_parameter_benchmark(
                 config, scenario.scans, false_alarms=[name],
                 detection_probability={name: None},
             )  # fmt: skip
-            result = estimate.result or WindowEstimator(config=estimate.config).run(scenario.scans)
+            final = estimate.result
+            if final is None:  # the passes ran on a sample
+                final = WindowEstimator(config=estimate.config).run(scenario.scans)
             found = estimate.sensors[name]
             rows.append(ParameterRun(
-                family, seed, "auto", _gospa(scenario, result.tracks),  # type: ignore[attr-defined]
+                family, seed, "auto", _gospa(scenario, final.tracks),
                 time.perf_counter() - started, found.false_alarms_per_scan,
                 found.detection_probability, *true,
             ))  # fmt: skip

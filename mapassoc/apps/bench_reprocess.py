@@ -192,12 +192,12 @@ def run_reprocess_benchmark(
             gospa = {label: _gospa(root / f"seg-{family}-{label}" / "tracks.csv",
                                    scen / "truth.csv") for label in runs}
             speedup = runs["sequential"].seconds / runs["segments"].seconds
-            same = len(sets["sequential"] & sets["segments"])
+            same_tracks = len(sets["sequential"] & sets["segments"])
             print(f"  {family:10s} x{speedup:.2f}  GOSPA {gospa['segments']:.3f} vs "
-                  f"{gospa['sequential']:.3f}  same tracks {same} of "
+                  f"{gospa['sequential']:.3f}  same tracks {same_tracks} of "
                   f"{len(sets['sequential'])} ({len(sets['segments'])} stitched)")
             segments_out[family] = {"speedup": speedup, "gospa": gospa,
-                                    "same_tracks": same,
+                                    "same_tracks": same_tracks,
                                     "tracks": {k: len(v) for k, v in sets.items()}}
         if segments_out:
             results["segments"] = segments_out

@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
+from typing import TypedDict
 
 import numpy as np
 import pandas as pd
@@ -40,6 +41,13 @@ COMPARE_COLUMNS = ("scenario", "seed", "tracker", "status", "seconds", "scans_pe
 same for every method, and ``scans_per_second`` is the number of scans over it)."""
 
 _SUMMARY_KEYS = ("scenario", "tracker")
+
+
+class _EstimatorOverrides(TypedDict, total=False):
+    """The :class:`~mapassoc.data.settings.EstimatorSettings` fields :func:`compare` overrides."""
+
+    window_length: int
+    time_limit: float
 
 
 def _check_names(kind: str, names: Sequence[str], known: Sequence[str]) -> list[str]:
@@ -160,7 +168,7 @@ def compare(
             if scans is not None:
                 scenario = truncate_scenario(scenario, int(scans))
             run_config = _config_for(scenario, config)
-            overrides: dict[str, object] = {}
+            overrides: _EstimatorOverrides = {}
             if window_length is not None:
                 overrides["window_length"] = int(window_length)
             if time_limit is not None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -107,12 +107,12 @@ def _heading(line: np.ndarray, *, at_end: bool, min_length: float) -> np.ndarray
     return None
 
 
-def _alignment(direction: np.ndarray) -> dict[str, str]:
-    """Text alignment that keeps a label on the side ``direction`` points to."""
+def _alignment(direction: np.ndarray) -> tuple[str, str]:
+    """Text alignment ``(ha, va)`` that keeps a label on the side ``direction`` points to."""
     dx, dy = float(direction[0]), float(direction[1])
     ha = "left" if dx > 0.35 else "right" if dx < -0.35 else "center"
     va = "bottom" if dy > 0.35 else "top" if dy < -0.35 else "center"
-    return {"ha": ha, "va": va}
+    return ha, va
 
 
 def _span(times: np.ndarray, time_unit: str | None) -> str:
@@ -218,7 +218,8 @@ def draw_tracks(
             Line2D([], [], ls="", marker="o", ms=3.5, mfc="0.68", mec="none",
                    label=f"detections ({count})")
         )  # fmt: skip
-    truth_style = {"color": "0.1", "lw": 3.2, "alpha": 0.4, "ls": (0, (4, 2))}
+    # Line properties shared by the truth lines and their legend entry (matplotlib checks them).
+    truth_style: dict[str, Any] = {"color": "0.1", "lw": 3.2, "alpha": 0.4, "ls": (0, (4, 2))}
     for _, _, line in targets:
         ax.plot(*line.T, zorder=2, solid_capstyle="round", **truth_style)
         heading = _heading(line, at_end=True, min_length=min_length)
@@ -269,10 +270,11 @@ def draw_tracks(
             ends.append((line[0], None if start_heading is None else -start_heading))
         for where, outward in ends:
             away = outward if outward is not None else np.array([0.0, 1.0])
+            ha, va = _alignment(away)
             ax.annotate(
                 str(tid), xy=where, xytext=tuple(_LABEL_OFFSET_POINTS * away),
                 textcoords="offset points", fontsize=_LABEL_FONTSIZE, fontweight="bold",
-                color=colour, path_effects=halo, zorder=5, **_alignment(away),
+                color=colour, path_effects=halo, zorder=5, ha=ha, va=va,
             )  # fmt: skip
     if estimated and not each:
         handles.append(

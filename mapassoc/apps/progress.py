@@ -94,8 +94,10 @@ class Progress:
         if done < total and now - self._last_log < self.log_seconds:
             return
         self._last_log = now
-        self.stream.write(self.line(done, total, now - self._started) + "\n")
-        self.stream.flush()
+        stream = self.stream
+        assert stream is not None  # enabled is False when there is no stream (see __init__)
+        stream.write(self.line(done, total, now - self._started) + "\n")
+        stream.flush()
 
     def line(self, done: int, total: int, elapsed: float) -> str:
         """The log line for ``done`` of ``total`` after ``elapsed`` seconds."""

@@ -481,7 +481,9 @@ def run_files(
             if partial["status"] == "complete":  # stopped between its last two renames
                 folder.complete()
                 folder.release()
-                summary = json.loads((folder.path / SUMMARY_NAME).read_text(encoding="utf-8"))
+                summary: dict[str, Any] = json.loads(
+                    (folder.path / SUMMARY_NAME).read_text(encoding="utf-8")
+                )
                 return RunOutcome(folder.path, "complete", summary, int(partial["scans_total"]),
                                   time.perf_counter() - t_session)
             checkpoint = folder.read_checkpoint()  # type: ignore[assignment]
@@ -525,7 +527,11 @@ def run_files(
         folder.begin(fresh=checkpoint is None)
         try:
             if checkpoint is None:
-                manifest = new_manifest(inputs=inputs, settings=settings, scans_total=len(scans))
+                # Typed as JSON (Any values): its nested tables are read for the summary below.
+                started: dict[str, Any] = new_manifest(
+                    inputs=inputs, settings=settings, scans_total=len(scans)
+                )
+                manifest = started
                 if parameters is not None:
                     manifest["parameters"] = parameters
                 messages = [str(w.message) for w in (*config_warnings, *caught)]
@@ -562,7 +568,7 @@ def run_files(
                 messages.extend(str(w.message) for w in caught)
                 # One line per message: segments (and sessions) repeat start()'s warnings.
                 messages[:] = dict.fromkeys(messages)
-                summary: dict[str, object] = {
+                summary = {
                     "mapassoc_version": manifest["mapassoc_version"],
                     "config": manifest["inputs"]["config"]["path"],
                     "detections": manifest["inputs"]["detections"]["path"],
@@ -728,15 +734,15 @@ def _run_segments(
     if len(done) < len(plan):
         session.save("interrupted")
         raise session.interrupted()
-    result = stitch_segments(scans, [done[s.index] for s in plan], config)
-    message = result.tally.kmax_warning(config.estimator.max_tracks)
+    stitched = stitch_segments(scans, [done[s.index] for s in plan], config)
+    message = stitched.tally.kmax_warning(config.estimator.max_tracks)
     if message is not None:
         session.messages.append(message)
-    session.windows_committed = result.tally.windows
+    session.windows_committed = stitched.tally.windows
     with _open_windows(session.folder.partial / WINDOWS_NAME, 0) as stream:
-        for report in result.windows:
+        for report in stitched.windows:
             stream.write(_window_line(report, timings))
-    return result
+    return stitched
 
 
 def _window_line(report: Any, timings: bool) -> bytes:

@@ -61,7 +61,7 @@ import tomllib
 import warnings
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -577,7 +577,9 @@ def _parse_settings(
         return cls()
     table = parser.table(data[section], section)
     parser.only_keys(table, section, tuple(fields), f"in [{section}]")
-    values: dict[str, object] = {}
+    # Each value is converted and checked against its field's type below, so the dict is
+    # typed Any for the keyword arguments of ``cls``.
+    values: dict[str, Any] = {}
     for name, value in table.items():
         key = f"{section}.{name}"
         kind = _field_kind(fields[name])

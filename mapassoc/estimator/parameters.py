@@ -321,7 +321,7 @@ class ParameterEstimate:
     passes: tuple[EstimationPass, ...]
     converged: bool
     sample_scans: int
-    result: object | None
+    result: EstimateResult | None
     warnings: tuple[str, ...]
 
     def to_json(self, *, timings: bool = True) -> dict[str, object]:

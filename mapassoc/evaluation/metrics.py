@@ -807,6 +807,10 @@ def format_report(summary: RunEvaluation | dict) -> str:
         missing += [f"gospa.{key}" for key in _REQUIRED_GOSPA_KEYS if key not in gospa_summary]
     if missing:
         raise InputError(f"summary is missing the keys {missing} (expected evaluate's output)")
+    if not isinstance(gospa_summary, dict):
+        raise InputError(
+            f"summary['gospa'] must be a dictionary (evaluate's output), got {gospa_summary!r}"
+        )
     g = gospa_summary
     p = f"{float(g['p']):g}"
     rows = [

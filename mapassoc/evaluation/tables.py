@@ -54,12 +54,12 @@ def track_points(tracks: TrackTable, names: tuple[str, ...]) -> TimedPoints:
     # Last row of each (track, time): iterate in reverse and keep first occurrences.
     keys = list(zip(tracks.track_ids.tolist(), tracks.times.tolist(), strict=True))
     seen: set[tuple[int, float]] = set()
-    keep = []
+    last_rows: list[int] = []
     for i in range(len(keys) - 1, -1, -1):
         if keys[i] not in seen:
             seen.add(keys[i])
-            keep.append(i)
-    keep = np.array(sorted(keep), dtype=np.int64)
+            last_rows.append(i)
+    keep = np.array(sorted(last_rows), dtype=np.int64)
     return TimedPoints.from_unsorted(
         times=tracks.times[keep], ids=tracks.track_ids[keep], positions=tracks.states[keep][:, cols]
     )

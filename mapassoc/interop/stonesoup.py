@@ -123,21 +123,24 @@ def _import(module: str) -> ModuleType:
 
 @dataclass(frozen=True)
 class _Types:
-    """The Stone Soup classes this module uses, imported on each public call."""
+    """The Stone Soup classes this module uses, imported on each public call.
 
-    Detection: type
-    TrueDetection: type
-    Clutter: type
-    MissedDetection: type
-    CompositeDetection: type
-    LinearGaussian: type
-    CartesianToBearingRange: type
-    StateVector: type
-    CovarianceMatrix: type
-    GaussianState: type
-    Track: type
-    GroundTruthState: type
-    GroundTruthPath: type
+    Stone Soup has no type information, so its classes (and their instances) are typed Any.
+    """
+
+    Detection: type[Any]
+    TrueDetection: type[Any]
+    Clutter: type[Any]
+    MissedDetection: type[Any]
+    CompositeDetection: type[Any]
+    LinearGaussian: type[Any]
+    CartesianToBearingRange: type[Any]
+    StateVector: type[Any]
+    CovarianceMatrix: type[Any]
+    GaussianState: type[Any]
+    Track: type[Any]
+    GroundTruthState: type[Any]
+    GroundTruthPath: type[Any]
 
     @classmethod
     def load(cls) -> _Types:
@@ -473,8 +476,11 @@ def _check_sensor_of(sensor_of: object) -> tuple[str, ...]:
     return tuple(sorted(set(sensor_of.values())))
 
 
-def _split_item(ss: _Types, item: object, index: int) -> tuple[datetime | None, list[Any]]:
-    """``(time or None, detections)`` of one element of ``detection_sets``."""
+def _split_item(ss: _Types, item: object, index: int) -> tuple[datetime, list[Any]]:
+    """``(time, detections)`` of one element of ``detection_sets``.
+
+    The time is the pair's datetime, or else the timestamp all the detections share.
+    """
     where = f"detection_sets[{index}]"
     when: datetime | None = None
     collection = item
@@ -521,6 +527,7 @@ def _describe_model(model: object) -> str:
 
 def _describe_detection(detection: Any, where: str) -> str:
     """One-line description of a detection: type, vector, timestamp and where it is."""
+    vector: list[Any] | str
     try:
         vector = np.asarray(detection.state_vector, dtype=float).ravel().tolist()
     except (TypeError, ValueError):
@@ -695,10 +702,10 @@ def scans_from_stonesoup(
                         f"metadata[{row_key!r}] = {row} appears on more than one detection"
                     )
                 rows_to_detections[row] = entry.detection
-            detections = np.array([e.vector for e in entries], dtype=float).reshape(
+            scan_detections = np.array([e.vector for e in entries], dtype=float).reshape(
                 len(entries), dims[name]
             )
-            scans.append(Scan(t, name, detections, np.array(rows, dtype=np.int64)))
+            scans.append(Scan(t, name, scan_detections, np.array(rows, dtype=np.int64)))
     return StoneSoupScans(scans=scans, epoch=origin, detections=rows_to_detections)
 
 

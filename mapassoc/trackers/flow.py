@@ -96,6 +96,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -186,6 +187,19 @@ class FlowWindowReport:
     chosen_tracks: int
     at_max_flow: bool
     seconds: float
+
+
+class _WindowReportParts(TypedDict):
+    """The :class:`FlowWindowReport` fields that :meth:`FlowTracker._solve_window` fills."""
+
+    carried_tracks: int
+    detections: int
+    items_kept: int
+    components: int
+    links: int
+    track_costs: FloatArray
+    chosen_tracks: int
+    at_max_flow: bool
 
 
 @dataclass(frozen=True)
@@ -352,8 +366,8 @@ class FlowTracker:
             commit = self.stride if end < total else end - start
             for key in [k for k in two_point if k[0] < start]:
                 del two_point[key]
-            for key in [k for k in births if k[0] < start]:
-                del births[key]
+            for birth_key in [k for k in births if k[0] < start]:
+                del births[birth_key]
             window_started = time.perf_counter()
             paths, report_parts, undetected_after = self._solve_window(
                 scans, start, end, commit, carried, undetected, log_miss, two_point, births
@@ -399,7 +413,7 @@ class FlowTracker:
         log_miss: FloatArray,
         two_point: dict[tuple[int, int, int], tuple[NDArray[np.int64], FloatArray]],
         births: dict[tuple[int, int], FilteredTrack],
-    ) -> tuple[list[_Path], dict[str, object], UndetectedTargets]:
+    ) -> tuple[list[_Path], _WindowReportParts, UndetectedTargets]:
         """Score, prune and solve one window.
 
         ``two_point`` caches the gated links of a detection's single-point start to a later
@@ -598,7 +612,7 @@ class FlowTracker:
                         ),
                     )
                 )
-        report = {
+        report: _WindowReportParts = {
             "carried_tracks": C,
             "detections": D,
             "items_kept": int(kept.size),

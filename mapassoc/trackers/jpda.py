@@ -113,7 +113,7 @@ def association_clusters(log_lik_ratio: FloatArray) -> list[tuple[IntArray, IntA
         (np.ones(t_idx.size), (t_idx, T + j_idx)), shape=(T + M, T + M)
     )
     _, labels = connected_components(graph, directed=False)
-    clusters = []
+    clusters: list[int] = []  # component labels, by smallest track index
     seen: dict[int, int] = {}
     for t in range(T):
         label = int(labels[t])

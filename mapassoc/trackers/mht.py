@@ -126,7 +126,7 @@ from mapassoc.formulations.packing import (
     set_packing_program,
 )
 from mapassoc.models.population import UndetectedTargets
-from mapassoc.solvers import get_solver
+from mapassoc.solvers import get_integer_solver
 from mapassoc.solvers.k_best import solve_k_best
 from mapassoc.solvers.results import SolverError, SolveStatus
 from mapassoc.trackers.base import TrackerOutput, check_scans
@@ -398,15 +398,9 @@ class MhtTracker:
         if not isinstance(solver, str):
             raise InputError(f"solver must be a solver name (str), got {solver!r}")
         try:
-            backend = get_solver(solver)
+            self._solver = get_integer_solver(solver, exact=True)
         except ValueError as exc:
             raise InputError(f"solver {solver!r}: {exc}") from exc
-        if not (getattr(backend, "exact", False) and getattr(backend, "supports_integer", False)):
-            raise InputError(
-                f"solver must name an exact solver of integer programs (e.g. 'highs'), got "
-                f"{solver!r}"
-            )
-        self._solver = backend
         if not isinstance(name, str):
             raise InputError(f"name must be a str, got {name!r}")
         self.name = name
