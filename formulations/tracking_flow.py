@@ -47,6 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.formulations.program import FlowProgram
 
 __all__ = [
@@ -61,9 +62,6 @@ __all__ = [
     "combine_convex_costs",
     "successive_shortest_paths",
 ]
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 EDGE_ENTRY = 0
 """Edge kind: source -> in node of an item (a track starts there)."""

@@ -69,6 +69,7 @@ from mapassoc.evaluation.scenarios import (
 )
 from mapassoc.evaluation.tables import evaluate_tables
 from mapassoc.filtering.kalman import pairwise_gate_and_loglik
+from mapassoc.validation import check_integer
 
 __all__ = [
     "DEFAULT_FAMILIES",
@@ -417,12 +418,6 @@ def _finite(value: object) -> object:
 # --------------------------------------------------------------------------- checks
 
 
-def _check_int(name: str, value: object, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
 def _check_time_limit(value: object) -> float:
     if (
         isinstance(value, bool)
@@ -554,10 +549,10 @@ def bench_scenario(
     choice = _check_config_choice(config)
     limit = _check_time_limit(time_limit)
     if window_length is not None:
-        _check_int("window_length", window_length, 1)
+        check_integer("window_length", window_length, minimum=1)
     scenario = build_scenario(name, seed)
     if scans is not None:
-        scenario = truncate_scenario(scenario, _check_int("scans", scans, 1))
+        scenario = truncate_scenario(scenario, check_integer("scans", scans, minimum=1))
     if choice == "generic":
         run_config = generic_config(scenario, window_length=window_length, time_limit=limit)
     else:
@@ -896,13 +891,13 @@ def run_benchmark(
     """
     names = _check_families(families)
     priors = _check_k_priors(k_priors)
-    n_seeds = _check_int("seeds", seeds, 1)
+    n_seeds = check_integer("seeds", seeds, minimum=1)
     if window_length is not None:
-        _check_int("window_length", window_length, 1)
+        check_integer("window_length", window_length, minimum=1)
     limit = _check_time_limit(time_limit)
     choice = _check_config_choice(config)
     if scans is not None:
-        _check_int("scans", scans, 1)
+        check_integer("scans", scans, minimum=1)
     stream = sys.stdout if out is None else out
 
     def say(text: str) -> None:

@@ -86,8 +86,9 @@ from dataclasses import dataclass
 from typing import TextIO
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
@@ -111,9 +112,6 @@ __all__ = [
 ]
 
 PathLike = str | os.PathLike[str]
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-
 FIRST_DATA_LINE = 2
 """Line number of the first record (line 1 is the header): the first detection id that
 :func:`number_rows` and :func:`read_detections` give.  Other sources number detections from

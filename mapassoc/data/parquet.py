@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.array_types import BoolArray, FloatArray, IntArray
 from mapassoc.data.io import (
     _EXISTENCE,
     _ORIGINS_HEADER,
@@ -78,10 +79,6 @@ __all__ = [
 ]
 
 PathLike = str | os.PathLike[str]
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
-
 _INT64_MAX = np.iinfo(np.int64).max
 _ORIGINS_COLUMNS = _ORIGINS_HEADER
 

@@ -40,8 +40,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from mapassoc.array_types import BoolArray, FloatArray, IntArray
 from mapassoc.data.io import _check_sensors, _component_union
 from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import InputError
@@ -54,10 +55,6 @@ __all__ = ["scans_from_arrays", "scans_from_frame", "DETECTION_ID"]
 
 DETECTION_ID = "detection_id"
 """Optional column of a detections table (DataFrame, Parquet) holding the detection ids."""
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 Fail = Callable[[str, str | None, int | None], Exception]
 """``fail(message, column, row)`` builds the error to raise (the caller raises it)."""

@@ -64,8 +64,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
+from mapassoc.array_types import BoolArray, FloatArray, IntArray
 from mapassoc.data.scans import Scan
 from mapassoc.data.settings import BirthModel
 from mapassoc.errors import InputError
@@ -100,10 +100,6 @@ __all__ = [
     "WindowHypotheses",
     "HypothesisGenerator",
 ]
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 _DENSE_GATING_PAIRS = 4096
 """Above this many (node, detection) pairs per scan, linear gating goes through a k-d tree."""

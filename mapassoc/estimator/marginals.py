@@ -73,6 +73,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import logsumexp
 
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.errors import InputError
 from mapassoc.estimator.cluster_solving import ClusterStatus
 from mapassoc.formulations.bounds import exclusive_groups
@@ -92,9 +93,6 @@ __all__ = [
     "DEFAULT_BEAM_WIDTH",
     "DEFAULT_ENTRY_MARGIN",
 ]
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 DEFAULT_BEAM_WIDTH = 200
 """Frontiers the beam keeps for a bounded cluster (``EstimatorSettings.beam_width``'s

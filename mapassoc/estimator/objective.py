@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -83,9 +84,6 @@ __all__ = [
     "paths_from_rows",
     "rows_from_paths",
 ]
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 _LOG_2PI = math.log(2.0 * math.pi)
 

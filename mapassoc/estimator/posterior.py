@@ -48,6 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import logsumexp
 
+from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
 from mapassoc.models.population import WindowPopulation, poisson_log_pmf
 
@@ -73,8 +74,6 @@ __all__ = [
     "FULL_LENGTH_KMAX",
     "MAX_K_RANGE",
 ]
-
-FloatArray = NDArray[np.float64]
 
 PILE_UP_THRESHOLD = 0.01
 """p(Kmax | Z) above this means Kmax probably cuts off the posterior."""

@@ -65,6 +65,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -91,8 +92,6 @@ __all__ = [
     "RefinedTracks",
     "refine_track_rows",
 ]
-
-FloatArray = NDArray[np.float64]
 
 _IMPROVEMENT = 1e-6
 """A move is accepted when J rises by more than this many nats plus 1e-9 of ``|J of the

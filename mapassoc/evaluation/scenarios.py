@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import Origins, TruthTable, number_rows
 from mapassoc.data.scans import Scan
@@ -53,6 +54,7 @@ from mapassoc.evaluation.simulate import Scenario, TargetSpec, scan_plan_regular
 from mapassoc.models.measurement import LinearMeasurement, RangeBearing
 from mapassoc.models.motion import ConstantVelocity, CoordinatedTurn, MotionModel
 from mapassoc.models.sensor import Region, Sensor
+from mapassoc.validation import check_integer
 
 __all__ = [
     "SCENARIOS",
@@ -82,7 +84,6 @@ __all__ = [
     "GENERIC_INITIAL_COUNT",
 ]
 
-FloatArray = NDArray[np.float64]
 Plan = list[tuple[float, str]]
 
 DEFAULT_SCENARIO = "crossing"
@@ -1190,12 +1191,6 @@ def _lengthened_burst(name: str, geometry: _Geometry, scans: int, seed: int) -> 
 # --------------------------------------------------------------------------- transformations
 
 
-def _check_count(name: str, value: object, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
 def _origins_by_scan(origins: Origins, scans: Sequence[Scan]) -> list[NDArray[np.int64]]:
     """Target id (or -1) of each detection row of each scan, looked up in ``origins``.
 
@@ -1249,14 +1244,14 @@ def add_false_alarms(scenario: Scenario, scan_index: int, count: int, *, seed: i
     if not isinstance(scenario, Scenario):
         raise InputError(f"scenario must be a Scenario, got {scenario!r}")
     n_scans = len(scenario.scans)
-    index = _check_count("scan_index", scan_index, 0)
+    index = check_integer("scan_index", scan_index, minimum=0)
     if index >= n_scans:
         raise InputError(
             f"scan_index must be < the number of scans ({n_scans}) of scenario "
             f"{scenario.name!r}, got {scan_index!r}"
         )
-    extra = _check_count("count", count, 0)
-    seed = _check_count("seed", seed, 0)
+    extra = check_integer("count", count, minimum=0)
+    seed = check_integer("seed", seed, minimum=0)
     return _add_false_alarms_at(scenario, {index: extra}, seed=seed)
 
 
@@ -1321,7 +1316,7 @@ def truncate_scenario(scenario: Scenario, n_scans: int) -> Scenario:
     """
     if not isinstance(scenario, Scenario):
         raise InputError(f"scenario must be a Scenario, got {scenario!r}")
-    keep = _check_count("n_scans", n_scans, 1)
+    keep = check_integer("n_scans", n_scans, minimum=1)
     if keep >= len(scenario.scans):
         return scenario
     scans = list(scenario.scans[:keep])
@@ -1677,7 +1672,7 @@ def build_scenario(
     _check_name(name)
     if scans is None:
         return SCENARIOS[name](seed)
-    count = _check_count("scans", scans, 1)
+    count = check_integer("scans", scans, minimum=1)
     native = native_scan_count(name)
     if count <= native:
         return truncate_scenario(SCENARIOS[name](seed), count)
@@ -1686,7 +1681,7 @@ def build_scenario(
             f"scenario {name!r} cannot be lengthened beyond its {native} scans (scans="
             f"{scans!r}); scenarios that can: {', '.join(lengthenable_scenarios())}"
         )
-    seed = _check_count("seed", seed, 0)
+    seed = check_integer("seed", seed, minimum=0)
     _check_simulated_size(name, count)
     return _LENGTHEN[name](name, _GEOMETRIES[name](), count, seed)
 

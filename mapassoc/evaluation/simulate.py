@@ -1,19 +1,19 @@
 """Seeded, reproducible simulation of targets, detections and false alarms.
 
-The generative model is the one the estimator assumes (seed 000, sections 4 and 5.1):
+The generative model is the one the estimator assumes (Afzal's survey, sections 4 and 5.1):
 
-* **Motion** (seed 000, section 4, "Motion Modeling"): between consecutive scan times a
+* **Motion** (Afzal's survey, section 4, "Motion Modeling"): between consecutive scan times a
   target's true state follows ``x_k = f(x_{k-1}, dt) + q``, ``q ~ N(0, Q(dt))``, with the
   configuration's motion model.  A target exists from ``birth_time`` to ``death_time``
   (inclusive); its state at ``birth_time`` is :attr:`TargetSpec.initial_state`.
-* **Detection** (seed 000, eqs. 9-11): at each scan of sensor s, each alive target is
+* **Detection** (Afzal's survey, eqs. 9-11): at each scan of sensor s, each alive target is
   detected with probability ``Pd_s``; a detection is ``z = h(x) + v``, ``v ~ N(0, R)``,
   with angular components (the bearing of a range-bearing sensor) wrapped to (-pi, pi].
   A detection whose value falls outside the sensor's region is dropped: the sensor only
   reports inside its surveillance region, so the target counts as missed in that scan.
-* **False alarms** (seed 000, eqs. 12-13): ``Poisson(lambda_bar_s)`` per scan, uniform over
+* **False alarms** (Afzal's survey, eqs. 12-13): ``Poisson(lambda_bar_s)`` per scan, uniform over
   the sensor's region.
-* **Shuffle** (seed 000, eq. 14, ``Z_k = Pi(O_k, C_k)``): target detections and false alarms
+* **Shuffle** (Afzal's survey, eq. 14, ``Z_k = Pi(O_k, C_k)``): target detections and false alarms
   are put in a random order within the scan.
 
 Randomness comes only from ``numpy.random.Generator`` objects derived from the ``seed``
@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config, write_config
 from mapassoc.data.io import (
     Origins,
@@ -55,8 +56,6 @@ __all__ = [
     "gaussian_factor",
     "SCENARIO_FILES",
 ]
-
-FloatArray = NDArray[np.float64]
 
 #: File names written by :func:`write_scenario`, keyed by the keys of its result.
 SCENARIO_FILES = {

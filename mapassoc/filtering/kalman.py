@@ -25,10 +25,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 from scipy.special import gammaincinv
 
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.errors import InputError, NotPositiveDefiniteError
 from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
@@ -49,8 +49,6 @@ __all__ = [
     "filter_sequence",
 ]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 _LOG_2PI = math.log(2.0 * math.pi)
 
 

@@ -49,8 +49,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan
@@ -67,8 +67,6 @@ from mapassoc.models.birth import (
 from mapassoc.models.motion import MotionModel
 
 __all__ = ["Associations", "smooth_track", "smooth_tracks"]
-
-FloatArray = NDArray[np.float64]
 
 #: Track id -> {scan index -> index of the track's detection in that scan}.
 Associations = Mapping[int, Mapping[int, int]]
@@ -222,7 +220,6 @@ def smooth_track(
     )
     states, covariances = motion.canonical_states(states, covariances)
     return scan_indices, states, covariances, rows
-
 
 
 def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Config) -> TrackTable:

@@ -22,8 +22,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -54,8 +54,6 @@ __all__ = [
     "update_track",
     "update_track_mixture",
 ]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)

@@ -71,6 +71,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import FIRST_DATA_LINE, Origins, TrackTable, TruthTable
 from mapassoc.data.scans import Scan
@@ -99,8 +100,6 @@ __all__ = [
 
 INSTALL_HINT = "Stone Soup is not installed: pip install 'mapassoc[stonesoup]'"
 """Message of the ImportError raised when Stone Soup is missing."""
-
-FloatArray = NDArray[np.float64]
 
 _AXES = ("x", "y", "z")
 _DERIVATIVE_PREFIXES = ("", "v", "a")

@@ -23,8 +23,8 @@ Each model says all this itself (:class:`~mapassoc.models.motion.MotionModel`:
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.settings import BirthModel
 from mapassoc.errors import InputError
 from mapassoc.models.measurement import MeasurementModel
@@ -38,8 +38,6 @@ __all__ = [
     "convert_initiated",
     "needs_conversion",
 ]
-
-FloatArray = NDArray[np.float64]
 
 
 def initiation_model(motion: MotionModel) -> MotionModel:

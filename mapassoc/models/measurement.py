@@ -31,6 +31,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
 from mapassoc.models.motion import MotionModel, check_standard_deviation
 from mapassoc.validation import check_covariance, check_finite_array
@@ -46,8 +47,6 @@ __all__ = [
     "register_measurement_model",
     "measurement_spec",
 ]
-
-FloatArray = NDArray[np.float64]
 
 
 def wrap_angle(angle: ArrayLike) -> FloatArray:

@@ -39,8 +39,8 @@ from fractions import Fraction
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
 from mapassoc.validation import check_positive
 
@@ -62,8 +62,6 @@ __all__ = [
 ]
 
 _AXES = ("x", "y", "z")
-
-FloatArray = NDArray[np.float64]
 
 
 def check_standard_deviation(name: str, value: object, *, key: str | None = None) -> float:

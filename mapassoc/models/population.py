@@ -54,6 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import gammaln
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 
@@ -67,8 +68,6 @@ __all__ = [
     "recording_start",
     "window_population",
 ]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Sensors: a measurement model, detection probability and Poisson clutter.
 
-Seed 000, eqs. (9)-(13): each target is detected with probability ``Pd``; false
+Afzal's survey, eqs. (9)-(13): each target is detected with probability ``Pd``; false
 alarms are Poisson with mean ``lambda_bar`` per scan and uniform density
 ``f_c = 1/V`` over the surveillance region, so the clutter intensity is
 ``lambda = lambda_bar / V`` (eq. 13).

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
 from mapassoc.filtering.kalman import innovation, log_gaussian, predict_motion, update
 from mapassoc.models.measurement import MeasurementModel
@@ -63,9 +64,6 @@ __all__ = [
     "SequencePosterior",
     "single_object_sequences",
 ]
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 def _check_count(name: str, value: object) -> int:

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan
@@ -27,8 +27,6 @@ from mapassoc.data.scans import check_scans as check_scan_list
 from mapassoc.errors import InputError
 
 __all__ = ["CountSeries", "Tracker", "TrackerOutput", "check_scans"]
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)

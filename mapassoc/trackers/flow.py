@@ -17,7 +17,7 @@ the last window commits all its scans.  Each window is one flow program
 
 **Costs** are the negated terms of the MAP estimator's track score
 (:mod:`mapassoc.estimator.hypotheses`, after Blackman & Popoli 1999, section 6.2, on the
-models of seed 000, eqs. 9-13), split over the edges so that a path's cost is minus its
+models of Afzal's survey, eqs. 9-13), split over the edges so that a path's cost is minus its
 track's log-likelihood ratio against "its detections are false alarms":
 
 ================================  ==========================================================
@@ -28,13 +28,13 @@ entry at a detection of scan j    ``-(log u_j - log V_s)``: the new-target densi
                                   :mod:`mapassoc.models.population`) over the ``Pd_s`` of the
                                   observation edge
 observation (a detection)         ``-(log Pd_s - log lambda_s)``, ``lambda_s`` the clutter
-                                  intensity ``lambda_bar_s / V_s`` (seed 000, eq. 13)
+                                  intensity ``lambda_bar_s / V_s`` (Afzal's survey, eq. 13)
 link: detection i -> detection k  ``-(dt log Ps + sum of log(1 - Pd P_G) over the skipped
                                   scans + log N(nu; 0, S))``: a track started at detection i
                                   by single-point initiation
                                   (:func:`~mapassoc.filtering.track_filter.start_track`),
                                   predicted to scan k and scored by its innovation
-                                  likelihood (seed 000, eq. 3): the two-point Markov
+                                  likelihood (Afzal's survey, eq. 3): the two-point Markov
                                   term of Zhang et al., eq. 7; only for
                                   ``k - i - 1 <= max_gap`` and ``d2 <=`` the chi-square
                                   gate of ``config.estimator.gate_probability``
@@ -68,7 +68,7 @@ the components' convex costs are combined
 flow has more tracks than items), and the window's
 track set is the flow of the K >= C with the smallest total cost (ties: the smaller K).
 Under these costs that is the most likely track set of the window over every K with the
-birth model's own prior on K (seed 002's joint MAP without a separate count prior).  The
+birth model's own prior on K (Perry's joint MAP without a separate count prior).  The
 cost is convex in K, so the minimum is global unless it sits at Kmax (reported,
 ``at_max_flow``).
 
@@ -103,6 +103,7 @@ from numpy.typing import NDArray
 from scipy.sparse import coo_array
 from scipy.sparse.csgraph import connected_components
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -129,8 +130,6 @@ from mapassoc.trackers.base import TrackerOutput, check_scans
 from mapassoc.trackers.management import check_tracker_config
 
 __all__ = ["FlowTracker", "FlowWindowReport", "window_tails"]
-
-FloatArray = NDArray[np.float64]
 
 _SSP = "successive-shortest-paths"
 _SOLVERS = (_SSP, NetworkxFlowSolver.name)

@@ -20,9 +20,9 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -40,9 +40,6 @@ from mapassoc.trackers.management import (
 )
 
 __all__ = ["GnnTracker", "gnn_assignment", "hard_step", "check_ratio_matrix"]
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 def check_ratio_matrix(log_lik_ratio: FloatArray, log_miss: FloatArray) -> tuple[

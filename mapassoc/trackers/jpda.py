@@ -53,11 +53,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.special import logsumexp
 
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan
@@ -82,9 +82,6 @@ __all__ = [
     "association_clusters",
     "association_marginals",
 ]
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 DEFAULT_MAX_EVENTS = 200_000
 """Most joint events enumerated for one cluster before :func:`association_marginals`

@@ -49,8 +49,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
+from mapassoc.array_types import BoolArray, FloatArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -80,9 +80,6 @@ __all__ = [
     "management_rule",
     "new_target_log_ratio",
 ]
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
@@ -343,7 +340,7 @@ def gated_log_ratios(
 ) -> tuple[FloatArray, list[Innovations]]:
     """Detection log-likelihood ratios of every (track, detection) pair inside the gate.
 
-    ``log Pd + log N(nu; 0, S) - log lambda`` (Blackman & Popoli 1999, eq. 6.10; seed 000,
+    ``log Pd + log N(nu; 0, S) - log lambda`` (Blackman & Popoli 1999, eq. 6.10; Afzal's survey,
     eqs. 11-13) where ``nu^T S^-1 nu`` is within the chi-square gate of probability
     ``config.estimator.gate_probability``; ``-inf`` outside.
 

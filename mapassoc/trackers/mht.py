@@ -106,8 +106,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -136,11 +136,9 @@ from mapassoc.trackers.management import (
     gated_log_ratios,
     new_target_log_ratio,
 )
+from mapassoc.validation import check_integer
 
 __all__ = ["MhtDetails", "MhtTracker"]
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 CONTINUE_BONUS = 1.0e4
 """Added to the program value of every leaf of a tree with a decided part, so that such a
@@ -266,15 +264,6 @@ class _ClusterOption:
     leaves: tuple[int, ...]  # indices into the scan's flat leaf list
 
 
-def _check_int(name: str, value: object, low: int, high: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name} must be an integer, got {value!r}")
-    if value < low or (high is not None and value > high):
-        bound = f">= {low}" if high is None else f"in {low}..{high}"
-        raise InputError(f"{name} must be an integer {bound}, got {value!r}")
-    return int(value)
-
-
 def _check_drop(name: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
         raise InputError(f"{name} must be a number > 0 (inf allowed), got {value!r}")
@@ -366,8 +355,8 @@ class MhtTracker:
     ) -> None:
         check_tracker_config(config)
         self.config = config
-        self.n_scan = _check_int("n_scan", n_scan, 1)
-        self.m_best = _check_int("m_best", m_best, 1, MAX_M_BEST)
+        self.n_scan = check_integer("n_scan", n_scan, minimum=1)
+        self.m_best = check_integer("m_best", m_best, minimum=1, maximum=MAX_M_BEST)
         if not isinstance(m_best_pruning, bool):
             raise InputError(f"m_best_pruning must be True or False, got {m_best_pruning!r}")
         self.m_best_pruning = m_best_pruning
@@ -375,13 +364,15 @@ class MhtTracker:
             "prune_log_ratio",
             config.estimator.prune_log_ratio if prune_log_ratio is None else prune_log_ratio,
         )
-        self.max_leaves = _check_int(
+        self.max_leaves = check_integer(
             "max_leaves",
             config.estimator.max_hypotheses_per_tree if max_leaves is None else max_leaves,
-            1,
+            minimum=1,
         )
         self.tentative_scans = (
-            None if tentative_scans is None else _check_int("tentative_scans", tentative_scans, 1)
+            None
+            if tentative_scans is None
+            else check_integer("tentative_scans", tentative_scans, minimum=1)
         )
         if management is None:
             management = ScoreRule()

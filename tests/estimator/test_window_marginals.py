@@ -237,9 +237,9 @@ def test_a_solution_without_cluster_records_is_refused() -> None:
 
 
 def test_one_scan_window_associations_are_the_n_object_posterior() -> None:
-    """Seed 001's worked example (docs/model.md section 6): the probability that object
-    i took measurement j is the sum of the n-object posterior's normalised weights of
-    the association vectors with theta_i = j; both objects exist for certain."""
+    """The n-object posterior's worked example (docs/model.md section 6): the probability
+    that object i took measurement j is the sum of its normalised weights of the
+    association vectors with theta_i = j; both objects exist for certain."""
     config = make_config(
         motion=RandomWalk(ndim=1, noise_intensity=0.01),
         noise_std=math.sqrt(0.2),

@@ -127,7 +127,7 @@ def test_random_windows_cover_the_interesting_cases() -> None:
     assert sum(1 for c in cases if sum(s.size for s in c.scans) >= 4) >= 30
 
 
-# ------------------------------------------------- 2. independent seed-002 evaluation
+# ------------------------------------------------- 2. independent evaluation of Perry's posterior
 
 
 @dataclass(frozen=True)

@@ -46,7 +46,7 @@ def normal(z: float, mean: float, var: float) -> float:
 
 
 # --------------------------------------------------------------------------------------
-# Seed 000: association vectors and Table 1
+# Afzal's survey: association vectors and Table 1
 # --------------------------------------------------------------------------------------
 
 
@@ -219,7 +219,7 @@ def test_seed001_marginal_mixture_is_a_density_with_matching_moments() -> None:
 
 
 # --------------------------------------------------------------------------------------
-# Seed 003: single object in clutter, two scans
+# Single-object tracking in clutter: single object in clutter, two scans
 # --------------------------------------------------------------------------------------
 
 SEED003_SCANS = [np.array([[-1.3], [1.7]]), np.array([[1.3]])]
