@@ -172,8 +172,9 @@ class EstimatorSettings:
         Most scans between one track's last detection and another's first for the
         refinement to try joining them (0: no fragment linking).
     refine_prune_log_ratio : float
-        ``prune_log_ratio`` of the refinement's re-solved windows (sibling and new-tree
-        pruning of their trees, and the joins to one anchor; >= 0, ``inf`` disables).
+        ``prune_log_ratio`` of the refinement's re-solved short windows (sibling and
+        new-tree pruning of their trees, and the joins to one anchor; >= 0, ``inf``
+        disables); its long windows are pruned at ``prune_log_ratio``.
         Wider than the forward pass's by default: a re-solve must see alternatives the
         forward pass dropped (``mapassoc bench-refinement``, 2 seeds: twice the width
         takes parallel lanes from 4.6x to 2.2x the oracle's GOSPA, converging targets

@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 from support import NO_TIME_LIMIT, make_config, make_scans, partitions
 
+from mapassoc.errors import InputError
+from mapassoc.estimator import refinement
 from mapassoc.estimator.objective import PathState, RecordingObjective, paths_from_rows
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.estimator.refinement import RefinementSettings, Refiner, refine_track_rows
@@ -247,6 +249,41 @@ def test_refinement_never_lowers_the_objective(seed: int) -> None:
     history = [report.objective_forward, *report.objective_after_pass]
     assert all(b >= a - 1e-9 for a, b in zip(history, history[1:], strict=False))
     assert _feasible(paths_from_rows(objective, rows))
+
+
+def test_long_windows_are_pruned_at_their_own_width(monkeypatch: pytest.MonkeyPatch) -> None:
+    scenario = build_scenario("crossing", seed=0)
+    scans = scenario.scans[:24]
+    config = _forward_config(scenario.config)
+    own = Refiner(
+        config=config,
+        scans=scans,
+        settings=RefinementSettings(prune_log_ratio=18.0, long_prune_log_ratio=3.0),
+    )
+    assert own.generator.prune_log_ratio == 18.0
+    assert own.long_generator.prune_log_ratio == 3.0
+    same = Refiner(config=config, scans=scans, settings=RefinementSettings(prune_log_ratio=7.0))
+    assert same.long_generator.prune_log_ratio == 7.0
+    with pytest.raises(InputError) as error:
+        RefinementSettings(long_prune_log_ratio=-1.0)
+    assert error.value.key == "refine_long_prune_log_ratio"
+
+    # The estimator's refinement: its own width for the short windows, the forward pass's
+    # for the long ones.
+    built: list[Refiner] = []
+
+    class Recording(Refiner):
+        def __init__(self, **kwargs: object) -> None:
+            super().__init__(**kwargs)  # type: ignore[arg-type]
+            built.append(self)
+
+    monkeypatch.setattr(refinement, "Refiner", Recording)
+    forward = WindowEstimator(config=config).run(scans)
+    refine_track_rows(config, scans, forward.track_rows, confidence=False)
+    est = config.estimator
+    assert [r.generator.prune_log_ratio for r in built] == [est.refine_prune_log_ratio]
+    assert [r.long_generator.prune_log_ratio for r in built] == [est.prune_log_ratio]
+    assert est.prune_log_ratio < est.refine_prune_log_ratio
 
 
 @pytest.mark.slow
