@@ -26,7 +26,7 @@ _EXPORTS: dict[str, str] = {
     "Config": "mapassoc.data.config",
     "load_config": "mapassoc.data.config",
     "parse_config": "mapassoc.data.config",
-    "BirthModel": "mapassoc.data.settings",
+    "BirthModel": "mapassoc.models.population",
     "EstimatorSettings": "mapassoc.data.settings",
     "ConstantVelocity": "mapassoc.models.motion",
     "ConstantAcceleration": "mapassoc.models.motion",

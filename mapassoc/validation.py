@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from mapassoc.errors import InputError, NotPositiveDefiniteError
 
 __all__ = [
+    "check_standard_deviation",
     "check_integer",
     "check_probability",
     "check_positive",
@@ -127,6 +128,25 @@ def check_integer(
     if (minimum is not None and out < minimum) or (maximum is not None and out > maximum):
         raise InputError(f"{name} must be {expected}, got {value!r}", key=key)
     return out
+
+
+def check_standard_deviation(name: str, value: object, *, key: str | None = None) -> float:
+    """``value`` as a float after checking that it is a standard deviation the filters
+    can square: finite, > 0, and with a square (the variance) that is finite and > 0 in
+    double precision (so from about 1.5e-154 to 1.3e154).  Nothing is clamped.
+
+    ``key`` is stored in the raised error's ``InputError.key``.
+    """
+    std = check_positive(name, value, key=key)
+    variance = std * std
+    if not (math.isfinite(variance) and variance > 0.0):
+        raise InputError(
+            f"{name} = {value!r} is a standard deviation whose square (the variance, "
+            f"{variance!r}) is not a finite number > 0 in double precision; expected a "
+            f"value between 1.5e-154 and 1.3e154 (check its unit)",
+            key=key,
+        )
+    return std
 
 
 def check_finite_array(

@@ -16,6 +16,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import networkx as nx
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -27,6 +28,7 @@ WIRING_MODULES = {
     "estimator/refinement.py",
 }
 WIRING_FOLDERS = ("trackers", "apps")
+PACKAGE_FOLDERS = ("mapassoc", "formulations", "solvers")
 SHARED_LEAF = "mapassoc.array_types"  # type aliases only; imports nothing of the package
 
 
@@ -161,3 +163,48 @@ def test_test_modules_import_no_other_test_module() -> None:
                     if names:
                         bad.append(f"{where}: from conftest import {', '.join(names)}")
     assert not bad, "test modules must import shared code from support:\n" + "\n".join(bad)
+
+
+def _module_name(path: Path) -> str:
+    """The installed name of a source file (``formulations/x.py`` is
+    ``mapassoc.formulations.x``; a package's ``__init__`` is the package)."""
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[0] in ("formulations", "solvers"):
+        parts.insert(0, "mapassoc")
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def import_graph() -> nx.DiGraph:
+    """Module -> module it imports, over every import of the package: module level,
+    deferred into a function, and under ``TYPE_CHECKING`` alike."""
+    modules = {
+        _module_name(path): path for folder in PACKAGE_FOLDERS for path in files(folder)
+    }
+    graph = nx.DiGraph()
+    graph.add_nodes_from(modules)
+    for name, path in modules.items():
+        for imported in imported_modules(path):
+            if imported in modules and imported != name:
+                graph.add_edge(name, imported)
+    return graph
+
+
+def test_no_import_cycles() -> None:
+    """No module imports itself back through others, type-only imports included: each
+    module can be read, and changed, knowing only what it imports."""
+    graph = import_graph()
+    assert graph.number_of_edges() > 100  # the walk found the package's imports
+    cycles = sorted(" -> ".join([*c, c[0]]) for c in nx.simple_cycles(graph))
+    assert not cycles, "import cycles:\n" + "\n".join(cycles)
+
+
+def test_the_cycle_check_sees_a_deferred_type_only_cycle(tmp_path: Path) -> None:
+    """The walk counts an import inside a function under ``TYPE_CHECKING``."""
+    source = tmp_path / "one.py"
+    source.write_text(
+        "def f():\n    if TYPE_CHECKING:\n        from mapassoc.models.motion import X\n",
+        encoding="utf-8",
+    )
+    assert "mapassoc.models.motion" in imported_modules(source)

@@ -36,7 +36,8 @@ from typing import Any
 
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import inside, os_reason
-from mapassoc.apps.runs import RunInterrupted, StopFlag, run_files, stop_on_signals
+from mapassoc.apps.runs import RunInterrupted, run_files
+from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
 

@@ -31,7 +31,8 @@ from pathlib import Path
 
 from mapassoc import __version__
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
-from mapassoc.apps.runs import RunInterrupted, StopFlag, json_dump, run_files, stop_on_signals
+from mapassoc.apps.runs import RunInterrupted, json_dump, run_files
+from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.errors import MapassocError, OutputError
 
 __all__ = ["main", "build_parser"]

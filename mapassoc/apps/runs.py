@@ -12,19 +12,16 @@ stopped.
 from __future__ import annotations
 
 import concurrent.futures
-import contextlib
 import dataclasses
 import json
 import os
-import signal
 import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType
 from typing import Any, BinaryIO
 
 from mapassoc.apps.progress import Progress
@@ -38,10 +35,8 @@ __all__ = [
     "InputWaitInterrupted",
     "read_input",
     "estimate_with_progress",
-    "StopFlag",
     "json_dump",
     "run_files",
-    "stop_on_signals",
 ]
 
 WINDOWS_NAME = "windows.jsonl"
@@ -123,55 +118,6 @@ class RunOutcome:
     summary: dict[str, Any]
     resumed_at: int
     seconds: float
-
-
-class StopFlag:
-    """A stop request, set by a signal handler (or by hand) and read at window boundaries."""
-
-    def __init__(self) -> None:
-        self._event = threading.Event()
-        self.signal_name: str | None = None
-
-    def set(self, signal_name: str = "request") -> None:
-        self.signal_name = signal_name
-        self._event.set()
-
-    def __call__(self) -> bool:
-        return self._event.is_set()
-
-
-@contextlib.contextmanager
-def stop_on_signals(flag: StopFlag, *, notice: bool = True) -> Iterator[StopFlag]:
-    """Turn SIGINT and SIGTERM into ``flag.set()`` while the block runs.
-
-    The first signal asks the run to stop after the current window (and says so at once
-    when ``notice`` and stderr is a terminal: a log gets only the final line); a second
-    SIGINT raises KeyboardInterrupt at once.  Outside the main thread (signal handlers
-    cannot be installed there) the block runs unchanged.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield flag
-        return
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        name = signal.Signals(signum).name
-        if flag() and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        flag.set(name)
-        if notice and sys.stderr.isatty():
-            print(
-                f"mapassoc: {name}: stopping after the current window "
-                "(Ctrl-C again to stop at once)",
-                file=sys.stderr,
-                flush=True,
-            )
-
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield flag
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
 
 
 def read_input(

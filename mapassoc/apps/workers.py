@@ -17,7 +17,7 @@ import signal
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-from mapassoc.apps.runs import StopFlag
+from mapassoc.apps.stopping import StopFlag
 from mapassoc.errors import InputError
 
 __all__ = ["process_pool", "run_on_pool", "worker_stop_requested", "usable_cores", "check_jobs"]

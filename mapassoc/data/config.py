@@ -65,7 +65,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from mapassoc.data.settings import BirthModel, EstimatorSettings
+from mapassoc.data.settings import EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
 from mapassoc.models.measurement import (
     MEASUREMENT_REGISTRY,
@@ -74,6 +74,7 @@ from mapassoc.models.measurement import (
     measurement_spec,
 )
 from mapassoc.models.motion import MOTION_REGISTRY, MotionModel, motion_spec
+from mapassoc.models.population import BirthModel
 from mapassoc.models.sensor import Region, Sensor
 from mapassoc.validation import check_nonnegative, check_positive, check_probability
 

@@ -14,14 +14,12 @@ from mapassoc.errors import InputError
 from mapassoc.estimator.posterior import (
     COUNT_PRIORS,
     K_ESTIMATORS,
-    MAX_KMAX,
     CountPrior,
     KEstimator,
 )
-from mapassoc.models.motion import check_standard_deviation
+from mapassoc.models.population import BirthModel
 from mapassoc.validation import (
     check_integer,
-    check_nonnegative,
     check_positive,
     check_probability,
 )
@@ -34,71 +32,6 @@ K_ESTIMATES = tuple(K_ESTIMATORS)
 
 def _check_int(name: str, value: object, *, minimum: int) -> int:
     return check_integer(name, value, minimum=minimum, key=name)
-
-
-@dataclass(frozen=True)
-class BirthModel:
-    """Where targets come from and how long they live: one generative model.
-
-    ``initial_count`` targets (Poisson) are present at the first scan of the recording;
-    before every scan ``rate`` new targets (Poisson) appear; a target alive at time t
-    is still alive at t + dt with probability ``survival_probability ** dt``; at each
-    scan it is detected with the sensor's detection probability.  Positions are
-    uniform over the scanning sensor's region.  The targets not detected so far are
-    carried through the recording as an expected number (the undetected-target
-    intensity, :mod:`mapassoc.models.population`), so a target's first detection, at the
-    first scan or later, has density ``u * Pd / V`` with ``u`` that expected number.
-    At its first detection a track starts (single-point initiation): the unmeasured
-    state components start from zero mean with the standard deviations below (each
-    motion model picks its own: ``MotionModel.birth_prior``, :mod:`mapassoc.models.motion`).
-
-    Parameters
-    ----------
-    rate : float
-        Expected number of new targets per scan, >= 0 (0: no target appears after the
-        start, as in Perry's fixed population).
-    initial_count : float
-        Expected number of targets present at the first scan of the recording, >= 0.
-    velocity_std : float
-        Prior standard deviation of each velocity component at birth (Cartesian
-        models), > 0.
-    acceleration_std : float
-        Prior standard deviation of each acceleration component at birth (constant
-        acceleration and Singer models), > 0.
-    speed_std : float
-        Prior standard deviation of the speed at birth (coordinated turn), > 0.
-    turn_rate_std : float
-        Prior standard deviation of the turn rate at birth (coordinated turn), > 0.
-    survival_probability : float
-        Probability that a target survives one unit of time, in (0, 1].
-    """
-
-    rate: float = 0.1
-    initial_count: float = 0.0
-    velocity_std: float = 10.0
-    acceleration_std: float = 1.0
-    speed_std: float = 10.0
-    turn_rate_std: float = 0.1
-    survival_probability: float = 0.99
-
-    def __post_init__(self) -> None:
-        for name in ("rate", "initial_count"):
-            value = check_nonnegative(f"birth {name}", getattr(self, name), key=name)
-            if value > MAX_KMAX:
-                raise InputError(
-                    f"birth {name} = {value!r} is an expected number of targets beyond "
-                    f"2**53 = {MAX_KMAX}, the largest count of targets (max_tracks) that "
-                    "is exact in double precision; expected a smaller number",
-                    key=name,
-                )
-        for name in ("velocity_std", "acceleration_std", "speed_std", "turn_rate_std"):
-            check_standard_deviation(f"birth {name}", getattr(self, name), key=name)
-        check_probability(
-            "birth survival_probability",
-            self.survival_probability,
-            allow_zero=False,
-            key="survival_probability",
-        )
 
 
 @dataclass(frozen=True)

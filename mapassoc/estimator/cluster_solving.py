@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import logsumexp
 
+from mapassoc.array_types import IntArray
 from mapassoc.formulations.bounds import (
     exclusive_groups,
     fixed_variable_bounds,
@@ -48,11 +49,17 @@ from mapassoc.formulations.bounds import (
 )
 from mapassoc.formulations.cardinality import (
     CardinalityTable,
+    ClusterTable,
     SearchLimitExceeded,
     exact_cardinality_table,
 )
 from mapassoc.formulations.frontier import frontier_search
-from mapassoc.formulations.packing import PackingProblem, decode_selection, set_packing_program
+from mapassoc.formulations.packing import (
+    MergedProblem,
+    PackingProblem,
+    decode_selection,
+    set_packing_program,
+)
 from mapassoc.solvers import (
     HighsSolver,
     LPResult,
@@ -67,6 +74,7 @@ __all__ = [
     "ClusterSolver",
     "ClusterStatus",
     "CLUSTER_STATUSES",
+    "WindowCluster",
     "default_lp_solver",
 ]
 
@@ -86,6 +94,38 @@ class ClusterStatus(StrEnum):
 
 CLUSTER_STATUSES = tuple(ClusterStatus)
 """From best to worst."""
+
+
+@dataclass(frozen=True, eq=False)
+class WindowCluster:
+    """One cluster of a solved window, as :meth:`WindowEstimator.solve_window` left it.
+
+    Attributes
+    ----------
+    kind : {"cluster", "single", "independent"}
+        A cluster searched after merging (and maybe bound pruning), a cluster of one
+        hypothesis, or the lone hypotheses that may each be taken or not.
+    members : ndarray of int, shape (n,)
+        Window hypothesis indices: the cluster's hypotheses (``"cluster"``: the
+        subproblem the merge was applied to, in its order), the one hypothesis, or the
+        lone hypotheses.
+    table : ClusterTable
+        The cluster's per-k table (over the merged, kept hypotheses for ``"cluster"``).
+    status : ClusterStatus
+    merged : MergedProblem or None
+        ``"cluster"``: the merge before bound pruning (its ``members`` index
+        ``members``).
+    kept : ndarray of bool or None
+        ``"cluster"``: which merged hypotheses the bound pruning kept (None: all).
+    """
+
+    kind: str
+    members: IntArray
+    table: ClusterTable
+    status: ClusterStatus = ClusterStatus.EXACT
+    merged: MergedProblem | None = None
+    kept: NDArray[np.bool_] | None = None
+
 
 BOUND_PRUNE_MIN_HYPOTHESES = 100
 """Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of

@@ -67,7 +67,6 @@ import numpy as np
 
 from mapassoc.array_types import BoolArray, FloatArray, IntArray
 from mapassoc.data.scans import Scan
-from mapassoc.data.settings import BirthModel
 from mapassoc.errors import InputError
 from mapassoc.filtering.kalman import (
     gate_threshold,
@@ -85,6 +84,7 @@ from mapassoc.models.birth import (
 )
 from mapassoc.models.motion import MotionModel
 from mapassoc.models.population import (
+    BirthModel,
     UndetectedTargets,
     WindowPopulation,
     recording_start,

@@ -75,9 +75,8 @@ from scipy.special import logsumexp
 
 from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.errors import InputError
-from mapassoc.estimator.cluster_solving import ClusterStatus
+from mapassoc.estimator.cluster_solving import ClusterStatus, WindowCluster
 from mapassoc.formulations.bounds import exclusive_groups
-from mapassoc.formulations.cardinality import ClusterTable
 from mapassoc.formulations.marginals import cluster_messages, frontier_marginals, log_subtract
 from mapassoc.formulations.packing import MergedProblem
 from mapassoc.models.population import poisson_log_pmf
@@ -86,7 +85,6 @@ if TYPE_CHECKING:
     from mapassoc.estimator.pipeline import WindowSolution
 
 __all__ = [
-    "WindowCluster",
     "WindowMarginals",
     "window_marginals",
     "track_count_log_weights",
@@ -106,37 +104,6 @@ _MU_GRID = np.linspace(-30.0, 30.0, 25)
 
 _ROUND_OFF = 1e-9
 """Relative slack within which a proven upper mass may fall below a captured one."""
-
-
-@dataclass(frozen=True, eq=False)
-class WindowCluster:
-    """One cluster of a solved window, as :meth:`WindowEstimator.solve_window` left it.
-
-    Attributes
-    ----------
-    kind : {"cluster", "single", "independent"}
-        A cluster searched after merging (and maybe bound pruning), a cluster of one
-        hypothesis, or the lone hypotheses that may each be taken or not.
-    members : ndarray of int, shape (n,)
-        Window hypothesis indices: the cluster's hypotheses (``"cluster"``: the
-        subproblem the merge was applied to, in its order), the one hypothesis, or the
-        lone hypotheses.
-    table : ClusterTable
-        The cluster's per-k table (over the merged, kept hypotheses for ``"cluster"``).
-    status : ClusterStatus
-    merged : MergedProblem or None
-        ``"cluster"``: the merge before bound pruning (its ``members`` index
-        ``members``).
-    kept : ndarray of bool or None
-        ``"cluster"``: which merged hypotheses the bound pruning kept (None: all).
-    """
-
-    kind: str
-    members: IntArray
-    table: ClusterTable
-    status: ClusterStatus = ClusterStatus.EXACT
-    merged: MergedProblem | None = None
-    kept: NDArray[np.bool_] | None = None
 
 
 @dataclass(frozen=True, eq=False)

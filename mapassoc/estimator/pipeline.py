@@ -44,9 +44,13 @@ from mapassoc.data.config import Config, check_config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError
-from mapassoc.estimator.cluster_solving import ClusterReport, ClusterSolver, ClusterStatus
+from mapassoc.estimator.cluster_solving import (
+    ClusterReport,
+    ClusterSolver,
+    ClusterStatus,
+    WindowCluster,
+)
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
-from mapassoc.estimator.marginals import WindowCluster
 from mapassoc.estimator.posterior import FULL_LENGTH_KMAX, KPosterior, k_posterior
 from mapassoc.estimator.refinement import RefinementReport, TrackConfidence, refine_track_rows
 from mapassoc.filtering.smoothing import smooth_tracks

@@ -50,7 +50,7 @@ from scipy.special import logsumexp
 
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
-from mapassoc.models.population import WindowPopulation, poisson_log_pmf
+from mapassoc.models.population import MAX_KMAX, WindowPopulation, poisson_log_pmf
 
 __all__ = [
     "COUNT_LAWS",
@@ -83,10 +83,7 @@ NEGLIGIBLE_LOG_RATIO = 800.0
 smallest number relative to it (e^-745): the posterior stops there (see
 :func:`k_posterior`)."""
 
-MAX_KMAX = 2**53
-"""Largest ``max_tracks``: every K up to it is exact in double precision (the Poisson and
-factorial terms take K as a float).  Beyond what the data and the prior can reach a
-Kmax costs nothing (:func:`k_posterior`), so this bound only refuses nonsense."""
+
 
 MAX_K_RANGE = 2**20
 """Most K values :func:`k_posterior` computes when Kmax is larger: a posterior that has

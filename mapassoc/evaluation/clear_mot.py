@@ -43,7 +43,7 @@ from types import ModuleType
 import numpy as np
 
 from mapassoc.errors import InputError
-from mapassoc.evaluation.metrics import TimedPoints, _check_runs
+from mapassoc.evaluation.points import TimedPoints, check_runs
 from mapassoc.validation import check_positive
 
 __all__ = ["ClearMotResult", "clear_mot", "motmetrics_available"]
@@ -160,7 +160,7 @@ def clear_mot(truth: TimedPoints, estimates: TimedPoints, *, threshold: float) -
     positive): 8 truth rows, MOTA = 1 - (1 + 1 + 1) / 8 = 0.625.
     """
     limit = check_positive("threshold", threshold)
-    _check_runs(truth, estimates)
+    check_runs(truth, estimates)
     if truth.times.shape[0] == 0:
         raise InputError("truth has no rows: MOTA (which divides by the truth rows) is undefined")
     mm = _motmetrics()

@@ -50,13 +50,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from mapassoc.errors import InputError
-from mapassoc.evaluation.metrics import (
-    TimedPoints,
-    _check_order,
-    _check_point_set,
-    _check_runs,
-    _readonly,
-)
+from mapassoc.evaluation.metrics import _check_point_set
+from mapassoc.evaluation.points import TimedPoints, check_order, check_runs, readonly
 from mapassoc.validation import check_positive
 
 __all__ = [
@@ -226,7 +221,7 @@ def ospa(truth: ArrayLike, estimates: ArrayLike, *, c: float, p: float = 2.0) ->
     ``{0}`` vs ``{3}`` with ``c = 10``, ``p = 2``: ``(1/1 * 3^2)^(1/2) = 3``.
     """
     cutoff = check_positive("c", c)
-    order = _check_order(p)
+    order = check_order(p)
     truth_arr = _check_point_set("truth", truth)
     estimates_arr = _check_point_set("estimates", estimates)
     if truth_arr.ndim == 1 and estimates_arr.ndim == 1:
@@ -264,8 +259,8 @@ def ospa_over_time(
         Arrays of shape (T,).
     """
     cutoff = check_positive("c", c)
-    order = _check_order(p)
-    _check_runs(truth, estimates)
+    order = check_order(p)
+    check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)
     results = [
         _ospa_from_costs(
@@ -276,10 +271,10 @@ def ospa_over_time(
         for t in times
     ]
     return OspaSeries(
-        times=_readonly(np.array(times, dtype=float)),
-        total=_readonly(np.array([r.total for r in results])),
-        localisation=_readonly(np.array([r.localisation for r in results])),
-        cardinality=_readonly(np.array([r.cardinality for r in results])),
+        times=readonly(np.array(times, dtype=float)),
+        total=readonly(np.array([r.total for r in results])),
+        localisation=readonly(np.array([r.localisation for r in results])),
+        cardinality=readonly(np.array([r.cardinality for r in results])),
         c=cutoff,
         p=order,
     )
@@ -379,7 +374,7 @@ def trajectory_base_distances(
         ``d~^(c)`` of each pair over the whole run, in ``[0, c]``.
     """
     cutoff = check_positive("c", c)
-    _check_runs(truth, estimates)
+    check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)
     sums = _pair_sums(truth, estimates, times, cutoff)
     # Every trajectory has a row, so every pair has at least one time in its union.
@@ -423,8 +418,8 @@ def ospa2(truth: TimedPoints, estimates: TimedPoints, *, c: float, p: float = 2.
     ``sqrt((5.5^2 + 10^2) / 2) = sqrt(65.125)``.
     """
     cutoff = check_positive("c", c)
-    order = _check_order(p)
-    _check_runs(truth, estimates)
+    order = check_order(p)
+    check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)
     sums = _pair_sums(truth, estimates, times, cutoff)
     return _window_ospa2(sums, 0, times.size - 1, cutoff, order)
@@ -458,24 +453,24 @@ def ospa2_over_time(
         One window per evaluation time.
     """
     cutoff = check_positive("c", c)
-    order = _check_order(p)
+    order = check_order(p)
     if isinstance(window_length, bool) or not isinstance(window_length, int | np.integer) or (
         window_length < 1
     ):
         raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
-    _check_runs(truth, estimates)
+    check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)
     sums = _pair_sums(truth, estimates, times, cutoff)
     firsts = [max(0, k - int(window_length) + 1) for k in range(times.size)]
     results = [_window_ospa2(sums, a, k, cutoff, order) for k, a in enumerate(firsts)]
     return Ospa2Series(
-        start_times=_readonly(times[firsts].astype(float)),
-        end_times=_readonly(times.astype(float)),
-        total=_readonly(np.array([r.total for r in results])),
-        localisation=_readonly(np.array([r.localisation for r in results])),
-        cardinality=_readonly(np.array([r.cardinality for r in results])),
-        num_truth=_readonly(np.array([r.num_truth for r in results], dtype=np.int64)),
-        num_estimates=_readonly(np.array([r.num_estimates for r in results], dtype=np.int64)),
+        start_times=readonly(times[firsts].astype(float)),
+        end_times=readonly(times.astype(float)),
+        total=readonly(np.array([r.total for r in results])),
+        localisation=readonly(np.array([r.localisation for r in results])),
+        cardinality=readonly(np.array([r.cardinality for r in results])),
+        num_truth=readonly(np.array([r.num_truth for r in results], dtype=np.int64)),
+        num_estimates=readonly(np.array([r.num_estimates for r in results], dtype=np.int64)),
         c=cutoff,
         p=order,
         window_length=int(window_length),

@@ -18,7 +18,7 @@ crossings).  :func:`generic_config` gives the configuration the benchmark runs t
 the same recipe for every family.
 
 Every scenario's configuration matches its simulation: the same motion model and noise,
-the simulated sensors, a :class:`~mapassoc.data.settings.BirthModel` derived from the targets
+the simulated sensors, a :class:`~mapassoc.models.population.BirthModel` derived from the targets
 (:func:`birth_model_for`) and default :class:`~mapassoc.data.settings.EstimatorSettings` except
 ``max_tracks`` (:func:`max_tracks_for`).  The one exception is ``"burst"``, whose
 configuration keeps the normal false-alarm rate: the burst is what it should survive.
@@ -48,11 +48,12 @@ from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import Origins, TruthTable, number_rows
 from mapassoc.data.scans import Scan
-from mapassoc.data.settings import BirthModel, EstimatorSettings
+from mapassoc.data.settings import EstimatorSettings
 from mapassoc.errors import InputError
 from mapassoc.evaluation.simulate import Scenario, TargetSpec, scan_plan_regular, simulate
 from mapassoc.models.measurement import LinearMeasurement, RangeBearing
 from mapassoc.models.motion import ConstantVelocity, CoordinatedTurn, MotionModel
+from mapassoc.models.population import BirthModel
 from mapassoc.models.sensor import Region, Sensor
 from mapassoc.validation import check_integer
 

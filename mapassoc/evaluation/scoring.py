@@ -22,8 +22,9 @@ from mapassoc.data.io import TruthTable
 from mapassoc.errors import InputError
 from mapassoc.evaluation.calibration import DEFAULT_BINS, count_series_scores
 from mapassoc.evaluation.clear_mot import clear_mot
-from mapassoc.evaluation.metrics import _check_order, gospa_over_time
+from mapassoc.evaluation.metrics import gospa_over_time
 from mapassoc.evaluation.ospa import ospa2, ospa2_over_time, ospa_over_time
+from mapassoc.evaluation.points import check_order
 from mapassoc.evaluation.tables import (
     disjoint_times_message,
     position_names,
@@ -175,7 +176,7 @@ def score_tracks(
     if truth.times.shape[0] == 0:
         raise InputError("truth has no records: there is nothing to score against")
     cutoff = check_positive("c", c)
-    order = _check_order(p)
+    order = check_order(p)
     threshold = cutoff if motp_threshold is None else check_positive(
         "motp_threshold", motp_threshold
     )

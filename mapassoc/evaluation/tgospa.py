@@ -85,7 +85,7 @@ from scipy.optimize import Bounds, LinearConstraint, linprog, milp
 from scipy.sparse.csgraph import connected_components
 
 from mapassoc.errors import InputError
-from mapassoc.evaluation.metrics import TimedPoints, _check_order, _check_runs, _readonly
+from mapassoc.evaluation.points import TimedPoints, check_order, check_runs, readonly
 from mapassoc.validation import check_positive
 
 __all__ = [
@@ -551,9 +551,9 @@ def tgospa(
     """
     cutoff = check_positive("c", c)
     switch = check_positive("gamma", gamma)
-    order = _check_order(p)
+    order = check_order(p)
     solver = _check_method(method)
-    _check_runs(truth, estimates)
+    check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)
     num_times = times.shape[0]
     tx = _trajectories(truth, times)
@@ -647,14 +647,14 @@ def tgospa(
         num_missed=float(np.sum(num_present_x - assigned_t)),
         num_false=float(np.sum(num_present_y - assigned_t)),
         num_switches=switching / switch**order,
-        times=_readonly(times.astype(float)),
-        localisation_per_time=_readonly(localisation_t),
-        missed_per_time=_readonly(missed_t),
-        false_per_time=_readonly(false_t),
-        switching_per_step=_readonly(switching_s),
-        truth_ids=_readonly(tx.ids),
-        estimate_ids=_readonly(ty.ids),
-        assignment=_readonly(assignment),
+        times=readonly(times.astype(float)),
+        localisation_per_time=readonly(localisation_t),
+        missed_per_time=readonly(missed_t),
+        false_per_time=readonly(false_t),
+        switching_per_step=readonly(switching_s),
+        truth_ids=readonly(tx.ids),
+        estimate_ids=readonly(ty.ids),
+        assignment=readonly(assignment),
         c=cutoff,
         p=order,
         gamma=switch,
@@ -691,8 +691,8 @@ def fragmentation_of(result: TgospaResult) -> TrackFragmentation:
         switches = np.zeros(nx, dtype=np.int64)
     return TrackFragmentation(
         truth_ids=result.truth_ids,
-        fragments=_readonly(fragments),
-        id_switches=_readonly(switches),
+        fragments=readonly(fragments),
+        id_switches=readonly(switches),
     )
 
 

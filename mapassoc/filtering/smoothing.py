@@ -54,7 +54,6 @@ from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan
-from mapassoc.data.settings import BirthModel
 from mapassoc.errors import InputError
 from mapassoc.filtering.kalman import innovation, predict_motion, rts_smooth, update
 from mapassoc.models.birth import (
@@ -65,6 +64,7 @@ from mapassoc.models.birth import (
     needs_conversion,
 )
 from mapassoc.models.motion import MotionModel
+from mapassoc.models.population import BirthModel
 
 __all__ = ["Associations", "smooth_track", "smooth_tracks"]
 

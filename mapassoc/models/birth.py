@@ -3,7 +3,7 @@
 The detection fixes the position (``measurement.position_from_measurement``: the
 detection itself for a position measurement, the polar-to-Cartesian conversion with
 covariance ``J R J^T`` for range-bearing).  The unmeasured components start at zero
-with the prior standard deviations of :class:`~mapassoc.data.settings.BirthModel`.
+with the prior standard deviations of :class:`~mapassoc.models.population.BirthModel`.
 
 The coordinated-turn state (speed, heading, turn rate) cannot be started from one
 position: a Gaussian over heading cannot express "any direction".  A coordinated-turn
@@ -25,10 +25,10 @@ from __future__ import annotations
 import numpy as np
 
 from mapassoc.array_types import FloatArray
-from mapassoc.data.settings import BirthModel
 from mapassoc.errors import InputError
 from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
+from mapassoc.models.population import BirthModel
 
 __all__ = [
     "initiation_model",

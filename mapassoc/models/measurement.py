@@ -33,8 +33,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
-from mapassoc.models.motion import MotionModel, check_standard_deviation
-from mapassoc.validation import check_covariance, check_finite_array
+from mapassoc.models.angles import wrap_angle
+from mapassoc.models.motion import MotionModel
+from mapassoc.validation import check_covariance, check_finite_array, check_standard_deviation
 
 __all__ = [
     "MeasurementModel",
@@ -49,21 +50,7 @@ __all__ = [
 ]
 
 
-def wrap_angle(angle: ArrayLike) -> FloatArray:
-    """Wrap angles to (-pi, pi].
 
-    Parameters
-    ----------
-    angle : array_like
-        Angles in radians, any shape.
-
-    Returns
-    -------
-    ndarray
-        Same shape, each value in (-pi, pi].
-    """
-    a = np.asarray(angle, dtype=float)
-    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
 
 
 @runtime_checkable

@@ -42,10 +42,11 @@ import numpy as np
 
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
-from mapassoc.validation import check_positive
+from mapassoc.models.angles import wrap_angle
+from mapassoc.validation import check_positive, check_standard_deviation
 
 if TYPE_CHECKING:
-    from mapassoc.data.settings import BirthModel
+    from mapassoc.models.population import BirthModel
 
 __all__ = [
     "MotionModel",
@@ -62,25 +63,6 @@ __all__ = [
 ]
 
 _AXES = ("x", "y", "z")
-
-
-def check_standard_deviation(name: str, value: object, *, key: str | None = None) -> float:
-    """``value`` as a float after checking that it is a standard deviation the filters
-    can square: finite, > 0, and with a square (the variance) that is finite and > 0 in
-    double precision (so from about 1.5e-154 to 1.3e154).  Nothing is clamped.
-
-    ``key`` is stored in the raised error's ``InputError.key``.
-    """
-    std = check_positive(name, value, key=key)
-    variance = std * std
-    if not (math.isfinite(variance) and variance > 0.0):
-        raise InputError(
-            f"{name} = {value!r} is a standard deviation whose square (the variance, "
-            f"{variance!r}) is not a finite number > 0 in double precision; expected a "
-            f"value between 1.5e-154 and 1.3e154 (check its unit)",
-            key=key,
-        )
-    return std
 
 
 @runtime_checkable
@@ -816,7 +798,6 @@ class CoordinatedTurn(MotionModel):
         flips the signs of the speed's covariances with the other components; the shift
         of the heading by pi and its wrapping change no covariance.
         """
-        from mapassoc.models.measurement import wrap_angle  # measurement imports this module
 
         states = np.array(states, dtype=float, copy=True)
         covariances = np.array(covariances, dtype=float, copy=True)

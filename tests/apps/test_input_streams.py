@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from mapassoc.apps.cli import main
-from mapassoc.apps.runs import InputWaitInterrupted, StopFlag, read_input, run_files
+from mapassoc.apps.runs import InputWaitInterrupted, read_input, run_files
+from mapassoc.apps.stopping import StopFlag
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes need POSIX")
 

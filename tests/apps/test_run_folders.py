@@ -391,7 +391,7 @@ def test_signals_set_the_flag_and_a_second_sigint_stops_at_once() -> None:
     import os
     import signal
 
-    from mapassoc.apps.runs import StopFlag, stop_on_signals
+    from mapassoc.apps.stopping import StopFlag, stop_on_signals
 
     before = signal.getsignal(signal.SIGINT)
     with stop_on_signals(StopFlag()) as stop:

@@ -18,8 +18,9 @@ from mapassoc.data.settings import BirthModel
 from mapassoc.errors import ConfigError, InputError
 from mapassoc.evaluation.scenarios import build_scenario
 from mapassoc.models.measurement import LinearMeasurement, RangeBearing
-from mapassoc.models.motion import ConstantVelocity, Singer, check_standard_deviation
+from mapassoc.models.motion import ConstantVelocity, Singer
 from mapassoc.models.sensor import Region, Sensor
+from mapassoc.validation import check_standard_deviation
 
 REGION = "region = [[-100.0, 100.0], [-100.0, 100.0]]"
 
