@@ -1,7 +1,8 @@
 """Stop requests: a flag set by SIGINT / SIGTERM (or by hand), read at window boundaries.
 
-Shared by the runs (:mod:`mapassoc.apps.runs`), the batch and the worker processes
-(:mod:`mapassoc.apps.workers`), each of which imports it from here.
+The command line and the batch install the handlers around a run
+(:func:`stop_on_signals`); the worker processes (:mod:`mapassoc.apps.workers`) keep their
+own flag; a run (:func:`mapassoc.apps.runs.run_files`) takes any ``stop`` callable.
 """
 
 from __future__ import annotations
