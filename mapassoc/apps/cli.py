@@ -304,19 +304,17 @@ def _comma_separated(text: str) -> list[str]:
     return [item.strip() for item in text.split(",")]
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``mapassoc`` command."""
-    parser = argparse.ArgumentParser(
-        prog="mapassoc",
-        description="MAP multi-target track-set estimation by optimization: sliding windows "
-        "of scans solved as set-packing programs for every number of tracks K.",
-    )
-    parser.add_argument("--version", action="version", version=f"mapassoc {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+Subcommands = argparse._SubParsersAction  # the type of ``parser.add_subparsers()``
 
+
+def _add_scenarios_command(sub: Subcommands) -> None:
+    """``mapassoc scenarios``."""
     p = sub.add_parser("scenarios", help="list the built-in scenarios")
     p.set_defaults(func=_cmd_scenarios)
 
+
+def _add_simulate_command(sub: Subcommands) -> None:
+    """``mapassoc simulate``."""
     p = sub.add_parser(
         "simulate",
         help="simulate a built-in scenario into a folder",
@@ -353,6 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_cmd_simulate)
 
+
+def _add_run_command(sub: Subcommands) -> None:
+    """``mapassoc run``."""
     p = sub.add_parser(
         "run",
         help="estimate tracks from a detections file",
@@ -417,6 +418,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_cmd_run)
 
+
+def _add_estimate_parameters_command(sub: Subcommands) -> None:
+    """``mapassoc estimate-parameters``."""
     p = sub.add_parser(
         "estimate-parameters",
         help="estimate each sensor's false-alarm rate and Pd from a recording",
@@ -434,6 +438,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no line per pass on stderr")
     p.set_defaults(func=_cmd_estimate_parameters)
 
+
+def _add_batch_command(sub: Subcommands) -> None:
+    """``mapassoc batch``."""
     p = sub.add_parser(
         "batch",
         help="run many recordings, each into its own run folder, in parallel",
@@ -478,6 +485,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_cmd_batch)
 
+
+def _add_evaluate_command(sub: Subcommands) -> None:
+    """``mapassoc evaluate``."""
     p = sub.add_parser(
         "evaluate",
         help="compare tracks with truth (GOSPA, T-GOSPA, RMSE, cardinality, fragments)",
@@ -511,6 +521,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", help="also write the metrics to this JSON file")
     p.set_defaults(func=_cmd_evaluate)
 
+
+def _add_demo_command(sub: Subcommands) -> None:
+    """``mapassoc demo``."""
     p = sub.add_parser(
         "demo",
         help="run the built-in demo scenario end to end",
@@ -530,6 +543,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plot", action="store_true", help="skip the PNG plot")
     p.set_defaults(func=_cmd_demo)
 
+
+def _add_bench_command(sub: Subcommands) -> None:
+    """``mapassoc bench``."""
     p = sub.add_parser(
         "bench",
         help="speed, accuracy and p(K | Z) over scenario families, seeds and priors on K",
@@ -601,6 +617,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="PATH", help="also write the results to this JSON file")
     p.set_defaults(func=_cmd_bench)
 
+
+
+def _add_bench_parameters_command(sub: Subcommands) -> None:
+    """``mapassoc bench-parameters``."""
     from mapassoc.apps.bench_defaults import DEFAULT_PARAMETER_FAMILIES
 
     p = sub.add_parser(
@@ -623,6 +643,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="PATH", help="also write the runs to this JSON file")
     p.set_defaults(func=_cmd_bench_parameters)
 
+
+
+def _add_bench_refinement_command(sub: Subcommands) -> None:
+    """``mapassoc bench-refinement``."""
     from mapassoc.apps.bench_defaults import DEFAULT_REFINEMENT_FAMILIES
 
     p = sub.add_parser(
@@ -644,6 +668,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="PATH", help="also write the runs to this JSON file")
     p.set_defaults(func=_cmd_bench_refinement)
 
+
+def _add_bench_reprocess_command(sub: Subcommands) -> None:
+    """``mapassoc bench-reprocess``."""
     p = sub.add_parser(
         "bench-reprocess",
         help="throughput and memory of reprocessing: batch pool vs sequential, a long "
@@ -671,6 +698,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="PATH", help="also write the numbers to this JSON file")
     p.set_defaults(func=_cmd_bench_reprocess)
 
+
+
+def _add_compare_command(sub: Subcommands) -> None:
+    """``mapassoc compare``."""
     from mapassoc.trackers.registry import DEFAULT_TRACKERS, tracker_names
 
     p = sub.add_parser(
@@ -722,6 +753,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--no-plot", action="store_true", help="skip compare.png")
     p.set_defaults(func=_cmd_compare)
+
+
+COMMANDS = (
+    _add_scenarios_command,
+    _add_simulate_command,
+    _add_run_command,
+    _add_estimate_parameters_command,
+    _add_batch_command,
+    _add_evaluate_command,
+    _add_demo_command,
+    _add_bench_command,
+    _add_bench_parameters_command,
+    _add_bench_refinement_command,
+    _add_bench_reprocess_command,
+    _add_compare_command,
+)
+"""Each subcommand's parser, in the order ``mapassoc --help`` lists them: one function per
+command adds its parser (arguments, help and the ``func`` that runs it)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``mapassoc`` command."""
+    parser = argparse.ArgumentParser(
+        prog="mapassoc",
+        description="MAP multi-target track-set estimation by optimization: sliding windows "
+        "of scans solved as set-packing programs for every number of tracks K.",
+    )
+    parser.add_argument("--version", action="version", version=f"mapassoc {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add_command in COMMANDS:
+        add_command(sub)
     return parser
 
 
