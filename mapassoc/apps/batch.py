@@ -36,7 +36,7 @@ from typing import Any
 
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import inside, os_reason
-from mapassoc.apps.runs import RunInterrupted, run_files
+from mapassoc.apps.runs import RunInterrupted, RunOptions, run_files
 from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
@@ -228,17 +228,16 @@ def run_recording(
                 "has no shared --config"
             )
         with _ONE_AT_A_TIME:
-            outcome = run_files(
-                config,
-                recording.detections,
-                out / recording.name,
+            run_options = RunOptions(
                 timings=options.timings,
                 progress=False,
                 overwrite=options.overwrite,
                 resume=options.resume,
                 checkpoint_seconds=options.checkpoint_seconds,
-                stop=stop,
                 tracks_format=options.tracks_format,
+            )
+            outcome = run_files(
+                config, recording.detections, out / recording.name, run_options, stop=stop
             )
     except RunInterrupted as exc:
         row.update(status="interrupted", scans=exc.scans_committed, error=str(exc))

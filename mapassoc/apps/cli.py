@@ -31,7 +31,7 @@ from pathlib import Path
 
 from mapassoc import __version__
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
-from mapassoc.apps.runs import RunInterrupted, json_dump, run_files
+from mapassoc.apps.runs import RunInterrupted, RunOptions, json_dump, run_files
 from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.errors import MapassocError, OutputError
 
@@ -77,20 +77,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     with stop_on_signals(StopFlag()) as stop:
-        outcome = run_files(
-            args.config,
-            args.detections,
-            args.out,
+        options = RunOptions(
             timings=not args.no_timings,
             progress=not args.no_progress,
             overwrite=args.overwrite,
             resume=args.resume,
             checkpoint_seconds=args.checkpoint_seconds,
-            stop=stop,
             segments=args.segments,
             jobs=args.jobs,
             tracks_format=args.tracks_format,
         )
+        outcome = run_files(args.config, args.detections, args.out, options, stop=stop)
     summary = outcome.summary
     if outcome.status == "skipped":
         print(

@@ -18,7 +18,7 @@ import importlib.util
 from pathlib import Path
 
 from mapassoc.apps.run_folders import DEMO_FORMAT, RunFolder, new_manifest, now_text
-from mapassoc.apps.runs import RunInterrupted, run_files
+from mapassoc.apps.runs import RunInterrupted, RunOptions, run_files
 from mapassoc.data.io import read_tracks, write_tracks
 from mapassoc.errors import InputError
 from mapassoc.evaluation.metrics import RunEvaluation
@@ -112,7 +112,9 @@ def _build_demo(
     print(f"scenario {scenario!r} (seed {seed}): {describe_scenario(scenario)}")
     paths = write_scenario(built, out_dir / "scenario")
     run_dir = out_dir / "run"
-    summary = run_files(paths["config"], paths["detections"], run_dir, progress=True).summary
+    summary = run_files(
+        paths["config"], paths["detections"], run_dir, RunOptions(progress=True)
+    ).summary
     tracks = read_tracks(run_dir / "tracks.csv")
     oracle = oracle_tracks(built.scans, built.origins, built.config)
     write_tracks(out_dir / "oracle_tracks.csv", oracle)

@@ -27,8 +27,10 @@ from typing import Any, BinaryIO
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import RunFolder, file_identity, new_manifest, now_text, os_reason
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
+from mapassoc.validation import check_integer
 
 __all__ = [
+    "RunOptions",
     "RunOutcome",
     "RunInterrupted",
     "StoppedBeforeRun",
@@ -92,6 +94,68 @@ class InputWaitInterrupted(StoppedBeforeRun):
     def __init__(self, path: str) -> None:
         self.path = path
         super().__init__(f"stopped while waiting for input {path}")
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How :func:`run_files` runs and writes (the options of ``mapassoc run``).
+
+    Parameters
+    ----------
+    timings : bool
+        False leaves run times out of ``windows.jsonl`` and ``summary.json``.
+    progress : bool
+        Progress on stderr (a bar on a terminal, else a line every ``log_seconds``).
+    overwrite : bool
+        Replace what ``OUT`` holds (only once the new run is complete).
+    resume : bool
+        Continue the unfinished run in ``OUT.partial``; skip when ``OUT`` is complete
+        over the same inputs; start afresh when there is nothing to continue.  Excludes
+        ``overwrite``.
+    checkpoint_seconds : float
+        Least interval between two checkpoints (>= 0; 0 checkpoints after every window).
+    log_seconds : float
+        Seconds between two progress lines when stderr is not a terminal.
+    segments : int
+        1: the sequential run.  More: the recording in that many overlapping segments,
+        solved on ``jobs`` local processes and stitched
+        (:mod:`mapassoc.estimator.segments`); checkpoints then hold finished segments,
+        and a stop abandons the segments in progress.
+    jobs : int, optional
+        Worker processes for ``segments > 1`` (default: the usable cores).
+    tracks_format : {"csv", "parquet"}
+        ``tracks.csv`` or ``tracks.parquet`` (extra ``parquet``).
+
+    Raises
+    ------
+    InputError
+        ``overwrite`` with ``resume``, a negative ``checkpoint_seconds``, an unknown
+        ``tracks_format``, ``segments < 1``.
+    """
+
+    timings: bool = True
+    progress: bool = True
+    overwrite: bool = False
+    resume: bool = False
+    checkpoint_seconds: float = 10.0
+    log_seconds: float = 30.0
+    segments: int = 1
+    jobs: int | None = None
+    tracks_format: str = "csv"
+
+    def __post_init__(self) -> None:
+        if self.overwrite and self.resume:
+            raise InputError("--overwrite and --resume exclude each other; choose one")
+        if not (self.checkpoint_seconds >= 0):
+            raise InputError(
+                f"checkpoint_seconds must be >= 0, got {self.checkpoint_seconds!r}"
+            )
+        if self.tracks_format not in TRACKS_FORMATS:
+            raise InputError(
+                f"tracks_format must be one of {sorted(TRACKS_FORMATS)}, got "
+                f"{self.tracks_format!r}"
+            )
+        check_integer("segments", self.segments, minimum=1)
 
 
 @dataclass(frozen=True)
@@ -328,17 +392,9 @@ def run_files(
     config_path: str | os.PathLike[str],
     detections_path: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
+    options: RunOptions | None = None,
     *,
-    timings: bool = True,
-    progress: bool = True,
-    overwrite: bool = False,
-    resume: bool = False,
-    checkpoint_seconds: float = 10.0,
     stop: Callable[[], bool] | None = None,
-    log_seconds: float = 30.0,
-    segments: int = 1,
-    jobs: int | None = None,
-    tracks_format: str = "csv",
 ) -> RunOutcome:
     """Read a configuration and a detections file, estimate tracks, write a run folder.
 
@@ -348,29 +404,11 @@ def run_files(
         The TOML configuration and the detections file (CSV, or Parquet by suffix).
     out_dir : path
         The run folder ``OUT`` (see :mod:`mapassoc.apps.run_folders`).
-    timings : bool
-        False leaves run times out of ``windows.jsonl`` and ``summary.json``.
-    progress : bool
-        Progress on stderr (a bar on a terminal, else a line every ``log_seconds``).
-    overwrite : bool
-        Replace what ``OUT`` holds (only once the new run is complete).
-    resume : bool
-        Continue the unfinished run in ``OUT.partial``; skip when ``OUT`` is complete
-        over the same inputs; start afresh when there is nothing to continue.
-    checkpoint_seconds : float
-        Least interval between two checkpoints (>= 0; 0 checkpoints after every window).
+    options : RunOptions, optional
+        How to run and write (default ``RunOptions()``).
     stop : callable, optional
         Polled at every window boundary; when it returns True the run checkpoints and
         raises :class:`RunInterrupted`.
-    segments : int
-        1: the sequential run.  More: the recording in that many overlapping segments,
-        solved on ``jobs`` local processes and stitched
-        (:mod:`mapassoc.estimator.segments`); checkpoints then hold finished segments,
-        and a stop abandons the segments in progress.
-    jobs : int, optional
-        Worker processes for ``segments > 1`` (default: the usable cores).
-    tracks_format : {"csv", "parquet"}
-        ``tracks.csv`` or ``tracks.parquet`` (extra ``parquet``).
 
     Raises
     ------
@@ -382,20 +420,16 @@ def run_files(
     RunInterrupted
         ``stop`` returned True.
     """
-    if overwrite and resume:
-        raise InputError("--overwrite and --resume exclude each other; choose one")
-    if not (checkpoint_seconds >= 0):
-        raise InputError(f"checkpoint_seconds must be >= 0, got {checkpoint_seconds!r}")
-    if tracks_format not in TRACKS_FORMATS:
-        raise InputError(
-            f"tracks_format must be one of {sorted(TRACKS_FORMATS)}, got {tracks_format!r}"
-        )
-    if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
-        raise InputError(f"segments must be an integer >= 1, got {segments!r}")
+    if options is None:
+        options = RunOptions()
+    elif not isinstance(options, RunOptions):
+        raise InputError(f"options must be a RunOptions, got {type(options).__name__}")
+    timings, progress, resume = options.timings, options.progress, options.resume
+    segments, tracks_format = options.segments, options.tracks_format
     t_session = time.perf_counter()
     folder = RunFolder(out_dir)
     folder.check_writable_place()
-    if overwrite or resume:
+    if options.overwrite or resume:
         folder.check_replaceable((config_path, detections_path))
     else:
         folder.refuse_existing()
@@ -496,19 +530,19 @@ def run_files(
                 label="run",
                 unit="scans",
                 enabled=progress,
-                log_seconds=log_seconds,
+                log_seconds=options.log_seconds,
                 initial=resumed_at,
             )
             try:
                 if segments == 1:
                     result = _run_windows(
                         session, estimator, scans, fresh_state, checkpoint, timings=timings,
-                        stop=stop, checkpoint_seconds=checkpoint_seconds, ticker=ticker,
+                        stop=stop, checkpoint_seconds=options.checkpoint_seconds, ticker=ticker,
                         caught=caught, precomputed=precomputed,
                     )  # fmt: skip
                 else:
                     result = _run_segments(
-                        session, config, scans, checkpoint, segments=segments, jobs=jobs,
+                        session, config, scans, checkpoint, segments=segments, jobs=options.jobs,
                         stop=stop, timings=timings, ticker=ticker,
                     )  # fmt: skip
                 messages.extend(str(w.message) for w in caught)

@@ -22,7 +22,7 @@ from mapassoc.apps.batch import (
 )
 from mapassoc.apps.cli import main
 from mapassoc.apps.run_folders import read_manifest
-from mapassoc.apps.runs import run_files
+from mapassoc.apps.runs import RunOptions, run_files
 from mapassoc.errors import InputError, OutputError
 
 RESULT_FILES = ("tracks.csv", "associations.csv", "windows.jsonl", "summary.json")
@@ -108,7 +108,7 @@ def test_a_failing_recording_is_isolated_and_resume_skips_the_rest(
     assert not (out / "broken").exists()
     # Each recording's folder is what a run of it alone writes.
     alone = tmp_path / "alone"
-    run_files(shared, recordings / "gamma.csv", alone, timings=False, progress=False)
+    run_files(shared, recordings / "gamma.csv", alone, RunOptions(timings=False, progress=False))
     for name in RESULT_FILES:
         assert (out / "gamma" / name).read_bytes() == (alone / name).read_bytes()
     # alpha and gamma are the same recording with the same config.
@@ -213,8 +213,12 @@ def test_an_interrupted_batch_resumes_to_the_same_folders(tmp_path: Path) -> Non
     assert {row["status"] for row in _summary(out)} <= {"complete", "skipped"}
     for seed in range(3):
         alone = tmp_path / f"alone{seed}"
-        run_files(source / f"p{seed}" / "config.toml", source / f"p{seed}" / "detections.csv",
-                  alone, timings=False, progress=False)
+        run_files(
+            source / f"p{seed}" / "config.toml",
+            source / f"p{seed}" / "detections.csv",
+            alone,
+            RunOptions(timings=False, progress=False),
+        )
         manifest = read_manifest(out / f"p{seed}")
         assert manifest is not None and manifest["status"] == "complete"
         for name in RESULT_FILES:

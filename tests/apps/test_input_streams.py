@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from mapassoc.apps.cli import main
-from mapassoc.apps.runs import InputWaitInterrupted, read_input, run_files
+from mapassoc.apps.runs import InputWaitInterrupted, RunOptions, read_input, run_files
 from mapassoc.apps.stopping import StopFlag
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes need POSIX")
@@ -54,8 +54,12 @@ def test_named_pipes_give_the_same_run_as_files(scenario: Path, tmp_path: Path) 
     """Config and detections from named pipes (each can be read only once, as a process
     substitution <(...) can): the same tracks and the same input hashes as the files."""
     reference = tmp_path / "ref"
-    run_files(scenario / "config.toml", scenario / "detections.csv", reference,
-              timings=False, progress=False)
+    run_files(
+        scenario / "config.toml",
+        scenario / "detections.csv",
+        reference,
+        RunOptions(timings=False, progress=False),
+    )
     config_pipe, detections_pipe = tmp_path / "config.toml", tmp_path / "detections.csv"
     os.mkfifo(config_pipe)
     os.mkfifo(detections_pipe)
@@ -64,7 +68,7 @@ def test_named_pipes_give_the_same_run_as_files(scenario: Path, tmp_path: Path) 
         _feed(detections_pipe, (scenario / "detections.csv").read_bytes(), delay=0.5),
     ]
     out = tmp_path / "out"
-    run_files(config_pipe, detections_pipe, out, timings=False, progress=False)
+    run_files(config_pipe, detections_pipe, out, RunOptions(timings=False, progress=False))
     for thread in feeders:
         thread.join(5)
     for name in ("tracks.csv", "windows.jsonl"):
@@ -85,8 +89,13 @@ def test_a_stop_is_honoured_while_waiting_for_input(scenario: Path, tmp_path: Pa
 
     def run() -> None:
         try:
-            run_files(scenario / "config.toml", pipe, tmp_path / "out", progress=False,
-                      stop=flag)  # fmt: skip
+            run_files(
+                scenario / "config.toml",
+                pipe,
+                tmp_path / "out",
+                RunOptions(progress=False),
+                stop=flag,
+            )  # fmt: skip
         except BaseException as exc:  # noqa: BLE001 - handed to the test below
             raised.append(exc)
 

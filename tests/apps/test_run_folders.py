@@ -8,6 +8,7 @@ from __future__ import annotations
 import errno
 import io
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -15,7 +16,7 @@ import pytest
 from mapassoc.apps import runs
 from mapassoc.apps.cli import main
 from mapassoc.apps.run_folders import CHECKPOINT_NAME, MANIFEST_NAME, read_manifest
-from mapassoc.apps.runs import RunInterrupted, run_files
+from mapassoc.apps.runs import RunInterrupted, RunOptions, run_files
 from mapassoc.errors import InputError, OutputError
 
 RESULT_FILES = ("tracks.csv", "associations.csv", "windows.jsonl", "summary.json")
@@ -32,20 +33,37 @@ def scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def reference(scenario: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """An uninterrupted run with timings off."""
     out = tmp_path_factory.mktemp("ref") / "run"
-    run_files(scenario / "config.toml", scenario / "detections.csv", out, timings=False,
-              progress=False)
-    return out
-
-
-def _run(scenario: Path, out: Path, **options: object) -> runs.RunOutcome:
-    return run_files(
+    run_files(
         scenario / "config.toml",
         scenario / "detections.csv",
         out,
+        RunOptions(timings=False, progress=False),
+    )
+    return out
+
+
+def _run(
+    scenario: Path,
+    out: Path,
+    *,
+    stop: Callable[[], bool] | None = None,
+    overwrite: bool = False,
+    resume: bool = False,
+    checkpoint_seconds: float = 10.0,
+    segments: int = 1,
+    jobs: int | None = None,
+) -> runs.RunOutcome:
+    """A run of ``scenario`` into ``out`` with timings and progress off."""
+    options = RunOptions(
         timings=False,
         progress=False,
-        **options,  # type: ignore[arg-type]
+        overwrite=overwrite,
+        resume=resume,
+        checkpoint_seconds=checkpoint_seconds,
+        segments=segments,
+        jobs=jobs,
     )
+    return run_files(scenario / "config.toml", scenario / "detections.csv", out, options, stop=stop)
 
 
 def _same_results(a: Path, b: Path) -> None:
@@ -297,11 +315,19 @@ def test_resume_refuses_other_inputs_or_settings(
     lines = (scenario / "detections.csv").read_text().splitlines()
     changed.write_text("\n".join(lines[:-1]) + "\n")
     with pytest.raises(InputError, match="detections file .* differs"):
-        run_files(scenario / "config.toml", changed, out, timings=False, progress=False,
-                  resume=True)
+        run_files(
+            scenario / "config.toml",
+            changed,
+            out,
+            RunOptions(timings=False, progress=False, resume=True),
+        )
     with pytest.raises(InputError, match="timings"):
-        run_files(scenario / "config.toml", scenario / "detections.csv", out, timings=True,
-                  progress=False, resume=True)
+        run_files(
+            scenario / "config.toml",
+            scenario / "detections.csv",
+            out,
+            RunOptions(timings=True, progress=False, resume=True),
+        )
     with pytest.raises(InputError, match="exclude each other"):
         _run(scenario, out, resume=True, overwrite=True)
 
@@ -311,7 +337,7 @@ def test_bad_input_creates_nothing(scenario: Path, tmp_path: Path) -> None:
     bad.write_text("time,sensor,x,y\n0.0,radar,1.0,nan\n")
     out = tmp_path / "out"
     with pytest.raises(Exception, match="bad.csv"):
-        run_files(scenario / "config.toml", bad, out, progress=False)
+        run_files(scenario / "config.toml", bad, out, RunOptions(progress=False))
     assert not out.exists() and not out.with_name("out.partial").exists()
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from mapassoc.apps import runs
 from mapassoc.apps.cli import main
-from mapassoc.apps.runs import RunInterrupted, run_files
+from mapassoc.apps.runs import RunInterrupted, RunOptions, run_files
 
 pytestmark = pytest.mark.slow
 
@@ -96,7 +96,7 @@ def test_a_resumed_auto_run_keeps_its_estimates(
     config = _auto(scenario)
     detections = scenario / "detections.csv"
     whole = tmp_path / "whole"
-    run_files(config, detections, whole, timings=False, progress=False)
+    run_files(config, detections, whole, RunOptions(timings=False, progress=False))
     assert calls == [1]
     out = tmp_path / "out"
     polls: list[int] = []
@@ -107,10 +107,15 @@ def test_a_resumed_auto_run_keeps_its_estimates(
         return len(polls) > 10
 
     with pytest.raises(RunInterrupted):
-        run_files(config, detections, out, timings=False, progress=False,
-                  checkpoint_seconds=0.0, stop=stop_after_ten)  # fmt: skip
+        run_files(
+            config,
+            detections,
+            out,
+            RunOptions(timings=False, progress=False, checkpoint_seconds=0.0),
+            stop=stop_after_ten,
+        )  # fmt: skip
     assert len(calls) == 2
-    run_files(config, detections, out, timings=False, progress=False, resume=True)
+    run_files(config, detections, out, RunOptions(timings=False, progress=False, resume=True))
     assert len(calls) == 2  # the resumed session kept the manifest's estimates
     for name in ("tracks.csv", "windows.jsonl", "summary.json"):
         assert (out / name).read_bytes() == (whole / name).read_bytes(), name
@@ -147,8 +152,13 @@ def test_a_stop_while_estimating_writes_nothing(scenario: Path, tmp_path: Path) 
     config = _auto(scenario)
     out = tmp_path / "out"
     with pytest.raises(runs.StoppedBeforeRun, match="while estimating the sensor parameters"):
-        run_files(config, scenario / "detections.csv", out, progress=False,
-                  stop=lambda: True)  # fmt: skip
+        run_files(
+            config,
+            scenario / "detections.csv",
+            out,
+            RunOptions(progress=False),
+            stop=lambda: True,
+        )  # fmt: skip
     assert not out.exists() and not out.with_name("out.partial").exists()
 
 
@@ -166,6 +176,10 @@ def test_a_batch_estimates_each_recording_s_parameters(scenario: Path, tmp_path:
     found = summary["parameters"]["sensors"]["pos"]
     assert found["rate_estimated"] and found["pd_estimated"]
     single = tmp_path / "single"
-    run_files(source / "one" / "config.toml", source / "one" / "detections.csv", single,
-              timings=False, progress=False)  # fmt: skip
+    run_files(
+        source / "one" / "config.toml",
+        source / "one" / "detections.csv",
+        single,
+        RunOptions(timings=False, progress=False),
+    )  # fmt: skip
     assert (single / "tracks.csv").read_bytes() == (out / "one" / "tracks.csv").read_bytes()
