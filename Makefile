@@ -34,7 +34,7 @@ notebooks: $(STAMP)
 	$(BIN)/python notebooks/execute.py
 
 lint: $(STAMP)
-	$(BIN)/ruff check mapassoc formulations solvers tests
+	$(BIN)/python -m pytest -q -m "" tests/test_static_checks.py
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .ruff_cache
