@@ -3,6 +3,8 @@ messages they give, and the configuration key they carry."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -43,3 +45,26 @@ def test_bounds_are_inclusive_and_the_key_is_carried() -> None:
     with pytest.raises(InputError) as error:
         check_integer("window_length", 0, minimum=1, key="window_length")
     assert error.value.key == "window_length"
+
+
+def test_integer_settings_are_stored_as_python_ints() -> None:
+    """A numpy integer passes the checks and is stored as an ``int``, which JSON writes
+    (a ``numpy.int64`` it would refuse)."""
+    import json
+
+    from mapassoc.apps.runs import RunOptions
+    from mapassoc.data.settings import EstimatorSettings
+
+    settings = EstimatorSettings(
+        window_length=np.int64(6), stride=np.int32(2), max_tracks=np.uint8(7)
+    )
+    assert [type(v) for v in (settings.window_length, settings.stride, settings.max_tracks)] == [
+        int,
+        int,
+        int,
+    ]
+    assert json.loads(json.dumps(dataclasses.asdict(settings)))["window_length"] == 6
+    assert type(RunOptions(segments=np.int64(3)).segments) is int
+    below = r"window_length must be an integer >= 1, got np.int64\(0\)"
+    with pytest.raises(InputError, match=below):
+        EstimatorSettings(window_length=np.int64(0))

@@ -155,7 +155,8 @@ class RunOptions:
                 f"tracks_format must be one of {sorted(TRACKS_FORMATS)}, got "
                 f"{self.tracks_format!r}"
             )
-        check_integer("segments", self.segments, minimum=1)
+        # Stored as an int: the run's settings record is written to JSON.
+        object.__setattr__(self, "segments", check_integer("segments", self.segments, minimum=1))
 
 
 @dataclass(frozen=True)

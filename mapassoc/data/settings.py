@@ -30,8 +30,11 @@ K_PRIORS = COUNT_PRIORS
 K_ESTIMATES = tuple(K_ESTIMATORS)
 
 
-def _check_int(name: str, value: object, *, minimum: int) -> int:
-    return check_integer(name, value, minimum=minimum, key=name)
+def _set_int(settings: object, name: str, *, minimum: int) -> None:
+    """Check the integer field ``name`` (>= ``minimum``) and store it as an ``int``, so a
+    numpy integer given for it is written to JSON and TOML like a Python one."""
+    value = check_integer(name, getattr(settings, name), minimum=minimum, key=name)
+    object.__setattr__(settings, name, value)
 
 
 @dataclass(frozen=True)
@@ -139,18 +142,18 @@ class EstimatorSettings:
     min_existence: float = 0.0
 
     def __post_init__(self) -> None:
-        _check_int("window_length", self.window_length, minimum=1)
-        _check_int("stride", self.stride, minimum=1)
+        _set_int(self, "window_length", minimum=1)
+        _set_int(self, "stride", minimum=1)
         if self.stride > self.window_length:
             raise InputError(
                 f"stride must be <= window_length ({self.window_length}), got {self.stride}",
                 key="stride",
             )
-        _check_int("max_tracks", self.max_tracks, minimum=0)
+        _set_int(self, "max_tracks", minimum=0)
         check_probability(
             "gate_probability", self.gate_probability, allow_zero=False, key="gate_probability"
         )
-        _check_int("max_hypotheses_per_tree", self.max_hypotheses_per_tree, minimum=1)
+        _set_int(self, "max_hypotheses_per_tree", minimum=1)
         for name in ("prune_log_ratio", "refine_prune_log_ratio"):
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and value >= 0):
@@ -166,10 +169,10 @@ class EstimatorSettings:
         if not isinstance(self.solver, str) or not self.solver:
             raise InputError(f"solver must be a backend name, got {self.solver!r}", key="solver")
         check_positive("time_limit", self.time_limit, key="time_limit")
-        _check_int("exact_work_limit", self.exact_work_limit, minimum=1)
-        _check_int("beam_width", self.beam_width, minimum=1)
-        _check_int("refine_passes", self.refine_passes, minimum=0)
-        _check_int("refine_link_gap", self.refine_link_gap, minimum=0)
+        _set_int(self, "exact_work_limit", minimum=1)
+        _set_int(self, "beam_width", minimum=1)
+        _set_int(self, "refine_passes", minimum=0)
+        _set_int(self, "refine_link_gap", minimum=0)
         check_probability("min_existence", self.min_existence, key="min_existence")
 
     def k_estimator(self) -> KEstimator:
