@@ -22,6 +22,7 @@ from mapassoc.formulations.program import Program, lagrangian_terms
 
 __all__ = [
     "fixed_variable_bounds",
+    "greedy_packing",
     "exclusive_groups",
     "log_mass_upper_bounds",
     "relaxed_problem",
@@ -52,6 +53,48 @@ def fixed_variable_bounds(
         raise ValueError("fixed_variable_bounds needs every variable bounded in [0, 1]")
     total = float(y @ program.b_ub + w @ program.b_eq + np.sum(np.maximum(d, 0.0)))
     return total - np.maximum(d, 0.0) + d + program.constant
+
+
+def greedy_packing(
+    problem: PackingProblem, priority: NDArray[np.float64]
+) -> NDArray[np.int64] | None:
+    """A feasible set picked greedily: an incumbent for :func:`fixed_variable_bounds`.
+
+    Hypotheses are taken in decreasing ``priority`` (ties: higher score first, then lower
+    index) when none of their resources is taken yet; one with a negative score is
+    taken only when it covers a still uncovered exactly-once resource (leaving it out
+    could only raise the set's score otherwise).
+
+    Parameters
+    ----------
+    problem : PackingProblem
+    priority : ndarray, shape (H,)
+        For instance an LP relaxation's solution.
+
+    Returns
+    -------
+    ndarray of int or None
+        The chosen hypotheses in increasing order; ``None`` when the greedy order leaves
+        an exactly-once resource uncovered (no incumbent, not a proof of infeasibility).
+    """
+    priority = np.asarray(priority, dtype=float)
+    H = problem.num_hypotheses
+    if priority.shape != (H,) or np.any(np.isnan(priority)):
+        raise ValueError(f"priority must have shape ({H},) without NaN, got {priority.shape}")
+    taken = np.zeros(problem.num_resources, dtype=bool)
+    indptr, indices = problem.resource_indptr, problem.resource_indices
+    chosen: list[int] = []
+    for h in np.lexsort((np.arange(H), -problem.scores, -priority)).tolist():
+        resources = indices[indptr[h] : indptr[h + 1]]
+        if taken[resources].any():
+            continue
+        if problem.scores[h] < 0 and not problem.exactly_one[resources].any():
+            continue
+        taken[resources] = True
+        chosen.append(h)
+    if not taken[problem.exactly_one].all():
+        return None
+    return np.sort(np.asarray(chosen, dtype=np.int64))
 
 
 def exclusive_groups(problem: PackingProblem) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:

@@ -69,6 +69,7 @@ from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
+from mapassoc.estimator.cluster_solving import best_set_by_fixing, default_lp_solver
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
 from mapassoc.estimator.objective import (
     PathState,
@@ -80,7 +81,7 @@ from mapassoc.estimator.objective import (
 from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.frontier import SearchLimitExceeded, frontier_search
 from mapassoc.formulations.marginals import frontier_marginals
-from mapassoc.formulations.packing import PackingProblem, decode_selection, set_packing_program
+from mapassoc.formulations.packing import PackingProblem
 from mapassoc.solvers import get_integer_solver
 
 __all__ = [
@@ -407,6 +408,7 @@ class Refiner:
             self.solver = get_integer_solver(est.solver)
         except ValueError as exc:
             raise InputError(f"estimator solver: {exc}", key="solver") from None
+        self.lp_solver = default_lp_solver(self.solver)
         self.time_limit = est.time_limit
         self._refilter = settings.refilter_detections
         self.exact_work_limit = est.exact_work_limit
@@ -572,15 +574,19 @@ class Refiner:
             chosen.append(members[np.asarray(best, dtype=np.int64)])
         limited = False
         if large:
-            # One integer program for every large cluster: a solver call costs about a
+            # One program for every large cluster: a solver call costs about a
             # millisecond whatever its size.
             members = np.concatenate(large)
-            program = set_packing_program(problem.subproblem(members), None)
-            result = self.solver.solve(program, time_limit=self.time_limit)
-            limited = not result.is_optimal
-            if result.solution is None:
+            selection, optimal = best_set_by_fixing(
+                problem.subproblem(members),
+                solver=self.solver,
+                lp_solver=self.lp_solver,
+                time_limit=self.time_limit,
+            )
+            limited = not optimal
+            if selection is None:
                 return None, limited
-            chosen.append(members[decode_selection(result.solution)])
+            chosen.append(members[selection])
         if not chosen:
             return np.zeros(0, dtype=np.int64), limited
         return np.sort(np.concatenate(chosen)), limited

@@ -22,12 +22,16 @@ from support import (
     random_window,
 )
 
-from mapassoc.estimator.cluster_solving import ClusterSolver
+from mapassoc.estimator.cluster_solving import ClusterSolver, best_set_by_fixing
 from mapassoc.estimator.pipeline import WindowEstimator
-from mapassoc.formulations.bounds import fixed_variable_bounds, log_mass_upper_bounds
+from mapassoc.formulations.bounds import (
+    fixed_variable_bounds,
+    greedy_packing,
+    log_mass_upper_bounds,
+)
 from mapassoc.formulations.cardinality import exact_cardinality_table
 from mapassoc.formulations.frontier import frontier_search
-from mapassoc.formulations.packing import set_packing_program
+from mapassoc.formulations.packing import PackingProblem, set_packing_program
 from mapassoc.models.motion import ConstantVelocity
 from mapassoc.solvers import HighsSolver, SolveStatus, enumerate_feasible
 
@@ -225,6 +229,98 @@ def test_bound_pruning_keeps_the_best_set(seed: int) -> None:
         result = HighsSolver().solve(forced)
         assert result.status is SolveStatus.INFEASIBLE or result.objective < best_all - 2.0 + 1e-9
     assert math.isfinite(best_all)
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_greedy_packing_gives_a_feasible_set(seed: int) -> None:
+    rng = np.random.default_rng(500 + seed)
+    problem = random_problem(rng, int(rng.integers(3, 16)), D=int(rng.integers(2, 7)), G=2)
+    chosen = greedy_packing(problem, rng.random(problem.num_hypotheses))
+    # Every exactly-one group of random_problem has a member that uses no detection,
+    # so the greedy order always covers it.
+    assert chosen is not None
+    assert problem.is_feasible(chosen)
+    # Nothing is left out that could be added: every other hypothesis with a positive
+    # score clashes with the set.
+    owner = np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr))
+    taken = set(problem.resource_indices[np.isin(owner, chosen)].tolist())
+    for h in np.setdiff1d(np.flatnonzero(problem.scores > 0), chosen):
+        assert taken & set(problem.resources_of(h).tolist())
+
+
+def test_greedy_packing_says_none_when_it_misses_an_exactly_once_resource() -> None:
+    # h0 takes detection 0 first; h1, the only user of the exactly-once resource 1,
+    # also needs detection 0.
+    problem = PackingProblem(
+        scores=np.array([5.0, 1.0]),
+        resource_indptr=np.array([0, 1, 3]),
+        resource_indices=np.array([0, 0, 1]),
+        exactly_one=np.array([False, True]),
+        counts=np.ones(2, dtype=bool),
+    )
+    assert greedy_packing(problem, np.array([1.0, 0.0])) is None
+    assert greedy_packing(problem, np.array([0.0, 1.0])).tolist() == [1]  # type: ignore[union-attr]
+    with pytest.raises(ValueError, match="priority"):
+        greedy_packing(problem, np.array([np.nan, 0.0]))
+
+
+def _fixing_prunes(problem: PackingProblem) -> bool:
+    """Whether best_set_by_fixing's reduced-cost step drops a hypothesis of ``problem``
+    (its LP relaxation is fractional and some bound is below the greedy incumbent)."""
+    program = set_packing_program(problem, None)
+    lp = HighsSolver().solve_relaxation(program)
+    x = lp.solution
+    if lp.status is not SolveStatus.OPTIMAL or np.all(np.abs(x - np.round(x)) <= 1e-9):
+        return False
+    incumbent = greedy_packing(problem, x)
+    if incumbent is None:
+        return False
+    bounds = fixed_variable_bounds(program, lp.ineq_duals, lp.eq_duals)
+    return bool(np.any(bounds < np.sum(problem.scores[incumbent]) - 1e-6))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_best_set_by_fixing_is_the_brute_force_best(seed: int) -> None:
+    rng = np.random.default_rng(900 + seed)
+    problem = random_problem(rng, int(rng.integers(6, 15)), D=int(rng.integers(3, 7)), G=2)
+    chosen, optimal = best_set_by_fixing(
+        problem, solver=HighsSolver(), lp_solver=HighsSolver(), time_limit=None
+    )
+    best, _ = brute_force_tables(problem, problem.num_hypotheses)
+    assert optimal and chosen is not None
+    assert problem.is_feasible(chosen)
+    assert float(np.sum(problem.scores[chosen])) == pytest.approx(np.max(best), abs=1e-7)
+
+
+def test_best_set_by_fixing_is_exercised_by_the_random_problems() -> None:
+    fractional = sum(
+        _fixing_prunes(
+            random_problem(
+                rng := np.random.default_rng(900 + seed),
+                int(rng.integers(6, 15)),
+                D=int(rng.integers(3, 7)),
+                G=2,
+            )
+        )
+        for seed in range(40)
+    )
+    assert fractional >= 3
+
+
+def test_best_set_by_fixing_reports_an_infeasible_problem() -> None:
+    # Both exactly-once resources 1 and 2 must be covered, but their only users, h0 and
+    # h1, share detection 0.
+    problem = PackingProblem(
+        scores=np.array([1.0, 1.0]),
+        resource_indptr=np.array([0, 2, 4]),
+        resource_indices=np.array([0, 1, 0, 2]),
+        exactly_one=np.array([False, True, True]),
+        counts=np.ones(2, dtype=bool),
+    )
+    chosen, optimal = best_set_by_fixing(
+        problem, solver=HighsSolver(), lp_solver=HighsSolver(), time_limit=None
+    )
+    assert chosen is None and optimal
 
 
 def test_frontier_search_has_no_recursion_limit() -> None:
