@@ -19,7 +19,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-__version__ = "0.1.0"
+from mapassoc.version import __version__ as __version__
 
 _EXPORTS: dict[str, str] = {
     # configuration and models
@@ -60,7 +60,7 @@ _EXPORTS: dict[str, str] = {
     "EstimateResult": "mapassoc.estimator.pipeline",
     "RunState": "mapassoc.estimator.pipeline",
     "run_segmented": "mapassoc.estimator.segments",
-    "CountPrior": "mapassoc.estimator.posterior",
+    "CountPrior": "mapassoc.models.target_count",
     "KPosterior": "mapassoc.estimator.posterior",
     "k_posterior": "mapassoc.estimator.posterior",
     "UndetectedTargets": "mapassoc.models.population",

@@ -208,3 +208,68 @@ def test_the_cycle_check_sees_a_deferred_type_only_cycle(tmp_path: Path) -> None
         encoding="utf-8",
     )
     assert "mapassoc.models.motion" in imported_modules(source)
+
+
+LAYERS = (
+    (
+        "base",
+        ("mapassoc.errors", "mapassoc.validation", "mapassoc.array_types", "mapassoc.version"),
+    ),
+    ("models", ("mapassoc.models",)),
+    ("data", ("mapassoc.data",)),
+    ("filtering", ("mapassoc.filtering",)),
+    ("formulations", ("mapassoc.formulations",)),
+    ("solvers", ("mapassoc.solvers",)),
+    ("estimator", ("mapassoc.estimator",)),
+    ("reference", ("mapassoc.reference",)),
+    ("evaluation", ("mapassoc.evaluation",)),
+    ("trackers", ("mapassoc.trackers",)),
+    ("interop", ("mapassoc.interop",)),
+    ("apps", ("mapassoc.apps",)),
+    ("public API", ("mapassoc",)),
+)
+"""The package's layers from the bottom up: a module imports only its own layer and the
+ones below (the public API, ``mapassoc/__init__``, sits on top: it re-exports everything,
+lazily)."""
+
+
+def layer_of(module: str) -> int:
+    """Index in :data:`LAYERS` of a module (the layer of its longest matching prefix)."""
+    best, best_length = -1, -1
+    for index, (_, prefixes) in enumerate(LAYERS):
+        for prefix in prefixes:
+            if starts(module, prefix) and len(prefix) > best_length:
+                best, best_length = index, len(prefix)
+    return best
+
+
+def layer_violations(edges: list[tuple[str, str]]) -> list[str]:
+    """The imports of ``edges`` (importer, imported) that go up a layer."""
+    return sorted(
+        f"{a} ({LAYERS[layer_of(a)][0]}) imports {b} ({LAYERS[layer_of(b)][0]})"
+        for a, b in edges
+        if layer_of(b) > layer_of(a)
+    )
+
+
+def test_every_module_has_a_layer() -> None:
+    top = len(LAYERS) - 1
+    unplaced = [m for m in import_graph() if layer_of(m) in (-1, top) and m != "mapassoc"]
+    assert not unplaced, f"modules outside every layer of LAYERS: {unplaced}"
+
+
+def test_no_layer_imports_one_above_it() -> None:
+    """Models know nothing of data files, data nothing of the estimator, evaluation
+    nothing of the trackers it scores, and so on up (type-only imports included)."""
+    graph = import_graph()
+    violations = layer_violations(list(graph.edges))
+    assert not violations, "imports that go up a layer:\n" + "\n".join(violations)
+
+
+def test_the_layer_check_catches_an_upward_import() -> None:
+    assert layer_violations([("mapassoc.models.motion", "mapassoc.data.scans")]) == [
+        "mapassoc.models.motion (models) imports mapassoc.data.scans (data)"
+    ]
+    assert layer_violations([("mapassoc.apps.cli", "mapassoc")])  # the public API is on top
+    assert not layer_violations([("mapassoc", "mapassoc.apps.cli")])
+    assert not layer_violations([("mapassoc.solvers.highs", "mapassoc.formulations.program")])

@@ -29,11 +29,11 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-from mapassoc import __version__
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
 from mapassoc.apps.runs import RunInterrupted, RunOptions, json_dump, run_files
 from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.errors import MapassocError, OutputError
+from mapassoc.version import __version__
 
 __all__ = ["main", "build_parser"]
 

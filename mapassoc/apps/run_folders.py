@@ -40,8 +40,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from mapassoc import __version__
 from mapassoc.errors import InputError, OutputError
+from mapassoc.version import __version__
 
 __all__ = [
     "MANIFEST_NAME",

@@ -11,13 +11,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from mapassoc.errors import InputError
-from mapassoc.estimator.posterior import (
+from mapassoc.models.population import BirthModel
+from mapassoc.models.target_count import (
     COUNT_PRIORS,
     K_ESTIMATORS,
     CountPrior,
     KEstimator,
 )
-from mapassoc.models.population import BirthModel
 from mapassoc.validation import (
     check_integer,
     check_positive,
@@ -75,7 +75,7 @@ class EstimatorSettings:
         Unnormalised p(K) for K = 0..Kmax (used when ``k_prior == "weights"``).
     k_estimate : {"marginal", "joint", "median"}
         Which estimate of K the committed track set uses
-        (``mapassoc.estimator.posterior.K_ESTIMATORS``):
+        (``mapassoc.models.target_count.K_ESTIMATORS``):
         ``argmax p(K | Z)`` (marginal, default), the K of the joint MAP (K, track set)
         (Perry's MAP formulation, eq. 14) with its set, or the posterior median; for the
         marginal and the median the set is the MAP track set given that K.

@@ -38,8 +38,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.data.io import TruthTable
+from mapassoc.data.outputs import CountSeries
 from mapassoc.errors import InputError
-from mapassoc.trackers.base import CountSeries
 
 __all__ = [
     "CountScores",
@@ -355,7 +355,7 @@ def count_scores(
 def count_series_scores(
     truth: TruthTable, counts: CountSeries, *, num_bins: int = DEFAULT_BINS
 ) -> CountScores:
-    """Score any tracker's :class:`~mapassoc.trackers.base.CountSeries` against the truth.
+    """Score any tracker's :class:`~mapassoc.data.outputs.CountSeries` against the truth.
 
     The true K of each span is :func:`span_target_counts`; the reported K is the mode of
     the span's distribution (the first of tied maxima, as ``WindowReport.marginal_k``).

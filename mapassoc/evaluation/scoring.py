@@ -1,6 +1,6 @@
 """Every metric of one tracker run as one typed, flat result.
 
-:func:`score_tracks` scores a :class:`~mapassoc.trackers.base.TrackerOutput` against a
+:func:`score_tracks` scores a :class:`~mapassoc.data.outputs.TrackerOutput` against a
 :class:`~mapassoc.data.io.TruthTable`: GOSPA (:mod:`mapassoc.evaluation.metrics`), OSPA and
 OSPA(2) (:mod:`mapassoc.evaluation.ospa`), CLEAR-MOT (:mod:`mapassoc.evaluation.clear_mot`,
 needs the optional extra ``metrics``) and, for trackers that report p(K | Z), the count
@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from mapassoc.data.io import TruthTable
+from mapassoc.data.outputs import TrackerOutput
 from mapassoc.errors import InputError
 from mapassoc.evaluation.calibration import DEFAULT_BINS, count_series_scores
 from mapassoc.evaluation.clear_mot import clear_mot
@@ -32,7 +33,6 @@ from mapassoc.evaluation.tables import (
     truth_points,
 )
 from mapassoc.evaluation.tgospa import _check_method, fragmentation_of, tgospa
-from mapassoc.trackers.base import TrackerOutput
 from mapassoc.validation import check_positive
 
 __all__ = ["TrackingScores", "score_tracks"]

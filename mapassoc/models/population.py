@@ -48,13 +48,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.special import gammaln
 
 from mapassoc.array_types import FloatArray
-from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.validation import (
     check_nonnegative,
@@ -64,6 +64,7 @@ from mapassoc.validation import (
 
 __all__ = [
     "BirthModel",
+    "Timed",
     "MAX_KMAX",
     "UndetectedTargets",
     "WindowPopulation",
@@ -71,6 +72,14 @@ __all__ = [
     "recording_start",
     "window_population",
 ]
+
+
+class Timed(Protocol):
+    """Anything with a ``time`` (a :class:`~mapassoc.data.scans.Scan`, for one): what
+    :func:`window_population` reads of a window's scans."""
+
+    @property
+    def time(self) -> float: ...
 
 
 MAX_KMAX = 2**53
@@ -259,7 +268,7 @@ def poisson_log_pmf(counts: NDArray[np.int64], mean: float) -> FloatArray:
 
 
 def window_population(
-    scans: Sequence[Scan],
+    scans: Sequence[Timed],
     detection_probabilities: Sequence[float],
     birth: BirthModel,
     start: UndetectedTargets,
@@ -269,7 +278,7 @@ def window_population(
 
     Parameters
     ----------
-    scans : sequence of Scan
+    scans : sequence of Scan (or anything with a ``time``)
         The window's scans in time order (at least one).
     detection_probabilities : sequence of float
         Pd of each scan's sensor, in (0, 1].
