@@ -684,22 +684,13 @@ class RecordingObjective:
         out: list[FloatArray],
         max_detections: int | None,
     ) -> None:
-        """The batched body of :meth:`continue_converging_many` (linear steps only)."""
-        owner = np.concatenate(
-            [np.full(len(requests[i][0]), i, dtype=np.int64) for i in chosen]
-        )
-        slot = np.concatenate([np.arange(len(requests[i][0])) for i in chosen])
-        x = np.concatenate([requests[i][0].means for i in chosen])
-        P = np.concatenate([requests[i][0].covariances for i in chosen])
-        value = np.concatenate([requests[i][0].value for i in chosen])
-        scan = np.concatenate(
-            [np.full(len(requests[i][0]), requests[i][0].scan, dtype=np.int64) for i in chosen]
-        )
-        k = np.concatenate(
-            [np.full(len(requests[i][0]), requests[i][2], dtype=np.int64) for i in chosen]
-        )
-        last = np.array([len(requests[i][1].path) - 1 for i in owner.tolist()], dtype=np.int64)
-        stop = last if max_detections is None else np.minimum(last, k + max_detections - 1)
+        """The batched body of :meth:`continue_converging_many` (linear steps only).
+
+        What each step reads of a track's reference (its detection, scan, sensor, the
+        reference's state and value there) is gathered once per request into arrays
+        indexed by (request, step), so a step is array indexing whatever the number of
+        tracks.
+        """
         for i in chosen:  # a path must be after its start
             start, reference, first = requests[i]
             if reference.path[first][0] <= start.scan:
@@ -707,9 +698,19 @@ class RecordingObjective:
                     f"path detection at scan {reference.path[first][0]} is not after the "
                     f"track's state at scan {start.scan}"
                 )
-        while owner.size:
-            refs = [requests[i][1] for i in owner.tolist()]
-            target = np.array([r.path[kk][0] for r, kk in zip(refs, k.tolist(), strict=True)])
+        table = _ReferenceSteps.gather(self, [requests[i] for i in chosen], max_detections)
+        sizes = np.array([len(requests[i][0]) for i in chosen], dtype=np.int64)
+        offsets = np.concatenate([[0], np.cumsum(sizes)])
+        request = np.repeat(np.arange(len(chosen)), sizes)
+        x = np.concatenate([requests[i][0].means for i in chosen])
+        P = np.concatenate([requests[i][0].covariances for i in chosen])
+        value = np.concatenate([requests[i][0].value for i in chosen])
+        scan = np.repeat(np.array([requests[i][0].scan for i in chosen], dtype=np.int64), sizes)
+        track = np.arange(int(offsets[-1]))  # position in the flat output
+        flat = np.full(int(offsets[-1]), -math.inf)
+        step = np.zeros(track.size, dtype=np.int64)  # detections of the reference taken
+        while track.size:
+            target = table.scan[request, step]
             # Predict scan by scan (as the trees do), every track from its own scan.
             while True:
                 moving = np.flatnonzero(scan < target)
@@ -729,44 +730,39 @@ class RecordingObjective:
                 )
                 scan[moving] = nxt
             # Update each track by its reference's detection, one sensor at a time.
-            d2 = np.empty(owner.size)
-            loglik = np.empty(owner.size)
-            sensor_of = np.array([self.scans[m].sensor for m in target.tolist()])
+            d2 = np.empty(track.size)
+            loglik = np.empty(track.size)
+            sensor_of = table.sensor[request, step]
             for sensor in np.unique(sensor_of).tolist():
                 rows = np.flatnonzero(sensor_of == sensor)
                 measurement = self._sensors[int(target[rows[0]])].measurement
-                z = np.stack(
-                    [
-                        self.scans[int(target[b])].detections[refs[b].path[int(k[b])][1]]
-                        for b in rows.tolist()
-                    ]
-                )
+                H, R = measurement.H, measurement.noise_covariance  # type: ignore[attr-defined]
+                z = table.detection[request[rows], step[rows], : H.shape[0]]
                 d2[rows], loglik[rows], x[rows], P[rows] = self._linear_step(
-                    x[rows], P[rows], z, measurement.H, measurement.noise_covariance  # type: ignore[attr-defined]
+                    x[rows], P[rows], z, H, R
                 )
             value += self.survival_terms[target] + self._detection_term(target, d2, loglik)
             # Tracks out of gate, converged, cut short or at their reference's end leave.
             done = ~np.isfinite(value)
-            rest = np.array(
-                [r.values[-1] - r.values[kk] for r, kk in zip(refs, k.tolist(), strict=True)]
+            ended = step == table.steps[request] - 1
+            result = np.where(
+                done, -math.inf, value + table.rest[request, step] + table.tail[request]
             )
-            tails = np.array([self.tails[r.path[-1][0]] for r in refs])
-            ended = (k == last) | (k == stop)
-            result = np.where(done, -math.inf, value + rest + tails)
-            same = np.zeros(owner.size, dtype=bool)
+            same = np.zeros(track.size, dtype=bool)
             check = np.flatnonzero(~done & ~ended)
             if check.size:
-                mean = np.stack([refs[b].means[int(k[b])] for b in check.tolist()])
-                cov = np.stack([refs[b].covariances[int(k[b])] for b in check.tolist()])
+                mean = table.mean[request[check], step[check]]
+                cov = table.covariance[request[check], step[check]]
                 same[check] = np.all(
                     np.abs(x[check] - mean) <= CONVERGED * (1.0 + np.abs(mean)), axis=1
                 ) & np.all(np.abs(P[check] - cov) <= CONVERGED * (1.0 + np.abs(cov)), axis=(1, 2))
             leave = done | ended | same
-            for b in np.flatnonzero(leave).tolist():
-                out[int(owner[b])][int(slot[b])] = result[b]
+            flat[track[leave]] = result[leave]
             keep = np.flatnonzero(~leave)
-            owner, slot, x, P, value = owner[keep], slot[keep], x[keep], P[keep], value[keep]
-            scan, k, last, stop = scan[keep], k[keep] + 1, last[keep], stop[keep]
+            track, request, x, P, value = track[keep], request[keep], x[keep], P[keep], value[keep]
+            scan, step = scan[keep], step[keep] + 1
+        for c, i in enumerate(chosen):
+            out[i] = flat[offsets[c] : offsets[c + 1]]
 
     def value(self, tracks: Mapping[int, TrackPath] | Iterable[TrackPath]) -> float:
         """J(omega) = sum of the tracks' values (0 for no track; ``-inf`` if impossible)."""
@@ -784,6 +780,79 @@ class RecordingObjective:
         if len(set(scans_used)) != len(scans_used):
             raise InputError(f"a track uses two detections of one scan (ids {list(rows)})")
         return tuple(pairs)
+
+
+@dataclass(frozen=True, eq=False)
+class _ReferenceSteps:
+    """What the batched continuation reads of each request's reference, per step.
+
+    Row ``c`` is request ``c``; column ``s`` its reference's detection ``first + s``, for
+    ``s < steps[c]`` (up to the reference's last detection or the cap).
+
+    Attributes
+    ----------
+    steps : ndarray of int, shape (C,)
+    scan, sensor : ndarray of int, shape (C, W)
+        The detection's scan and its sensor's code.
+    detection : ndarray, shape (C, W, dz)
+        The measurement (zero-padded to the largest sensor dimension).
+    rest : ndarray, shape (C, W)
+        The reference's value after its last detection minus its value at this one.
+    mean, covariance : ndarray, shapes (C, W, n) and (C, W, n, n)
+        The reference's filtered state at this detection.
+    tail : ndarray, shape (C,)
+        The best ending after the reference's last detection.
+    """
+
+    steps: IntArray
+    scan: IntArray
+    sensor: IntArray
+    detection: FloatArray
+    rest: FloatArray
+    mean: FloatArray
+    covariance: FloatArray
+    tail: FloatArray
+
+    @classmethod
+    def gather(
+        cls,
+        objective: RecordingObjective,
+        requests: Sequence[tuple[PathState, Trajectory, int]],
+        max_detections: int | None,
+    ) -> _ReferenceSteps:
+        C = len(requests)
+        lasts = [len(reference.path) - 1 for _, reference, _ in requests]
+        stops = [
+            last if max_detections is None else min(last, first + max_detections - 1)
+            for (_, _, first), last in zip(requests, lasts, strict=True)
+        ]
+        steps = np.array(
+            [stop - first + 1 for (_, _, first), stop in zip(requests, stops, strict=True)],
+            dtype=np.int64,
+        )
+        W = int(steps.max(initial=1))
+        n = requests[0][0].means.shape[1]
+        dz = max(s.detections.shape[1] for s in objective.scans)
+        codes: dict[str, int] = {}
+        scan = np.zeros((C, W), dtype=np.int64)
+        sensor = np.zeros((C, W), dtype=np.int64)
+        detection = np.zeros((C, W, dz))
+        rest = np.zeros((C, W))
+        mean = np.zeros((C, W, n))
+        covariance = np.zeros((C, W, n, n))
+        tail = np.zeros(C)
+        for c, (_, reference, first) in enumerate(requests):
+            tail[c] = objective.tails[reference.path[-1][0]]
+            for s in range(int(steps[c])):
+                m, j = reference.path[first + s]
+                z = objective.scans[m].detections[j]
+                scan[c, s] = m
+                sensor[c, s] = codes.setdefault(objective.scans[m].sensor, len(codes))
+                detection[c, s, : z.shape[0]] = z
+                rest[c, s] = reference.values[-1] - reference.values[first + s]
+                mean[c, s] = reference.means[first + s]
+                covariance[c, s] = reference.covariances[first + s]
+        return cls(steps, scan, sensor, detection, rest, mean, covariance, tail)
 
 
 def _inverse_and_logdet(S: FloatArray) -> tuple[FloatArray, FloatArray]:
