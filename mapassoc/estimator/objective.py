@@ -95,6 +95,9 @@ order, at most one per scan."""
 TRAJECTORY_CACHE = 20_000
 """Most track runs :meth:`RecordingObjective.trajectory` keeps."""
 
+_GATE_BLOCK = 1 << 18
+"""Most (track, detection) pairs :func:`_squared_distances` computes in one block."""
+
 CONVERGED = 1e-9
 """Relative agreement of two filtered states taken as equal by
 :meth:`RecordingObjective.continue_converging`."""
@@ -360,26 +363,35 @@ class RecordingObjective:
             predicted = x @ H.T
             # A slightly wider gate first; the exact one is applied by the update.
             wide = self._thresholds[m] * (1.0 + 1e-9)
-            for i in indices:
-                z = self.scans[m].detections[detections[i][1]]
-                nu = z - predicted
-                rows = np.flatnonzero(np.einsum("bi,bij,bj->b", nu, S_inv, nu) <= wide)
+            measured = self.scans[m].detections[[detections[i][1] for i in indices]]
+            inside = _squared_distances(predicted, S_inv, measured) <= wide
+            gated = [np.flatnonzero(inside[:, col]) for col in range(len(indices))]
+            # One Kalman update for every (track, detection) pair in a gate.
+            rows_all = np.concatenate(gated)
+            cols_all = np.repeat(np.arange(len(indices)), [g.size for g in gated])
+            if rows_all.size:
+                d2, loglik, xu, Pu = self._linear_step(
+                    x[rows_all], P[rows_all], measured[cols_all], H, R
+                )
+                value_all = (
+                    missed.value[rows_all]
+                    + self.survival_terms[m]
+                    + self._detection_term(m, d2, loglik)
+                )
+            bounds = np.concatenate([[0], np.cumsum([g.size for g in gated])])
+            for col, i in enumerate(indices):
+                rows = gated[col]
                 if rows.size:
-                    d2, loglik, xu, Pu = self._linear_step(x[rows], P[rows], z, H, R)
-                    value = (
-                        missed.value[rows]
-                        + self.survival_terms[m]
-                        + self._detection_term(m, d2, loglik)
-                    )
-                    ok = np.flatnonzero(np.isfinite(value))
+                    part = slice(int(bounds[col]), int(bounds[col + 1]))
+                    ok = np.flatnonzero(np.isfinite(value_all[part]))
                     rows = rows[ok]
                     state = PathState(
                         scan=m,
-                        means=xu[ok],
-                        covariances=Pu[ok],
+                        means=xu[part][ok],
+                        covariances=Pu[part][ok],
                         initiated=True,
                         first_time=start.first_time[rows],
-                        value=value[ok],
+                        value=value_all[part][ok],
                     )
                 else:
                     state = start.take(rows)
@@ -853,6 +865,40 @@ class _ReferenceSteps:
                 mean[c, s] = reference.means[first + s]
                 covariance[c, s] = reference.covariances[first + s]
         return cls(steps, scan, sensor, detection, rest, mean, covariance, tail)
+
+
+def _squared_distances(
+    predicted: FloatArray, inverse: FloatArray, measured: FloatArray
+) -> FloatArray:
+    """Squared Mahalanobis distance of every detection from every track's prediction.
+
+    Parameters
+    ----------
+    predicted : ndarray, shape (B, d)
+        Predicted measurements.
+    inverse : ndarray, shape (B, d, d)
+        Inverse innovation covariances (symmetric).
+    measured : ndarray, shape (A, d)
+
+    Returns
+    -------
+    ndarray, shape (B, A)
+        ``nu^T S^-1 nu`` with ``nu = measured[a] - predicted[b]``, summed term by term
+        over the d (d + 1) / 2 entries of ``S^-1`` in blocks of detections (a dense
+        ``einsum`` per detection costs far more for d = 2).
+    """
+    B, d = predicted.shape
+    out = np.empty((B, measured.shape[0]))
+    block = max(1, _GATE_BLOCK // max(B, 1))
+    for a0 in range(0, measured.shape[0], block):
+        nu = measured[None, a0 : a0 + block, :] - predicted[:, None, :]  # (B, a, d)
+        total = np.zeros(nu.shape[:2])
+        for i in range(d):
+            total += inverse[:, i, i, None] * nu[:, :, i] ** 2
+            for j in range(i + 1, d):
+                total += 2.0 * inverse[:, i, j, None] * nu[:, :, i] * nu[:, :, j]
+        out[:, a0 : a0 + block] = total
+    return out
 
 
 def _inverse_and_logdet(S: FloatArray) -> tuple[FloatArray, FloatArray]:
