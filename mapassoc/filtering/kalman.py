@@ -155,6 +155,29 @@ def innovation(
     return nu, S, H
 
 
+def _small_inverse(S: FloatArray) -> FloatArray | None:
+    """Closed-form inverses of a batch of symmetric 1x1 or 2x2 matrices, ``None`` when
+    the matrices are larger or one is not positive-definite (the caller's Cholesky
+    factorisation then names it)."""
+    d = S.shape[-1]
+    if d == 1:
+        a = S[..., 0, 0]
+        if not np.all(a > 0):
+            return None
+        return np.asarray(1.0 / S, dtype=np.float64)
+    if d != 2:
+        return None
+    a, b, c = S[..., 0, 0], S[..., 0, 1], S[..., 1, 1]
+    det = a * c - b * b
+    if not (np.all(a > 0) and np.all(det > 0)):
+        return None
+    inverse = np.empty_like(S, dtype=np.float64)
+    inverse[..., 0, 0] = c / det
+    inverse[..., 1, 1] = a / det
+    inverse[..., 0, 1] = inverse[..., 1, 0] = -b / det
+    return inverse
+
+
 def update(
     x: FloatArray, P: FloatArray, nu: FloatArray, S: FloatArray, H: FloatArray, R: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
@@ -174,10 +197,16 @@ def update(
     x_post : ndarray, shape (..., n)
     P_post : ndarray, shape (..., n, n)
     """
-    L = cholesky(S, "innovation covariance S")
-    # K^T = S^-1 H P, solved through the Cholesky factor (no explicit inverse).
     HP = H @ P
-    Kt = np.linalg.solve(np.swapaxes(L, -1, -2), np.linalg.solve(L, HP))
+    S_inv = _small_inverse(S)
+    if S_inv is not None:
+        # dz <= 2: K^T = S^-1 H P through the closed-form inverse of a positive-definite
+        # 1x1 or 2x2 matrix (numpy's batched solves cost far more than this arithmetic).
+        Kt = S_inv @ HP
+    else:
+        L = cholesky(S, "innovation covariance S")
+        # K^T = S^-1 H P, solved through the Cholesky factor (no explicit inverse).
+        Kt = np.linalg.solve(np.swapaxes(L, -1, -2), np.linalg.solve(L, HP))
     K = np.swapaxes(Kt, -1, -2)
     x_post = x + np.einsum("...ij,...j->...i", K, nu)
     n = P.shape[-1]
@@ -273,8 +302,19 @@ def gated_pairs_and_loglik(
     if not math.isfinite(threshold):
         raise InputError("gated_pairs_and_loglik needs a finite gate threshold")
     T, d = z_hat.shape
-    L = cholesky(S, "innovation covariance S")
-    radius = np.sqrt(threshold * np.linalg.eigvalsh(S)[:, -1])
+    S_inv = _small_inverse(S)
+    if S_inv is not None and d == 2:
+        # Closed forms for the usual 2-D measurements: the largest eigenvalue and the
+        # determinant of each S.
+        a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
+        largest = 0.5 * (a + c) + np.sqrt((0.5 * (a - c)) ** 2 + b * b)
+        logdet = np.log(a * c - b * b)
+    else:
+        L = cholesky(S, "innovation covariance S")
+        largest = np.linalg.eigvalsh(S)[:, -1]
+        logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
+        S_inv = None
+    radius = np.sqrt(threshold * largest)
     tree = cKDTree(Z)
     hits = tree.query_ball_point(z_hat, radius, return_sorted=True)
     counts = np.fromiter(map(len, hits), dtype=np.int64, count=T)
@@ -285,10 +325,14 @@ def gated_pairs_and_loglik(
         itertools.chain.from_iterable(hits), dtype=np.int64, count=int(counts.sum())
     )
     nu = Z[detection] - z_hat[track]
-    Linv = np.linalg.inv(L)
-    y = np.einsum("pij,pj->pi", Linv[track], nu)
-    d2 = np.einsum("pi,pi->p", y, y)
-    logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
+    if S_inv is not None:
+        W = S_inv[track]
+        d2 = W[:, 0, 0] * nu[:, 0] ** 2 + 2.0 * W[:, 0, 1] * nu[:, 0] * nu[:, 1]
+        d2 += W[:, 1, 1] * nu[:, 1] ** 2
+    else:
+        Linv = np.linalg.inv(L)
+        y = np.einsum("pij,pj->pi", Linv[track], nu)
+        d2 = np.einsum("pi,pi->p", y, y)
     loglik = -0.5 * (d * _LOG_2PI + logdet[track] + d2)
     keep = d2 <= threshold
     return track[keep], detection[keep], nu[keep], d2[keep], loglik[keep]

@@ -15,6 +15,7 @@ from mapassoc.filtering.kalman import (
     FilterStep,
     filter_sequence,
     gate_threshold,
+    gated_pairs_and_loglik,
     innovation,
     log_gaussian,
     pairwise_gate_and_loglik,
@@ -261,3 +262,63 @@ def test_not_positive_definite_covariances_raise() -> None:
 def test_bad_model_parameters_raise(factory, message: str) -> None:
     with pytest.raises(InputError, match=message):
         factory()
+
+
+@pytest.mark.parametrize("dz", [1, 2, 3])
+def test_update_equals_the_textbook_gain_for_every_measurement_dimension(dz: int) -> None:
+    """The closed-form inverse (dz <= 2) and the Cholesky solves (dz = 3) both give
+    K = P H^T S^-1 and the Joseph-form covariance, for a batch."""
+    rng = np.random.default_rng(dz)
+    n, B = 4, 6
+    A = rng.normal(size=(B, n, n))
+    P = A @ np.swapaxes(A, -1, -2) + np.eye(n)
+    x = rng.normal(size=(B, n))
+    H = rng.normal(size=(dz, n))
+    C = rng.normal(size=(dz, dz))
+    R = C @ C.T + 0.5 * np.eye(dz)
+    S = H @ P @ H.T + R
+    nu = rng.normal(size=(B, dz))
+    x_post, P_post = update(x, P, nu, S, H, R)
+    for b in range(B):
+        K = P[b] @ H.T @ np.linalg.inv(S[b])
+        I_KH = np.eye(n) - K @ H
+        np.testing.assert_allclose(x_post[b], x[b] + K @ nu[b], rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(
+            P_post[b], I_KH @ P[b] @ I_KH.T + K @ R @ K.T, rtol=1e-10, atol=1e-10
+        )
+
+
+@pytest.mark.parametrize("dz", [1, 2])
+def test_update_names_the_innovation_covariance_that_is_not_positive_definite(dz: int) -> None:
+    P = np.stack([np.eye(2), np.eye(2)])
+    H = np.eye(dz, 2)
+    S = np.stack([np.eye(dz), -np.eye(dz)])
+    with pytest.raises(NotPositiveDefiniteError, match=r"innovation covariance S.*\[1\]"):
+        update(np.zeros((2, 2)), P, np.zeros((2, dz)), S, H, np.eye(dz))
+
+
+@pytest.mark.parametrize("d", [1, 2, 3])
+def test_gated_pairs_are_the_dense_gate_pairs(d: int) -> None:
+    """The k-d tree's gated pairs (closed forms for d = 2, Cholesky otherwise) are the
+    pairs of the dense computation within the gate, with the same d2 and loglik."""
+    rng = np.random.default_rng(10 + d)
+    T, M = 40, 60
+    A = rng.normal(size=(T, d, d))
+    S = A @ np.swapaxes(A, -1, -2) + 0.3 * np.eye(d)
+    z_hat = rng.uniform(-5.0, 5.0, size=(T, d))
+    Z = rng.uniform(-5.0, 5.0, size=(M, d))
+    threshold = 6.0
+    track, detection, nu, d2, loglik = gated_pairs_and_loglik(z_hat, S, Z, threshold)
+    dense_d2, dense_loglik = pairwise_gate_and_loglik(Z[None, :, :] - z_hat[:, None, :], S)
+    t_ref, m_ref = np.nonzero(dense_d2 <= threshold)
+    assert t_ref.size > 20  # the gate holds pairs, and not all of them
+    assert t_ref.size < T * M
+    np.testing.assert_array_equal(track, t_ref)
+    np.testing.assert_array_equal(detection, m_ref)
+    np.testing.assert_allclose(nu, Z[m_ref] - z_hat[t_ref])
+    np.testing.assert_allclose(d2, dense_d2[t_ref, m_ref], rtol=1e-9)
+    np.testing.assert_allclose(loglik, dense_loglik[t_ref, m_ref], rtol=1e-9, atol=1e-9)
+    bad = S.copy()
+    bad[3] = -np.eye(d)
+    with pytest.raises(NotPositiveDefiniteError, match=r"\[3\]"):
+        gated_pairs_and_loglik(z_hat, bad, Z, threshold)
