@@ -25,15 +25,20 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tomllib
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
 from mapassoc.apps.runs import RunInterrupted, RunOptions, json_dump, run_files
 from mapassoc.apps.stopping import StopFlag, stop_on_signals
-from mapassoc.errors import MapassocError, OutputError
+from mapassoc.errors import InputError, MapassocError, OutputError
 from mapassoc.version import __version__
+
+if TYPE_CHECKING:
+    from mapassoc.data.config import TrackerOption
 
 __all__ = ["main", "build_parser"]
 
@@ -280,6 +285,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         scans=args.scans,
         window_length=args.window_length,
         ospa2_window=args.ospa2_window,
+        tracker_options=_tracker_options(args.option),
         on_row=progress,
     )
     summary = summarize(table)
@@ -294,6 +300,34 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         written.append(plot_comparison(out / "compare.png", summary))
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
+
+
+def _tracker_options(
+    assignments: Sequence[str] | None,
+) -> dict[str, dict[str, TrackerOption]] | None:
+    """``["mht.n_scan=5", "flow.solver=ssp"]`` -> ``{"mht": {"n_scan": 5}, "flow": {...}}``.
+
+    A value is read as a TOML value (``5``, ``2.5``, ``true``, ``"text"``) and kept as
+    text when it is none (``ssp``).
+    """
+    if not assignments:
+        return None
+    options: dict[str, dict[str, TrackerOption]] = {}
+    for text in assignments:
+        target, sep, raw = text.partition("=")
+        tracker, dot, option = target.strip().partition(".")
+        if not (sep and dot and tracker and option):
+            raise InputError(
+                f"--option must look like TRACKER.OPTION=VALUE (such as mht.n_scan=5), "
+                f"got {text!r}"
+            )
+        value: TrackerOption
+        try:
+            value = tomllib.loads(f"value = {raw.strip()}")["value"]
+        except tomllib.TOMLDecodeError:
+            value = raw.strip()
+        options.setdefault(tracker, {})[option.strip()] = value
+    return options
 
 
 def _comma_separated(text: str) -> list[str]:
@@ -746,6 +780,13 @@ def _add_compare_command(sub: Subcommands) -> None:
         metavar="N",
         help="OSPA(2) as the mean over sliding windows of N scan times (default: the whole "
         "run at once, where every unpaired track, however short, costs the cut-off)",
+    )
+    p.add_argument(
+        "--option",
+        action="append",
+        metavar="TRACKER.OPTION=VALUE",
+        help="an option of one tracker, as a [trackers.TRACKER] table of a configuration "
+        "file sets it (such as mht.n_scan=5 or jpda.max_events=50000); repeatable",
     )
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--no-plot", action="store_true", help="skip compare.png")

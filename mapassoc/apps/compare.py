@@ -12,14 +12,14 @@ prints that summary and writes both tables as CSV and a figure.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import TypedDict
 
 import numpy as np
 import pandas as pd
 
-from mapassoc.data.config import Config
+from mapassoc.data.config import Config, TrackerOption
 from mapassoc.errors import InputError, MapassocError
 from mapassoc.evaluation.clear_mot import motmetrics_available
 from mapassoc.evaluation.scenarios import (
@@ -74,6 +74,34 @@ def _config_for(scenario: Scenario, choice: str) -> Config:
     return generic_config(scenario)
 
 
+def _checked_tracker_options(
+    tracker_options: Mapping[str, Mapping[str, TrackerOption]] | None,
+    family: str,
+    config: str,
+) -> dict[str, dict[str, TrackerOption]]:
+    """``tracker_options`` after checking them as a configuration's tables and building
+    each named tracker with them once (on the first scenario's configuration), so that
+    an unknown tracker, option or value stops the comparison before it runs."""
+    if tracker_options is None:
+        return {}
+    if not isinstance(tracker_options, Mapping):
+        raise InputError(
+            f"tracker_options must be a mapping tracker name -> options, got {tracker_options!r}"
+        )
+    for name in tracker_options:
+        if name not in TRACKERS:
+            raise InputError(
+                f"tracker_options names unknown tracker {name!r}; known trackers: "
+                f"{', '.join(TRACKERS)}",
+                key=f"trackers.{name}",
+            )
+    scenario = build_scenario(family, 0)
+    checked = replace(_config_for(scenario, config), trackers=tracker_options)
+    for name in checked.trackers:
+        build_tracker(name, config=checked, origins=scenario.origins)
+    return {name: dict(options) for name, options in checked.trackers.items()}
+
+
 def compare(
     trackers: Sequence[str] = DEFAULT_TRACKERS,
     scenarios: Sequence[str] = ("crossing",),
@@ -85,6 +113,7 @@ def compare(
     window_length: int | None = None,
     time_limit: float | None = None,
     ospa2_window: int | None = None,
+    tracker_options: Mapping[str, Mapping[str, TrackerOption]] | None = None,
     on_row: Callable[[dict[str, object]], None] | None = None,
 ) -> pd.DataFrame:
     """Run every tracker on every (scenario, seed) and score it against the truth.
@@ -117,6 +146,11 @@ def compare(
         Score OSPA(2) as the mean over sliding windows of this many evaluation times
         (:func:`~mapassoc.evaluation.ospa.ospa2_over_time`); ``None`` (default) scores the
         whole run at once, where every unpaired trajectory, however short, costs ``c``.
+    tracker_options : mapping, optional
+        Tracker name -> its options (what a ``[trackers.<name>]`` table of a configuration
+        file holds, :attr:`~mapassoc.data.config.Config.trackers`), for example
+        ``{"mht": {"n_scan": 5}}``; replaces the configuration's tables of those
+        trackers.  Checked before anything runs.
     on_row : callable, optional
         Called with each row (a dict) as soon as it is computed, e.g. to print progress.
 
@@ -157,6 +191,7 @@ def compare(
         time_limit = check_positive("time_limit", time_limit, key="time_limit")
     if ospa2_window is not None and (not _is_int(ospa2_window) or ospa2_window < 1):
         raise InputError(f"ospa2_window must be an integer >= 1, got {ospa2_window!r}")
+    options = _checked_tracker_options(tracker_options, families[0], config)
     # CLEAR-MOT needs the optional motmetrics; without it its columns are empty instead of
     # every run failing on it.
     with_clear_mot = motmetrics_available()
@@ -177,6 +212,8 @@ def compare(
                 run_config = replace(
                     run_config, estimator=replace(run_config.estimator, **overrides)
                 )
+            if options:
+                run_config = replace(run_config, trackers={**run_config.trackers, **options})
             for name in names:
                 row: dict[str, object] = {
                     "scenario": family,

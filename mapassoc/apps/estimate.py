@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from mapassoc.errors import InputError
+from mapassoc.trackers.registry import tracker_names
 
 __all__ = [
     "RATE_DISAGREEMENT",
@@ -133,7 +134,7 @@ def estimate_file_parameters(
     if write is not None and os.path.lexists(write):
         raise InputError(f"{os.fspath(write)} exists already; name a new file to write")
     config_bytes, _ = read_input(config_path, stop=stop)
-    config = load_config(config_path, content=config_bytes)
+    config = load_config(config_path, tracker_names=tracker_names(), content=config_bytes)
     detections_bytes, _ = read_input(detections_path, stop=stop)
     scans = read_detections_file(detections_path, config.sensors, content=detections_bytes)
     auto_rates = set(config.auto.false_alarms)

@@ -27,6 +27,7 @@ from typing import Any, BinaryIO
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import RunFolder, file_identity, new_manifest, now_text, os_reason
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
+from mapassoc.trackers.registry import tracker_names
 from mapassoc.validation import check_integer
 
 __all__ = [
@@ -447,7 +448,12 @@ def run_files(
     with warnings.catch_warnings(record=True) as config_warnings:
         warnings.simplefilter("always")
         _ignore_resource_warnings()
-        config = load_config(config_path, solver_names=_integer_solvers(), content=config_bytes)
+        config = load_config(
+            config_path,
+            solver_names=_integer_solvers(),
+            tracker_names=tracker_names(),
+            content=config_bytes,
+        )
     detections_bytes, detections_identity = read_input(detections_path, stop=stop)
     inputs = {"config": config_identity, "detections": detections_identity}
     settings = _settings_record(config, timings, segments, tracks_format)

@@ -27,6 +27,11 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     [estimator]    # optional; keys and defaults: the fields of
                    # mapassoc.data.settings.EstimatorSettings
 
+    [trackers.mht] # optional, one table per baseline tracker (mapassoc.trackers.registry):
+    n_scan = 4     # its own keyword options, numbers, booleans or strings; checked when
+                   # the tracker is built (mapassoc compare), names against the registry
+                   # when the caller passes them (tracker_names)
+
 The ``[birth]`` and ``[estimator]`` sections are optional by design (every field has a
 default), but :func:`load_config` warns (``UserWarning``) when one is missing, naming
 the file and the defaults used: a forgotten section silently changes the model.
@@ -36,6 +41,12 @@ be estimated from the recording (:mod:`mapassoc.estimator.parameters`, which ``m
 run`` calls before the run): :attr:`Config.auto` lists them, the sensor holds
 placeholders (``Pd`` = 1, no false alarms) until then, and :func:`check_config` refuses
 such a configuration to anything that would run on the placeholders.
+
+``[trackers.<name>]`` tables belong to the baseline trackers of ``mapassoc compare``
+(GNN, JPDA, MHT, network flow, LP relaxation): each holds options of that tracker's own
+(``MhtTracker(n_scan=...)``), which the tracker registry hands to it when it builds it
+and checks there, since this layer may not import the trackers.  The MAP estimator's own
+settings stay in ``[estimator]``.
 
 ``estimator.solver`` is a name of the solver registry, which this layer may not import
 (``tests/test_architecture.py``): the caller that wires the solvers passes the names it
@@ -82,6 +93,7 @@ __all__ = [
     "AUTO",
     "AutoParameters",
     "Config",
+    "TrackerOption",
     "check_config",
     "MOTION_MODELS",
     "MEASUREMENTS",
@@ -100,7 +112,10 @@ MEASUREMENTS = tuple(MEASUREMENT_REGISTRY)
 """Measurement model names registered when this module was imported (see
 :data:`mapassoc.models.measurement.MEASUREMENT_REGISTRY`, which the reader and writer use)."""
 
-_SECTIONS = ("motion", "sensors", "birth", "estimator")
+_SECTIONS = ("motion", "sensors", "birth", "estimator", "trackers")
+
+TrackerOption = bool | int | float | str
+"""The value of a tracker's option in a ``[trackers.<name>]`` table."""
 _SENSOR_COMMON_KEYS = (
     "name",
     "measurement",
@@ -162,6 +177,10 @@ class Config:
         Sensor parameters still to be estimated from the recording (``"auto"`` in the
         file); their sensors hold placeholders until
         :func:`mapassoc.estimator.parameters.estimate_parameters` fills them in.
+    trackers : mapping of str to mapping of str to bool, int, float or str
+        Options of the baseline trackers by tracker name (``[trackers.<name>]`` tables),
+        handed to each tracker by :func:`mapassoc.trackers.registry.build_tracker`; empty
+        (default): every tracker with its defaults.
     """
 
     motion: MotionModel
@@ -170,6 +189,9 @@ class Config:
     estimator: EstimatorSettings
     source: str | None = None
     auto: AutoParameters = AutoParameters()
+    trackers: Mapping[str, Mapping[str, TrackerOption]] = dataclasses.field(
+        default_factory=dict
+    )
 
     def __post_init__(self) -> None:
         if not isinstance(self.motion, MotionModel):
@@ -201,6 +223,42 @@ class Config:
                     f"(known: {sorted(self.sensors)})"
                 )
         object.__setattr__(self, "sensors", dict(self.sensors))
+        object.__setattr__(self, "trackers", _checked_tracker_options(self.trackers))
+
+
+def _checked_tracker_options(
+    trackers: object,
+) -> dict[str, dict[str, TrackerOption]]:
+    """A copy of ``Config.trackers`` after checking its shape (raises InputError)."""
+    if not isinstance(trackers, Mapping):
+        raise InputError(
+            f"trackers must be a mapping tracker name -> options, got {trackers!r}",
+            key="trackers",
+        )
+    out: dict[str, dict[str, TrackerOption]] = {}
+    for name, options in trackers.items():
+        if not isinstance(name, str) or not name:
+            raise InputError(f"trackers: a tracker name must be a string, got {name!r}")
+        if not isinstance(options, Mapping):
+            raise InputError(
+                f"trackers.{name} must be a table of options, got {options!r}",
+                key=f"trackers.{name}",
+            )
+        out[name] = {}
+        for option, value in options.items():
+            key = f"trackers.{name}.{option}"
+            if not isinstance(option, str) or not option:
+                raise InputError(
+                    f"trackers.{name}: an option name must be a string, got {option!r}"
+                )
+            if not isinstance(value, (bool, int, float, str)) or (
+                isinstance(value, float) and math.isnan(value)
+            ):
+                raise InputError(
+                    f"{key} must be a number, a boolean or a string, got {value!r}", key=key
+                )
+            out[name][option] = value
+    return out
 
 
 def check_config(
@@ -623,6 +681,7 @@ def parse_config(
     *,
     source: str | None = None,
     solver_names: Collection[str] | None = None,
+    tracker_names: Collection[str] | None = None,
 ) -> Config:
     """Build a :class:`Config` from a parsed TOML document (schema in the module docstring).
 
@@ -636,12 +695,17 @@ def parse_config(
         The solver names ``estimator.solver`` may take (the caller's registry, for example
         the integer-capable names of ``mapassoc.solvers.available_solvers()``); ``None``
         (default) leaves the name to be checked when the solver is built.
+    tracker_names : collection of str, optional
+        The tracker names a ``[trackers.<name>]`` table may take (the caller's registry,
+        ``mapassoc.trackers.registry.tracker_names()``); ``None`` (default) leaves them
+        to be checked when a tracker is built.
 
     Raises
     ------
     ConfigError
         A missing, unknown or invalid key; ``key`` is its dotted path.  With
-        ``solver_names``, an ``estimator.solver`` (given or default) outside it.
+        ``solver_names``, an ``estimator.solver`` (given or default) outside it; with
+        ``tracker_names``, a ``[trackers.<name>]`` table of another name.
     """
     parser = _Parser(source=source)
     document = parser.table(data, _DOCUMENT_KEY)
@@ -651,6 +715,7 @@ def parse_config(
     birth = _parse_settings(parser, document, "birth", BirthModel)
     estimator = _parse_settings(parser, document, "estimator", EstimatorSettings)
     _check_solver(parser, estimator, solver_names)
+    trackers = _parse_trackers(parser, document, tracker_names)
     return Config(
         motion=motion,
         sensors=sensors,
@@ -658,7 +723,29 @@ def parse_config(
         estimator=estimator,
         source=source,
         auto=auto,
+        trackers=trackers,
     )
+
+
+def _parse_trackers(
+    parser: _Parser, document: Mapping[str, object], tracker_names: Collection[str] | None
+) -> dict[str, dict[str, TrackerOption]]:
+    """The ``[trackers.<name>]`` tables: names (against ``tracker_names`` if given) and
+    value types checked here, each option by the tracker that takes it."""
+    if "trackers" not in document:
+        return {}
+    tables = parser.table(document["trackers"], "trackers")
+    for name, options in tables.items():
+        key = f"trackers.{name}"
+        parser.table(options, key)
+        if tracker_names is not None and name not in tracker_names:
+            raise parser.fail(
+                key, f"unknown tracker; known trackers: {', '.join(sorted(tracker_names))}"
+            )
+    try:
+        return _checked_tracker_options(tables)
+    except InputError as exc:
+        raise parser.fail(exc.key or "trackers", str(exc)) from None
 
 
 def _defaults_text(cls: type[BirthModel] | type[EstimatorSettings]) -> str:
@@ -686,6 +773,7 @@ def load_config(
     path: PathLike,
     *,
     solver_names: Collection[str] | None = None,
+    tracker_names: Collection[str] | None = None,
     content: bytes | None = None,
 ) -> Config:
     """Read and parse a TOML configuration file.
@@ -698,6 +786,8 @@ def load_config(
     path : str or os.PathLike
     solver_names : collection of str, optional
         The solver names ``estimator.solver`` may take (see :func:`parse_config`).
+    tracker_names : collection of str, optional
+        The tracker names ``[trackers.<name>]`` tables may take (see :func:`parse_config`).
     content : bytes, optional
         The file's bytes when the caller has read them already (a named pipe can be read
         only once); ``path`` then only names the file in errors and ``Config.source``.
@@ -722,7 +812,9 @@ def load_config(
         raise ConfigError(_DOCUMENT_KEY, f"invalid TOML: {exc}", source=source) from None
     except UnicodeDecodeError as exc:
         raise ConfigError(_DOCUMENT_KEY, f"not UTF-8 text ({exc.reason})", source=source) from None
-    config = parse_config(data, source=source, solver_names=solver_names)
+    config = parse_config(
+        data, source=source, solver_names=solver_names, tracker_names=tracker_names
+    )
     _warn_missing_sections(data, source)
     return config
 
@@ -861,7 +953,29 @@ def config_to_toml(config: Config) -> str:
             else:
                 raise TypeError(f"{type(settings).__name__}.{field.name} has unsupported type")
             lines.append(f"{field.name} = {text}")
+    for name, options in config.trackers.items():
+        lines += ["", f"[trackers.{_toml_key(name)}]"]
+        for option, value in options.items():
+            lines.append(f"{_toml_key(option)} = {_toml_option(value)}")
     return "\n".join(lines) + "\n"
+
+
+def _toml_key(name: str) -> str:
+    """A bare TOML key when it is one, else a quoted one."""
+    if name and all(ch.isascii() and (ch.isalnum() or ch in "_-") for ch in name):
+        return name
+    return _toml_string(name)
+
+
+def _toml_option(value: TrackerOption) -> str:
+    """A tracker option as TOML (booleans before integers: ``True`` is an ``int``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return _toml_float(value)
+    return _toml_string(value)
 
 
 def write_config(path: PathLike, config: Config) -> None:

@@ -311,7 +311,7 @@ def gated_pairs_and_loglik(
         logdet = np.log(a * c - b * b)
     else:
         L = cholesky(S, "innovation covariance S")
-        largest = np.linalg.eigvalsh(S)[:, -1]
+        largest = np.asarray(np.linalg.eigvalsh(S)[:, -1], dtype=np.float64)
         logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
         S_inv = None
     radius = np.sqrt(threshold * largest)

@@ -2,10 +2,13 @@
 
 Each row names a method, the module and class that implement it (imported only when the
 tracker is built) and whether it needs the true associations (the oracle).  Every class
-is built as ``cls(config=config)`` (plus ``origins=`` for the oracle), so every method
-runs on exactly the same motion, sensor, clutter and birth models.  Adding a method is
-one module with a class implementing :class:`~mapassoc.trackers.base.Tracker` and one row
-here.
+is built as ``cls(config=config, **options)`` (plus ``origins=`` for the oracle), so every
+method runs on exactly the same motion, sensor, clutter and birth models; ``options`` is
+the configuration's ``[trackers.<name>]`` table (``Config.trackers[name]``), checked
+against the class's own keyword options (:meth:`TrackerSpec.option_names`: its
+keyword-only parameters whose type is a number, a boolean or a string).  Adding a
+method, with options of its own, is one module with a class implementing
+:class:`~mapassoc.trackers.base.Tracker` and one row here.
 
 =========  =====================================  ======================================
 name       class                                  method
@@ -25,6 +28,7 @@ name       class                                  method
 from __future__ import annotations
 
 import importlib
+import inspect
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -59,17 +63,73 @@ class TrackerSpec:
     description: str
     needs_truth: bool = False
 
+    def tracker_class(self) -> type:
+        """The class of the row (imports its module)."""
+        cls: type = getattr(importlib.import_module(self.module), self.class_name)
+        return cls
+
+    def option_names(self) -> tuple[str, ...]:
+        """The options a ``[trackers.<name>]`` table may set: the class's keyword-only
+        parameters (besides ``config``, ``origins`` and ``name``) annotated with numbers,
+        booleans, strings or ``None`` only (a management rule object, say, is not)."""
+        parameters = inspect.signature(self.tracker_class()).parameters.values()
+        return tuple(
+            p.name
+            for p in parameters
+            if p.kind is inspect.Parameter.KEYWORD_ONLY
+            and p.name not in _NOT_OPTIONS
+            and _is_scalar_annotation(p.annotation)
+        )
+
     def build(self, *, config: Config, origins: Origins | None = None) -> Tracker:
-        """The tracker with its default options on ``config``."""
-        cls = getattr(importlib.import_module(self.module), self.class_name)
+        """The tracker on ``config``, with the options of its ``[trackers.<name>]`` table.
+
+        Raises
+        ------
+        InputError
+            An option the class does not take (the message lists those it takes), an
+            option value the class refuses (key ``trackers.<name>.<option>`` where the
+            class names the option), or the oracle without ``origins``.
+        """
+        cls = self.tracker_class()
+        options: dict[str, object] = dict(config.trackers.get(self.name, {}))
+        if options:
+            allowed = self.option_names()
+            for option in options:
+                if option not in allowed:
+                    raise InputError(
+                        f"trackers.{self.name}: unknown option {option!r}; options of "
+                        f"'{self.name}': {', '.join(allowed) or '(none)'}",
+                        key=f"trackers.{self.name}.{option}",
+                    )
         if self.needs_truth:
             if origins is None:
                 raise InputError(
                     f"tracker '{self.name}' needs the true origins of the detections "
                     "(simulated data); none were given"
                 )
-            return cls(config=config, origins=origins)
-        return cls(config=config)
+            options["origins"] = origins
+        try:
+            tracker: Tracker = cls(config=config, **options)
+        except InputError as exc:
+            if not options:
+                raise
+            named = [o for o in options if o in str(exc)]
+            key = f"trackers.{self.name}.{named[0]}" if named else f"trackers.{self.name}"
+            raise InputError(f"trackers.{self.name}: {exc}", key=key) from None
+        return tracker
+
+
+_NOT_OPTIONS = frozenset({"config", "origins", "name"})
+_SCALAR_TYPES = frozenset({"int", "float", "bool", "str", "None"})
+
+
+def _is_scalar_annotation(annotation: object) -> bool:
+    """Whether a parameter's annotation (a string under ``from __future__ import
+    annotations``) is a union of int, float, bool, str and None."""
+    text = annotation if isinstance(annotation, str) else getattr(annotation, "__name__", "")
+    parts = [part.strip() for part in str(text).split("|")]
+    return bool(parts) and all(part in _SCALAR_TYPES for part in parts)
 
 
 TRACKERS: dict[str, TrackerSpec] = {
@@ -147,12 +207,14 @@ def tracker_names() -> list[str]:
 
 
 def build_tracker(name: str, *, config: Config, origins: Origins | None = None) -> Tracker:
-    """Build the tracker ``name`` with its default options.
+    """Build the tracker ``name`` with the options of the configuration's
+    ``[trackers.<name>]`` table (its defaults for the rest).
 
     Raises
     ------
     InputError
-        Unknown name (the message lists the known ones), or the oracle without origins.
+        Unknown name (the message lists the known ones), an option the tracker does not
+        take or refuses (:meth:`TrackerSpec.build`), or the oracle without origins.
     """
     spec = TRACKERS.get(name)
     if spec is None:

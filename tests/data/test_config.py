@@ -120,6 +120,7 @@ def _assert_same_config(got: Config, want: Config) -> None:
         assert other.region == sensor.region
     assert got.birth == want.birth
     assert got.estimator == want.estimator
+    assert got.trackers == want.trackers
 
 
 def _sensor(name: str, measurement: object, bounds: list[list[float]]) -> Sensor:
@@ -432,3 +433,66 @@ def test_config_constructor_validates() -> None:
             birth=good.birth,
             estimator=good.estimator,
         )
+
+
+TRACKERS_TOML = MINIMAL_CONFIG_TOML + """
+[trackers.mht]
+n_scan = 4
+prune_log_ratio = inf
+m_best_pruning = true
+solver = "highs"
+
+[trackers."my tracker"]
+level = 0.25
+"""
+
+
+def test_tracker_tables_parse_and_round_trip() -> None:
+    config = parse_config(tomllib.loads(TRACKERS_TOML))
+    assert config.trackers == {
+        "mht": {
+            "n_scan": 4,
+            "prune_log_ratio": math.inf,
+            "m_best_pruning": True,
+            "solver": "highs",
+        },
+        "my tracker": {"level": 0.25},
+    }
+    assert isinstance(config.trackers["mht"]["n_scan"], int)
+    text = config_to_toml(config)
+    assert '[trackers.mht]\nn_scan = 4\nprune_log_ratio = inf\nm_best_pruning = true\n' in text
+    assert '[trackers."my tracker"]\nlevel = 0.25\n' in text
+    _assert_same_config(parse_config(tomllib.loads(text)), config)
+    # No table: nothing written, nothing read.
+    plain = parse_config(tomllib.loads(MINIMAL_CONFIG_TOML))
+    assert plain.trackers == {} and "[trackers" not in config_to_toml(plain)
+
+
+_SCALAR = "a number, a boolean or a string"
+
+
+@pytest.mark.parametrize(
+    ("extra", "key", "message"),
+    [
+        ("[trackers]\nmht = 3\n", "trackers.mht", "must be a table"),
+        ("[trackers.mht]\nn_scan = [1, 2]\n", "trackers.mht.n_scan", _SCALAR),
+        ("[trackers.mht]\nlevel = nan\n", "trackers.mht.level", _SCALAR),
+        ("[trackers.mht.inner]\nx = 1\n", "trackers.mht.inner", _SCALAR),
+        ("trackers = 1\n", "trackers", "must be a table"),
+    ],
+)
+def test_bad_tracker_tables_name_their_key(extra: str, key: str, message: str) -> None:
+    # A top-level key must come before the first table of the document.
+    top_level = extra.startswith("trackers =")
+    text = extra + MINIMAL_CONFIG_TOML if top_level else MINIMAL_CONFIG_TOML + extra
+    with pytest.raises(ConfigError, match=message) as info:
+        parse_config(tomllib.loads(text))
+    assert info.value.key == key
+
+
+def test_tracker_names_are_checked_against_the_callers_registry() -> None:
+    data = tomllib.loads(MINIMAL_CONFIG_TOML + "[trackers.mhtt]\nn_scan = 4\n")
+    with pytest.raises(ConfigError, match="unknown tracker; known trackers: gnn, mht") as info:
+        parse_config(data, tracker_names=("mht", "gnn"))
+    assert info.value.key == "trackers.mhtt"
+    assert parse_config(data).trackers == {"mhtt": {"n_scan": 4}}  # no registry: kept
