@@ -39,6 +39,7 @@ from mapassoc.apps.run_folders import inside, os_reason
 from mapassoc.apps.runs import RunInterrupted, RunOptions, run_files
 from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
+from mapassoc.data.formats import detection_formats
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
 
 __all__ = [
@@ -67,7 +68,6 @@ SUMMARY_COLUMNS = (
     "detections",
     "config",
 )
-DETECTION_SUFFIXES = (".csv", ".parquet", ".pq")
 LIST_COLUMNS = ("name", "detections", "config")
 
 
@@ -107,7 +107,7 @@ def _check_name(name: str, where: str) -> str:
 
 
 def _detections_in(folder: Path) -> Path | None:
-    found = [folder / f"detections{suffix}" for suffix in DETECTION_SUFFIXES]
+    found = [folder / f"detections{suffix}" for suffix in detection_formats()]
     existing = [path for path in found if path.is_file()]
     if len(existing) > 1:
         raise InputError(f"{folder}: holds {len(existing)} detections files; keep one")
@@ -127,7 +127,7 @@ def _from_folder(source: Path) -> list[Recording]:
             recordings.append(
                 Recording(entry.name, detections, config if config.is_file() else None)
             )
-        elif entry.suffix in DETECTION_SUFFIXES:
+        elif entry.suffix.lower() in detection_formats():
             config = entry.with_suffix(".toml")
             recordings.append(
                 Recording(entry.stem, entry, config if config.is_file() else None)

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
 from mapassoc.apps.runs import RunInterrupted, RunOptions, json_dump, run_files
 from mapassoc.apps.stopping import StopFlag, stop_on_signals
+from mapassoc.data.formats import format_names
 from mapassoc.errors import InputError, MapassocError, OutputError
 from mapassoc.version import __version__
 
@@ -373,7 +374,7 @@ def _add_simulate_command(sub: Subcommands) -> None:
     )
     p.add_argument(
         "--format",
-        choices=("csv", "parquet"),
+        choices=format_names(),
         default="csv",
         help="detections, truth and origins as CSV (default) or Parquet (extra 'parquet')",
     )
@@ -443,7 +444,7 @@ def _add_run_command(sub: Subcommands) -> None:
     )
     p.add_argument(
         "--tracks-format",
-        choices=("csv", "parquet"),
+        choices=format_names(),
         default="csv",
         help="tracks.csv (default) or tracks.parquet (extra 'parquet')",
     )
@@ -512,7 +513,7 @@ def _add_batch_command(sub: Subcommands) -> None:
         "--checkpoint-seconds", type=float, default=10.0, metavar="SECONDS", help="as for `run`"
     )
     p.add_argument(
-        "--tracks-format", choices=("csv", "parquet"), default="csv", help="as for `run`"
+        "--tracks-format", choices=format_names(), default="csv", help="as for `run`"
     )
     p.set_defaults(func=_cmd_batch)
 

@@ -26,6 +26,7 @@ from typing import Any, BinaryIO
 
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import RunFolder, file_identity, new_manifest, now_text, os_reason
+from mapassoc.data.formats import file_name, format_names
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
 from mapassoc.trackers.registry import tracker_names
 from mapassoc.validation import check_integer
@@ -43,8 +44,6 @@ __all__ = [
 ]
 
 WINDOWS_NAME = "windows.jsonl"
-TRACKS_FORMATS = {"csv": "tracks.csv", "parquet": "tracks.parquet"}
-"""File of the tracks in each ``tracks_format``."""
 SUMMARY_NAME = "summary.json"
 ASSOCIATIONS_NAME = "associations.csv"
 """The refined tracks' association probabilities (``detection_id,track_id,probability``)."""
@@ -151,9 +150,9 @@ class RunOptions:
             raise InputError(
                 f"checkpoint_seconds must be >= 0, got {self.checkpoint_seconds!r}"
             )
-        if self.tracks_format not in TRACKS_FORMATS:
+        if self.tracks_format not in format_names():
             raise InputError(
-                f"tracks_format must be one of {sorted(TRACKS_FORMATS)}, got "
+                f"tracks_format must be one of {sorted(format_names())}, got "
                 f"{self.tracks_format!r}"
             )
         # Stored as an int: the run's settings record is written to JSON.
@@ -563,7 +562,7 @@ def run_files(
                     **({"parameters": parameters} if parameters is not None else {}),
                     "warnings": messages,
                 }
-                session.writing = folder.partial / TRACKS_FORMATS[tracks_format]
+                session.writing = folder.partial / file_name("tracks", tracks_format)
                 write_tracks_file(session.writing, result.tracks)
                 if result.confidence is not None:
                     session.writing = folder.partial / ASSOCIATIONS_NAME

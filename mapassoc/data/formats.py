@@ -1,37 +1,53 @@
-"""Data files by suffix: one call reads or writes CSV or Parquet.
+"""Data files by suffix: one table of formats, and one call to read or write each kind of
+file in any of them.
 
-================  ======================================  ==========================
-suffix            format                                  module
-================  ======================================  ==========================
-``.csv``          CSV text                                :mod:`mapassoc.data.io`
-``.parquet``      Parquet (needs the optional pyarrow)    :mod:`mapassoc.data.parquet`
-``.pq``           Parquet                                 :mod:`mapassoc.data.parquet`
-================  ======================================  ==========================
+=========== ============================  ===================================  ============
+name        suffixes                      module                               extra
+=========== ============================  ===================================  ============
+``csv``     ``.csv``                      :mod:`mapassoc.data.io`              (none)
+``parquet`` ``.parquet``, ``.pq``         :mod:`mapassoc.data.parquet`         ``parquet``
+=========== ============================  ===================================  ============
 
-Suffixes are compared case-insensitively.  Both formats hold the same columns (a Parquet
-detections file adds ``detection_id``); they differ in the detection ids a reader gives
-(CSV: line numbers, from 2; Parquet: the ``detection_id`` column, else the 0-based row
-index) and in the row order they accept (CSV: times never decrease down the file;
-Parquet: any order).  An unknown suffix raises
-:class:`~mapassoc.errors.DataFileError` naming the file and the known suffixes.
+Each row of :data:`FILE_FORMATS` names a module holding ``read_<kind><functions>`` and
+``write_<kind><functions>`` for the four kinds of file (``detections``, ``tracks``,
+``truth``, ``origins``; ``functions`` is the row's name suffix, ``""`` for CSV and
+``"_parquet"`` for Parquet).  The command line's ``--format`` choices, the run folder's
+tracks file, the files a batch finds and the files ``mapassoc simulate`` writes all come
+from the table, so a new format is one module and one row (its module is imported only
+when a file of that format is read or written: this table is read when the command
+line's parser is built).
+
+Suffixes are compared case-insensitively.  Both built-in formats hold the same columns (a
+Parquet detections file adds ``detection_id``); they differ in the detection ids a reader
+gives (CSV: line numbers, from 2; Parquet: the ``detection_id`` column, else the 0-based
+row index) and in the row order they accept (CSV: times never decrease down the file;
+Parquet: any order).  An unknown suffix raises :class:`~mapassoc.errors.DataFileError`
+naming the file and the known suffixes.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import PurePath
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from mapassoc.data import io as csv_io
-from mapassoc.data.io import Origins, TrackTable, TruthTable
-from mapassoc.data.scans import Scan
-from mapassoc.errors import DataFileError
-from mapassoc.models.sensor import Sensor
+from mapassoc.errors import DataFileError, InputError
+
+if TYPE_CHECKING:  # the table is read by the command line's parser: keep it light
+    from mapassoc.data.io import Origins, TrackTable, TruthTable
+    from mapassoc.data.scans import Scan
+    from mapassoc.models.sensor import Sensor
 
 __all__ = [
+    "FILE_FORMATS",
+    "FileFormat",
+    "format_names",
     "detection_formats",
     "file_format",
+    "file_name",
     "read_detections_file",
     "write_detections_file",
     "read_tracks_file",
@@ -44,96 +60,168 @@ __all__ = [
 
 PathLike = str | os.PathLike[str]
 
-_FORMAT_OF_SUFFIX: dict[str, str] = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
+FILE_KINDS = ("detections", "tracks", "truth", "origins")
+"""The kinds of data file every format reads and writes."""
+
+
+@dataclass(frozen=True)
+class FileFormat:
+    """One row of :data:`FILE_FORMATS`.
+
+    Parameters
+    ----------
+    name : str
+        What ``--format`` and ``tracks_format`` call it.
+    suffixes : tuple of str
+        Lower-case file suffixes, the first one the suffix files are written with.
+    module : str
+        The module of its readers and writers (imported on first use).
+    functions : str
+        Name suffix of its functions: ``read_<kind><functions>``,
+        ``write_<kind><functions>``.
+    description : str
+        Words for messages and help (``"CSV"``).
+    extra : str or None
+        The optional dependency group it needs (``pip install mapassoc[extra]``).
+    """
+
+    name: str
+    suffixes: tuple[str, ...]
+    module: str
+    functions: str
+    description: str
+    extra: str | None = None
+
+    def function(self, verb: str, kind: str) -> Callable[..., Any]:
+        """``read`` or ``write`` of one kind of file in this format."""
+        if verb not in ("read", "write") or kind not in FILE_KINDS:
+            raise InputError(f"no {verb} function for {kind!r} files")
+        function: Callable[..., Any] = getattr(
+            importlib.import_module(self.module), f"{verb}_{kind}{self.functions}"
+        )
+        return function
+
+
+FILE_FORMATS: dict[str, FileFormat] = {
+    row.name: row
+    for row in (
+        FileFormat("csv", (".csv",), "mapassoc.data.io", "", "CSV"),
+        FileFormat(
+            "parquet", (".parquet", ".pq"), "mapassoc.data.parquet", "_parquet", "Parquet",
+            extra="parquet",
+        ),
+    )
+}
+"""Data file formats by name (module docstring)."""
+
+
+def format_names() -> tuple[str, ...]:
+    """The names of :data:`FILE_FORMATS`, in table order (``("csv", "parquet")``)."""
+    return tuple(FILE_FORMATS)
 
 
 def detection_formats() -> tuple[str, ...]:
     """The file suffixes the ``*_file`` functions know, e.g. ``(".csv", ".parquet", ".pq")``."""
-    return tuple(_FORMAT_OF_SUFFIX)
+    return tuple(suffix for row in FILE_FORMATS.values() for suffix in row.suffixes)
+
+
+def _format_of_path(path: PathLike) -> FileFormat:
+    text = os.fspath(path)
+    suffix = PurePath(text).suffix.lower()
+    for row in FILE_FORMATS.values():
+        if suffix in row.suffixes:
+            return row
+    what = f"unknown file suffix {suffix!r}" if suffix else "no file suffix"
+    kinds = " or ".join(row.description for row in FILE_FORMATS.values())
+    raise DataFileError(text, f"{what}; expected one of {', '.join(detection_formats())} ({kinds})")
 
 
 def file_format(path: PathLike) -> str:
-    """``"csv"`` or ``"parquet"``: the format of ``path`` by its suffix.
+    """The name of the format of ``path`` by its suffix (``"csv"``, ``"parquet"``).
 
     Raises
     ------
     DataFileError
         The suffix is none of :func:`detection_formats`.
     """
-    text = os.fspath(path)
-    suffix = PurePath(text).suffix.lower()
-    kind = _FORMAT_OF_SUFFIX.get(suffix)
-    if kind is None:
-        what = f"unknown file suffix {suffix!r}" if suffix else "no file suffix"
-        raise DataFileError(
-            text,
-            f"{what}; expected one of {', '.join(detection_formats())} (CSV or Parquet)",
+    return _format_of_path(path).name
+
+
+def file_name(stem: str, format_name: str) -> str:
+    """``stem`` with the suffix files of ``format_name`` are written with
+    (``file_name("tracks", "parquet") == "tracks.parquet"``).
+
+    Raises
+    ------
+    InputError
+        ``format_name`` is not in :data:`FILE_FORMATS`.
+    """
+    row = FILE_FORMATS.get(format_name)
+    if row is None:
+        raise InputError(
+            f"unknown file format {format_name!r}; known formats: {', '.join(FILE_FORMATS)}"
         )
-    return kind
+    return stem + row.suffixes[0]
 
 
-def _dispatch(
-    path: PathLike, csv_function: Callable[..., Any], parquet_name: str
-) -> Callable[..., Any]:
-    if file_format(path) == "csv":
-        return csv_function
-    from mapassoc.data import parquet
-
-    return getattr(parquet, parquet_name)
+def _function(path: PathLike, verb: str, kind: str) -> Callable[..., Any]:
+    return _format_of_path(path).function(verb, kind)
 
 
 def read_detections_file(
     path: PathLike, sensors: Mapping[str, Sensor], *, content: bytes | None = None
 ) -> list[Scan]:
-    """Read a detections file, CSV or Parquet by its suffix.
+    """Read a detections file in the format of its suffix.
 
     ``content``: the file's bytes when the caller has read them already (``path`` then
     only names the file and its format).  See :func:`mapassoc.data.io.read_detections`
     and :func:`mapassoc.data.parquet.read_detections_parquet`.
     """
-    reader = _dispatch(path, csv_io.read_detections, "read_detections_parquet")
-    return reader(path, sensors, content=content)
+    scans: list[Scan] = _function(path, "read", "detections")(path, sensors, content=content)
+    return scans
 
 
 def write_detections_file(
     path: PathLike, scans: Sequence[Scan], sensors: Mapping[str, Sensor]
 ) -> None:
-    """Write a detections file, CSV or Parquet by its suffix.
+    """Write a detections file in the format of its suffix.
 
     A CSV file does not hold the detection ids: reading it gives the line numbers (call
     :func:`mapassoc.data.io.number_rows` first to keep them equal); a Parquet file keeps
     them.  See :func:`mapassoc.data.io.write_detections` and
     :func:`mapassoc.data.parquet.write_detections_parquet`.
     """
-    writer = _dispatch(path, csv_io.write_detections, "write_detections_parquet")
-    writer(path, scans, sensors)
+    _function(path, "write", "detections")(path, scans, sensors)
 
 
 def read_tracks_file(path: PathLike) -> TrackTable:
-    """Read a tracks file, CSV or Parquet by its suffix."""
-    return _dispatch(path, csv_io.read_tracks, "read_tracks_parquet")(path)
+    """Read a tracks file in the format of its suffix."""
+    table: TrackTable = _function(path, "read", "tracks")(path)
+    return table
 
 
 def write_tracks_file(path: PathLike, table: TrackTable) -> None:
-    """Write a tracks file, CSV or Parquet by its suffix."""
-    _dispatch(path, csv_io.write_tracks, "write_tracks_parquet")(path, table)
+    """Write a tracks file in the format of its suffix."""
+    _function(path, "write", "tracks")(path, table)
 
 
 def read_truth_file(path: PathLike) -> TruthTable:
-    """Read a truth file, CSV or Parquet by its suffix."""
-    return _dispatch(path, csv_io.read_truth, "read_truth_parquet")(path)
+    """Read a truth file in the format of its suffix."""
+    table: TruthTable = _function(path, "read", "truth")(path)
+    return table
 
 
 def write_truth_file(path: PathLike, table: TruthTable) -> None:
-    """Write a truth file, CSV or Parquet by its suffix."""
-    _dispatch(path, csv_io.write_truth, "write_truth_parquet")(path, table)
+    """Write a truth file in the format of its suffix."""
+    _function(path, "write", "truth")(path, table)
 
 
 def read_origins_file(path: PathLike) -> Origins:
-    """Read an origins file, CSV or Parquet by its suffix."""
-    return _dispatch(path, csv_io.read_origins, "read_origins_parquet")(path)
+    """Read an origins file in the format of its suffix."""
+    origins: Origins = _function(path, "read", "origins")(path)
+    return origins
 
 
 def write_origins_file(path: PathLike, origins: Origins) -> None:
-    """Write an origins file, CSV or Parquet by its suffix."""
-    _dispatch(path, csv_io.write_origins, "write_origins_parquet")(path, origins)
+    """Write an origins file in the format of its suffix."""
+    _function(path, "write", "origins")(path, origins)

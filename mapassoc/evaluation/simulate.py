@@ -423,8 +423,9 @@ def write_scenario(
     ----------
     scenario : Scenario
     out_dir : str or Path
-    data_format : {"csv", "parquet"}
-        Format of the detections, truth and origins files (``.csv`` or ``.parquet``;
+    data_format : str
+        Format of the detections, truth and origins files, a name of
+        :data:`~mapassoc.data.formats.FILE_FORMATS` (``"csv"`` or ``"parquet"``;
         Parquet needs the ``parquet`` extra).  Detection ids are the same in both: the
         CSV lines, which a Parquet file keeps in its ``detection_id`` column.
 
@@ -435,6 +436,8 @@ def write_scenario(
         (file names in :data:`SCENARIO_FILES`, with the suffix of ``data_format``).
     """
     from mapassoc.data.formats import (
+        file_name,
+        format_names,
         write_detections_file,
         write_origins_file,
         write_truth_file,
@@ -442,17 +445,18 @@ def write_scenario(
 
     if not isinstance(scenario, Scenario):
         raise InputError(f"scenario must be a Scenario, got {scenario!r}")
-    if data_format not in ("csv", "parquet"):
-        raise InputError(f"data_format must be 'csv' or 'parquet', got {data_format!r}")
+    if data_format not in format_names():
+        raise InputError(
+            f"data_format must be one of {', '.join(repr(n) for n in format_names())}, "
+            f"got {data_format!r}"
+        )
     directory = Path(out_dir)
     if directory.exists() and not directory.is_dir():
         raise InputError(f"out_dir must be a directory, got the existing file {str(directory)!r}")
     directory.mkdir(parents=True, exist_ok=True)
     paths = {key: directory / filename for key, filename in SCENARIO_FILES.items()}
-    if data_format == "parquet":
-        paths.update(
-            {key: paths[key].with_suffix(".parquet") for key in ("detections", "truth", "origins")}
-        )
+    for key in ("detections", "truth", "origins"):
+        paths[key] = directory / file_name(key, data_format)
     write_detections_file(paths["detections"], scenario.scans, scenario.config.sensors)
     write_truth_file(paths["truth"], scenario.truth)
     write_origins_file(paths["origins"], scenario.origins)

@@ -8,20 +8,39 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mapassoc.apps.batch import find_recordings
+from mapassoc.apps.runs import RunOptions
 from mapassoc.data.formats import (
+    FILE_FORMATS,
+    FileFormat,
     detection_formats,
     file_format,
+    file_name,
+    format_names,
     read_detections_file,
+    read_origins_file,
     read_tracks_file,
     read_truth_file,
     write_detections_file,
     write_tracks_file,
     write_truth_file,
 )
-from mapassoc.data.io import TrackTable, number_rows, read_detections, read_tracks, read_truth
+from mapassoc.data.io import (
+    TrackTable,
+    number_rows,
+    read_detections,
+    read_origins,
+    read_tracks,
+    read_truth,
+    write_detections,
+    write_origins,
+    write_tracks,
+    write_truth,
+)
 from mapassoc.data.scans import Scan
 from mapassoc.errors import DataFileError, InputError
-from mapassoc.evaluation.scenarios import build_scenario
+from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
+from mapassoc.evaluation.simulate import write_scenario
 
 PARQUET_SUFFIXES = (".parquet", ".pq", ".PARQUET")
 
@@ -123,3 +142,44 @@ def test_csv_files_need_no_pyarrow(monkeypatch: pytest.MonkeyPatch, tmp_path: Pa
     _same(read_detections_file(tmp_path / "d.csv", sensors), scenario.scans[:3])
     with pytest.raises(InputError, match=r"^reading Parquet needs pyarrow: pip install"):
         read_detections_file(tmp_path / "d.pq", sensors)
+
+
+# A throwaway format for the test below: CSV text under another suffix, its functions
+# named as the format table expects (read_<kind>_copy, write_<kind>_copy).
+read_detections_copy = read_detections
+read_tracks_copy = read_tracks
+read_truth_copy = read_truth
+read_origins_copy = read_origins
+write_detections_copy = write_detections
+write_tracks_copy = write_tracks
+write_truth_copy = write_truth
+write_origins_copy = write_origins
+
+
+def test_a_new_format_is_one_module_and_one_row(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    row = FileFormat("copy", (".csvx",), __name__, "_copy", "CSV copy")
+    monkeypatch.setitem(FILE_FORMATS, "copy", row)
+    assert format_names() == ("csv", "parquet", "copy")
+    assert detection_formats()[-1] == ".csvx" and file_format("d.CSVX") == "copy"
+    assert file_name("tracks", "copy") == "tracks.csvx"
+    # simulate writes it, every *_file function reads it back
+    scenario = truncate_scenario(build_scenario("crossing", 0), 4)
+    paths = write_scenario(scenario, tmp_path / "rec1", data_format="copy")
+    assert {p.name for p in paths.values()} == {
+        "detections.csvx",
+        "truth.csvx",
+        "origins.csvx",
+        "config.toml",
+    }
+    sensors = scenario.config.sensors
+    _same(read_detections_file(paths["detections"], sensors), scenario.scans)
+    assert read_truth_file(paths["truth"]).size == scenario.truth.size
+    assert read_origins_file(paths["origins"]).rows.size == scenario.origins.rows.size
+    # a run folder's tracks file, and a batch finds the recording
+    options = RunOptions(tracks_format="copy", progress=False)
+    assert options.tracks_format == "copy"
+    assert [r.detections.name for r in find_recordings(tmp_path)] == ["detections.csvx"]
+    with pytest.raises(InputError, match="unknown file format 'nope'; known formats: csv"):
+        file_name("tracks", "nope")
