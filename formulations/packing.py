@@ -31,6 +31,7 @@ __all__ = [
     "MergedProblem",
     "merge_interchangeable",
     "set_packing_program",
+    "resource_multipliers",
     "decode_selection",
 ]
 
@@ -275,6 +276,37 @@ def set_packing_program(problem: PackingProblem, k: int | None) -> Program:
         upper=np.ones(H),
         integrality=np.ones(H, dtype=bool),
     )
+
+
+def resource_multipliers(
+    problem: PackingProblem, ineq_duals: NDArray[np.float64], eq_duals: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], float]:
+    """The duals of :func:`set_packing_program`'s rows as one multiplier per resource and
+    one for the cardinality row.
+
+    The program's rows are the at-most-once resources in use (``A_ub``), then the
+    exactly-once resources and the cardinality row, if any (``A_eq``); unused resources
+    get 0, and so does the cardinality row when K is free.
+
+    Parameters
+    ----------
+    problem : PackingProblem
+    ineq_duals, eq_duals : ndarray
+        The duals of the program's ``A_ub`` and ``A_eq`` rows.
+
+    Returns
+    -------
+    multipliers : ndarray, shape (R,)
+    count_multiplier : float
+    """
+    usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
+    at_most = np.flatnonzero((usage > 0) & ~problem.exactly_one)
+    exactly = np.flatnonzero(problem.exactly_one)
+    y = np.zeros(problem.num_resources)
+    y[at_most] = ineq_duals
+    eq = np.asarray(eq_duals)
+    y[exactly] = eq[: exactly.size]
+    return y, float(eq[exactly.size]) if eq.size > exactly.size else 0.0
 
 
 def decode_selection(x: NDArray[np.float64]) -> NDArray[np.int64]:

@@ -59,11 +59,11 @@ from mapassoc.formulations.packing import (
     MergedProblem,
     PackingProblem,
     decode_selection,
+    resource_multipliers,
     set_packing_program,
 )
 from mapassoc.solvers import (
     HighsSolver,
-    LPResult,
     ProgramSolver,
     RelaxationSolver,
     SolverError,
@@ -459,7 +459,7 @@ class ClusterSolver:
                 if lp.status is not SolveStatus.OPTIMAL:
                     limited = True
                     break
-                multipliers, mu = self._resource_multipliers(problem, lp)
+                multipliers, mu = resource_multipliers(problem, lp.ineq_duals, lp.eq_duals)
                 best_upper[k] = min(best_upper[k], lp.objective)
                 if best[k] >= best_upper[k] - 1e-9 * (1.0 + abs(best_upper[k])):
                     best_upper[k] = best[k]  # the beam's set meets the LP bound: optimal
@@ -570,7 +570,7 @@ class ClusterSolver:
         )
         if lp.status is not SolveStatus.OPTIMAL:
             return None
-        multipliers, _ = self._resource_multipliers(problem, lp)
+        multipliers, _ = resource_multipliers(problem, lp.ineq_duals, lp.eq_duals)
         usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
         shared = np.flatnonzero((usage > 1) & ~problem.exactly_one)
         candidates = shared[np.lexsort((shared, -usage[shared]))]
@@ -598,21 +598,3 @@ class ClusterSolver:
             return best, mass, work + found.work
         return None
 
-    @staticmethod
-    def _resource_multipliers(
-        problem: PackingProblem, lp: LPResult
-    ) -> tuple[NDArray[np.float64], float]:
-        """LP duals as one multiplier per resource and one for the cardinality row.
-
-        Rows of :func:`set_packing_program`: at-most-once resources in use, then
-        exactly-once resources, then the cardinality row (absent with K free: 0).
-        Unused resources get 0.
-        """
-        usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
-        at_most = np.flatnonzero((usage > 0) & ~problem.exactly_one)
-        exactly = np.flatnonzero(problem.exactly_one)
-        y = np.zeros(problem.num_resources)
-        y[at_most] = lp.ineq_duals
-        eq = np.asarray(lp.eq_duals)
-        y[exactly] = eq[: exactly.size]
-        return y, float(eq[exactly.size]) if eq.size > exactly.size else 0.0

@@ -31,7 +31,7 @@ from mapassoc.formulations.bounds import (
 )
 from mapassoc.formulations.cardinality import exact_cardinality_table
 from mapassoc.formulations.frontier import frontier_search
-from mapassoc.formulations.packing import PackingProblem, set_packing_program
+from mapassoc.formulations.packing import PackingProblem, resource_multipliers, set_packing_program
 from mapassoc.models.motion import ConstantVelocity
 from mapassoc.solvers import HighsSolver, SolveStatus, enumerate_feasible
 
@@ -442,3 +442,22 @@ def test_bounded_window_lines_carry_their_bounds() -> None:
         line = w.to_json(timings=False)
         if np.any(w.best_objective_upper > w.best_objective):
             assert len(line["best_objective_upper"]) == len(w.best_objective)  # type: ignore[arg-type]
+
+
+def test_resource_multipliers_follow_the_programs_row_layout() -> None:
+    # Resources: 0 and 2 at most once and used, 1 unused, 3 exactly once.
+    problem = PackingProblem(
+        scores=np.array([1.0, 2.0, 0.5]),
+        resource_indptr=np.array([0, 2, 3, 4]),
+        resource_indices=np.array([0, 3, 2, 3]),
+        exactly_one=np.array([False, False, False, True]),
+        counts=np.ones(3, dtype=bool),
+    )
+    program = set_packing_program(problem, 2)
+    assert program.A_ub.shape[0] == 2 and program.A_eq.shape[0] == 2  # {0, 2}; {3, count}
+    y, mu = resource_multipliers(problem, np.array([0.7, 0.2]), np.array([-1.5, 3.0]))
+    assert y.tolist() == [0.7, 0.0, 0.2, -1.5] and mu == 3.0
+    free = set_packing_program(problem, None)
+    assert free.A_eq.shape[0] == 1
+    y, mu = resource_multipliers(problem, np.array([0.7, 0.2]), np.array([-1.5]))
+    assert y.tolist() == [0.7, 0.0, 0.2, -1.5] and mu == 0.0
