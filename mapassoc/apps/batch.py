@@ -30,7 +30,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -89,15 +89,10 @@ class Recording:
     config: Path | None
 
 
-@dataclass(frozen=True)
-class BatchOptions:
-    """Settings every recording of a batch runs with (see :func:`run_files`)."""
-
-    timings: bool = True
-    overwrite: bool = False
-    resume: bool = False
-    checkpoint_seconds: float = 10.0
-    tracks_format: str = "csv"
+BatchOptions = RunOptions
+"""The options every recording of a batch runs with: :class:`~mapassoc.apps.runs.RunOptions`
+(``progress`` is off for each recording, the batch reports per recording; ``segments``
+must be 1, a batch runs its recordings in parallel instead)."""
 
 
 def _check_name(name: str, where: str) -> str:
@@ -208,7 +203,7 @@ def run_recording(
     recording: Recording,
     shared_config: Path | None,
     out: Path,
-    options: BatchOptions,
+    options: RunOptions,
     stop: Callable[[], bool] | None = None,
 ) -> dict[str, object]:
     """Run one recording into ``out / recording.name``; return its summary row.
@@ -228,14 +223,7 @@ def run_recording(
                 "has no shared --config"
             )
         with _ONE_AT_A_TIME:
-            run_options = RunOptions(
-                timings=options.timings,
-                progress=False,
-                overwrite=options.overwrite,
-                resume=options.resume,
-                checkpoint_seconds=options.checkpoint_seconds,
-                tracks_format=options.tracks_format,
-            )
+            run_options = replace(options, progress=False)
             outcome = run_files(
                 config, recording.detections, out / recording.name, run_options, stop=stop
             )
@@ -278,7 +266,7 @@ def _write_summary(path: Path, rows: Iterable[dict[str, object]]) -> None:
         raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
 
 
-def _check_out(out: Path, options: BatchOptions, recordings: Sequence[Recording]) -> None:
+def _check_out(out: Path, options: RunOptions, recordings: Sequence[Recording]) -> None:
     """Raise OutputError where ``out`` cannot be the batch folder.
 
     Besides a file or a non-empty folder without ``--resume``/``--overwrite``: a batch
@@ -313,7 +301,7 @@ def run_batch(
     out: str | os.PathLike[str],
     *,
     shared_config: str | os.PathLike[str] | None = None,
-    options: BatchOptions = BatchOptions(),
+    options: RunOptions | None = None,
     jobs: int | None = None,
     scheduler: str | None = None,
     progress: bool = True,
@@ -329,7 +317,10 @@ def run_batch(
         The batch folder.
     shared_config : path, optional
         Configuration of the recordings without their own.
-    options : BatchOptions
+    options : RunOptions, optional
+        How every recording runs and writes (``mapassoc run``'s options; each
+        recording's own progress is off, and ``segments`` must be 1); default
+        ``RunOptions()``.
     jobs : int, optional
         Worker processes of the local pool (default: the usable cores); 1 runs in this
         process, one recording after the other.
@@ -359,6 +350,14 @@ def run_batch(
     out_path = Path(out)
     config = None if shared_config is None else Path(shared_config)
     workers = check_jobs(jobs)
+    options = RunOptions() if options is None else options
+    if not isinstance(options, RunOptions):
+        raise InputError(f"options must be a RunOptions, got {options!r}")
+    if options.segments != 1:
+        raise InputError(
+            f"options.segments must be 1 in a batch (it runs recordings in parallel "
+            f"instead), got {options.segments}"
+        )
     _check_out(out_path, options, recordings)
     rows: dict[str, dict[str, object]] = {}
     ticker = Progress(sys.stderr, label="batch", unit="recordings", enabled=progress)
@@ -399,7 +398,7 @@ def _on_pool(
     recordings: Sequence[Recording],
     config: Path | None,
     out: Path,
-    options: BatchOptions,
+    options: RunOptions,
     stop: StopFlag,
     finished: Callable[[dict[str, object]], None],
 ) -> None:
@@ -450,7 +449,7 @@ def _dask_stop(event_name: str) -> Callable[[], bool]:
 
 
 def _dask_task(
-    recording: Recording, config: Path | None, out: Path, options: BatchOptions, event_name: str
+    recording: Recording, config: Path | None, out: Path, options: RunOptions, event_name: str
 ) -> dict[str, object]:
     return run_recording(recording, config, out, options, _dask_stop(event_name))
 
@@ -460,7 +459,7 @@ def _on_dask(
     recordings: Sequence[Recording],
     config: Path | None,
     out: Path,
-    options: BatchOptions,
+    options: RunOptions,
     stop: StopFlag,
     finished: Callable[[dict[str, object]], None],
 ) -> None:

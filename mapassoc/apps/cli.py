@@ -133,10 +133,10 @@ def _cmd_estimate_parameters(args: argparse.Namespace) -> int:
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
-    from mapassoc.apps.batch import BATCH_SUMMARY_NAME, BatchOptions, find_recordings, run_batch
+    from mapassoc.apps.batch import BATCH_SUMMARY_NAME, find_recordings, run_batch
 
     recordings = find_recordings(args.source)
-    options = BatchOptions(
+    options = RunOptions(
         timings=not args.no_timings,
         overwrite=args.overwrite,
         resume=args.resume,

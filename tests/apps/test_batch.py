@@ -15,7 +15,6 @@ import pytest
 from mapassoc.apps.batch import (
     BATCH_SUMMARY_NAME,
     SUMMARY_COLUMNS,
-    BatchOptions,
     Recording,
     find_recordings,
     run_batch,
@@ -26,7 +25,7 @@ from mapassoc.apps.runs import RunOptions, run_files
 from mapassoc.errors import InputError, OutputError
 
 RESULT_FILES = ("tracks.csv", "associations.csv", "windows.jsonl", "summary.json")
-QUIET = BatchOptions(timings=False)
+QUIET = RunOptions(timings=False)
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +126,7 @@ def test_a_failing_recording_is_isolated_and_resume_skips_the_rest(
     stamps = {name: (out / name / "manifest.json").stat().st_mtime_ns
               for name in ("alpha", "beta", "gamma")}
     rows = run_batch(find_recordings(recordings), out, shared_config=shared,
-                     options=BatchOptions(timings=False, resume=True), jobs=1, progress=False)
+                     options=RunOptions(timings=False, resume=True), jobs=1, progress=False)
     status = {row["name"]: row["status"] for row in rows}
     assert status == {"alpha": "skipped", "beta": "skipped", "broken": "failed",
                       "gamma": "skipped"}
@@ -244,3 +243,14 @@ def test_a_batch_folder_holding_its_recordings_is_refused(
         assert err.count("\n") == 1 and "holds the input" in err and str(out) in err
     assert {p: p.read_bytes() for p in source.rglob("*") if p.is_file()} == before
     assert not (source / BATCH_SUMMARY_NAME).exists()
+
+
+def test_a_batch_takes_run_options_but_not_segments(tmp_path: Path) -> None:
+    recording = Recording("one", tmp_path / "one.csv", None)
+    with pytest.raises(InputError, match="options.segments must be 1 in a batch"):
+        run_batch([recording], tmp_path / "out", options=RunOptions(segments=2), progress=False)
+    with pytest.raises(InputError, match="options must be a RunOptions"):
+        run_batch(
+            [recording], tmp_path / "out", options={"timings": False}, progress=False  # type: ignore[arg-type]
+        )
+    assert not (tmp_path / "out").exists()  # refused before anything was written
