@@ -64,6 +64,7 @@ from mapassoc.formulations.packing import (
 )
 from mapassoc.solvers import (
     HighsSolver,
+    LPResult,
     ProgramSolver,
     RelaxationSolver,
     SolverError,
@@ -182,6 +183,13 @@ class ClusterReport:
 def _remaining(deadline: float) -> float | None:
     """Seconds left before ``deadline`` for a solver's time limit (``None``: no limit)."""
     return None if math.isinf(deadline) else max(deadline - time.perf_counter(), 1e-3)
+
+
+def _duals(lp: LPResult) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The duals of an OPTIMAL relaxation (a backend that gives none is broken)."""
+    if lp.ineq_duals is None or lp.eq_duals is None:
+        raise SolverError(f"{lp.solver}: an OPTIMAL LP relaxation came without its duals")
+    return lp.ineq_duals, lp.eq_duals
 
 
 def default_lp_solver(solver: ProgramSolver) -> RelaxationSolver:
@@ -459,7 +467,7 @@ class ClusterSolver:
                 if lp.status is not SolveStatus.OPTIMAL:
                     limited = True
                     break
-                multipliers, mu = resource_multipliers(problem, lp.ineq_duals, lp.eq_duals)
+                multipliers, mu = resource_multipliers(problem, *_duals(lp))
                 best_upper[k] = min(best_upper[k], lp.objective)
                 if best[k] >= best_upper[k] - 1e-9 * (1.0 + abs(best_upper[k])):
                     best_upper[k] = best[k]  # the beam's set meets the LP bound: optimal
@@ -570,7 +578,7 @@ class ClusterSolver:
         )
         if lp.status is not SolveStatus.OPTIMAL:
             return None
-        multipliers, _ = resource_multipliers(problem, lp.ineq_duals, lp.eq_duals)
+        multipliers, _ = resource_multipliers(problem, *_duals(lp))
         usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
         shared = np.flatnonzero((usage > 1) & ~problem.exactly_one)
         candidates = shared[np.lexsort((shared, -usage[shared]))]

@@ -34,7 +34,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from enum import StrEnum
 
 import numpy as np
@@ -233,6 +233,16 @@ class WindowSolution:
         return np.asarray(chosen, dtype=np.int64)
 
 
+_JSON = "json"
+"""Key of a :class:`WindowReport` field's metadata saying how ``to_json`` writes it (no
+key: as it is)."""
+_COMPACT = "compact"  # a probability vector without its trailing entries below P_K_FLOOR
+_FEASIBLE = "feasible"  # the best objective up to the last feasible T, null where -inf
+_TIMING = "timing"  # only with timings=True
+_INEXACT = "inexact"  # compact, and only where the mass is not exact
+_UPPER = "upper"  # null where -inf, and only where it differs from best_objective
+
+
 def _compact(values: NDArray[np.float64], floor: float) -> list[float]:
     """``values`` without its trailing entries below ``floor`` (at least one kept)."""
     above = np.flatnonzero(values >= floor)
@@ -254,8 +264,9 @@ class WindowReport:
     given ``chosen_k``).  ``undetected_mean`` is the expected number of targets in the
     window that no track explains (never detected).
 
-    Every field is written under its own name (timings only with ``timings=True``;
-    ``p_k_lower``/``p_k_upper`` only where the mass is not exact).  The vectors stop
+    Every field is written under its own name, in field order; a field's ``metadata``
+    says how (:data:`_JSON`): timings only with ``timings=True``, ``p_k_lower``/
+    ``p_k_upper`` only where the mass is not exact.  The vectors stop
     where they become exactly 0 (beyond the largest reachable T) or, for p(K | Z), where
     its upper bound falls below :data:`P_K_FLOOR`; ``p_k_length`` is the full length
     Kmax + 1, so a huge Kmax costs no memory.  The JSON line also leaves out
@@ -272,25 +283,22 @@ class WindowReport:
     end_time: float
     committed_scans: int
     p_k_length: int
-    p_k: NDArray[np.float64]
-    p_k_lower: NDArray[np.float64]
-    p_k_upper: NDArray[np.float64]
-    p_tracks: NDArray[np.float64]
-    best_objective: NDArray[np.float64]
-    best_objective_upper: NDArray[np.float64]
+    k_prior: str
+    p_k: NDArray[np.float64] = field(metadata={_JSON: _COMPACT})
     joint_map_k: int
     marginal_k: int
     chosen_k: int
+    undetected_mean: float
+    p_tracks: NDArray[np.float64] = field(metadata={_JSON: _COMPACT})
     joint_map_tracks: int
     marginal_tracks: int
     chosen_tracks: int
-    undetected_mean: float
-    k_prior: str
+    best_objective: NDArray[np.float64] = field(metadata={_JSON: _FEASIBLE})
+    status: WindowStatus
     marginal_exact: bool
     marginal_certain: bool
     joint_certain: bool
     captured_mass: float
-    status: WindowStatus
     hypotheses_kept: int
     nodes_generated: int
     nodes_pruned: int
@@ -301,62 +309,34 @@ class WindowReport:
     bounded_clusters: int
     carried_tracks: int
     piles_up_at_kmax: bool
-    over_time_limit: bool
-    generate_seconds: float
-    solve_seconds: float
+    over_time_limit: bool = field(metadata={_JSON: _TIMING})
+    p_k_lower: NDArray[np.float64] = field(metadata={_JSON: _INEXACT})
+    p_k_upper: NDArray[np.float64] = field(metadata={_JSON: _INEXACT})
+    best_objective_upper: NDArray[np.float64] = field(metadata={_JSON: _UPPER})
+    generate_seconds: float = field(metadata={_JSON: _TIMING})
+    solve_seconds: float = field(metadata={_JSON: _TIMING})
 
     def to_json(self, *, timings: bool = True) -> dict[str, object]:
+        """The ``windows.jsonl`` line: every field under its name, in field order, as
+        its ``metadata`` says (class docstring)."""
         feasible = np.flatnonzero(np.isfinite(self.best_objective))
         end = int(feasible[-1]) + 1 if feasible.size else 0
-        out: dict[str, object] = {
-            "window": self.window,
-            "first_scan": self.first_scan,
-            "last_scan": self.last_scan,
-            "start_time": self.start_time,
-            "end_time": self.end_time,
-            "committed_scans": self.committed_scans,
-            "p_k_length": self.p_k_length,
-            "k_prior": self.k_prior,
-            "p_k": _compact(self.p_k, P_K_FLOOR),
-            "joint_map_k": self.joint_map_k,
-            "marginal_k": self.marginal_k,
-            "chosen_k": self.chosen_k,
-            "undetected_mean": self.undetected_mean,
-            "p_tracks": _compact(self.p_tracks, P_K_FLOOR),
-            "joint_map_tracks": self.joint_map_tracks,
-            "marginal_tracks": self.marginal_tracks,
-            "chosen_tracks": self.chosen_tracks,
-            "best_objective": [
-                float(b) if math.isfinite(b) else None for b in self.best_objective[:end]
-            ],
-            "status": self.status,
-            "marginal_exact": self.marginal_exact,
-            "marginal_certain": self.marginal_certain,
-            "joint_certain": self.joint_certain,
-            "captured_mass": self.captured_mass,
-            "hypotheses_kept": self.hypotheses_kept,
-            "nodes_generated": self.nodes_generated,
-            "nodes_pruned": self.nodes_pruned,
-            "nodes_capped": self.nodes_capped,
-            "hypotheses_pruned_by_bound": self.hypotheses_pruned_by_bound,
-            "clusters": self.clusters,
-            "largest_cluster": self.largest_cluster,
-            "bounded_clusters": self.bounded_clusters,
-            "carried_tracks": self.carried_tracks,
-            "piles_up_at_kmax": self.piles_up_at_kmax,
-        }
-        if timings:
-            out["over_time_limit"] = self.over_time_limit
-        if not self.marginal_exact:
-            out["p_k_lower"] = _compact(self.p_k_lower, P_K_FLOOR)
-            out["p_k_upper"] = _compact(self.p_k_upper, P_K_FLOOR)
-        if np.any(self.best_objective_upper > self.best_objective):
-            out["best_objective_upper"] = [
-                float(b) if math.isfinite(b) else None for b in self.best_objective_upper
-            ]
-        if timings:
-            out["generate_seconds"] = self.generate_seconds
-            out["solve_seconds"] = self.solve_seconds
+        out: dict[str, object] = {}
+        for item in fields(self):
+            value = getattr(self, item.name)
+            rule = item.metadata.get(_JSON)
+            if rule == _TIMING and not timings:
+                continue
+            if rule == _INEXACT and self.marginal_exact:
+                continue
+            if rule == _UPPER and not np.any(self.best_objective_upper > self.best_objective):
+                continue
+            if rule in (_COMPACT, _INEXACT):
+                value = _compact(value, P_K_FLOOR)
+            elif rule in (_FEASIBLE, _UPPER):
+                values = value[:end] if rule == _FEASIBLE else value
+                value = [float(b) if math.isfinite(b) else None for b in values]
+            out[item.name] = value
         return out
 
 

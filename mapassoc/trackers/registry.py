@@ -92,7 +92,9 @@ class TrackerSpec:
             class names the option), or the oracle without ``origins``.
         """
         cls = self.tracker_class()
-        options: dict[str, object] = dict(config.trackers.get(self.name, {}))
+        # Anything but a Config has no tables: the class then says what it expected.
+        tables = getattr(config, "trackers", None)
+        options: dict[str, object] = dict(tables.get(self.name, {})) if tables else {}
         if options:
             allowed = self.option_names()
             for option in options:
@@ -112,11 +114,14 @@ class TrackerSpec:
         try:
             tracker: Tracker = cls(config=config, **options)
         except InputError as exc:
-            if not options:
+            # A refusal of one of the table's options names its key; any other error
+            # (the configuration itself, say) stays as the class raised it.
+            named = [o for o in options if o != "origins" and o in str(exc)]
+            if not named:
                 raise
-            named = [o for o in options if o in str(exc)]
-            key = f"trackers.{self.name}.{named[0]}" if named else f"trackers.{self.name}"
-            raise InputError(f"trackers.{self.name}: {exc}", key=key) from None
+            raise InputError(
+                f"trackers.{self.name}: {exc}", key=f"trackers.{self.name}.{named[0]}"
+            ) from None
         return tracker
 
 
