@@ -54,7 +54,7 @@ from mapassoc.formulations.cardinality import (
     SearchLimitExceeded,
     exact_cardinality_table,
 )
-from mapassoc.formulations.frontier import frontier_search
+from mapassoc.formulations.frontier import FrontierResult, frontier_search
 from mapassoc.formulations.packing import (
     MergedProblem,
     PackingProblem,
@@ -268,6 +268,22 @@ def best_set_by_fixing(
     return kept[decode_selection(result.solution)], proven
 
 
+@dataclass
+class _BoundedTables:
+    """What the bounded path knows of one cluster so far, per k: the best set found and
+    its score, the mass found, and proven upper bounds of both; filled in place, step by
+    step, by :meth:`ClusterSolver._bounded`."""
+
+    best: NDArray[np.float64]
+    sets: list[tuple[int, ...] | None]
+    log_mass: NDArray[np.float64]
+    best_upper: NDArray[np.float64]
+    mass_upper: NDArray[np.float64]
+    spent: int
+    limited: bool
+    solves: int = 0
+
+
 class ClusterSolver:
     """Solves the clusters of a window: exact frontier search, else certified bounds.
 
@@ -388,10 +404,60 @@ class ClusterSolver:
     def _bounded(
         self, problem: PackingProblem, kmax: int, deadline: float, spent: int, started: float
     ) -> tuple[CardinalityTable, ClusterReport]:
-        limited = time.perf_counter() >= deadline
+        """The bounded path (module docstring), in four steps: the beam's feasible sets
+        (lower bounds), bounds that need no LP, the LP of the relaxed cluster, then the
+        walk over k outward from the best one (:meth:`_walk_k`)."""
         top = min(kmax, int(np.count_nonzero(problem.counts)))
-        size = top + 1
-        # Lower bounds: a beam frontier search (feasible sets, each summed once).
+        beam, spent, limited = self._beam(problem, top, deadline, spent)
+        if beam.exact:  # the beam never had to drop a frontier: it was the exact search
+            table = CardinalityTable(beam.best, beam.log_mass, beam.best_sets, True)
+            return table, ClusterReport(
+                size=problem.num_hypotheses,
+                status=ClusterStatus.TIME_LIMIT if limited else ClusterStatus.EXACT,
+                work=spent,
+                solves=0,
+                log_captured=0.0,
+                seconds=time.perf_counter() - started,
+            )
+        groups = exclusive_groups(problem)
+        # Upper bounds valid without any LP: zero resource multipliers, a grid of mu;
+        # best(k) <= log-mass(k), since log-weights >= scores.
+        zeros = np.zeros(problem.num_resources)
+        ks = np.arange(top + 1)
+        mass_upper = np.min(
+            [log_mass_upper_bounds(problem, zeros, mu, ks, groups) for mu in _MU_GRID], axis=0
+        )
+        tables = _BoundedTables(
+            best=beam.best.copy(),
+            sets=list(beam.best_sets),
+            log_mass=beam.log_mass.copy(),
+            best_upper=mass_upper.copy(),
+            mass_upper=mass_upper,
+            spent=spent,
+            limited=limited,
+        )
+        if not tables.limited:
+            relaxed = self._relaxed_bounds(problem, top, deadline)
+            tables.solves += 1
+            if relaxed is None:
+                tables.limited = time.perf_counter() >= deadline
+            else:
+                relaxed_best, relaxed_mass, work = relaxed
+                tables.spent += work
+                tables.best_upper = np.minimum(tables.best_upper, relaxed_best)
+                tables.mass_upper = np.minimum(tables.mass_upper, relaxed_mass)
+        start_k = int(np.argmax(tables.best))
+        for step, k in ((-1, start_k), (1, start_k + 1)):
+            self._walk_k(problem, groups, tables, k, step, top, deadline)
+        return self._bounded_result(problem, tables, started)
+
+    def _beam(
+        self, problem: PackingProblem, top: int, deadline: float, spent: int
+    ) -> tuple[FrontierResult, int, bool]:
+        """The beam frontier search of ``beam_width`` frontiers (the emergency beam of
+        :data:`_EMERGENCY_BEAM` once the deadline has passed), the work spent so far and
+        whether the deadline cut something short."""
+        limited = time.perf_counter() >= deadline
         beam = None
         if not limited:
             try:
@@ -412,120 +478,123 @@ class ClusterSolver:
                 max_frontiers=_EMERGENCY_BEAM,
                 entry_margin=_EMERGENCY_ENTRY_MARGIN,
             )
-        spent += beam.work
-        if beam.exact:  # the beam never had to drop a frontier: it was the exact search
-            table = CardinalityTable(beam.best, beam.log_mass, beam.best_sets, True)
-            return table, ClusterReport(
-                size=problem.num_hypotheses,
-                status=ClusterStatus.TIME_LIMIT if limited else ClusterStatus.EXACT,
-                work=spent,
-                solves=0,
-                log_captured=0.0,
-                seconds=time.perf_counter() - started,
+        return beam, spent + beam.work, limited
+
+    def _walk_k(
+        self,
+        problem: PackingProblem,
+        groups: tuple[NDArray[np.int64], NDArray[np.bool_]],
+        tables: _BoundedTables,
+        k: int,
+        step: int,
+        top: int,
+        deadline: float,
+    ) -> None:
+        """LP relaxations with the cardinality row at k, k + step, ... (one direction),
+        tightening ``tables`` in place.
+
+        At each k: the LP value bounds best(k) (and proves the beam's set optimal where
+        they meet), its duals bound the mass; where the beam's set falls short of a
+        bound that can matter (within ``map_margin`` of the best set found) the integer
+        program is solved.  The walk stops once the supporting line of the concave LP
+        value, and the mass bound with this LP's multipliers, show every further k
+        negligible; those bounds of the last LP are then applied to every k beyond it.
+        """
+        size = top + 1
+        line: tuple[int, float, float, NDArray[np.float64]] | None = None
+        while 0 <= k <= top:
+            if time.perf_counter() >= deadline:
+                tables.limited = True
+                break
+            lp = self.lp_solver.solve_relaxation(
+                set_packing_program(problem, k), time_limit=_remaining(deadline)
             )
-        best = beam.best.copy()
-        sets = list(beam.best_sets)
-        log_mass = beam.log_mass.copy()
-        ks = np.arange(size)
-        groups = exclusive_groups(problem)
-
-        def mass_bound(y: NDArray[np.float64], mu: float, at: NDArray[np.int64]) -> NDArray:
-            return log_mass_upper_bounds(problem, y, mu, at, groups)
-
-        # Upper bounds valid without any LP: zero resource multipliers, a grid of mu.
-        zeros = np.zeros(problem.num_resources)
-        mass_upper = np.min([mass_bound(zeros, mu, ks) for mu in _MU_GRID], axis=0)
-        best_upper = mass_upper.copy()  # best(k) <= log-mass(k): log-weights >= scores
-        solves = 0
-        if not limited:
-            relaxed = self._relaxed_bounds(problem, top, deadline)
-            solves += 1
-            if relaxed is None:
-                limited = time.perf_counter() >= deadline
-            else:
-                relaxed_best, relaxed_mass, work = relaxed
-                spent += work
-                best_upper = np.minimum(best_upper, relaxed_best)
-                mass_upper = np.minimum(mass_upper, relaxed_mass)
-        found_best = float(np.max(best))
-        start_k = int(np.argmax(best))
-        for step, k in ((-1, start_k), (1, start_k + 1)):
-            line: tuple[int, float, float, NDArray[np.float64]] | None = None
-            while 0 <= k <= top:
-                if time.perf_counter() >= deadline:
-                    limited = True
-                    break
-                lp = self.lp_solver.solve_relaxation(
-                    set_packing_program(problem, k), time_limit=_remaining(deadline)
-                )
-                solves += 1
-                if lp.status is SolveStatus.INFEASIBLE:
-                    best_upper[k] = mass_upper[k] = -math.inf
-                    best[k], log_mass[k], sets[k] = -math.inf, -math.inf, None
-                    k += step
-                    continue
-                if lp.status is not SolveStatus.OPTIMAL:
-                    limited = True
-                    break
-                multipliers, mu = resource_multipliers(problem, *_duals(lp))
-                best_upper[k] = min(best_upper[k], lp.objective)
-                if best[k] >= best_upper[k] - 1e-9 * (1.0 + abs(best_upper[k])):
-                    best_upper[k] = best[k]  # the beam's set meets the LP bound: optimal
-                at_k = mass_bound(multipliers, mu, np.array([k]))
-                mass_upper[k] = min(mass_upper[k], float(at_k[0]))
-                line = (k, lp.objective, mu, multipliers)
-                if best[k] < best_upper[k] - 1e-9 and best_upper[k] >= found_best - self.map_margin:
-                    status, bound = self._solve_integer(problem, k, deadline, best, sets)
-                    solves += 1
-                    if status is SolveStatus.OPTIMAL:
-                        best_upper[k] = best[k]
-                    elif status is SolveStatus.WORK_LIMIT:
-                        # The backend's own deterministic limit (e.g. a node limit), not
-                        # the clock: its dual bound is proven, the k stays bounded.
-                        if math.isfinite(bound):
-                            best_upper[k] = min(best_upper[k], bound)
-                    elif status is not SolveStatus.INFEASIBLE:
-                        limited = True
-                    found_best = max(found_best, float(best[k]))
-                # Stop once the supporting line of the concave LP value (and the mass
-                # bound with this LP's multipliers) shows every further k negligible;
-                # those bounds are applied below.
-                ahead = np.arange(k + step, -1 if step < 0 else size, step)
-                if ahead.size == 0:
-                    break
-                if np.all(lp.objective + mu * (ahead - k) < found_best - self.map_margin) and (
-                    np.all(
-                        mass_bound(multipliers, mu, ahead)
-                        < float(logsumexp(log_mass)) - _NEGLIGIBLE_LOG_MASS
-                    )
-                ):
-                    break
+            tables.solves += 1
+            if lp.status is SolveStatus.INFEASIBLE:
+                tables.best_upper[k] = tables.mass_upper[k] = -math.inf
+                tables.best[k], tables.log_mass[k], tables.sets[k] = -math.inf, -math.inf, None
                 k += step
-            if line is not None:
-                # Bounds from the last LP in this direction hold for every k beyond it.
-                k_last, value, mu, multipliers = line
-                ahead = np.arange(k_last + step, -1 if step < 0 else size, step)
-                if ahead.size:
-                    best_upper[ahead] = np.minimum(best_upper[ahead], value + mu * (ahead - k_last))
-                    mass_upper[ahead] = np.minimum(
-                        mass_upper[ahead], mass_bound(multipliers, mu, ahead)
-                    )
-        # A bound below what was found can only be round-off of the LP and the
-        # product; bounds must never claim less than a set that exists.
+                continue
+            if lp.status is not SolveStatus.OPTIMAL:
+                tables.limited = True
+                break
+            multipliers, mu = resource_multipliers(problem, *_duals(lp))
+            tables.best_upper[k] = min(tables.best_upper[k], lp.objective)
+            upper = tables.best_upper[k]
+            if tables.best[k] >= upper - 1e-9 * (1.0 + abs(upper)):
+                tables.best_upper[k] = tables.best[k]  # the beam's set meets the LP bound
+            at_k = log_mass_upper_bounds(problem, multipliers, mu, np.array([k]), groups)
+            tables.mass_upper[k] = min(tables.mass_upper[k], float(at_k[0]))
+            line = (k, lp.objective, mu, multipliers)
+            found_best = float(np.max(tables.best))
+            if (
+                tables.best[k] < tables.best_upper[k] - 1e-9
+                and tables.best_upper[k] >= found_best - self.map_margin
+            ):
+                self._tighten_by_integer_program(problem, k, deadline, tables)
+                found_best = float(np.max(tables.best))
+            ahead = np.arange(k + step, -1 if step < 0 else size, step)
+            if ahead.size == 0:
+                break
+            if np.all(lp.objective + mu * (ahead - k) < found_best - self.map_margin) and (
+                np.all(
+                    log_mass_upper_bounds(problem, multipliers, mu, ahead, groups)
+                    < float(logsumexp(tables.log_mass)) - _NEGLIGIBLE_LOG_MASS
+                )
+            ):
+                break
+            k += step
+        if line is not None:
+            # Bounds from the last LP in this direction hold for every k beyond it.
+            k_last, value, mu, multipliers = line
+            ahead = np.arange(k_last + step, -1 if step < 0 else size, step)
+            if ahead.size:
+                tables.best_upper[ahead] = np.minimum(
+                    tables.best_upper[ahead], value + mu * (ahead - k_last)
+                )
+                tables.mass_upper[ahead] = np.minimum(
+                    tables.mass_upper[ahead],
+                    log_mass_upper_bounds(problem, multipliers, mu, ahead, groups),
+                )
+
+    def _tighten_by_integer_program(
+        self, problem: PackingProblem, k: int, deadline: float, tables: _BoundedTables
+    ) -> None:
+        """Solve the integer program at k: its optimum closes the gap at k; a backend's
+        own deterministic limit (a node limit, say) leaves its proven dual bound; the
+        clock leaves ``tables.limited``."""
+        status, bound = self._solve_integer(problem, k, deadline, tables.best, tables.sets)
+        tables.solves += 1
+        if status is SolveStatus.OPTIMAL:
+            tables.best_upper[k] = tables.best[k]
+        elif status is SolveStatus.WORK_LIMIT:
+            if math.isfinite(bound):
+                tables.best_upper[k] = min(tables.best_upper[k], bound)
+        elif status is not SolveStatus.INFEASIBLE:
+            tables.limited = True
+
+    def _bounded_result(
+        self, problem: PackingProblem, tables: _BoundedTables, started: float
+    ) -> tuple[CardinalityTable, ClusterReport]:
+        """The bounded table and its report, after checking that no bound claims less
+        than a set that exists (beyond LP round-off: that would be a broken backend)."""
+        best, log_mass = tables.best, tables.log_mass
         slack = 1e-7 * (1.0 + np.abs(best))
-        if np.any(np.isfinite(best) & (best_upper < best - slack)):
+        if np.any(np.isfinite(best) & (tables.best_upper < best - slack)):
             raise SolverError(
                 f"{self.lp_solver.name}: an LP upper bound fell below a feasible set's score"
             )
-        best_upper = np.maximum(best_upper, best)
-        mass_upper = np.maximum(mass_upper, log_mass)
-        table = CardinalityTable(best, log_mass, tuple(sets), False, best_upper, mass_upper)
+        best_upper = np.maximum(tables.best_upper, best)
+        mass_upper = np.maximum(tables.mass_upper, log_mass)
+        table = CardinalityTable(
+            best, log_mass, tuple(tables.sets), False, best_upper, mass_upper
+        )
         found, bound = float(logsumexp(log_mass)), float(logsumexp(mass_upper))
         return table, ClusterReport(
             size=problem.num_hypotheses,
-            status=ClusterStatus.TIME_LIMIT if limited else ClusterStatus.BOUNDED,
-            work=spent,
-            solves=solves,
+            status=ClusterStatus.TIME_LIMIT if tables.limited else ClusterStatus.BOUNDED,
+            work=tables.spent,
+            solves=tables.solves,
             log_captured=found - bound if math.isfinite(bound) else 0.0,
             seconds=time.perf_counter() - started,
         )
