@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scans
+from mapassoc.data.windows import window_span
 from mapassoc.errors import InputError
 from mapassoc.estimator.cluster_solving import (
     ClusterReport,
@@ -864,11 +865,13 @@ class WindowEstimator:
         if state.done:
             raise InputError("state is done: every scan is committed already")
         t_start = time.perf_counter()
-        N = self.settings.window_length
-        total = state.total_scans
-        start = state.next_scan
-        end = min(start + N, total)
-        commit = self.settings.stride if end < total else end - start
+        span = window_span(
+            state.next_scan,
+            state.total_scans,
+            length=self.settings.window_length,
+            stride=self.settings.stride,
+        )
+        start, end, commit = span.start, span.end, span.commit
         solution = self.solve_window(scans[start:end], state.carried, undetected=state.undetected)
         post = solution.posterior
         chosen_k, chosen_tracks = self.k_estimator.choose(post)

@@ -106,6 +106,7 @@ from scipy.sparse.csgraph import connected_components
 from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
+from mapassoc.data.windows import window_spans
 from mapassoc.errors import InputError
 from mapassoc.filtering.kalman import gate_threshold
 from mapassoc.filtering.smoothing import smooth_tracks
@@ -359,10 +360,8 @@ class FlowTracker:
         undetected = recording_start(self.config.birth, scans[0].time)
         reports: list[FlowWindowReport] = []
         next_id = 1
-        start = 0
-        while start < total:
-            end = min(start + self.window_length, total)
-            commit = self.stride if end < total else end - start
+        for span in window_spans(total, length=self.window_length, stride=self.stride):
+            start, end, commit = span.start, span.end, span.commit
             for key in [k for k in two_point if k[0] < start]:
                 del two_point[key]
             for birth_key in [k for k in births if k[0] < start]:
@@ -386,7 +385,6 @@ class FlowTracker:
                     **report_parts,
                 )
             )
-            start += commit
         finished.extend(carried)
         associations = {
             t.track_id: dict(sorted(t.associations.items()))
