@@ -46,6 +46,7 @@ from mapassoc.apps.bench_defaults import DEFAULT_REFINEMENT_FAMILIES
 from mapassoc.errors import InputError
 
 if TYPE_CHECKING:  # the estimator is imported when the benchmark runs
+    from mapassoc.data.config import TrackerOption
     from mapassoc.data.io import TrackTable
     from mapassoc.estimator.objective import RecordingObjective
 
@@ -112,13 +113,17 @@ def run_refinement_benchmark(
     scans: int | None = None,
     json_path: Path | str | None = None,
     out: TextIO | None = None,
+    mht_options: Mapping[str, TrackerOption] | None = None,
 ) -> list[RefinementRun]:
     """Run and print the benchmark (module docstring); optionally write JSON rows.
+
+    ``mht_options``: MHT's own options (a ``[trackers.mht]`` table, such as
+    ``{"n_scan": 5}``); checked before anything runs.
 
     Raises
     ------
     InputError
-        An unknown family, ``seeds < 1``.
+        An unknown family, ``seeds < 1``, an option MHT does not take or refuses.
     """
     from mapassoc.estimator.objective import RecordingObjective  # noqa: F811
     from mapassoc.estimator.pipeline import WindowEstimator
@@ -134,6 +139,11 @@ def run_refinement_benchmark(
         raise InputError(f"unknown families {unknown}; known: {', '.join(scenario_names())}")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise InputError(f"seeds must be an integer >= 1, got {seeds!r}")
+    tables = {} if mht_options is None else {"mht": dict(mht_options)}
+    if tables:  # built once on the first family, so that a bad option stops it here
+        first = build_scenario(families[0], 0, scans=scans)
+        checked = dataclasses.replace(generic_config(first), trackers=tables)
+        build_tracker("mht", config=checked)
     rows: list[RefinementRun] = []
     reliability: list[tuple[float, bool]] = []  # (existence, matches a true target) per track
 
@@ -147,7 +157,9 @@ def run_refinement_benchmark(
     for family in families:
         for seed in range(seeds):
             scenario = build_scenario(family, seed, scans=scans)
-            config = generic_config(scenario, time_limit=time_limit)
+            config = dataclasses.replace(
+                generic_config(scenario, time_limit=time_limit), trackers=tables
+            )
             forward_config = dataclasses.replace(
                 config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
             )

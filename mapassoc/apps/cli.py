@@ -238,11 +238,16 @@ def _cmd_bench_parameters(args: argparse.Namespace) -> int:
 def _cmd_bench_refinement(args: argparse.Namespace) -> int:
     from mapassoc.apps.bench_refinement import run_refinement_benchmark
 
+    options = _tracker_options(args.option) or {}
+    others = sorted(set(options) - {"mht"})
+    if others:
+        raise InputError(f"bench-refinement --option sets MHT's options only, got {others}")
     run_refinement_benchmark(
         families=args.families,
         seeds=args.seeds,
         time_limit=args.time_limit,
         json_path=Path(args.json) if args.json else None,
+        mht_options=options.get("mht"),
     )
     return 0
 
@@ -698,6 +703,13 @@ def _add_bench_refinement_command(sub: Subcommands) -> None:
     p.add_argument("--time-limit", type=float, default=2.0, metavar="SECONDS",
                    help="estimator time limit per window (default 2.0)")
     p.add_argument("--json", metavar="PATH", help="also write the runs to this JSON file")
+    p.add_argument(
+        "--option",
+        action="append",
+        metavar="mht.OPTION=VALUE",
+        help="an option of MHT, as a [trackers.mht] table sets it (such as mht.n_scan=5); "
+        "repeatable",
+    )
     p.set_defaults(func=_cmd_bench_refinement)
 
 

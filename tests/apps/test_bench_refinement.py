@@ -1,0 +1,43 @@
+"""``mapassoc bench-refinement``: its rows, and MHT's options."""
+
+from __future__ import annotations
+
+import io
+
+import pytest
+
+from mapassoc.apps.bench_refinement import run_refinement_benchmark
+from mapassoc.data.config import Config
+from mapassoc.errors import InputError
+
+
+def test_the_benchmark_rows_and_mhts_own_options(monkeypatch: pytest.MonkeyPatch) -> None:
+    import mapassoc.trackers.registry as registry
+
+    seen: list[object] = []
+    real = registry.build_tracker
+
+    def spy(name: str, *, config: Config, origins: object = None):  # type: ignore[no-untyped-def]
+        seen.append(config.trackers.get(name))
+        return real(name, config=config, origins=origins)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(registry, "build_tracker", spy)
+    out = io.StringIO()
+    rows = run_refinement_benchmark(
+        families=["crossing"], seeds=1, scans=12, out=out, mht_options={"n_scan": 2}
+    )
+    assert [r.method for r in rows] == ["forward", "refined", "r>=0.5", "mht", "oracle"]
+    by_method = {r.method: r for r in rows}
+    # The refinement never lowers the recording's objective J.
+    assert by_method["refined"].objective >= by_method["forward"].objective - 1e-9
+    assert seen and all(options == {"n_scan": 2} for options in seen)
+    assert "J(refined) >= J(forward) in every run: True" in out.getvalue()
+
+
+def test_a_bad_mht_option_stops_the_benchmark_before_it_runs() -> None:
+    out = io.StringIO()
+    with pytest.raises(InputError, match="unknown option 'nscan'"):
+        run_refinement_benchmark(
+            families=["crossing"], seeds=1, scans=12, out=out, mht_options={"nscan": 2}
+        )
+    assert "crossing " not in out.getvalue()  # no run line was printed
