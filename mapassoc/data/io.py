@@ -76,19 +76,33 @@ probability (empty where unknown).  Read into :class:`TrackTable`.
 from __future__ import annotations
 
 import csv
-import dataclasses
 import io
 import math
 import os
 import re
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
 from typing import TextIO
 
 import numpy as np
-from numpy.typing import ArrayLike
 
-from mapassoc.array_types import FloatArray, IntArray
+from mapassoc.data.records import (
+    EXISTENCE_COLUMN,
+    ORIGINS_COLUMNS,
+    TRACK_FIXED_COLUMNS,
+    TRACK_ROW_COLUMN,
+    TRACKS_HEADER,
+    TRUTH_FIXED_COLUMNS,
+    TRUTH_HEADER,
+    VARIANCE_PREFIX,
+    Origins,
+    TrackTable,
+    TruthTable,
+    check_scans_for_writing,
+    check_sensors,
+    measurement_columns,
+    track_state_names,
+    truth_state_names,
+)
 from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
@@ -117,12 +131,6 @@ FIRST_DATA_LINE = 2
 :func:`number_rows` and :func:`read_detections` give.  Other sources number detections from
 0, and every table accepts any id >= 0."""
 
-_TRUTH_FIXED = ("target_id", "time")
-_ORIGINS_HEADER = ("row", "target_id")
-_TRACK_FIXED = ("track_id", "time", "sensor")
-_TRACK_ROW = "detection_row"
-_EXISTENCE = "existence"
-_VAR_PREFIX = "var_"
 
 _FLOAT_PATTERN = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _INT_PATTERN = re.compile(r"[+-]?\d+")
@@ -322,34 +330,6 @@ def _write_rows(path: str, header: Sequence[str], rows: Iterator[list[str]]) -> 
 # --------------------------------------------------------------------------- detections
 
 
-def _check_sensors(sensors: Mapping[str, Sensor]) -> list[Sensor]:
-    if not isinstance(sensors, Mapping) or len(sensors) == 0:
-        raise InputError(f"sensors must be a non-empty mapping name -> Sensor, got {sensors!r}")
-    for name, sensor in sensors.items():
-        if not isinstance(sensor, Sensor):
-            raise InputError(f"sensors[{name!r}] must be a Sensor, got {sensor!r}")
-        if sensor.name != name:
-            raise InputError(
-                f"sensors mapping key {name!r} differs from the sensor's name {sensor.name!r}"
-            )
-    return list(sensors.values())
-
-
-def _component_union(sensors: Sequence[Sensor]) -> list[str]:
-    """Measurement component names of all sensors, first-sensor order, no repeats."""
-    union: list[str] = []
-    for sensor in sensors:
-        for name in sensor.measurement.component_names:
-            if name in ("time", "sensor"):
-                raise InputError(
-                    f"sensor {sensor.name!r} has a measurement component named {name!r}, "
-                    "which is reserved for the detections file"
-                )
-            if name not in union:
-                union.append(name)
-    return union
-
-
 class _ScanBuilder:
     """Detections of one (sensor, time) pair collected while reading."""
 
@@ -401,8 +381,8 @@ def read_detections(
         ``sensors`` is empty or inconsistent.
     """
     path = os.fspath(path)
-    sensor_list = _check_sensors(sensors)
-    union = _component_union(sensor_list)
+    sensor_list = check_sensors(sensors)
+    union = measurement_columns(sensor_list)
     canonical = "time,sensor," + ",".join(union)
     lines = _lines(path, content)
     header = _read_header(path, lines, canonical)
@@ -546,44 +526,6 @@ def read_detections(
     return scans
 
 
-def _check_scans_for_writing(scans: Sequence[Scan], sensors: Mapping[str, Sensor]) -> None:
-    if isinstance(scans, str) or not isinstance(scans, Sequence):
-        raise InputError(f"scans must be a sequence of Scan, got {scans!r}")
-    if len(scans) == 0:
-        raise InputError(
-            "scans is empty; a detections file needs at least one scan (the readers refuse a "
-            "file without one)"
-        )
-    seen: set[tuple[str, float]] = set()
-    previous_time = -math.inf
-    for index, scan in enumerate(scans):
-        if not isinstance(scan, Scan):
-            raise InputError(f"scans[{index}] must be a Scan, got {scan!r}")
-        if scan.sensor not in sensors:
-            raise InputError(
-                f"scans[{index}] is from sensor {scan.sensor!r}; expected one of {list(sensors)}"
-            )
-        dim = sensors[scan.sensor].measurement.measurement_dim
-        if scan.detections.shape[1] != dim:
-            raise InputError(
-                f"scans[{index}] detections have shape {scan.detections.shape}; sensor "
-                f"{scan.sensor!r} measures {dim} components, expected shape ({scan.size}, {dim})"
-            )
-        if scan.time < previous_time:
-            raise InputError(
-                f"scans[{index}] time {scan.time!r} is before the previous scan's time "
-                f"{previous_time!r}; scans must be written in non-decreasing time"
-            )
-        previous_time = scan.time
-        key = (scan.sensor, scan.time)
-        if key in seen:
-            raise InputError(
-                f"scans[{index}] repeats sensor {scan.sensor!r} at time {scan.time!r}; "
-                "expected one scan per (sensor, time)"
-            )
-        seen.add(key)
-
-
 def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str, Sensor]) -> None:
     """Write scans as a detections file (format 1 of the module docstring).
 
@@ -612,9 +554,9 @@ def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str
         The file cannot be written.
     """
     path = os.fspath(path)
-    sensor_list = _check_sensors(sensors)
-    union = _component_union(sensor_list)
-    _check_scans_for_writing(scans, sensors)
+    sensor_list = check_sensors(sensors)
+    union = measurement_columns(sensor_list)
+    check_scans_for_writing(scans, sensors)
     position_of = {name: index for index, name in enumerate(union)}
 
     def rows() -> Iterator[list[str]]:
@@ -663,328 +605,6 @@ def number_rows(scans: Sequence[Scan]) -> list[Scan]:
     return numbered
 
 
-# --------------------------------------------------------------------------- tables
-
-
-def _check_state_names(names: object, reserved: Sequence[str]) -> tuple[str, ...]:
-    if isinstance(names, str) or not isinstance(names, Sequence):
-        raise InputError(f"state_names must be a tuple of column names, got {names!r}")
-    out = tuple(names)
-    if not out:
-        raise InputError("state_names must name at least one state component, got ()")
-    for name in out:
-        if (
-            not isinstance(name, str)
-            or not name
-            or name != name.strip()
-            or any(ch in name for ch in ',"\r\n')
-        ):
-            raise InputError(
-                f"state name {name!r} must be a non-empty string without commas, quotes, "
-                "line breaks or surrounding spaces"
-            )
-        if name in reserved:
-            raise InputError(f"state name {name!r} clashes with the fixed column {name!r}")
-    if len(set(out)) != len(out):
-        raise InputError(f"state_names must be distinct, got {out!r}")
-    return out
-
-
-def _int_array(
-    name: str,
-    value: ArrayLike,
-    *,
-    minimum: int,
-    length: int | None,
-    expected: str | None = None,
-) -> IntArray:
-    arr = np.asarray(value)
-    if arr.size == 0:
-        arr = arr.astype(np.int64)
-    if arr.ndim != 1 or not np.issubdtype(arr.dtype, np.integer):
-        raise InputError(
-            f"{name} must be a 1-D integer array, got dtype {arr.dtype} and shape {arr.shape}"
-        )
-    if length is not None and arr.shape[0] != length:
-        raise InputError(f"{name} must have shape ({length},), got {arr.shape}")
-    if arr.size and int(arr.min()) < minimum:
-        raise InputError(
-            f"{name} must be {expected or f'>= {minimum}'}, got the value {int(arr.min())}"
-        )
-    out = arr.astype(np.int64)
-    out.setflags(write=False)
-    return out
-
-
-def _float_array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> FloatArray:
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a numeric array, got {value!r}") from None
-    if arr.size == 0 and arr.shape != shape:
-        arr = arr.reshape(shape)
-    if arr.shape != shape:
-        raise InputError(f"{name} must have shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise InputError(f"{name} must contain only finite values")
-    arr.setflags(write=False)
-    return arr
-
-
-def _positions(
-    state_names: tuple[str, ...], states: FloatArray, position_names: Sequence[str]
-) -> FloatArray:
-    indices = [state_names.index(name) for name in position_names if name in state_names]
-    if not indices:
-        raise InputError(
-            f"no position columns: none of {tuple(position_names)} is among the state "
-            f"names {state_names}"
-        )
-    return states[:, indices]
-
-
-def _duplicate(keys: Sequence[tuple[object, ...]]) -> tuple[object, ...] | None:
-    seen: set[tuple[object, ...]] = set()
-    for key in keys:
-        if key in seen:
-            return key
-        seen.add(key)
-    return None
-
-
-class _StateRecords:
-    """What truth and track tables share: one record per row, with ``times``, ``states``
-    of shape ``(N, n)`` and their ``state_names``."""
-
-    times: FloatArray
-    states: FloatArray
-    state_names: tuple[str, ...]
-
-    @property
-    def size(self) -> int:
-        """Number of records N."""
-        return int(self.times.shape[0])
-
-    def positions(self, position_names: Sequence[str] = ("x", "y", "z")) -> FloatArray:
-        """Position columns present among ``position_names``, shape ``(N, d)``.
-
-        Raises
-        ------
-        InputError
-            None of ``position_names`` is a state name.
-        """
-        return _positions(self.state_names, self.states, position_names)
-
-
-@dataclass(frozen=True, eq=False)
-class TruthTable(_StateRecords):
-    """True target states (truth file, format 2).
-
-    Parameters
-    ----------
-    target_ids : ndarray of int64, shape (N,)
-        Target of each record, >= 0.
-    times : ndarray, shape (N,)
-        Time of each record.
-    states : ndarray, shape (N, n)
-        True state of the target at that time.
-    state_names : tuple of str, length n
-        Column names of the state components (e.g. ``("x", "y", "vx", "vy")``).
-
-    A (target_id, time) pair appears at most once.
-    """
-
-    target_ids: IntArray
-    times: FloatArray
-    states: FloatArray
-    state_names: tuple[str, ...]
-
-    def __post_init__(self) -> None:
-        names = _check_state_names(self.state_names, _TRUTH_FIXED)
-        ids = _int_array("target_ids", self.target_ids, minimum=0, length=None)
-        count = ids.shape[0]
-        times = _float_array("times", self.times, (count,))
-        states = _float_array("states", self.states, (count, len(names)))
-        repeated = _duplicate(list(zip(ids.tolist(), times.tolist(), strict=True)))
-        if repeated is not None:
-            raise InputError(f"(target_id, time) = {repeated} appears more than once")
-        object.__setattr__(self, "state_names", names)
-        object.__setattr__(self, "target_ids", ids)
-        object.__setattr__(self, "times", times)
-        object.__setattr__(self, "states", states)
-
-
-@dataclass(frozen=True, eq=False)
-class Origins:
-    """True origin of each detection (origins file, format 3).
-
-    Parameters
-    ----------
-    rows : ndarray of int64, shape (M,)
-        Detection ids (``Scan.rows``: any int64 >= 0; for a detections CSV file, its line
-        numbers), distinct.
-    target_ids : ndarray of int64, shape (M,)
-        Target that produced the detection, or -1 for a false alarm.
-    """
-
-    rows: IntArray
-    target_ids: IntArray
-
-    def __post_init__(self) -> None:
-        rows = _int_array("rows", self.rows, minimum=0, length=None, expected="detection ids >= 0")
-        ids = _int_array("target_ids", self.target_ids, minimum=-1, length=rows.shape[0])
-        repeated = _duplicate([(row,) for row in rows.tolist()])
-        if repeated is not None:
-            raise InputError(f"row {repeated[0]} appears more than once in origins")
-        object.__setattr__(self, "rows", rows)
-        object.__setattr__(self, "target_ids", ids)
-
-    @property
-    def size(self) -> int:
-        """Number of detections M."""
-        return int(self.rows.shape[0])
-
-
-@dataclass(frozen=True, eq=False)
-class TrackTable(_StateRecords):
-    """Estimated tracks (tracks file, format 4).
-
-    Parameters
-    ----------
-    track_ids : ndarray of int64, shape (N,)
-        Track of each record, >= 0.
-    times : ndarray, shape (N,)
-        Scan time.
-    sensors : tuple of str, length N
-        Sensor of the scan.
-    states : ndarray, shape (N, n)
-        Estimated state.
-    variances : ndarray, shape (N, n)
-        Marginal variances (covariance diagonal), >= 0.
-    detection_rows : ndarray of int64, shape (N,)
-        Id of the detection used at this scan (``Scan.rows``: any int64 >= 0; for a
-        detections CSV file, its line), or -1 for a miss.
-    state_names : tuple of str, length n
-        Column names of the state components.
-    existence : ndarray, shape (N,), optional
-        The track's existence probability (the same on every record of a track; ``nan``
-        where it is unknown), written as the optional last column ``existence``.
-
-    A (track_id, time, sensor) triple appears at most once.
-    """
-
-    track_ids: IntArray
-    times: FloatArray
-    sensors: tuple[str, ...]
-    states: FloatArray
-    variances: FloatArray
-    detection_rows: IntArray
-    state_names: tuple[str, ...]
-    existence: FloatArray | None = None
-
-    def __post_init__(self) -> None:
-        names = _check_state_names(self.state_names, (*_TRACK_FIXED, _TRACK_ROW, _EXISTENCE))
-        ids = _int_array("track_ids", self.track_ids, minimum=0, length=None)
-        count = ids.shape[0]
-        times = _float_array("times", self.times, (count,))
-        if isinstance(self.sensors, str) or not isinstance(self.sensors, Sequence):
-            raise InputError(f"sensors must be a tuple of sensor names, got {self.sensors!r}")
-        sensors = tuple(self.sensors)
-        if len(sensors) != count:
-            raise InputError(f"sensors must have {count} entries, got {len(sensors)}")
-        for name in sensors:
-            if (
-                not isinstance(name, str)
-                or not name
-                or name != name.strip()
-                or any(ch in name for ch in ",\r\n")
-            ):
-                raise InputError(
-                    f"sensor name {name!r} must be a non-empty string without commas, line "
-                    "breaks or surrounding spaces"
-                )
-        states = _float_array("states", self.states, (count, len(names)))
-        variances = _float_array("variances", self.variances, (count, len(names)))
-        if np.any(variances < 0):
-            raise InputError(f"variances must be >= 0, got minimum {float(variances.min())!r}")
-        rows = _int_array(
-            "detection_rows",
-            self.detection_rows,
-            minimum=-1,
-            length=count,
-            expected="-1 (a miss) or a detection id >= 0",
-        )
-        repeated = _duplicate(list(zip(ids.tolist(), times.tolist(), sensors, strict=True)))
-        if repeated is not None:
-            raise InputError(f"(track_id, time, sensor) = {repeated} appears more than once")
-        object.__setattr__(self, "state_names", names)
-        object.__setattr__(self, "track_ids", ids)
-        object.__setattr__(self, "times", times)
-        object.__setattr__(self, "sensors", sensors)
-        object.__setattr__(self, "states", states)
-        object.__setattr__(self, "variances", variances)
-        object.__setattr__(self, "detection_rows", rows)
-        if self.existence is not None:
-            existence = np.asarray(self.existence, dtype=float)
-            if existence.shape != (count,):
-                raise InputError(
-                    f"existence must have shape ({count},), got {existence.shape}"
-                )
-            if np.any(~np.isnan(existence) & ((existence < 0) | (existence > 1))):
-                raise InputError("existence must hold probabilities in [0, 1] (or nan)")
-            existence = existence.copy()
-            existence.setflags(write=False)
-            object.__setattr__(self, "existence", existence)
-
-    def with_existence(self, by_track: Mapping[int, float]) -> TrackTable:
-        """This table with each record's ``existence`` taken from ``by_track`` (track id ->
-        probability; ``nan`` for a track it does not name)."""
-        values = np.array([by_track.get(int(t), math.nan) for t in self.track_ids], dtype=float)
-        return dataclasses.replace(self, existence=values)
-
-    @classmethod
-    def from_steps(
-        cls,
-        *,
-        track_ids: Sequence[int],
-        times: Sequence[float],
-        sensors: Sequence[str],
-        scan_indices: Sequence[int],
-        states: Sequence[FloatArray],
-        variances: Sequence[FloatArray],
-        detection_rows: Sequence[int],
-        state_names: tuple[str, ...],
-    ) -> TrackTable:
-        """A table from one record per (track, scan) in any order, sorted by (time, track
-        id, scan index): the order every tracker writes.
-
-        ``states`` and ``variances`` hold one ``(n,)`` vector per record, ``n =
-        len(state_names)``; ``scan_indices`` only breaks ties between the scans of two
-        sensors at one time.
-        """
-        n = len(state_names)
-        count = len(track_ids)
-        order = np.lexsort(
-            (
-                np.asarray(scan_indices, dtype=np.int64),
-                np.asarray(track_ids, dtype=np.int64),
-                np.asarray(times, dtype=float),
-            )
-        )
-        return cls(
-            track_ids=np.asarray(track_ids, dtype=np.int64)[order],
-            times=np.asarray(times, dtype=float)[order],
-            sensors=tuple(sensors[i] for i in order),
-            states=np.asarray(states, dtype=float).reshape(count, n)[order],
-            variances=np.asarray(variances, dtype=float).reshape(count, n)[order],
-            detection_rows=np.asarray(detection_rows, dtype=np.int64)[order],
-            state_names=tuple(state_names),
-        )
-
-
-# --------------------------------------------------------------------------- truth
-
-
 def write_truth(path: PathLike, table: TruthTable) -> None:
     """Write a truth file (format 2) in the table's record order.
 
@@ -1004,30 +624,7 @@ def write_truth(path: PathLike, table: TruthTable) -> None:
         ):
             yield [str(target), _float_text(time), *(_float_text(v) for v in state)]
 
-    _write_rows(path, [*_TRUTH_FIXED, *table.state_names], rows())
-
-
-_TRUTH_EXPECTED = "target_id,time,<state names>"
-
-
-def _truth_state_names(path: str, header: Sequence[str], *, row: int | None) -> list[str]:
-    """The state names of a truth table's columns ``header`` (also used for Parquet)."""
-    for position, name in enumerate(_TRUTH_FIXED):
-        if position >= len(header) or header[position] != name:
-            found = header[position] if position < len(header) else None
-            raise DataFileError(
-                path,
-                f"column {position + 1} is {found!r}; expected {name!r} "
-                f"(columns {_TRUTH_EXPECTED})",
-                row=row,
-                column=name,
-            )
-    names = list(header[len(_TRUTH_FIXED) :])
-    if not names:
-        raise DataFileError(
-            path, f"no state columns after target_id,time; expected {_TRUTH_EXPECTED}", row=row
-        )
-    return names
+    _write_rows(path, [*TRUTH_FIXED_COLUMNS, *table.state_names], rows())
 
 
 def read_truth(path: PathLike) -> TruthTable:
@@ -1049,8 +646,8 @@ def read_truth(path: PathLike) -> TruthTable:
     """
     path = os.fspath(path)
     lines = _lines(path)
-    header = _read_header(path, lines, _TRUTH_EXPECTED)
-    names = _truth_state_names(path, header, row=1)
+    header = _read_header(path, lines, TRUTH_HEADER)
+    names = truth_state_names(path, header, row=1)
     ids: list[int] = []
     times: list[float] = []
     states: list[list[float]] = []
@@ -1105,7 +702,7 @@ def write_origins(path: PathLike, origins: Origins) -> None:
         for row, target in zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True):
             yield [str(row), "" if target < 0 else str(target)]
 
-    _write_rows(path, list(_ORIGINS_HEADER), rows())
+    _write_rows(path, list(ORIGINS_COLUMNS), rows())
 
 
 def read_origins(path: PathLike) -> Origins:
@@ -1126,12 +723,12 @@ def read_origins(path: PathLike) -> Origins:
         Malformed header, line or cell, or a repeated row.
     """
     path = os.fspath(path)
-    expected = ",".join(_ORIGINS_HEADER)
+    expected = ",".join(ORIGINS_COLUMNS)
     lines = _lines(path)
     header = _read_header(path, lines, expected)
-    if tuple(header) != _ORIGINS_HEADER:
+    if tuple(header) != ORIGINS_COLUMNS:
         wrong = next(
-            (name for name, want in zip(header, _ORIGINS_HEADER, strict=False) if name != want),
+            (name for name, want in zip(header, ORIGINS_COLUMNS, strict=False) if name != want),
             header[-1],
         )
         raise DataFileError(
@@ -1164,11 +761,11 @@ def read_origins(path: PathLike) -> Origins:
 
 def _tracks_header(state_names: Sequence[str], existence: bool = False) -> list[str]:
     return [
-        *_TRACK_FIXED,
+        *TRACK_FIXED_COLUMNS,
         *state_names,
-        *(_VAR_PREFIX + name for name in state_names),
-        _TRACK_ROW,
-        *((_EXISTENCE,) if existence else ()),
+        *(VARIANCE_PREFIX + name for name in state_names),
+        TRACK_ROW_COLUMN,
+        *((EXISTENCE_COLUMN,) if existence else ()),
     ]
 
 
@@ -1238,59 +835,6 @@ def write_associations(path: PathLike, by_track: Mapping[int, Mapping[int, float
     _write_rows(path, ASSOCIATIONS_HEADER, rows)
 
 
-_TRACKS_EXPECTED = (
-    "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row[,existence]"
-)
-
-
-def _track_state_names(
-    path: str, header: Sequence[str], *, row: int | None
-) -> tuple[list[str], list[str]]:
-    """State and variance column names of a tracks table's columns ``header`` (also used
-    for Parquet)."""
-    expected = _TRACKS_EXPECTED
-    if header and header[-1] == _EXISTENCE:
-        header = header[:-1]
-    for position, name in enumerate(_TRACK_FIXED):
-        if position >= len(header) or header[position] != name:
-            found = header[position] if position < len(header) else None
-            raise DataFileError(
-                path,
-                f"column {position + 1} is {found!r}; expected {name!r} (header {expected})",
-                row=row,
-                column=name,
-            )
-    if header[-1] != _TRACK_ROW:
-        raise DataFileError(
-            path,
-            f"last column is {header[-1]!r}; expected {_TRACK_ROW!r} (header {expected})",
-            row=row,
-            column=_TRACK_ROW,
-        )
-    middle = header[len(_TRACK_FIXED) : -1]
-    if not middle or len(middle) % 2:
-        raise DataFileError(
-            path,
-            f"{len(middle)} state and variance columns ({','.join(middle)}); expected n state "
-            f"columns followed by their n var_ columns (header {expected})",
-            row=row,
-            column=middle[-1] if middle else _TRACK_ROW,
-        )
-    count = len(middle) // 2
-    names = middle[:count]
-    for name, found in zip(names, middle[count:], strict=True):
-        if found != _VAR_PREFIX + name:
-            raise DataFileError(
-                path,
-                f"column {found!r} where {_VAR_PREFIX + name!r} was expected: the variance "
-                f"columns must follow the state columns {','.join(names)} in the same order",
-                row=row,
-                column=found,
-            )
-    var_names = middle[count:]
-    return list(names), list(var_names)
-
-
 def read_tracks(path: PathLike) -> TrackTable:
     """Read a tracks file (format 4); state names come from the header.
 
@@ -1311,9 +855,9 @@ def read_tracks(path: PathLike) -> TrackTable:
     """
     path = os.fspath(path)
     lines = _lines(path)
-    header = _read_header(path, lines, _TRACKS_EXPECTED)
-    names, var_names = _track_state_names(path, header, row=1)
-    has_existence = header[-1] == _EXISTENCE
+    header = _read_header(path, lines, TRACKS_HEADER)
+    names, var_names = track_state_names(path, header, row=1)
+    has_existence = header[-1] == EXISTENCE_COLUMN
     count = len(names)
     existence: list[float] = []
     ids: list[int] = []
@@ -1342,20 +886,20 @@ def read_tracks(path: PathLike) -> TrackTable:
                 column="time",
             )
         first_line[key] = line
-        state_cells = cells[len(_TRACK_FIXED) : len(_TRACK_FIXED) + count]
+        state_cells = cells[len(TRACK_FIXED_COLUMNS) : len(TRACK_FIXED_COLUMNS) + count]
         if has_existence:
             cell = cells[-1]
-            value = math.nan if cell == "" else _float_cell(path, line, _EXISTENCE, cell)
+            value = math.nan if cell == "" else _float_cell(path, line, EXISTENCE_COLUMN, cell)
             if not (math.isnan(value) or 0.0 <= value <= 1.0):
                 raise DataFileError(
                     path,
                     f"existence {cell!r} is not a probability; expected a value in [0, 1]",
                     row=line,
-                    column=_EXISTENCE,
+                    column=EXISTENCE_COLUMN,
                 )
             existence.append(value)
             cells = cells[:-1]
-        var_cells = cells[len(_TRACK_FIXED) + count : -1]
+        var_cells = cells[len(TRACK_FIXED_COLUMNS) + count : -1]
         state = [_float_cell(path, line, n, c) for n, c in zip(names, state_cells, strict=True)]
         variance = []
         for name, cell in zip(var_names, var_cells, strict=True):
@@ -1370,7 +914,7 @@ def read_tracks(path: PathLike) -> TrackTable:
             variance.append(value)
         row_cell = cells[-1]
         detection_row = (
-            -1 if row_cell == "" else _int_cell(path, line, _TRACK_ROW, row_cell, minimum=0)
+            -1 if row_cell == "" else _int_cell(path, line, TRACK_ROW_COLUMN, row_cell, minimum=0)
         )
         ids.append(track)
         times.append(time)

@@ -41,21 +41,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.array_types import BoolArray, FloatArray, IntArray
-from mapassoc.data.io import (
-    _EXISTENCE,
-    _ORIGINS_HEADER,
-    _TRACK_FIXED,
-    _TRACK_ROW,
-    _TRUTH_FIXED,
-    _VAR_PREFIX,
+from mapassoc.data.records import (
+    EXISTENCE_COLUMN,
+    ORIGINS_COLUMNS,
+    TRACK_FIXED_COLUMNS,
+    TRACK_ROW_COLUMN,
+    TRUTH_FIXED_COLUMNS,
+    VARIANCE_PREFIX,
     Origins,
     TrackTable,
     TruthTable,
-    _check_scans_for_writing,
-    _check_sensors,
-    _component_union,
-    _track_state_names,
-    _truth_state_names,
+    check_scans_for_writing,
+    check_sensors,
+    measurement_columns,
+    track_state_names,
+    truth_state_names,
 )
 from mapassoc.data.scans import Scan
 from mapassoc.data.tables import (
@@ -80,7 +80,7 @@ __all__ = [
 
 PathLike = str | os.PathLike[str]
 _INT64_MAX = np.iinfo(np.int64).max
-_ORIGINS_COLUMNS = _ORIGINS_HEADER
+_ORIGINS_COLUMNS = ORIGINS_COLUMNS
 
 
 def _pyarrow(verb: str) -> tuple[Any, Any, Any]:
@@ -275,14 +275,14 @@ def read_detections_parquet(
     """
     path = os.fspath(path)
     _pyarrow("reading")
-    sensor_list = _check_sensors(sensors)
+    sensor_list = check_sensors(sensors)
     reader = _Reader(path, content)
 
     def fail(message: str, column: str | None, row: int | None) -> DataFileError:
         return _error(path, message, column, row)
 
     check_detection_columns(reader.names, sensors, fail)
-    union = _component_union(sensor_list)
+    union = measurement_columns(sensor_list)
     times, time_null = reader.floats("time", nullable=True, finite=False)
     table = DetectionColumns(
         names=reader.names,
@@ -319,16 +319,16 @@ def read_tracks_parquet(path: PathLike) -> TrackTable:
     """
     path = os.fspath(path)
     reader = _Reader(path)
-    names, var_names = _track_state_names(path, list(reader.names), row=None)
+    names, var_names = track_state_names(path, list(reader.names), row=None)
     existence = None
-    if reader.names and reader.names[-1] == _EXISTENCE:
-        values, missing = reader.floats(_EXISTENCE, nullable=True)
+    if reader.names and reader.names[-1] == EXISTENCE_COLUMN:
+        values, missing = reader.floats(EXISTENCE_COLUMN, nullable=True)
         existence = np.where(missing, np.nan, values)
         bad = ~np.isnan(existence) & ((existence < 0) | (existence > 1))
         if np.any(bad):
             i = _first(bad)
             raise _error(
-                path, f"existence {float(existence[i])!r} is not in [0, 1]", _EXISTENCE, i
+                path, f"existence {float(existence[i])!r} is not in [0, 1]", EXISTENCE_COLUMN, i
             )
     reader.check_distinct(",".join(reader.names))
     ids, _ = reader.ints("track_id", nullable=False, minimum=0)
@@ -342,7 +342,7 @@ def read_tracks_parquet(path: PathLike) -> TrackTable:
             i = _first(values < 0)
             raise _error(path, f"variance {float(values[i])!r} is negative; expected >= 0", name, i)
         variances.append(values)
-    rows, _ = reader.ints(_TRACK_ROW, nullable=True, minimum=0)
+    rows, _ = reader.ints(TRACK_ROW_COLUMN, nullable=True, minimum=0)
     _pairs_repeated(
         path,
         list(zip(ids.tolist(), times.tolist(), sensors, strict=True)),
@@ -382,7 +382,7 @@ def read_truth_parquet(path: PathLike) -> TruthTable:
     """
     path = os.fspath(path)
     reader = _Reader(path)
-    names = _truth_state_names(path, list(reader.names), row=None)
+    names = truth_state_names(path, list(reader.names), row=None)
     reader.check_distinct(",".join(reader.names))
     ids, _ = reader.ints("target_id", nullable=False, minimum=0)
     times, _ = reader.floats("time", nullable=False)
@@ -471,9 +471,9 @@ def write_detections_parquet(
     """
     path = os.fspath(path)
     pa, _, pq = _pyarrow("writing")
-    sensor_list = _check_sensors(sensors)
-    union = _component_union(sensor_list)
-    _check_scans_for_writing(scans, sensors)
+    sensor_list = check_sensors(sensors)
+    union = measurement_columns(sensor_list)
+    check_scans_for_writing(scans, sensors)
     all_ids = np.concatenate([scan.rows for scan in scans])
     if np.unique(all_ids).size != all_ids.size:
         ordered = np.sort(all_ids)
@@ -525,15 +525,15 @@ def write_tracks_parquet(path: PathLike, table: TrackTable) -> None:
         raise InputError(f"table must be a TrackTable, got {table!r}")
     rows = table.detection_rows
     columns = {
-        _TRACK_FIXED[0]: pa.array(table.track_ids, type=pa.int64()),
-        _TRACK_FIXED[1]: pa.array(table.times, type=pa.float64()),
-        _TRACK_FIXED[2]: pa.array(list(table.sensors), type=pa.string()),
+        TRACK_FIXED_COLUMNS[0]: pa.array(table.track_ids, type=pa.int64()),
+        TRACK_FIXED_COLUMNS[1]: pa.array(table.times, type=pa.float64()),
+        TRACK_FIXED_COLUMNS[2]: pa.array(list(table.sensors), type=pa.string()),
         **_float_columns(pa, table.state_names, table.states),
-        **_float_columns(pa, table.state_names, table.variances, prefix=_VAR_PREFIX),
-        _TRACK_ROW: pa.array(rows, type=pa.int64(), mask=rows < 0),
+        **_float_columns(pa, table.state_names, table.variances, prefix=VARIANCE_PREFIX),
+        TRACK_ROW_COLUMN: pa.array(rows, type=pa.int64(), mask=rows < 0),
     }
     if table.existence is not None:
-        columns[_EXISTENCE] = pa.array(
+        columns[EXISTENCE_COLUMN] = pa.array(
             table.existence, type=pa.float64(), mask=np.isnan(table.existence)
         )
     _write(pq, pa, path, pa.table(columns))
@@ -563,8 +563,8 @@ def write_truth_parquet(path: PathLike, table: TruthTable) -> None:
     if not isinstance(table, TruthTable):
         raise InputError(f"table must be a TruthTable, got {table!r}")
     columns = {
-        _TRUTH_FIXED[0]: pa.array(table.target_ids, type=pa.int64()),
-        _TRUTH_FIXED[1]: pa.array(table.times, type=pa.float64()),
+        TRUTH_FIXED_COLUMNS[0]: pa.array(table.target_ids, type=pa.int64()),
+        TRUTH_FIXED_COLUMNS[1]: pa.array(table.times, type=pa.float64()),
         **_float_columns(pa, table.state_names, table.states),
     }
     _write(pq, pa, path, pa.table(columns))

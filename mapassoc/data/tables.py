@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mapassoc.array_types import BoolArray, FloatArray, IntArray
-from mapassoc.data.io import _check_sensors, _component_union
+from mapassoc.data.records import check_sensors, measurement_columns
 from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.errors import InputError
 from mapassoc.models.sensor import Sensor
@@ -178,8 +178,8 @@ def check_detection_columns(
     measurement component of every sensor.  Allowed besides: ``detection_id``.  Column
     names must be distinct.
     """
-    sensor_list = _check_sensors(sensors)
-    union = _component_union(sensor_list)
+    sensor_list = check_sensors(sensors)
+    union = measurement_columns(sensor_list)
     if DETECTION_ID in union:
         raise InputError(
             f"a sensor has a measurement component named {DETECTION_ID!r}, which is "
@@ -236,8 +236,8 @@ def detection_columns_to_scans(
         Sorted by ``(time, sensor name)``; see the module docstring.
     """
     check_detection_columns(table.names, sensors, fail)
-    sensor_list = _check_sensors(sensors)
-    union = _component_union(sensor_list)
+    sensor_list = check_sensors(sensors)
+    union = measurement_columns(sensor_list)
     times = table.times
     n = times.shape[0]
     if n == 0:
@@ -457,7 +457,7 @@ def scans_from_arrays(
         A wrong shape or dtype, a non-finite time or measurement, an unknown sensor, a
         sensor of another dimension, a negative or repeated id, or no scan at all.
     """
-    sensor_list = _check_sensors(sensors)
+    sensor_list = check_sensors(sensors)
     code_of = {sensor.name: k for k, sensor in enumerate(sensor_list)}
     t = _times_array("times", times, length=None)
     n = t.shape[0]
@@ -652,7 +652,7 @@ def scans_from_frame(frame: pd.DataFrame, sensors: Mapping[str, Sensor]) -> list
         raise InputError(f"frame must be a pandas DataFrame, got {type(frame).__name__}")
     names = tuple(frame.columns)
     check_detection_columns(names, sensors, _frame_fail)
-    union = _component_union(_check_sensors(sensors))
+    union = measurement_columns(check_sensors(sensors))
     times, time_null = _frame_float(frame, "time")
     sensor_values = frame["sensor"].tolist() if "sensor" in names else None
     table = DetectionColumns(
