@@ -119,6 +119,20 @@ def check_scans_for_writing(scans: Sequence[Scan], sensors: Mapping[str, Sensor]
             )
         seen.add(key)
 
+def _check_plain_name(what: str, name: object, forbidden: str, described: str) -> None:
+    """Refuse a column or sensor name a CSV cell cannot hold as it is."""
+    if (
+        not isinstance(name, str)
+        or not name
+        or name != name.strip()
+        or any(ch in name for ch in forbidden)
+    ):
+        raise InputError(
+            f"{what} name {name!r} must be a non-empty string without {described} or "
+            "surrounding spaces"
+        )
+
+
 def _check_state_names(names: object, reserved: Sequence[str]) -> tuple[str, ...]:
     if isinstance(names, str) or not isinstance(names, Sequence):
         raise InputError(f"state_names must be a tuple of column names, got {names!r}")
@@ -126,16 +140,7 @@ def _check_state_names(names: object, reserved: Sequence[str]) -> tuple[str, ...
     if not out:
         raise InputError("state_names must name at least one state component, got ()")
     for name in out:
-        if (
-            not isinstance(name, str)
-            or not name
-            or name != name.strip()
-            or any(ch in name for ch in ',"\r\n')
-        ):
-            raise InputError(
-                f"state name {name!r} must be a non-empty string without commas, quotes, "
-                "line breaks or surrounding spaces"
-            )
+        _check_plain_name("state", name, ',"\r\n', "commas, quotes, line breaks")
         if name in reserved:
             raise InputError(f"state name {name!r} clashes with the fixed column {name!r}")
     if len(set(out)) != len(out):
@@ -348,16 +353,7 @@ class TrackTable(_StateRecords):
         if len(sensors) != count:
             raise InputError(f"sensors must have {count} entries, got {len(sensors)}")
         for name in sensors:
-            if (
-                not isinstance(name, str)
-                or not name
-                or name != name.strip()
-                or any(ch in name for ch in ",\r\n")
-            ):
-                raise InputError(
-                    f"sensor name {name!r} must be a non-empty string without commas, line "
-                    "breaks or surrounding spaces"
-                )
+            _check_plain_name("sensor", name, ",\r\n", "commas, line breaks")
         states = _float_array("states", self.states, (count, len(names)))
         variances = _float_array("variances", self.variances, (count, len(names)))
         if np.any(variances < 0):
