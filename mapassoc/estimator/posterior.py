@@ -37,6 +37,10 @@ The joint MAP estimate maximises (2) over (K, omega): ``joint_map_k`` and the tr
 count ``joint_map_tracks`` of its set.  The marginal estimate maximises (3); the track
 set committed for it is the MAP set given K (``marginal_tracks``, maximising
 ``best[T] + log Po(K - T; nu)``).  Ties go to the smaller K, then the smaller T.
+
+The named priors (:class:`CountLaw` and its registry) and the estimators of K
+(:class:`KEstimator`) live in :mod:`mapassoc.models.target_count`, below the data layer
+that names them in its settings, and are re-exported here.
 """
 
 from __future__ import annotations
