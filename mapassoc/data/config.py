@@ -735,12 +735,11 @@ def _parse_trackers(
     if "trackers" not in document:
         return {}
     tables = parser.table(document["trackers"], "trackers")
-    for name, options in tables.items():
-        key = f"trackers.{name}"
-        parser.table(options, key)
+    for name in tables:
         if tracker_names is not None and name not in tracker_names:
             raise parser.fail(
-                key, f"unknown tracker; known trackers: {', '.join(sorted(tracker_names))}"
+                f"trackers.{name}",
+                f"unknown tracker; known trackers: {', '.join(sorted(tracker_names))}",
             )
     try:
         return _checked_tracker_options(tables)

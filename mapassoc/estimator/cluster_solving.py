@@ -256,7 +256,7 @@ def best_set_by_fixing(
             return decode_selection(rounded), True
         incumbent = greedy_packing(problem, x)
         if incumbent is not None:
-            bounds = fixed_variable_bounds(program, lp.ineq_duals, lp.eq_duals)  # type: ignore[arg-type]
+            bounds = fixed_variable_bounds(program, *_duals(lp))
             floor = float(np.sum(problem.scores[incumbent]))
             kept = np.flatnonzero(bounds >= floor - 1e-7 * (1.0 + abs(floor)))
     result = solver.solve(

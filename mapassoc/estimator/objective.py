@@ -229,6 +229,9 @@ class RecordingObjective:
         self.times = np.array([s.time for s in self.scans], dtype=float)
         sensors = [config.sensors[s.sensor] for s in self.scans]
         self._sensors = sensors
+        self._measurement_dim = max(
+            sensor.measurement.measurement_dim for sensor in config.sensors.values()
+        )
         pd = np.array([s.detection_probability for s in sensors], dtype=float)
         population = window_population(
             self.scans, pd.tolist(), birth, recording_start(birth, self.scans[0].time)
@@ -844,7 +847,7 @@ class _ReferenceSteps:
         )
         W = int(steps.max(initial=1))
         n = requests[0][0].means.shape[1]
-        dz = max(s.detections.shape[1] for s in objective.scans)
+        dz = objective._measurement_dim
         codes: dict[str, int] = {}
         scan = np.zeros((C, W), dtype=np.int64)
         sensor = np.zeros((C, W), dtype=np.int64)

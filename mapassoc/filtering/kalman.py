@@ -302,8 +302,8 @@ def gated_pairs_and_loglik(
     if not math.isfinite(threshold):
         raise InputError("gated_pairs_and_loglik needs a finite gate threshold")
     T, d = z_hat.shape
-    S_inv = _small_inverse(S)
-    if S_inv is not None and d == 2:
+    S_inv = _small_inverse(S) if d == 2 else None
+    if S_inv is not None:
         # Closed forms for the usual 2-D measurements: the largest eigenvalue and the
         # determinant of each S.
         a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
@@ -313,7 +313,6 @@ def gated_pairs_and_loglik(
         L = cholesky(S, "innovation covariance S")
         largest = np.asarray(np.linalg.eigvalsh(S)[:, -1], dtype=np.float64)
         logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
-        S_inv = None
     radius = np.sqrt(threshold * largest)
     tree = cKDTree(Z)
     hits = tree.query_ball_point(z_hat, radius, return_sorted=True)
