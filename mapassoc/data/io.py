@@ -10,8 +10,9 @@ Common rules
 * Line 1 is the header naming the columns; every further line is one record.  Line numbers
   are 1-based, so the first data line is line 2.
 * Detections are named by their detection id (``Scan.rows``; see :mod:`mapassoc.data.scans`):
-  a unique non-negative int64 key.  The detections CSV has no id column: a detection's id
-  is its line number (so CSV ids start at 2).  The origins file (``row``) and the tracks
+  a unique non-negative int64 key.  In a detections CSV without a ``detection_id`` column
+  (the usual case, and what :func:`write_detections` writes) a detection's id is its line
+  number (so CSV ids start at 2).  The origins file (``row``) and the tracks
   file (``detection_row``) refer to detections by these ids; they accept any id >= 0, so
   that they also serve detections read from Parquet or built in memory, whose ids start
   at 0 (:mod:`mapassoc.data.parquet`, :mod:`mapassoc.data.tables`).
@@ -31,8 +32,9 @@ Columns ``time``, ``sensor`` and the measurement components of the configured se
 union of their component names in first-sensor order, for example
 ``time,sensor,x,y,range,bearing``; each line fills the components of its own sensor and
 leaves the other cells empty.  The ``sensor`` column may be left out when exactly one
-sensor is configured.  Readers accept the columns in any order; writers always write
-``time,sensor,<union>``.
+sensor is configured.  An optional ``detection_id`` column holds the detection ids
+(integers >= 0, distinct, empty on the lines of empty scans), as in a Parquet file.
+Readers accept the columns in any order; writers always write ``time,sensor,<union>``.
 
 One line per detection.  The lines with the same ``(sensor, time)`` form one scan.  A scan
 without detections is one line with ``time`` and ``sensor`` and every measurement cell
@@ -41,7 +43,10 @@ header.  Times never decrease down the file (lines of different sensors may inte
 equal times), so a scan cannot reappear once a later scan of its sensor has started.
 :func:`read_detections` returns the scans sorted by ``(time, sensor name)``; ``Scan.rows``
 holds the detection ids, which for this file are the line numbers of the scan's
-detections.
+detections unless a ``detection_id`` column gives them.  The rules a file shares with
+every other source of detections (which cells a line fills, empty scans, ids) are
+checked by the one ingest path, :mod:`mapassoc.data.ingest`; this reader checks the
+text: cells, widths, and times that never decrease.
 
 Example::
 
@@ -85,6 +90,12 @@ from typing import TextIO
 
 import numpy as np
 
+from mapassoc.data.ingest import (
+    DETECTION_ID,
+    DetectionColumns,
+    check_detection_columns,
+    detection_columns_to_scans,
+)
 from mapassoc.data.records import (
     EXISTENCE_COLUMN,
     ORIGINS_COLUMNS,
@@ -103,7 +114,7 @@ from mapassoc.data.records import (
     track_state_names,
     truth_state_names,
 )
-from mapassoc.data.scans import Scan, check_scan_order
+from mapassoc.data.scans import Scan
 from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
 
@@ -330,26 +341,6 @@ def _write_rows(path: str, header: Sequence[str], rows: Iterator[list[str]]) -> 
 # --------------------------------------------------------------------------- detections
 
 
-class _ScanBuilder:
-    """Detections of one (sensor, time) pair collected while reading."""
-
-    def __init__(self, *, time: float, sensor: str) -> None:
-        self.time = time
-        self.sensor = sensor
-        self.values: list[list[float]] = []
-        self.rows: list[int] = []
-        self.empty_line: int | None = None
-
-    def build(self, dim: int) -> Scan:
-        detections = np.array(self.values, dtype=float).reshape(len(self.values), dim)
-        return Scan(
-            time=self.time,
-            sensor=self.sensor,
-            detections=detections,
-            rows=np.array(self.rows, dtype=np.int64),
-        )
-
-
 def read_detections(
     path: PathLike, sensors: Mapping[str, Sensor], *, content: bytes | None = None
 ) -> list[Scan]:
@@ -370,7 +361,7 @@ def read_detections(
     list of Scan
         Sorted by ``(time, sensor name)``, at least one; ``detections`` of shape ``(m, dz)``
         with the columns in the sensor's ``component_names`` order, ``rows`` the detection
-        ids, here the line numbers (>= 2).
+        ids: the ``detection_id`` column if the file has one, else the line numbers (>= 2).
 
     Raises
     ------
@@ -386,144 +377,76 @@ def read_detections(
     canonical = "time,sensor," + ",".join(union)
     lines = _lines(path, content)
     header = _read_header(path, lines, canonical)
-    column_of = {name: index for index, name in enumerate(header)}
-    if "time" not in column_of:
-        raise DataFileError(
-            path,
-            f"no 'time' column in header {','.join(header)}; expected {canonical}",
-            row=1,
-            column="time",
-        )
-    has_sensor_column = "sensor" in column_of
-    if not has_sensor_column and len(sensor_list) > 1:
-        raise DataFileError(
-            path,
-            f"no 'sensor' column, but {len(sensor_list)} sensors are configured "
-            f"({', '.join(sensors)}); expected {canonical}",
-            row=1,
-            column="sensor",
-        )
-    for sensor in sensor_list:
-        for name in sensor.measurement.component_names:
-            if name not in column_of:
-                raise DataFileError(
-                    path,
-                    f"no column {name!r}, which sensor {sensor.name!r} measures; "
-                    f"expected {canonical}",
-                    row=1,
-                    column=name,
-                )
-    for name in header:
-        if name not in ("time", "sensor") and name not in union:
-            raise DataFileError(
-                path,
-                f"unknown column {name!r}; expected the columns {canonical}",
-                row=1,
-                column=name,
-            )
 
-    own_columns = {
-        sensor.name: [(name, column_of[name]) for name in sensor.measurement.component_names]
-        for sensor in sensor_list
-    }
-    other_columns = {
-        sensor.name: [
-            (name, column_of[name])
-            for name in union
-            if name not in sensor.measurement.component_names
-        ]
-        for sensor in sensor_list
-    }
+    def header_fail(message: str, column: str | None, row: int | None) -> DataFileError:
+        return DataFileError(path, message, row=1, column=column)
+
+    check_detection_columns(header, sensors, header_fail)
+    column_of = {name: index for index, name in enumerate(header)}
     time_column = column_of["time"]
     sensor_column = column_of.get("sensor")
-    only_sensor = sensor_list[0].name
+    id_column = column_of.get(DETECTION_ID)
+    measured = [(name, column_of[name]) for name in union]
 
-    builders: dict[tuple[str, float], _ScanBuilder] = {}
+    line_numbers: list[int] = []
+    times: list[float] = []
+    sensor_cells: list[str] = []
+    values: dict[str, list[float]] = {name: [] for name in union}
+    ids: list[int] = []
     previous_time = -math.inf
-    previous_line = 0
     for line, cells in lines:
         _check_width(path, line, cells, header)
         time = _float_cell(path, line, "time", cells[time_column])
         if time < previous_time:
             raise DataFileError(
                 path,
-                f"time {cells[time_column]} goes backwards: line {previous_line} has time "
+                f"time {cells[time_column]} goes backwards: line {line_numbers[-1]} has time "
                 f"{previous_time!r}; times must not decrease down the file",
                 row=line,
                 column="time",
             )
-        previous_time, previous_line = time, line
-        if sensor_column is None:
-            sensor_name = only_sensor
-        else:
-            sensor_name = cells[sensor_column]
-            if sensor_name not in sensors:
-                raise DataFileError(
-                    path,
-                    f"unknown sensor {sensor_name!r}; expected one of {list(sensors)}",
-                    row=line,
-                    column="sensor",
-                )
-        for name, index in other_columns[sensor_name]:
-            if cells[index] != "":
-                raise DataFileError(
-                    path,
-                    f"value {cells[index]!r} in a column sensor {sensor_name!r} does not "
-                    f"measure; expected an empty cell",
-                    row=line,
-                    column=name,
-                )
-        own = own_columns[sensor_name]
-        empty = [name for name, index in own if cells[index] == ""]
-        if 0 < len(empty) < len(own):
-            raise DataFileError(
-                path,
-                f"empty cell; sensor {sensor_name!r} needs all of "
-                f"{','.join(name for name, _ in own)} (a scan without detections leaves "
-                f"all of them empty)",
-                row=line,
-                column=empty[0],
-            )
-        key = (sensor_name, time)
-        builder = builders.get(key)
-        if builder is None:
-            builder = _ScanBuilder(time=time, sensor=sensor_name)
-            builders[key] = builder
-        if builder.empty_line is not None:
-            raise DataFileError(
-                path,
-                f"scan of sensor {sensor_name!r} at time {time!r} was declared empty at "
-                f"line {builder.empty_line}; expected no further lines for it",
-                row=line,
-                column="time",
-            )
-        if empty:
-            if builder.rows:
-                raise DataFileError(
-                    path,
-                    f"empty-scan line for sensor {sensor_name!r} at time {time!r}, which "
-                    f"already has detections (line {builder.rows[0]})",
-                    row=line,
-                    column=own[0][0],
-                )
-            builder.empty_line = line
-        else:
-            builder.values.append(
-                [_float_cell(path, line, name, cells[index]) for name, index in own]
-            )
-            builder.rows.append(line)
-    if previous_line == 0:
+        previous_time = time
+        line_numbers.append(line)
+        times.append(time)
+        if sensor_column is not None:
+            sensor_cells.append(cells[sensor_column])
+        for name, index in measured:
+            cell = cells[index]
+            values[name].append(math.nan if cell == "" else _float_cell(path, line, name, cell))
+        if id_column is not None:
+            cell = cells[id_column]
+            ids.append(-1 if cell == "" else _int_cell(path, line, DETECTION_ID, cell, minimum=0))
+    if not line_numbers:
         raise DataFileError(
             path,
             "no detection lines after the header; a scan without detections is a line with "
             "time and sensor and empty measurement cells",
         )
 
-    dims = {sensor.name: sensor.measurement.measurement_dim for sensor in sensor_list}
-    ordered = sorted(builders.values(), key=lambda b: (b.time, b.sensor))
-    scans = [builder.build(dims[builder.sensor]) for builder in ordered]
-    check_scan_order(scans)
-    return scans
+    # every cell a number where a number is due: the rest is the one ingest path's
+    def fail(message: str, column: str | None, row: int | None) -> DataFileError:
+        return DataFileError(
+            path, message, row=1 if row is None else line_numbers[row], column=column
+        )
+
+    def line_name(row: int) -> str:
+        return f"line {line_numbers[row]}"
+
+    components = {}
+    for name in union:
+        column = np.array(values[name], dtype=np.float64)
+        components[name] = (column, np.isnan(column))  # cells are finite or empty
+    id_values = np.array(ids, dtype=np.int64)
+    table = DetectionColumns(
+        names=tuple(header),
+        times=np.array(times, dtype=np.float64),
+        time_null=np.zeros(len(times), dtype=bool),
+        sensors=sensor_cells if sensor_column is not None else None,
+        components=components,
+        ids=(id_values, id_values < 0) if id_column is not None else None,
+        row_ids=np.array(line_numbers, dtype=np.int64),
+    )
+    return detection_columns_to_scans(table, sensors, fail, row_name=line_name)
 
 
 def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str, Sensor]) -> None:

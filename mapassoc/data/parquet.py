@@ -41,6 +41,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.array_types import BoolArray, FloatArray, IntArray
+from mapassoc.data.ingest import (
+    DETECTION_ID,
+    DetectionColumns,
+    check_detection_columns,
+    detection_columns_to_scans,
+)
 from mapassoc.data.records import (
     EXISTENCE_COLUMN,
     ORIGINS_COLUMNS,
@@ -58,12 +64,6 @@ from mapassoc.data.records import (
     truth_state_names,
 )
 from mapassoc.data.scans import Scan
-from mapassoc.data.tables import (
-    DETECTION_ID,
-    DetectionColumns,
-    check_detection_columns,
-    detection_columns_to_scans,
-)
 from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
 

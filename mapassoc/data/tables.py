@@ -14,37 +14,37 @@ name)``, one scan per distinct ``(time, sensor)``, detections in input order wit
   whose measurement cells are all empty (NaN / None / ``pd.NA``) is a scan without
   detections, as in the file.
 
-Rules shared by both (they differ from the CSV reader in one point: rows may come in
-any order; they are sorted here):
-
-* Times and measurements must be finite; detection ids are int64 >= 0 and distinct.
-* Detection ids (``Scan.rows``): the given ``ids`` / ``detection_id`` column, else the
-  0-based position of the detection among the inputs (for a DataFrame, the row
-  position, so the rows of empty scans use up a number as the CSV's lines do).
-* At least one scan: empty input is refused, as the CSV reader refuses a file without a
-  line after the header.
+Both end in the one ingest path of every detections reader
+(:func:`mapassoc.data.ingest.detection_columns_to_scans`), so they follow its rules;
+they differ from the CSV reader in one point: rows may come in any order (they are
+sorted).  Detection ids (``Scan.rows``) are the given ``ids`` / ``detection_id`` column,
+else the 0-based position of the detection among the inputs (for a DataFrame, the row
+position, so the rows of empty scans use up a number as the CSV's lines do).  At least
+one scan: empty input is refused, as the CSV reader refuses a file without a line after
+the header.
 
 Every problem raises :class:`~mapassoc.errors.InputError` naming the argument (or the
 DataFrame column and row position), the value and what was expected.
-
-The column-table engine (:func:`detection_columns_to_scans`) is shared with the Parquet
-reader (:mod:`mapassoc.data.parquet`), which reports the same problems as
-:class:`~mapassoc.errors.DataFileError`.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from mapassoc.array_types import BoolArray, FloatArray, IntArray
+from mapassoc.data.ingest import (
+    DETECTION_ID,
+    DetectionColumns,
+    check_detection_columns,
+    detection_columns_to_scans,
+    first_repeated,
+)
 from mapassoc.data.records import check_sensors, measurement_columns
-from mapassoc.data.scans import Scan, check_scan_order
+from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.models.sensor import Sensor
 
@@ -52,341 +52,6 @@ if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = ["scans_from_arrays", "scans_from_frame", "DETECTION_ID"]
-
-DETECTION_ID = "detection_id"
-"""Optional column of a detections table (DataFrame, Parquet) holding the detection ids."""
-
-Fail = Callable[[str, str | None, int | None], Exception]
-"""``fail(message, column, row)`` builds the error to raise (the caller raises it)."""
-
-
-# --------------------------------------------------------------------------- grouping
-
-
-def _sensor_ranks(sensor_list: Sequence[Sensor]) -> IntArray:
-    """Rank of each sensor (by position in ``sensor_list``) in sorted name order."""
-    order = sorted(range(len(sensor_list)), key=lambda k: sensor_list[k].name)
-    rank = np.empty(len(sensor_list), dtype=np.int64)
-    rank[order] = np.arange(len(sensor_list))
-    return rank
-
-
-def _detection_groups(
-    times: FloatArray, codes: IntArray, rank: IntArray, rows: IntArray
-) -> dict[tuple[float, int], IntArray]:
-    """Input positions ``rows`` grouped by (time, sensor code), groups in (time, sensor
-    name) order, positions increasing within a group.  The group key's time is the time of
-    its first position (``-0.0`` and ``0.0`` are one time, as in the CSV reader)."""
-    if rows.size == 0:
-        return {}
-    order = np.lexsort((rows, rank[codes[rows]], times[rows]))
-    ordered = rows[order]
-    t = times[ordered]
-    c = codes[ordered]
-    cuts = np.flatnonzero((t[1:] != t[:-1]) | (c[1:] != c[:-1])) + 1
-    groups: dict[tuple[float, int], IntArray] = {}
-    for part in np.split(ordered, cuts):
-        first = int(part.min())
-        groups[(float(times[first]), int(codes[first]))] = np.sort(part)
-    return groups
-
-
-def _build_scans(
-    groups: Mapping[tuple[float, int], IntArray],
-    empty: Sequence[tuple[float, int]],
-    values: Sequence[FloatArray],
-    ids: IntArray,
-    sensor_list: Sequence[Sensor],
-) -> list[Scan]:
-    """Scans of the detection ``groups`` plus an empty scan for every key of ``empty``
-    without detections; ``values[code]`` holds the ``(n, dz)`` measurements of sensor
-    ``code`` by input position, ``ids`` the detection id of each input position."""
-    keys: dict[tuple[float, int], IntArray | None] = dict(groups)
-    for key in empty:
-        keys.setdefault(key, None)
-    scans = []
-    for (time, code), positions in keys.items():
-        sensor = sensor_list[code]
-        dim = sensor.measurement.measurement_dim
-        if positions is None:
-            detections = np.zeros((0, dim))
-            rows = np.zeros(0, dtype=np.int64)
-        else:
-            detections = values[code][positions].reshape(positions.size, dim)
-            rows = ids[positions]
-        scans.append(Scan(time=time, sensor=sensor.name, detections=detections, rows=rows))
-    scans.sort(key=lambda scan: (scan.time, scan.sensor))
-    check_scan_order(scans)
-    return scans
-
-
-def _first_repeated(values: IntArray) -> tuple[int, int, int] | None:
-    """``(value, first position, second position)`` of the first repeated value."""
-    if values.size < 2:
-        return None
-    order = np.argsort(values, kind="stable")
-    ordered = values[order]
-    same = np.flatnonzero(ordered[1:] == ordered[:-1])
-    if same.size == 0:
-        return None
-    # the repeat found earliest in input order
-    second = order[same + 1]
-    k = int(np.argmin(second))
-    value = int(ordered[same[k]])
-    first = int(order[np.searchsorted(ordered, value)])
-    return value, first, int(second[k])
-
-
-# --------------------------------------------------------------------------- columns
-
-
-@dataclass(frozen=True)
-class DetectionColumns:
-    """A detections table as columns, ``n`` rows (what a DataFrame or a Parquet file
-    holds), before validation.
-
-    Parameters
-    ----------
-    names : tuple of str
-        Column names in table order (may hold unknown or repeated names: they are
-        reported).
-    times : ndarray, shape (n,)
-        The ``time`` column as float64 (anything where ``time_null``).
-    time_null : ndarray of bool, shape (n,)
-    sensors : sequence of object, length n, or None
-        The ``sensor`` column (None where empty), or None if the table has none.
-    components : mapping of str to (ndarray (n,), ndarray of bool (n,))
-        Every measurement component column present: float64 values and null mask.
-    ids : (ndarray of int64 (n,), ndarray of bool (n,)), optional
-        The ``detection_id`` column (values, null mask), if present.
-    """
-
-    names: tuple[str, ...]
-    times: FloatArray
-    time_null: BoolArray
-    sensors: Sequence[object] | None
-    components: Mapping[str, tuple[FloatArray, BoolArray]]
-    ids: tuple[IntArray, BoolArray] | None
-
-
-def check_detection_columns(
-    names: Sequence[object], sensors: Mapping[str, Sensor], fail: Fail
-) -> None:
-    """Refuse a detections table whose columns do not fit the configured sensors.
-
-    Required: ``time``; ``sensor`` unless exactly one sensor is configured; every
-    measurement component of every sensor.  Allowed besides: ``detection_id``.  Column
-    names must be distinct.
-    """
-    sensor_list = check_sensors(sensors)
-    union = measurement_columns(sensor_list)
-    if DETECTION_ID in union:
-        raise InputError(
-            f"a sensor has a measurement component named {DETECTION_ID!r}, which is "
-            "reserved for the detection ids of a detections table"
-        )
-    canonical = ",".join(["time", "sensor", *union]) + f"[,{DETECTION_ID}]"
-    seen: set[object] = set()
-    for name in names:
-        if name in seen:
-            raise fail(f"column {name!r} appears twice; expected {canonical}", str(name), None)
-        seen.add(name)
-    if "time" not in seen:
-        raise fail(f"no 'time' column among {list(names)}; expected {canonical}", "time", None)
-    if "sensor" not in seen and len(sensor_list) > 1:
-        raise fail(
-            f"no 'sensor' column, but {len(sensor_list)} sensors are configured "
-            f"({', '.join(sensors)}); expected {canonical}",
-            "sensor",
-            None,
-        )
-    for sensor in sensor_list:
-        for name in sensor.measurement.component_names:
-            if name not in seen:
-                raise fail(
-                    f"no column {name!r}, which sensor {sensor.name!r} measures; "
-                    f"expected {canonical}",
-                    name,
-                    None,
-                )
-    allowed = {"time", "sensor", DETECTION_ID, *union}
-    for name in names:
-        if name not in allowed:
-            raise fail(
-                f"unknown column {name!r}; expected the columns {canonical}", str(name), None
-            )
-
-
-def detection_columns_to_scans(
-    table: DetectionColumns, sensors: Mapping[str, Sensor], fail: Fail
-) -> list[Scan]:
-    """Validate a detections table and group it into scans.
-
-    Parameters
-    ----------
-    table : DetectionColumns
-    sensors : mapping of str to Sensor
-    fail : callable
-        ``fail(message, column, row)`` returns the error to raise; ``row`` is the 0-based
-        row position.
-
-    Returns
-    -------
-    list of Scan
-        Sorted by ``(time, sensor name)``; see the module docstring.
-    """
-    check_detection_columns(table.names, sensors, fail)
-    sensor_list = check_sensors(sensors)
-    union = measurement_columns(sensor_list)
-    times = table.times
-    n = times.shape[0]
-    if n == 0:
-        raise fail(
-            "no rows; a scan without detections is a row with time and sensor and empty "
-            "measurement cells",
-            None,
-            None,
-        )
-    if np.any(table.time_null):
-        raise fail("empty cell; expected a finite time", "time", int(np.argmax(table.time_null)))
-    bad = ~np.isfinite(times)
-    if np.any(bad):
-        i = int(np.argmax(bad))
-        raise fail(f"value {float(times[i])!r} is not finite; expected a finite time", "time", i)
-
-    # sensor codes
-    if table.sensors is None:
-        codes = np.zeros(n, dtype=np.int64)
-    else:
-        code_of = {sensor.name: k for k, sensor in enumerate(sensor_list)}
-        codes = np.fromiter(
-            (code_of.get(v, -1) if isinstance(v, str) else -1 for v in table.sensors),
-            dtype=np.int64,
-            count=n,
-        )
-        if np.any(codes < 0):
-            i = int(np.argmax(codes < 0))
-            value = table.sensors[i]
-            what = "empty cell" if _is_missing(value) else f"unknown sensor {value!r}"
-            raise fail(f"{what}; expected one of {list(sensors)}", "sensor", i)
-
-    # measurement cells: all or none of a row's own components, none of the others
-    is_detection = np.zeros(n, dtype=bool)
-    values: list[FloatArray] = []
-    for code, sensor in enumerate(sensor_list):
-        own_names = sensor.measurement.component_names
-        mine = codes == code
-        for name in union:
-            if name in own_names:
-                continue
-            present = mine & ~table.components[name][1]
-            if np.any(present):
-                i = int(np.argmax(present))
-                raise fail(
-                    f"value {float(table.components[name][0][i])!r} in a column sensor "
-                    f"{sensor.name!r} does not measure; expected an empty cell",
-                    name,
-                    i,
-                )
-        nulls = np.column_stack([table.components[name][1] for name in own_names])
-        filled = mine & ~nulls.any(axis=1)
-        partial = mine & nulls.any(axis=1) & ~nulls.all(axis=1)
-        if np.any(partial):
-            i = int(np.argmax(partial))
-            empty_name = own_names[int(np.argmax(nulls[i]))]
-            raise fail(
-                f"empty cell; sensor {sensor.name!r} needs all of {','.join(own_names)} "
-                "(a scan without detections leaves all of them empty)",
-                empty_name,
-                i,
-            )
-        stacked = np.column_stack([table.components[name][0] for name in own_names])
-        infinite = filled[:, None] & ~np.isfinite(stacked)
-        if np.any(infinite):
-            i, j = (int(v) for v in np.argwhere(infinite)[0])
-            raise fail(
-                f"value {float(stacked[i, j])!r} is not finite; expected a finite number",
-                own_names[j],
-                i,
-            )
-        is_detection |= filled
-        values.append(stacked)
-
-    # detection ids
-    positions = np.arange(n, dtype=np.int64)
-    if table.ids is None:
-        ids = positions
-    else:
-        ids, id_null = table.ids
-        missing = is_detection & id_null
-        if np.any(missing):
-            raise fail(
-                "empty cell on a detection; expected a detection id >= 0",
-                DETECTION_ID,
-                int(np.argmax(missing)),
-            )
-        extra = ~is_detection & ~id_null
-        if np.any(extra):
-            i = int(np.argmax(extra))
-            raise fail(
-                f"detection id {int(ids[i])} on a row without measurements (a scan without "
-                "detections); expected an empty cell",
-                DETECTION_ID,
-                i,
-            )
-        negative = is_detection & (ids < 0)
-        if np.any(negative):
-            i = int(np.argmax(negative))
-            raise fail(
-                f"detection id {int(ids[i])} is negative; expected an integer >= 0",
-                DETECTION_ID,
-                i,
-            )
-        detection_positions = np.flatnonzero(is_detection)
-        repeated = _first_repeated(ids[detection_positions])
-        if repeated is not None:
-            value, first, second = repeated
-            raise fail(
-                f"detection id {value} already names the detection at row "
-                f"{int(detection_positions[first])}; expected distinct ids",
-                DETECTION_ID,
-                int(detection_positions[second]),
-            )
-
-    rank = _sensor_ranks(sensor_list)
-    groups = _detection_groups(times, codes, rank, np.flatnonzero(is_detection))
-    empty_seen: dict[tuple[float, int], int] = {}
-    for i in np.flatnonzero(~is_detection).tolist():
-        key = (float(times[i]), int(codes[i]))
-        name = sensor_list[key[1]].name
-        if key in groups:
-            raise fail(
-                f"row without measurements (a scan without detections) for sensor {name!r} "
-                f"at time {key[0]!r}, which has detections (row {int(groups[key][0])})",
-                sensor_list[key[1]].measurement.component_names[0],
-                i,
-            )
-        if key in empty_seen:
-            raise fail(
-                f"scan of sensor {name!r} at time {key[0]!r} was declared empty at row "
-                f"{empty_seen[key]}; expected one row for a scan without detections",
-                "time",
-                i,
-            )
-        empty_seen[key] = i
-    return _build_scans(groups, list(empty_seen), values, ids, sensor_list)
-
-
-def _is_missing(value: object) -> bool:
-    if value is None:
-        return True
-    if isinstance(value, float) and math.isnan(value):
-        return True
-    try:
-        import pandas as pd
-    except ImportError:  # pragma: no cover - pandas is a core dependency
-        return False
-    return value is pd.NA or value is pd.NaT
 
 
 # --------------------------------------------------------------------------- arrays
@@ -533,7 +198,7 @@ def scans_from_arrays(
         if n and int(id_array.min()) < 0:
             i = int(np.argmax(id_array < 0))
             raise InputError(f"ids[{i}] is {int(id_array[i])}; expected an integer >= 0")
-        repeated = _first_repeated(id_array)
+        repeated = first_repeated(id_array)
         if repeated is not None:
             value, first, second = repeated
             raise InputError(f"ids[{second}] is {value}, as is ids[{first}]; expected distinct ids")
@@ -558,11 +223,53 @@ def scans_from_arrays(
             "no detections and no scan_times: there is no scan to make (give scan_times for "
             "scans without detections)"
         )
+    table = _arrays_table(t, z, codes, id_array, empty, sensor_list)
+    return detection_columns_to_scans(table, sensors, _arrays_fail)
 
-    rank = _sensor_ranks(sensor_list)
-    groups = _detection_groups(t, codes, rank, np.arange(n, dtype=np.int64))
-    values = [z] * len(sensor_list)
-    return _build_scans(groups, empty, values, id_array, sensor_list)
+
+def _arrays_fail(message: str, column: str | None, row: int | None) -> InputError:
+    # scans_from_arrays checked its arguments in their own terms; a problem found only
+    # here would be a defect of that translation
+    return InputError(f"detections from arrays, input row {row}, column {column!r}: {message}")
+
+
+def _arrays_table(
+    times: FloatArray,
+    measurements: FloatArray,
+    codes: IntArray,
+    ids: IntArray,
+    listed: Sequence[tuple[float, int]],
+    sensor_list: Sequence[Sensor],
+) -> DetectionColumns:
+    """The detections table of checked arrays: one row per detection, then one empty
+    row per listed scan (``(time, sensor code)``) that has no detection, once each."""
+    n = times.shape[0]
+    has_detections = set(zip(times.tolist(), codes.tolist(), strict=True))
+    empty = list(dict.fromkeys(key for key in listed if key not in has_detections))
+    m = len(empty)
+    all_times = np.concatenate([times, np.array([t for t, _ in empty], dtype=np.float64)])
+    all_codes = np.concatenate([codes, np.array([c for _, c in empty], dtype=np.int64)])
+    union = measurement_columns(sensor_list)
+    components: dict[str, tuple[FloatArray, BoolArray]] = {
+        name: (np.full(n + m, np.nan), np.ones(n + m, dtype=bool)) for name in union
+    }
+    for code, sensor in enumerate(sensor_list):
+        mine = np.flatnonzero(codes == code)
+        for j, name in enumerate(sensor.measurement.component_names):
+            values, null = components[name]
+            values[mine] = measurements[mine, j]
+            null[mine] = False
+    return DetectionColumns(
+        names=("time", "sensor", *union, DETECTION_ID),
+        times=all_times,
+        time_null=np.zeros(n + m, dtype=bool),
+        sensors=[sensor_list[code].name for code in all_codes.tolist()],
+        components=components,
+        ids=(
+            np.concatenate([ids, np.zeros(m, dtype=np.int64)]),
+            np.concatenate([np.zeros(n, dtype=bool), np.ones(m, dtype=bool)]),
+        ),
+    )
 
 
 # --------------------------------------------------------------------------- DataFrame

@@ -224,16 +224,28 @@ BAD_DETECTIONS = [
     (f"{HEADER}\n,radar,,,1,2,\n", 2, "time", "empty cell"),
     (f"{HEADER}\n0,radar,,,1,,\n", 2, "y", "needs all of x,y"),
     (f"{HEADER}\n0,lidar,,,,2,3\n", 2, "x", "needs all of x,y,z"),
-    (f"{HEADER}\n0,radar,5,,1,2,\n", 2, "range", "'5' in a column sensor 'radar' does not"),
-    (f"{HEADER}\n0,radar,,,1,2,7\n", 2, "z", "'7'"),
+    (f"{HEADER}\n0,radar,5,,1,2,\n", 2, "range", "5.0 in a column sensor 'radar' does not"),
+    (f"{HEADER}\n0,radar,,,1,2,7\n", 2, "z", "value 7.0"),
     (f"{HEADER}\n1,radar,,,1,2,\n0.5,radar,,,1,2,\n", 3, "time", "goes backwards: line 2"),
     (f"{HEADER}\n1,radar,,,1,2,\n1,esm,1,1,,,\n0,esm,1,1,,,\n", 4, "time", "backwards"),
     (f"{HEADER}\n0,radar,,,1,2,,9\n", 2, "z", "8 cells, expected 7"),
     (f"{HEADER}\n0,radar,,,1,2\n", 2, "z", "6 cells, expected 7"),
     (f"{HEADER}\n0,radar,,,1,2,\n\n1,radar,,,1,2,\n", 3, "time", "blank line"),
-    (f"{HEADER}\n0,radar,,,,,\n0,radar,,,1,2,\n", 3, "time", "declared empty at line 2"),
+    # an empty-scan line and detections of the same scan: the empty line is named
+    (f"{HEADER}\n0,radar,,,,,\n0,radar,,,1,2,\n", 2, "x", "which has detections (line 3)"),
     (f"{HEADER}\n0,radar,,,,,\n0,radar,,,,,\n", 3, "time", "declared empty at line 2"),
-    (f"{HEADER}\n0,radar,,,1,2,\n0,radar,,,,,\n", 3, "x", "already has detections"),
+    (f"{HEADER}\n0,radar,,,1,2,\n0,radar,,,,,\n", 3, "x", "which has detections (line 2)"),
+    # the optional detection_id column, as in Parquet files and DataFrames
+    (f"{HEADER},detection_id\n0,radar,,,1,2,,\n", 2, "detection_id", "empty cell on a detection"),
+    (f"{HEADER},detection_id\n0,radar,,,,,,4\n", 2, "detection_id", "without measurements"),
+    (f"{HEADER},detection_id\n0,radar,,,1,2,,-4\n", 2, "detection_id", "below the minimum"),
+    (f"{HEADER},detection_id\n0,radar,,,1,2,,x\n", 2, "detection_id", "not an integer"),
+    (
+        f"{HEADER},detection_id\n0,radar,,,1,2,,7\n1,radar,,,1,2,,7\n",
+        3,
+        "detection_id",
+        "already names the detection at line 2",
+    ),
     (f'{HEADER}\n0,"radar,,,1,2,\n', 2, None, "malformed CSV"),
 ]
 
