@@ -1,9 +1,12 @@
 """Per-cluster tables within a budget: exact where it fits, certified bounds where not.
 
 Part of the pipeline layer (it wires :mod:`mapassoc.formulations` to
-:mod:`mapassoc.solvers`).  For one cluster of a window (a packing problem whose
-interchangeable hypotheses are merged) :class:`ClusterSolver` returns the per-k table
-of best scores, best sets and log-masses, and says how it got it:
+:mod:`mapassoc.solvers`).  :meth:`ClusterSolver.solve_window` owns a window's whole
+dispatch: it splits the window's packing problem into clusters, gives single hypotheses
+and lone optional ones their closed-form tables, merges and bound-prunes the rest, solves
+each and combines the tables (:class:`WindowTables`).  For one cluster (a packing problem
+whose interchangeable hypotheses are merged) :meth:`ClusterSolver.solve` returns the
+per-k table of best scores, best sets and log-masses, and says how it got it:
 
 ``exact``
     The frontier search (:mod:`mapassoc.formulations.frontier`) finished within
@@ -51,14 +54,20 @@ from mapassoc.formulations.bounds import (
 from mapassoc.formulations.cardinality import (
     CardinalityTable,
     ClusterTable,
+    CombinedTable,
     SearchLimitExceeded,
+    combine_tables,
     exact_cardinality_table,
+    independent_table,
+    single_hypothesis_table,
 )
+from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.frontier import FrontierResult, frontier_search
 from mapassoc.formulations.packing import (
     MergedProblem,
     PackingProblem,
     decode_selection,
+    merge_interchangeable,
     resource_multipliers,
     set_packing_program,
 )
@@ -77,6 +86,7 @@ __all__ = [
     "ClusterStatus",
     "CLUSTER_STATUSES",
     "WindowCluster",
+    "WindowTables",
     "best_set_by_fixing",
     "default_lp_solver",
 ]
@@ -101,7 +111,7 @@ CLUSTER_STATUSES = tuple(ClusterStatus)
 
 @dataclass(frozen=True, eq=False)
 class WindowCluster:
-    """One cluster of a solved window, as :meth:`WindowEstimator.solve_window` left it.
+    """One cluster of a solved window, as :meth:`ClusterSolver.solve_window` left it.
 
     Attributes
     ----------
@@ -128,6 +138,35 @@ class WindowCluster:
     status: ClusterStatus = ClusterStatus.EXACT
     merged: MergedProblem | None = None
     kept: NDArray[np.bool_] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class WindowTables:
+    """The clusters of one window solved: what :meth:`ClusterSolver.solve_window` returns.
+
+    Attributes
+    ----------
+    table : CombinedTable
+        The window's per-k table, the clusters' tables combined (best set in window
+        hypothesis indices).
+    clusters : tuple of WindowCluster
+        Every cluster, as it was solved.
+    reports : tuple of ClusterReport
+        The clusters that are not exact, in cluster order.
+    cluster_sizes : tuple of int
+        Hypotheses of every cluster before merging, in cluster order.
+    bound_pruned : int
+        Merged hypotheses the LP-bound pruning dropped, over all clusters.
+    pruning_cut_short : bool
+        The deadline, not the bound, left a cluster that would have been pruned unpruned.
+    """
+
+    table: CombinedTable
+    clusters: tuple[WindowCluster, ...]
+    reports: tuple[ClusterReport, ...]
+    cluster_sizes: tuple[int, ...]
+    bound_pruned: int
+    pruning_cut_short: bool
 
 
 BOUND_PRUNE_MIN_HYPOTHESES = 100
@@ -329,6 +368,86 @@ class ClusterSolver:
         self.map_margin = float(map_margin)
         self.bound_prune_min_hypotheses = int(bound_prune_min_hypotheses)
 
+    # -- the window -------------------------------------------------------------------
+    def solve_window(self, problem: PackingProblem, kmax: int, deadline: float) -> WindowTables:
+        """Every cluster of a window's packing problem solved, and their tables combined.
+
+        The dispatch: the problem splits into clusters (hypotheses linked through shared
+        detections or trees).  A cluster of one hypothesis gets its table in closed
+        form; the lone hypotheses that may each be taken or not share one table of
+        independent choices; every other cluster has its interchangeable hypotheses
+        merged exactly (best score for the MAP, summed weight for the mass), is
+        bound-pruned (:meth:`bound_prune`) and solved (:meth:`solve`).  The tables
+        combine into the window's per-k table up to ``kmax`` tracks.
+        """
+        clusters = cluster_hypotheses(problem)
+        tables: list[ClusterTable] = []
+        reports: list[ClusterReport] = []
+        parts: list[WindowCluster] = []
+        bound_pruned = 0
+        pruning_cut_short = False
+        required = problem.exactly_one[problem.resource_indices]
+        has_required = np.zeros(problem.num_hypotheses, dtype=bool)
+        np.logical_or.at(
+            has_required,
+            np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr)),
+            required,
+        )
+        independent: list[int] = []  # lone hypotheses that may be taken or not
+        for members in clusters:
+            if len(members) == 1:
+                h = int(members[0])
+                if problem.counts[h] and not has_required[h]:
+                    independent.append(h)
+                    continue
+                single = single_hypothesis_table(
+                    float(problem.scores[h]),
+                    float(problem.weights[h]),
+                    bool(problem.counts[h]),
+                    bool(has_required[h]),
+                    min(kmax, 1),
+                )
+                tables.append(single.remapped(members))
+                parts.append(WindowCluster("single", members, single))
+                continue
+            # Interchangeable hypotheses (same detections, e.g. "ended" and "missed to
+            # the end") merge exactly: best score for the MAP, summed weight for the mass.
+            merged = unpruned = merge_interchangeable(problem.subproblem(members))
+            keep = self.bound_prune(merged.problem, deadline)
+            if keep is None and time.perf_counter() >= deadline and self._prunable(merged):
+                pruning_cut_short = True  # the clock, not the bound, left it unpruned
+            if keep is not None:
+                bound_pruned += int(np.count_nonzero(~keep))
+                kept = np.flatnonzero(keep)
+                merged = MergedProblem(
+                    merged.problem.subproblem(kept),
+                    merged.representative[kept],
+                    tuple(merged.members[i] for i in kept),
+                )
+            table, report = self.solve(merged.problem, kmax, deadline)
+            if report.status is not ClusterStatus.EXACT:
+                reports.append(report)
+            tables.append(table.remapped(members[merged.representative]))
+            parts.append(WindowCluster("cluster", members, table, report.status, unpruned, keep))
+        if independent:
+            lone = np.asarray(independent, dtype=np.int64)
+            tables.append(independent_table(problem.scores[lone], problem.weights[lone], lone))
+            parts.append(WindowCluster("independent", lone, tables[-1]))
+        return WindowTables(
+            table=combine_tables(tables, kmax),
+            clusters=tuple(parts),
+            reports=tuple(reports),
+            cluster_sizes=tuple(len(c) for c in clusters),
+            bound_pruned=bound_pruned,
+            pruning_cut_short=pruning_cut_short,
+        )
+
+    def _prunable(self, merged: MergedProblem) -> bool:
+        """Whether :meth:`bound_prune` would have tried ``merged``."""
+        return merged.problem.num_hypotheses >= self.bound_prune_min_hypotheses and math.isfinite(
+            self.prune_log_ratio
+        )
+
     # -- pruning -----------------------------------------------------------------------
     def bound_prune(self, problem: PackingProblem, deadline: float) -> NDArray[np.bool_] | None:
         """Hypotheses that can be in a set within ``prune_log_ratio`` of the cluster's best.
@@ -381,10 +500,7 @@ class ClusterSolver:
         """
         started = time.perf_counter()
         kmax = min(kmax, int(np.count_nonzero(problem.counts)))
-        if (
-            problem.num_hypotheses >= _SMALL_AFTER_DEADLINE
-            and time.perf_counter() >= deadline
-        ):
+        if problem.num_hypotheses >= _SMALL_AFTER_DEADLINE and time.perf_counter() >= deadline:
             return self._bounded(problem, kmax, deadline, 0, started)
         try:
             table = exact_cardinality_table(
@@ -586,9 +702,7 @@ class ClusterSolver:
             )
         best_upper = np.maximum(tables.best_upper, best)
         mass_upper = np.maximum(tables.mass_upper, log_mass)
-        table = CardinalityTable(
-            best, log_mass, tuple(tables.sets), False, best_upper, mass_upper
-        )
+        table = CardinalityTable(best, log_mass, tuple(tables.sets), False, best_upper, mass_upper)
         found, bound = float(logsumexp(log_mass)), float(logsumexp(mass_upper))
         return table, ClusterReport(
             size=problem.num_hypotheses,
@@ -622,9 +736,7 @@ class ClusterSolver:
         ):
             chosen = decode_selection(result.solution)
             if not problem.is_feasible(chosen, k):
-                raise RuntimeError(
-                    f"solver {result.solver!r} returned an infeasible set for k={k}"
-                )
+                raise RuntimeError(f"solver {result.solver!r} returned an infeasible set for k={k}")
             score = problem.value(chosen)
             if score > best[k] or sets[k] is None:
                 best[k], sets[k] = score, tuple(int(h) for h in chosen)
@@ -674,4 +786,3 @@ class ClusterSolver:
             best[:n], mass[:n] = found.best + constant, found.log_mass + constant
             return best, mass, work + found.work
         return None
-

@@ -55,19 +55,8 @@ from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, Win
 from mapassoc.estimator.posterior import FULL_LENGTH_KMAX, KPosterior, k_posterior
 from mapassoc.estimator.refinement import RefinementReport, TrackConfidence, refine_track_rows
 from mapassoc.filtering.smoothing import smooth_tracks
-from mapassoc.formulations.cardinality import (
-    ClusterTable,
-    CombinedTable,
-    combine_tables,
-    independent_table,
-    single_hypothesis_table,
-)
-from mapassoc.formulations.clusters import cluster_hypotheses
-from mapassoc.formulations.packing import (
-    MergedProblem,
-    PackingProblem,
-    merge_interchangeable,
-)
+from mapassoc.formulations.cardinality import CombinedTable
+from mapassoc.formulations.packing import PackingProblem
 from mapassoc.models.population import UndetectedTargets, WindowPopulation
 from mapassoc.solvers import get_integer_solver
 
@@ -86,6 +75,7 @@ __all__ = [
     "SPREAD_WARNING_RATIO",
     "time_scale_warning",
 ]
+
 
 class WindowStatus(StrEnum):
     """A window's status, from best to worst.  Members are strings: they compare with
@@ -652,60 +642,8 @@ class WindowEstimator:
         # beyond are the posterior's business, k_posterior).
         counted = int(np.count_nonzero(problem.counts))
         kmax = min(self.settings.max_tracks, max(counted, FULL_LENGTH_KMAX))
-        clusters = cluster_hypotheses(problem)
-        tables: list[ClusterTable] = []
-        reports: list[ClusterReport] = []
-        bound_pruned = 0
-        pruning_cut_short = False
-        required = problem.exactly_one[problem.resource_indices]
-        has_required = np.zeros(problem.num_hypotheses, dtype=bool)
-        np.logical_or.at(
-            has_required,
-            np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr)),
-            required,
-        )
-        independent: list[int] = []  # lone hypotheses that may be taken or not
-        parts: list[WindowCluster] = []
-        for members in clusters:
-            if len(members) == 1:
-                h = int(members[0])
-                if problem.counts[h] and not has_required[h]:
-                    independent.append(h)
-                    continue
-                single = single_hypothesis_table(
-                    float(problem.scores[h]),
-                    float(problem.weights[h]),
-                    bool(problem.counts[h]),
-                    bool(has_required[h]),
-                    min(kmax, 1),
-                )
-                tables.append(single.remapped(members))
-                parts.append(WindowCluster("single", members, single))
-                continue
-            # Interchangeable hypotheses (same detections, e.g. "ended" and "missed to
-            # the end") merge exactly: best score for the MAP, summed weight for the mass.
-            merged = unpruned = merge_interchangeable(problem.subproblem(members))
-            keep = self.cluster_solver.bound_prune(merged.problem, deadline)
-            if keep is None and time.perf_counter() >= deadline and self._prunable(merged):
-                pruning_cut_short = True  # the clock, not the bound, left it unpruned
-            if keep is not None:
-                bound_pruned += int(np.count_nonzero(~keep))
-                kept = np.flatnonzero(keep)
-                merged = MergedProblem(
-                    merged.problem.subproblem(kept),
-                    merged.representative[kept],
-                    tuple(merged.members[i] for i in kept),
-                )
-            table, report = self.cluster_solver.solve(merged.problem, kmax, deadline)
-            if report.status is not ClusterStatus.EXACT:
-                reports.append(report)
-            tables.append(table.remapped(members[merged.representative]))
-            parts.append(WindowCluster("cluster", members, table, report.status, unpruned, keep))
-        if independent:
-            lone = np.asarray(independent, dtype=np.int64)
-            tables.append(independent_table(problem.scores[lone], problem.weights[lone], lone))
-            parts.append(WindowCluster("independent", lone, tables[-1]))
-        combined = combine_tables(tables, kmax)
+        solved = self.cluster_solver.solve_window(problem, kmax, deadline)
+        combined = solved.table
         posterior = k_posterior(
             combined.best,
             combined.log_mass,
@@ -722,22 +660,14 @@ class WindowEstimator:
             table=combined,
             posterior=posterior,
             population=population,
-            cluster_sizes=tuple(len(c) for c in clusters),
-            bounded_clusters=tuple(reports),
+            cluster_sizes=solved.cluster_sizes,
+            bounded_clusters=solved.reports,
             generate_seconds=t1 - t0,
             solve_seconds=t2 - t1,
-            bound_pruned=bound_pruned,
+            bound_pruned=solved.bound_pruned,
             timed_out=t2 > deadline,
-            pruning_cut_short=pruning_cut_short,
-            clusters=tuple(parts),
-        )
-
-    def _prunable(self, merged: MergedProblem) -> bool:
-        """Whether :meth:`ClusterSolver.bound_prune` would have tried ``merged``."""
-        solver = self.cluster_solver
-        return (
-            merged.problem.num_hypotheses >= solver.bound_prune_min_hypotheses
-            and math.isfinite(solver.prune_log_ratio)
+            pruning_cut_short=solved.pruning_cut_short,
+            clusters=solved.clusters,
         )
 
     # -- whole run -------------------------------------------------------------------
@@ -1013,9 +943,7 @@ class WindowEstimator:
         new_carried.sort(key=lambda t: t.track_id)
         return new_carried, next_id
 
-    def _smooth(
-        self, scans: Sequence[Scan], track_rows: dict[int, tuple[int, ...]]
-    ) -> TrackTable:
+    def _smooth(self, scans: Sequence[Scan], track_rows: dict[int, tuple[int, ...]]) -> TrackTable:
         """RTS-smooth every track over the detections it used."""
         where = {
             int(row): (k, j) for k, scan in enumerate(scans) for j, row in enumerate(scan.rows)
