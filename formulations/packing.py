@@ -28,12 +28,51 @@ from mapassoc.formulations.program import Program
 
 __all__ = [
     "PackingProblem",
+    "gather_rows",
     "MergedProblem",
     "merge_interchangeable",
     "set_packing_program",
     "resource_multipliers",
     "decode_selection",
 ]
+
+
+def gather_rows(
+    indptr: NDArray[np.int64],
+    indices: NDArray[np.int64],
+    rows: NDArray[np.int64],
+    extra: NDArray[np.int64] | None = None,
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Rows of a CSR list of resources, each followed by one more resource if asked.
+
+    Parameters
+    ----------
+    indptr : ndarray of int, shape (n + 1,)
+    indices : ndarray of int, shape (indptr[-1],)
+        Row ``r`` lists ``indices[indptr[r]:indptr[r + 1]]``.
+    rows : ndarray of int, shape (m,)
+        The rows to take, in order (repeats allowed).
+    extra : ndarray of int, shape (m,), optional
+        A resource appended to each taken row; ``-1`` appends none.
+
+    Returns
+    -------
+    indptr, indices : ndarray of int, shapes (m + 1,) and (total,)
+        The taken rows as a CSR list.
+    """
+    rows = np.asarray(rows, dtype=np.int64)
+    starts = indptr[rows]
+    lengths = indptr[rows + 1] - starts
+    added = np.zeros(rows.size, dtype=np.int64) if extra is None else (extra >= 0).astype(np.int64)
+    out_ptr = np.concatenate([[0], np.cumsum(lengths + added)]).astype(np.int64)
+    out = np.empty(int(out_ptr[-1]), dtype=np.int64)
+    owner = np.repeat(np.arange(rows.size), lengths)
+    within = np.arange(owner.size) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    out[out_ptr[owner] + within] = indices[starts[owner] + within]
+    if extra is not None:
+        has = np.flatnonzero(added)
+        out[out_ptr[has] + lengths[has]] = extra[has]
+    return out_ptr, out
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,2 +1,1 @@
-"""Applications: the command line, the benchmark, the demo and plots.
-"""
+"""Applications: the command line, the benchmark, the demo and plots."""

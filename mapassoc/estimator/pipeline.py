@@ -56,7 +56,7 @@ from mapassoc.estimator.posterior import FULL_LENGTH_KMAX, KPosterior, k_posteri
 from mapassoc.estimator.refinement import RefinementReport, TrackConfidence, refine_track_rows
 from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.formulations.cardinality import CombinedTable
-from mapassoc.formulations.packing import PackingProblem
+from mapassoc.formulations.packing import PackingProblem, gather_rows
 from mapassoc.models.population import UndetectedTargets, WindowPopulation
 from mapassoc.solvers import get_integer_solver
 
@@ -121,18 +121,13 @@ def packing_problem(hypotheses: WindowHypotheses) -> PackingProblem:
     """
     D = hypotheses.detections.count
     carried = int(np.count_nonzero(hypotheses.tree_track_ids >= 0))
-    H = hypotheses.count
-    lengths = np.diff(hypotheses.detection_indptr)
-    is_carried = hypotheses.tree < carried
-    new_lengths = lengths + is_carried
-    indptr = np.concatenate([[0], np.cumsum(new_lengths)]).astype(np.int64)
-    indices = np.empty(indptr[-1], dtype=np.int64)
-    for h in range(H):
-        dets = hypotheses.detections_of(h)
-        start = indptr[h]
-        indices[start : start + len(dets)] = dets
-        if is_carried[h]:
-            indices[start + len(dets)] = D + hypotheses.tree[h]
+    tree = hypotheses.tree
+    indptr, indices = gather_rows(
+        hypotheses.detection_indptr,
+        hypotheses.detection_indices,
+        np.arange(hypotheses.count),
+        np.where(tree < carried, D + tree, -1),
+    )
     return PackingProblem(
         scores=hypotheses.scores,
         resource_indptr=indptr,

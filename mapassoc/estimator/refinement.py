@@ -81,7 +81,7 @@ from mapassoc.estimator.objective import (
 from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.frontier import SearchLimitExceeded, frontier_search
 from mapassoc.formulations.marginals import frontier_marginals
-from mapassoc.formulations.packing import PackingProblem
+from mapassoc.formulations.packing import PackingProblem, gather_rows
 from mapassoc.solvers import get_integer_solver
 
 __all__ = [
@@ -703,14 +703,15 @@ class Refiner:
             c = carried[int(hyps.tree[h])]
             plain[h] = max(scores[h], c.value_ended - c.value_alive)
             weights[h] = float(np.logaddexp(scores[h], c.mass_ended - c.value_alive))
-        resources: list[list[int]] = []
-        for h in range(H):
-            res = hyps.detections_of(h).tolist()
-            if is_carried[h]:
-                res.append(D + int(hyps.tree[h]))
-            resources.append(res)
-        join_scores: list[float] = []
-        joins: list[tuple[int, int]] = []
+        base_ptr, base = gather_rows(
+            hyps.detection_indptr,
+            hyps.detection_indices,
+            np.arange(H),
+            np.where(is_carried, D + hyps.tree, -1),
+        )
+        join_h: list[NDArray[np.int64]] = []
+        join_anchor: list[NDArray[np.int64]] = []
+        join_score: list[NDArray[np.float64]] = []
         ends = np.flatnonzero(alive & (layer == N - 1))
         gains = self._join_gains(hyps, ends, scores[ends], anchors, a + N - 1, prune_log_ratio)
         for i, anchor in enumerate(anchors):
@@ -727,22 +728,23 @@ class Refiner:
                 better = np.flatnonzero(np.isfinite(joined))
             else:
                 better = np.flatnonzero(np.isfinite(joined) & (joined > plain[ends]))
-            for k in better:
-                h = int(ends[k])
-                joins.append((h, i))
-                join_scores.append(float(joined[k]))
-                resources.append(resources[h] + [D + C + i])
-        lengths = [len(r) for r in resources]
-        indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-        indices = np.array([r for res in resources for r in res], dtype=np.int64)
-        all_scores = np.concatenate([plain, np.asarray(join_scores, dtype=float)])
+            join_h.append(ends[better])
+            join_anchor.append(np.full(better.size, i, dtype=np.int64))
+            join_score.append(joined[better])
+        joined_h = np.concatenate(join_h) if join_h else np.zeros(0, dtype=np.int64)
+        anchor_of = np.concatenate(join_anchor) if join_anchor else np.zeros(0, dtype=np.int64)
+        join_scores = np.concatenate(join_score) if join_score else np.zeros(0)
+        joins = list(zip(joined_h.tolist(), anchor_of.tolist(), strict=True))
+        # a join uses its hypothesis's resources and its anchor's
+        join_ptr, join_indices = gather_rows(base_ptr, base, joined_h, D + C + anchor_of)
+        indptr = np.concatenate([base_ptr, base_ptr[-1] + join_ptr[1:]])
+        indices = np.concatenate([base, join_indices])
+        all_scores = np.concatenate([plain, join_scores])
         # A join's score holds no ending of its own: the anchor's ending is in both its
         # terms and the baseline, and cancels.  Its weight is its score.
         problem = PackingProblem(
             scores=all_scores,
-            log_weights=np.concatenate([weights, np.asarray(join_scores, dtype=float)])
-            if masses
-            else None,
+            log_weights=np.concatenate([weights, join_scores]) if masses else None,
             resource_indptr=indptr,
             resource_indices=indices,
             exactly_one=np.r_[
@@ -938,8 +940,8 @@ class Refiner:
                 for d in range(det.count)
             }
             uses = np.zeros((problem.num_hypotheses, det.count), dtype=bool)
-            for k, h in enumerate(base.tolist()):
-                uses[k, hyps.detections_of(h)] = True
+            used_ptr, used = gather_rows(hyps.detection_indptr, hyps.detection_indices, base)
+            uses[np.repeat(np.arange(base.size), np.diff(used_ptr)), used] = True
             for tid in sorted(current):
                 if not a <= current[tid][0][0] < b:
                     continue

@@ -50,9 +50,6 @@ __all__ = [
 ]
 
 
-
-
-
 @runtime_checkable
 class MeasurementModel(Protocol):
     """What the filters, the track initiation and the hypothesis generator need of a model.
@@ -193,9 +190,7 @@ class LinearMeasurement(MeasurementModel):
         self._position_indices = None if position_indices is None else tuple(position_indices)
 
     @classmethod
-    def position(
-        cls, motion: MotionModel, *, noise_std: float | ArrayLike
-    ) -> LinearMeasurement:
+    def position(cls, motion: MotionModel, *, noise_std: float | ArrayLike) -> LinearMeasurement:
         """Position-only measurement of a Cartesian motion model.
 
         Parameters
