@@ -610,7 +610,9 @@ def _parse_sensors(
 
 
 def _field_kind(field: dataclasses.Field[object]) -> str:
-    """``"int"``, ``"float"``, ``"str"`` or ``"tuple[float, ...]"`` for a settings field."""
+    """``"int"``, ``"float"``, ``"float | None"``, ``"str"`` or ``"tuple[float, ...]"``
+    for a settings field (``float | None``: a key that may be left out, and is not
+    written when unset)."""
     annotation = field.type
     if isinstance(annotation, str):
         return annotation
@@ -638,7 +640,7 @@ def _parse_settings(
         kind = _field_kind(fields[name])
         if kind == "int":
             values[name] = parser.integer(value, key)
-        elif kind == "float":
+        elif kind in ("float", "float | None"):
             values[name] = parser.number(value, key)
         elif kind == "str":
             values[name] = parser.string(value, key)
@@ -742,11 +744,14 @@ def _parse_trackers(
 
 
 def _defaults_text(cls: type[BirthModel] | type[EstimatorSettings]) -> str:
-    """``"name value, ..."`` of every field default of a settings class."""
+    """``"name value, ..."`` of every field default of a settings class (an optional key,
+    unset by default, is left out)."""
     defaults = cls()
     parts = []
     for field in dataclasses.fields(cls):
         value = getattr(defaults, field.name)
+        if value is None:
+            continue
         parts.append(f"{field.name} {list(value) if isinstance(value, tuple) else value!r}")
     return ", ".join(parts)
 
@@ -935,9 +940,11 @@ def config_to_toml(config: Config) -> str:
         for field in dataclasses.fields(settings):
             value = getattr(settings, field.name)
             kind = _field_kind(field)
+            if value is None and kind == "float | None":
+                continue  # unset: the key is left out, as in the file it came from
             if kind == "int":
                 text = str(int(value))
-            elif kind == "float":
+            elif kind in ("float", "float | None"):
                 text = _toml_float(value)
             elif kind == "str":
                 text = _toml_string(value)

@@ -56,11 +56,21 @@ class EstimatorSettings:
     max_hypotheses_per_tree : int
         Cap on the leaves kept per track tree (best scores kept), >= 1.
     prune_log_ratio : float
-        Nodes scoring more than this below the best node of their tree are pruned; a new
-        tree's node is also pruned when even the most its path can still gain over the
-        window leaves it more than this below 0 (not selecting the tree); clusters drop
-        hypotheses whose LP bound is this far below the cluster's best set (>= 0;
-        ``inf`` disables all three).
+        Nodes scoring more than this below the best node of their tree are pruned (the
+        sibling rule, unless ``sibling_prune_log_ratio`` is set); a new tree's node is
+        also pruned when even the most its path can still gain over the window leaves it
+        more than this below 0 (not selecting the tree); clusters drop hypotheses whose
+        LP bound is this far below the cluster's best set (>= 0; ``inf`` disables all
+        three).
+    sibling_prune_log_ratio : float or None
+        The sibling rule's own width, when set (>= 0, ``inf`` disables it); ``None``
+        (default): ``prune_log_ratio``.  The sibling rule is a heuristic (a branch far
+        below its best sibling may still belong to the best track set when the sibling
+        conflicts with another track); the other two rules are proven (what they drop is
+        in no track set within ``prune_log_ratio`` of the best).  So with
+        ``sibling_prune_log_ratio = inf``, ``gate_probability = 1`` and a cap that does
+        not bite, a window's MAP track set is the unpruned one.  The refinement's
+        windows prune at their own widths (``refine_prune_log_ratio``).
     k_prior : {"birth", "uniform", "poisson", "weights"}
         Prior p(K) on the number K of targets present in a window (detected or not),
         K = 0..Kmax; the reported p(K | Z) is the exact posterior under it
@@ -128,6 +138,7 @@ class EstimatorSettings:
     gate_probability: float = 0.999
     max_hypotheses_per_tree: int = 64
     prune_log_ratio: float = 9.0
+    sibling_prune_log_ratio: float | None = None
     k_prior: str = "birth"
     k_prior_mean: float = 5.0
     k_prior_weights: tuple[float, ...] = field(default_factory=tuple)
@@ -154,8 +165,10 @@ class EstimatorSettings:
             "gate_probability", self.gate_probability, allow_zero=False, key="gate_probability"
         )
         _set_int(self, "max_hypotheses_per_tree", minimum=1)
-        for name in ("prune_log_ratio", "refine_prune_log_ratio"):
+        for name in ("prune_log_ratio", "sibling_prune_log_ratio", "refine_prune_log_ratio"):
             value = getattr(self, name)
+            if value is None and name == "sibling_prune_log_ratio":
+                continue
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and value >= 0):
                 raise InputError(
                     f"{name} must be a number >= 0 (inf disables), got {value!r}", key=name
@@ -174,6 +187,13 @@ class EstimatorSettings:
         _set_int(self, "refine_passes", minimum=0)
         _set_int(self, "refine_link_gap", minimum=0)
         check_probability("min_existence", self.min_existence, key="min_existence")
+
+    @property
+    def sibling_log_ratio(self) -> float:
+        """The sibling rule's width: ``sibling_prune_log_ratio``, else ``prune_log_ratio``."""
+        if self.sibling_prune_log_ratio is None:
+            return float(self.prune_log_ratio)
+        return float(self.sibling_prune_log_ratio)
 
     def k_estimator(self) -> KEstimator:
         """The estimator of K these settings name."""

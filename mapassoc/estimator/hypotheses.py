@@ -34,7 +34,9 @@ At each scan a node is dropped
 
 * against its **siblings**, the nodes of the same tree at the same scan (they compete
   for the same detections: at most one hypothesis of a tree is selected), when its
-  score is more than ``prune_log_ratio`` below the best of them;
+  score is more than ``sibling_prune_log_ratio`` (by default ``prune_log_ratio``)
+  below the best of them.  A heuristic: the best sibling may conflict with another
+  track, and the branch dropped may then belong to the best set;
 * for a **new tree**, by a **bound on what it can add to a window's best set**: when
   even an optimistic bound of its final score, its score plus the most its path can
   still gain over the window's remaining scans
@@ -530,9 +532,12 @@ class HypothesisGenerator:
     max_hypotheses_per_tree : int
         Most new nodes kept per tree and scan.
     prune_log_ratio : float
-        Nodes scoring more than this below the best node of their tree at the same scan
-        are dropped, and so are nodes of new trees whose optimistic final score (score
-        plus :meth:`remaining_gain_bounds`) is below minus this (module docstring).
+        Nodes of new trees whose optimistic final score (score plus
+        :meth:`remaining_gain_bounds`) is below minus this are dropped (module
+        docstring), and, unless ``sibling_prune_log_ratio`` says otherwise, so are nodes
+        scoring more than this below the best node of their tree at the same scan.
+    sibling_prune_log_ratio : float or None, default None
+        The sibling rule's own width (``inf`` disables it); ``None``: ``prune_log_ratio``.
     """
 
     def __init__(
@@ -544,6 +549,7 @@ class HypothesisGenerator:
         gate_probability: float,
         max_hypotheses_per_tree: int,
         prune_log_ratio: float,
+        sibling_prune_log_ratio: float | None = None,
     ) -> None:
         self.motion = motion
         self.sensors = dict(sensors)
@@ -561,6 +567,14 @@ class HypothesisGenerator:
         self.gate_probability = float(gate_probability)
         self.max_hypotheses_per_tree = int(max_hypotheses_per_tree)
         self.prune_log_ratio = float(prune_log_ratio)
+        self.sibling_prune_log_ratio = float(
+            prune_log_ratio if sibling_prune_log_ratio is None else sibling_prune_log_ratio
+        )
+        if not self.sibling_prune_log_ratio >= 0:
+            raise InputError(
+                "sibling_prune_log_ratio must be >= 0 (inf disables), got "
+                f"{sibling_prune_log_ratio!r}"
+            )
         self._init_model = initiation_model(motion)
         self._converts = needs_conversion(motion)
         self._n_max = max(motion.state_dim, self._init_model.state_dim)
@@ -1179,9 +1193,9 @@ class HypothesisGenerator:
 
         A node passes the score-ratio tests when
 
-        * ``score >= best - prune_log_ratio``, ``best`` the highest score of its tree in
-          this layer (siblings, which compete for the same detections); and, for a node
-          of a new tree,
+        * ``score >= best - sibling_prune_log_ratio``, ``best`` the highest score of its
+          tree in this layer (siblings, which compete for the same detections; a
+          heuristic); and, for a node of a new tree,
         * ``score + gain >= -prune_log_ratio``: ``gain`` bounds what its path can still
           add (:meth:`remaining_gain_bounds`), so a node failing this has only
           descendants scoring below ``-prune_log_ratio``.  A new tree's hypothesis has no
@@ -1216,7 +1230,7 @@ class HypothesisGenerator:
         starts = np.flatnonzero(new_group)
         group_id = np.cumsum(new_group) - 1
         best = s_sorted[starts][group_id]
-        passes = s_sorted >= best - ratio
+        passes = s_sorted >= best - self.sibling_prune_log_ratio
         passes &= ~is_new_tree[t_sorted] | (s_sorted + gain[order] >= -ratio)
         # Rank among the nodes of the tree that pass (a node dropped by the bound takes
         # no place under the cap).

@@ -582,6 +582,7 @@ class WindowEstimator:
             gate_probability=s.gate_probability,
             max_hypotheses_per_tree=s.max_hypotheses_per_tree,
             prune_log_ratio=s.prune_log_ratio,
+            sibling_prune_log_ratio=s.sibling_log_ratio,
         )
         try:
             self.solver = get_integer_solver(s.solver)

@@ -940,8 +940,10 @@ class Refiner:
                 for d in range(det.count)
             }
             uses = np.zeros((problem.num_hypotheses, det.count), dtype=bool)
-            used_ptr, used = gather_rows(hyps.detection_indptr, hyps.detection_indices, base)
-            uses[np.repeat(np.arange(base.size), np.diff(used_ptr)), used] = True
+            use_ptr, use_detections = gather_rows(
+                hyps.detection_indptr, hyps.detection_indices, base
+            )
+            uses[np.repeat(np.arange(base.size), np.diff(use_ptr)), use_detections] = True
             for tid in sorted(current):
                 if not a <= current[tid][0][0] < b:
                     continue

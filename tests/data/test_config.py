@@ -26,7 +26,9 @@ from mapassoc.models.motion import (
 )
 from mapassoc.models.sensor import Region, Sensor
 
-FULL_TOML = MINIMAL_CONFIG_TOML + """
+FULL_TOML = (
+    MINIMAL_CONFIG_TOML
+    + """
 [[sensors]]
 name = "esm"
 measurement = "range_bearing"
@@ -49,6 +51,7 @@ k_prior = "weights"
 k_prior_weights = [1, 2.5, 0]
 k_estimate = "joint"
 """
+)
 
 
 def _full() -> dict[str, object]:
@@ -195,6 +198,21 @@ def test_toml_golden_sections() -> None:
     assert "noise_std = [0.1, 0.2, 0.3]\n" in text
     assert "region = [[-1.0, 1.0], [-2.0, 2.0], [0.0, 10000.0]]\n" in text
     assert 'k_prior = "poisson"\n' in text and "time_limit = 0.001\n" in text
+
+
+def test_the_sibling_width_is_written_only_when_set() -> None:
+    plain = _configs()[0]
+    assert plain.estimator.sibling_prune_log_ratio is None
+    assert "sibling_prune_log_ratio" not in config_to_toml(plain)  # old files write back alike
+    assert plain.estimator.sibling_log_ratio == plain.estimator.prune_log_ratio
+    estimator = EstimatorSettings(prune_log_ratio=6.0, sibling_prune_log_ratio=math.inf)
+    config = Config(
+        motion=plain.motion, sensors=plain.sensors, birth=plain.birth, estimator=estimator
+    )
+    text = config_to_toml(config)
+    assert "prune_log_ratio = 6.0\nsibling_prune_log_ratio = inf\n" in text
+    back = parse_config(tomllib.loads(text))
+    assert back.estimator.sibling_log_ratio == math.inf and back.estimator.prune_log_ratio == 6.0
 
 
 def test_write_and_load_config(tmp_path: Path) -> None:
@@ -351,6 +369,11 @@ BAD_CONFIGS = [
     ),
     (_set(("estimator", "k_prior_weights"), [1]), "estimator.k_prior_weights", "got 1"),
     (_set(("estimator", "k_prior"), "flat"), "estimator.k_prior", "'flat'"),
+    (
+        _set(("estimator", "sibling_prune_log_ratio"), -1.0),
+        "estimator.sibling_prune_log_ratio",
+        "got -1.0",
+    ),
     (_set(("estimator", "gate_probability"), 0.0), "estimator.gate_probability", "got 0.0"),
     (_set(("estimator", "solver"), 3), "estimator.solver", "got 3"),
     (_set(("birth", "rate"), -0.1), "birth.rate", "got -0.1"),
@@ -435,7 +458,9 @@ def test_config_constructor_validates() -> None:
         )
 
 
-TRACKERS_TOML = MINIMAL_CONFIG_TOML + """
+TRACKERS_TOML = (
+    MINIMAL_CONFIG_TOML
+    + """
 [trackers.mht]
 n_scan = 4
 prune_log_ratio = inf
@@ -445,6 +470,7 @@ solver = "highs"
 [trackers."my tracker"]
 level = 0.25
 """
+)
 
 
 def test_tracker_tables_parse_and_round_trip() -> None:
@@ -460,7 +486,7 @@ def test_tracker_tables_parse_and_round_trip() -> None:
     }
     assert isinstance(config.trackers["mht"]["n_scan"], int)
     text = config_to_toml(config)
-    assert '[trackers.mht]\nn_scan = 4\nprune_log_ratio = inf\nm_best_pruning = true\n' in text
+    assert "[trackers.mht]\nn_scan = 4\nprune_log_ratio = inf\nm_best_pruning = true\n" in text
     assert '[trackers."my tracker"]\nlevel = 0.25\n' in text
     _assert_same_config(parse_config(tomllib.loads(text)), config)
     # No table: nothing written, nothing read.

@@ -38,6 +38,7 @@ BAD_ESTIMATOR: dict[str, tuple[object, dict[str, object]]] = {
     "gate_probability": (1.5, {}),
     "max_hypotheses_per_tree": (0, {}),
     "prune_log_ratio": (-1.0, {}),
+    "sibling_prune_log_ratio": (-1.0, {}),
     "k_prior": ("flat", {}),
     "k_prior_mean": (0.0, {}),
     "k_prior_weights": ((1.0,), {"k_prior": "weights", "max_tracks": 2}),
