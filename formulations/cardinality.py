@@ -413,6 +413,7 @@ def exact_cardinality_table(
     *,
     work_limit: int = 1_000_000,
     deadline: float | None = None,
+    work_projection: float | None = None,
 ) -> CardinalityTable:
     """Exact best score, best set and log-mass for every k = 0..kmax.
 
@@ -427,6 +428,9 @@ def exact_cardinality_table(
         Most transitions of the search (deterministic).
     deadline : float, optional
         ``time.perf_counter()`` value past which the search stops.
+    work_projection : float, optional
+        Stop early when on course for more than this many times ``work_limit``
+        (:func:`~mapassoc.formulations.frontier.frontier_search`).
 
     Returns
     -------
@@ -435,9 +439,15 @@ def exact_cardinality_table(
     Raises
     ------
     SearchLimitExceeded
-        Past ``work_limit`` or ``deadline``.
+        Past ``work_limit`` (or its projection) or ``deadline``.
     """
-    found = frontier_search(problem, kmax, work_limit=work_limit, deadline=deadline)
+    found = frontier_search(
+        problem,
+        kmax,
+        work_limit=work_limit,
+        deadline=deadline,
+        work_projection=work_projection,
+    )
     n = found.best.shape[0]
     best = np.full(kmax + 1, _NEG_INF)
     mass = np.full(kmax + 1, _NEG_INF)

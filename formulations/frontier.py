@@ -94,7 +94,9 @@ class SearchLimitExceeded(RuntimeError):
 
     Attributes
     ----------
-    reason : {"work", "deadline"}
+    reason : {"work", "projected", "deadline"}
+        ``"projected"``: stopped early by ``work_projection`` (the search was on course
+        for far more work than its limit).
     work : int
         Transitions done when it stopped.
     """
@@ -236,6 +238,7 @@ def frontier_search(
     deadline: float | None = None,
     max_frontiers: int | None = None,
     entry_margin: float | None = None,
+    work_projection: float | None = None,
 ) -> FrontierResult:
     """Best score, best set and log-mass for every k = 0..kmax by the frontier search.
 
@@ -261,6 +264,16 @@ def frontier_search(
         more than this many nats below its heaviest entry (they hold a negligible share
         of what the frontier carries; dropping them keeps every mass a lower bound and
         bounds the entries per frontier).
+    work_projection : float, optional
+        With ``work_limit``: also stop (reason ``"projected"``) as soon as the work done
+        plus the current step's work repeated for every remaining position exceeds
+        ``work_projection * work_limit``.  The step's work grows or shrinks with the
+        number of frontiers, so this is a projection, not a bound; a factor well above
+        1 makes it stop only searches on course for far more than their limit (a search
+        whose work was still to grow several-fold stops at the limit anyway), and spares
+        the time they would spend before reaching it.  Deterministic, like the limit.
+        Applies to the vectorised search (every hypothesis spans fewer than 64 positions
+        of the resource order, the usual case); the general one stops at the limit.
 
     Returns
     -------
@@ -269,8 +282,12 @@ def frontier_search(
     Raises
     ------
     SearchLimitExceeded
-        Past ``work_limit`` or ``deadline``.
+        Past ``work_limit`` (or its projection) or ``deadline``.
     """
+    if work_projection is not None and not (work_projection >= 1 and work_limit is not None):
+        raise ValueError(
+            f"work_projection must be >= 1 and come with a work_limit, got {work_projection!r}"
+        )
     if int(kmax) != kmax or kmax < 0:
         raise ValueError(f"kmax must be an integer >= 0, got {kmax!r}")
     if work_limit is not None and work_limit < 1:
@@ -291,13 +308,17 @@ def frontier_search(
                 deadline=deadline,
                 max_frontiers=max_frontiers,
                 entry_margin=entry_margin,
+                work_projection=work_projection,
             )
         else:
             main = _result(np.zeros(1), np.zeros(1), [()], 0, 1)
         return _with_lone(main, rest, problem, np.flatnonzero(lone), kmax)
     order = resource_order(problem)
+    projected_limit = (
+        None if work_projection is None or work_limit is None else work_projection * work_limit
+    )
     vectorised = _vectorised_search(
-        problem, kmax, order, work_limit, deadline, max_frontiers, entry_margin
+        problem, kmax, order, work_limit, deadline, max_frontiers, entry_margin, projected_limit
     )
     if vectorised is not None:
         return vectorised
@@ -425,11 +446,13 @@ def _vectorised_search(
     deadline: float | None,
     max_frontiers: int | None = None,
     entry_margin: float | None = None,
+    projected_limit: float | None = None,
 ) -> FrontierResult | None:
     """The frontier search with all frontiers of a step as numpy rows.
 
     ``max_frontiers`` and ``entry_margin`` make it the beam of :func:`frontier_search`
-    (frontiers ranked by their heaviest entry, ties by frontier word).
+    (frontiers ranked by their heaviest entry, ties by frontier word);
+    ``projected_limit`` is its ``work_projection`` times ``work_limit``.
 
     Applies when every hypothesis spans fewer than 64 positions of the resource order
     (then a frontier, taken relative to the current position, is one 64-bit word) and
@@ -492,8 +515,16 @@ def _vectorised_search(
         cols = reach + 1 + grow
         source = np.concatenate([keep, pair_row])
         # Charged before the step's arrays are built, so a limit never overshoots.
-        work += -(-source.size * cols // _VECTOR_ENTRIES_PER_TRANSITION)
+        step_work = -(-source.size * cols // _VECTOR_ENTRIES_PER_TRANSITION)
+        work += step_work
         _check_limits(work, work_limit, deadline)
+        if projected_limit is not None and work + step_work * (R - 1 - step) > projected_limit:
+            raise SearchLimitExceeded(
+                f"frontier search projected past {projected_limit:.0f} transitions "
+                f"(work_projection x its work limit of {work_limit}) after {work}",
+                reason="projected",
+                work=work,
+            )
         if source.size == 0:  # an exactly-once resource no frontier can satisfy
             infeasible = np.full(width, _NEG_INF)
             return _result(infeasible, infeasible, [None] * width, work, widest, exact)

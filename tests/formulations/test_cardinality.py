@@ -45,9 +45,7 @@ def test_clusters_convolve_to_whole(seed: int) -> None:
     whole = exact_cardinality_table(problem, kmax)
     clusters = cluster_hypotheses(problem)
     assert sorted(np.concatenate(clusters).tolist()) == list(range(problem.num_hypotheses))
-    tables = [
-        exact_cardinality_table(problem.subproblem(c), kmax).remapped(c) for c in clusters
-    ]
+    tables = [exact_cardinality_table(problem.subproblem(c), kmax).remapped(c) for c in clusters]
     combined = combine_tables(tables, kmax)
     np.testing.assert_allclose(combined.best, whole.best, atol=1e-9)
     np.testing.assert_allclose(combined.log_mass, whole.log_mass, atol=1e-9)
@@ -57,7 +55,10 @@ def test_clusters_convolve_to_whole(seed: int) -> None:
 def test_ties_go_to_lexicographically_smallest_set() -> None:
     # Two hypotheses compete for one detection with equal scores.
     problem = PackingProblem(
-        np.array([1.5, 1.5]), np.array([0, 1, 2]), np.array([0, 0]), np.zeros(1, bool),
+        np.array([1.5, 1.5]),
+        np.array([0, 1, 2]),
+        np.array([0, 0]),
+        np.zeros(1, bool),
         np.ones(2, bool),
     )
     table = exact_cardinality_table(problem, 2)
@@ -223,3 +224,68 @@ def test_merge_interchangeable_groups_by_resources_and_count(seed: int) -> None:
     merged_table = exact_cardinality_table(merged.problem, 6)
     np.testing.assert_allclose(merged_table.best, whole.best, atol=1e-9)
     np.testing.assert_allclose(merged_table.log_mass, whole.log_mass, atol=1e-9)
+
+
+# ----------------------------------------------------------- the projected work stop
+
+
+def _searches() -> list[tuple[PackingProblem, int]]:
+    from mapassoc.formulations.frontier import frontier_search
+
+    found = []
+    for seed in range(30):
+        rng = np.random.default_rng(3100 + seed)
+        problem = random_problem(rng, int(rng.integers(40, 90)), D=int(rng.integers(10, 25)), G=0)
+        found.append((problem, frontier_search(problem, 12).work))
+    return found
+
+
+def test_the_projection_stops_only_early_and_changes_no_result() -> None:
+    """With a projection, a search either returns exactly what it returns without one, or
+    stops (reason "projected") before its limit; the stop is deterministic."""
+    from mapassoc.formulations.frontier import frontier_search
+
+    stopped = finished = 0
+    for problem, work in _searches():
+        plain = frontier_search(problem, 12)
+        for limit in (work // 8, work // 3, work, 2 * work):
+            limit = max(limit, 1)
+            try:
+                result = frontier_search(problem, 12, work_limit=limit, work_projection=2.0)
+            except SearchLimitExceeded as stop:
+                assert stop.reason in ("work", "projected")
+                if stop.reason == "projected":
+                    assert stop.work <= limit
+                    stopped += 1
+                with pytest.raises(SearchLimitExceeded) as again:
+                    frontier_search(problem, 12, work_limit=limit, work_projection=2.0)
+                assert (again.value.reason, again.value.work) == (stop.reason, stop.work)
+                continue
+            finished += 1
+            assert work <= limit
+            np.testing.assert_array_equal(result.best, plain.best)
+            np.testing.assert_array_equal(result.log_mass, plain.log_mass)
+            assert result.best_sets == plain.best_sets
+    assert stopped >= 10 and finished >= 20  # both outcomes are exercised
+
+
+def test_the_projection_stops_a_hopeless_search_before_its_limit() -> None:
+    from mapassoc.formulations.frontier import frontier_search
+
+    problem, work = max(_searches(), key=lambda pair: pair[1])
+    limit = work // 20
+    with pytest.raises(SearchLimitExceeded) as plain:
+        frontier_search(problem, 12, work_limit=limit)
+    with pytest.raises(SearchLimitExceeded) as projected:
+        frontier_search(problem, 12, work_limit=limit, work_projection=1.5)
+    assert plain.value.reason == "work" and projected.value.reason == "projected"
+    assert projected.value.work < plain.value.work
+
+
+def test_the_projection_needs_a_limit_and_a_factor_of_at_least_one() -> None:
+    from mapassoc.formulations.frontier import frontier_search
+
+    problem, _ = _searches()[0]
+    for bad in ({"work_projection": 2.0}, {"work_projection": 0.5, "work_limit": 10}):
+        with pytest.raises(ValueError, match="work_projection"):
+            frontier_search(problem, 3, **bad)  # type: ignore[arg-type]
