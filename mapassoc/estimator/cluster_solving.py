@@ -16,15 +16,15 @@ per-k table of best scores, best sets and log-masses, and says how it got it:
     or was on course for more than :data:`WORK_PROJECTION` times that (stopped early,
     deterministically, to spare the time it would spend before failing).  A beam
     frontier search (``beam_width`` frontiers) sums a subset of the feasible sets: lower
-    bounds on every log-mass and a feasible set for every k it reaches.  LP relaxations with the cardinality row,
-    walked outward from the best k, bound the best score of every k from above (the LP
-    value is concave in k, so the supporting line of the last LP bounds every k beyond
-    it); where the beam's set does not meet its LP bound and the k can matter (LP
-    bound within ``map_margin`` of the best set found), the integer program is solved.
-    The LP duals also bound every log-mass from above
+    bounds on every log-mass and a feasible set for every k it reaches.  LP relaxations
+    with the cardinality row, walked outward from the best k, bound the best score of
+    every k from above (the LP value is concave in k, so the supporting line of the last
+    LP bounds every k beyond it); where the beam's set does not meet its LP bound and
+    the k can matter (LP bound within ``map_margin`` of the best set found), the integer
+    program is solved. The LP duals also bound every log-mass from above
     (:func:`~mapassoc.formulations.bounds.log_mass_upper_bounds`).  So every k gets a
-    best score that is proven optimal, or a proven upper bound that is reported, and
-    the mass gets an interval ``[log_mass, log_mass_upper]``.
+    best score that is proven optimal, or a proven upper bound that is reported, and the
+    mass gets an interval ``[log_mass, log_mass_upper]``.
 ``time_limit``
     The window's deadline passed: whatever was certified by then is kept, the rest is
     a narrow beam's lower bound and a dual upper bound.  Never a silent wrong answer.
