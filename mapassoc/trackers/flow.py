@@ -104,7 +104,7 @@ from scipy.sparse import coo_array
 from scipy.sparse.csgraph import connected_components
 
 from mapassoc.array_types import FloatArray
-from mapassoc.data.config import Config, check_config
+from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan
 from mapassoc.data.windows import window_spans
 from mapassoc.errors import InputError
@@ -128,7 +128,7 @@ from mapassoc.models.population import UndetectedTargets, recording_start, windo
 from mapassoc.solvers.networkx_flow import NetworkxFlowSolver
 from mapassoc.solvers.results import SolveStatus
 from mapassoc.trackers.base import TrackerOutput, check_scans
-from mapassoc.trackers.management import check_tracker_config
+from mapassoc.trackers.management import check_tracker_config, with_own_gate
 
 __all__ = ["FlowTracker", "FlowWindowReport", "window_tails"]
 
@@ -273,6 +273,9 @@ class FlowTracker:
     config : Config
         Models; ``estimator.gate_probability`` (gate of the links), ``max_tracks``
         (largest K solved per window), ``window_length`` and ``stride`` (defaults).
+    gate_probability : float, optional
+        The links' own gate probability, in (0, 1]; default
+        ``config.estimator.gate_probability``.
     max_gap : int, default 2
         Most consecutive scans a link may skip (0: links join consecutive scans only).
     window_length : int, optional
@@ -299,13 +302,14 @@ class FlowTracker:
         self,
         *,
         config: Config,
+        gate_probability: float | None = None,
         max_gap: int = 2,
         window_length: int | None = None,
         stride: int | None = None,
         solver: str = _SSP,
         name: str = "flow",
     ) -> None:
-        check_config(config)
+        config = with_own_gate(config, gate_probability)
         if isinstance(max_gap, bool) or not isinstance(max_gap, int) or max_gap < 0:
             raise InputError(f"max_gap must be an integer >= 0, got {max_gap!r}")
         length = config.estimator.window_length if window_length is None else window_length

@@ -37,6 +37,7 @@ from mapassoc.trackers.management import (
     check_tracker_config,
     gated_log_ratios,
     management_rule,
+    with_own_gate,
 )
 
 __all__ = ["GnnTracker", "gnn_assignment", "hard_step", "check_ratio_matrix"]
@@ -147,6 +148,9 @@ class GnnTracker:
         Motion, sensor, clutter and birth models; ``config.estimator.gate_probability``
         is the gate.  Every sensor needs ``false_alarms_per_scan > 0`` and
         ``Pd * P_G < 1`` (:func:`~mapassoc.trackers.management.check_tracker_config`).
+    gate_probability : float, optional
+        This tracker's own gate probability, in (0, 1]; default
+        ``config.estimator.gate_probability``.
     management : ScoreRule or MOfNRule, optional
         Confirmation and deletion rule; default :class:`~.management.ScoreRule` ().
     name : str
@@ -157,9 +161,11 @@ class GnnTracker:
         self,
         *,
         config: Config,
+        gate_probability: float | None = None,
         management: ManagementRule | None = None,
         name: str = "gnn",
     ) -> None:
+        config = with_own_gate(config, gate_probability)
         check_tracker_config(config)
         self.config = config
         self.management = management_rule(management)

@@ -73,6 +73,7 @@ from mapassoc.trackers.management import (
     check_tracker_config,
     gated_log_ratios,
     management_rule,
+    with_own_gate,
 )
 
 __all__ = [
@@ -322,6 +323,9 @@ class JpdaTracker:
         Motion, sensor, clutter and birth models; ``config.estimator.gate_probability``
         is the gate.  Every sensor needs ``false_alarms_per_scan > 0`` and
         ``Pd * P_G < 1`` (:func:`~mapassoc.trackers.management.check_tracker_config`).
+    gate_probability : float, optional
+        This tracker's own gate probability, in (0, 1]; default
+        ``config.estimator.gate_probability``.
     management : ScoreRule or MOfNRule, optional
         Confirmation and deletion rule; default :class:`~.management.ScoreRule` ().
     max_events : int
@@ -335,10 +339,12 @@ class JpdaTracker:
         self,
         *,
         config: Config,
+        gate_probability: float | None = None,
         management: ManagementRule | None = None,
         max_events: int = DEFAULT_MAX_EVENTS,
         name: str = "jpda",
     ) -> None:
+        config = with_own_gate(config, gate_probability)
         check_tracker_config(config)
         if isinstance(max_events, bool) or not isinstance(max_events, int) or max_events < 1:
             raise InputError(f"max_events must be an integer >= 1, got {max_events!r}")

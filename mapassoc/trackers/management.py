@@ -77,6 +77,7 @@ __all__ = [
     "TrackStep",
     "check_tracker_config",
     "gated_log_ratios",
+    "with_own_gate",
     "management_rule",
     "new_target_log_ratio",
 ]
@@ -271,6 +272,26 @@ def management_rule(rule: ManagementRule | None) -> ManagementRule:
             f"management must be a ScoreRule or an MOfNRule, got {type(rule).__name__}"
         )
     return rule
+
+
+def with_own_gate(config: Config, gate_probability: float | None) -> Config:
+    """``config`` as a baseline tracker sees it: with its own gate probability, if given.
+
+    The baselines gate with ``config.estimator.gate_probability`` unless their
+    ``gate_probability`` option (``[trackers.<name>] gate_probability = ...``) says
+    otherwise; the option is checked as that setting is (in (0, 1]).
+    """
+    check_config(config)
+    if gate_probability is None:
+        return config
+    if isinstance(gate_probability, bool) or not isinstance(gate_probability, int | float):
+        raise InputError(
+            f"gate_probability must be a number in (0, 1], got {gate_probability!r}",
+            key="gate_probability",
+        )
+    return replace(
+        config, estimator=replace(config.estimator, gate_probability=float(gate_probability))
+    )
 
 
 def check_tracker_config(config: Config) -> None:

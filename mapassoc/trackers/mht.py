@@ -135,6 +135,7 @@ from mapassoc.trackers.management import (
     check_tracker_config,
     gated_log_ratios,
     new_target_log_ratio,
+    with_own_gate,
 )
 from mapassoc.validation import check_integer
 
@@ -317,6 +318,9 @@ class MhtTracker:
         Motion, sensor, clutter and birth models; ``config.estimator.gate_probability``
         is the gate.  Every sensor needs ``false_alarms_per_scan > 0`` and
         ``Pd * P_G < 1`` (:func:`~mapassoc.trackers.management.check_tracker_config`).
+    gate_probability : float, optional
+        This tracker's own gate probability, in (0, 1]; default
+        ``config.estimator.gate_probability``.
     n_scan : int
         N >= 1: the decision of scan ``k - N`` is fixed after scan k.  Default 3.
     m_best : int
@@ -350,6 +354,7 @@ class MhtTracker:
         self,
         *,
         config: Config,
+        gate_probability: float | None = None,
         n_scan: int = 3,
         m_best: int = 1,
         m_best_pruning: bool = False,
@@ -361,6 +366,7 @@ class MhtTracker:
         solver: str = "highs",
         name: str = "mht",
     ) -> None:
+        config = with_own_gate(config, gate_probability)
         check_tracker_config(config)
         self.config = config
         self.n_scan = check_integer("n_scan", n_scan, minimum=1)

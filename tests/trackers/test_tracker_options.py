@@ -38,7 +38,7 @@ def test_a_trackers_table_reaches_the_tracker() -> None:
 
 def test_an_unknown_option_lists_the_trackers_options() -> None:
     config = _config("[trackers.mht]\nnscan = 5\n")
-    listed = "unknown option 'nscan'; options of 'mht': n_scan,"
+    listed = "unknown option 'nscan'; options of 'mht': gate_probability, n_scan,"
     with pytest.raises(InputError, match=listed) as info:
         build_tracker("mht", config=config)
     assert info.value.key == "trackers.mht.nscan"
@@ -125,3 +125,29 @@ def test_the_command_lines_options_are_toml_values() -> None:
     }
     with pytest.raises(InputError, match="TRACKER.OPTION=VALUE"):
         _tracker_options(["n_scan=5"])
+
+
+@pytest.mark.parametrize("name", ["gnn", "jpda", "mht", "flow"])
+def test_each_baseline_gates_at_its_own_probability(name: str) -> None:
+    config = _config(f"[trackers.{name}]\ngate_probability = 0.9\n")
+    own = build_tracker(name, config=config)
+    assert own.config.estimator.gate_probability == 0.9  # type: ignore[attr-defined]
+    assert config.estimator.gate_probability == 0.999  # the estimator's own is untouched
+    default = build_tracker(name, config=_config())
+    assert default.config.estimator.gate_probability == 0.999  # type: ignore[attr-defined]
+    with pytest.raises(InputError, match="gate_probability") as info:
+        build_tracker(name, config=_config(f"[trackers.{name}]\ngate_probability = 1.5\n"))
+    assert info.value.key == f"trackers.{name}.gate_probability"
+
+
+def test_a_narrow_gate_changes_what_gnn_associates() -> None:
+    from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
+
+    scenario = truncate_scenario(build_scenario("crossing", 0), 20)
+    wide = GnnTracker(config=scenario.config).track(scenario.scans)
+    narrow = GnnTracker(config=scenario.config, gate_probability=0.05).track(scenario.scans)
+
+    def associated(output: TrackerOutput) -> int:
+        return sum(len(rows) for rows in (output.associations or {}).values())
+
+    assert associated(narrow) < associated(wide)
