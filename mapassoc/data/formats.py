@@ -190,9 +190,9 @@ def write_detections_file(
 ) -> None:
     """Write a detections file in the format of its suffix.
 
-    A CSV file does not hold the detection ids: reading it gives the line numbers (call
-    :func:`mapassoc.data.io.number_rows` first to keep them equal); a Parquet file keeps
-    them.  See :func:`mapassoc.data.io.write_detections` and
+    Both formats keep the detection ids: a CSV file gets a ``detection_id`` column
+    unless the ids are its line numbers (:func:`mapassoc.data.io.number_rows`).  See
+    :func:`mapassoc.data.io.write_detections` and
     :func:`mapassoc.data.parquet.write_detections_parquet`.
     """
     _function(path, "write", "detections")(path, scans, sensors)

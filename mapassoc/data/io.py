@@ -453,10 +453,11 @@ def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str
     """Write scans as a detections file (format 1 of the module docstring).
 
     Scans are written in the given order, one line per detection and one line per empty
-    scan, always with the ``sensor`` column.  ``Scan.rows`` (the detection ids) is not
-    written: reading the file gives every detection its line number as id.  Call
-    :func:`number_rows` first so that the scans' ``rows`` agree with the file (the Parquet
-    writer, :func:`mapassoc.data.parquet.write_detections_parquet`, keeps any ids).
+    scan, always with the ``sensor`` column.  The detection ids (``Scan.rows``) survive
+    the round trip: when they are the line numbers reading the file would give (scans
+    from a CSV file, or after :func:`number_rows`) the file has no id column, as it
+    always had; otherwise a last ``detection_id`` column holds them (empty on the lines
+    of empty scans), as the Parquet writer keeps them.
 
     Parameters
     ----------
@@ -481,21 +482,37 @@ def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str
     union = measurement_columns(sensor_list)
     check_scans_for_writing(scans, sensors)
     position_of = {name: index for index, name in enumerate(union)}
+    with_ids = not _rows_are_line_numbers(scans)
 
     def rows() -> Iterator[list[str]]:
         for scan in scans:
             names = sensors[scan.sensor].measurement.component_names
             prefix = [_float_text(scan.time), scan.sensor]
             if scan.size == 0:
-                yield prefix + [""] * len(union)
+                yield prefix + [""] * (len(union) + with_ids)
                 continue
-            for detection in scan.detections:
+            for detection, row in zip(scan.detections, scan.rows.tolist(), strict=True):
                 cells = [""] * len(union)
                 for name, value in zip(names, detection, strict=True):
                     cells[position_of[name]] = _float_text(value)
-                yield prefix + cells
+                yield prefix + cells + ([str(int(row))] if with_ids else [])
 
-    _write_rows(path, ["time", "sensor", *union], rows())
+    header = ["time", "sensor", *union] + ([DETECTION_ID] if with_ids else [])
+    _write_rows(path, header, rows())
+
+
+def _rows_are_line_numbers(scans: Sequence[Scan]) -> bool:
+    """Whether every detection id is the line number the detections file gives it."""
+    line = FIRST_DATA_LINE
+    for scan in scans:
+        if scan.size == 0:
+            line += 1
+            continue
+        expected = np.arange(line, line + scan.size, dtype=np.int64)
+        if not np.array_equal(scan.rows, expected):
+            return False
+        line += scan.size
+    return True
 
 
 def number_rows(scans: Sequence[Scan]) -> list[Scan]:

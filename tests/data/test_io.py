@@ -142,7 +142,7 @@ def test_write_detections_golden_text(tmp_path: Path) -> None:
         _scan(1.0, "radar", [], 2),
     ]
     path = tmp_path / "d.csv"
-    write_detections(path, scans, SENSORS)
+    write_detections(path, number_rows(scans), SENSORS)  # ids = lines: no id column
     assert path.read_text(encoding="utf-8") == (
         f"{HEADER}\n"
         "0.0,radar,,,1.5,-2.0,\n"
@@ -162,6 +162,29 @@ def test_write_detections_golden_text(tmp_path: Path) -> None:
     assert back[1].detections.tolist() == [[1.5, -2.0], [0.1, 1e-05]]
     assert back[3].detections.shape == (0, 2)
     assert np.signbit(back[2].detections[0, 2])
+
+
+def test_ids_other_than_the_line_numbers_are_written_and_read_back(tmp_path: Path) -> None:
+    scans = [
+        Scan(0.0, "radar", np.array([[1.5, -2.0], [0.1, 1e-05]]), np.array([10, 0])),
+        Scan(0.0, "esm", np.zeros((0, 2)), np.zeros(0, dtype=np.int64)),
+        Scan(1.0, "radar", np.array([[5.0, 6.0]]), np.array([7])),
+    ]
+    path = tmp_path / "ids.csv"
+    write_detections(path, scans, SENSORS)
+    assert path.read_text(encoding="utf-8") == (
+        f"{HEADER},detection_id\n"
+        "0.0,radar,,,1.5,-2.0,,10\n"
+        "0.0,radar,,,0.1,1e-05,,0\n"
+        "0.0,esm,,,,,,\n"
+        "1.0,radar,,,5.0,6.0,,7\n"
+    )
+    back = read_detections(path, SENSORS)
+    assert [(s.time, s.sensor, s.rows.tolist()) for s in back] == [
+        (0.0, "esm", []),
+        (0.0, "radar", [10, 0]),
+        (1.0, "radar", [7]),
+    ]
 
 
 def test_single_sensor_without_sensor_column(tmp_path: Path) -> None:
