@@ -125,9 +125,9 @@ def exclusive_groups(problem: PackingProblem) -> tuple[NDArray[np.int64], NDArra
     top = np.full(H, -1, dtype=np.int64)
     np.maximum.at(top, owner, rank)
     most_used = np.where(top >= 0, R - top % (R + 1), 0)
-    key = np.where(required < R, required, np.where(top >= 0, most_used, R + np.arange(H))).astype(
-        np.int64
-    )
+    key = np.where(
+        required < R, required, np.where(top >= 0, most_used, R + np.arange(H))
+    ).astype(np.int64)
     labels, group_of = np.unique(key, return_inverse=True)
     members = np.bincount(group_of, minlength=labels.size)
     closed = np.zeros(labels.size, dtype=bool)

@@ -172,9 +172,8 @@ class TrackingFlow:
             if tail in successor:
                 raise ValueError(f"item {tail} has two outgoing links with flow")
             successor[tail] = (int(heads[e]) - 2) // 2
-        starts = sorted(
-            int(self.edge_item[e]) for e in np.flatnonzero(used & (self.edge_kind == EDGE_ENTRY))
-        )
+        starts = sorted(int(self.edge_item[e]) for e in np.flatnonzero(
+            used & (self.edge_kind == EDGE_ENTRY)))
         paths = []
         for item in starts:
             path = [item]
@@ -211,7 +210,9 @@ def _check_links(
         outside = (ends < 0) | (ends >= n)
         if np.any(outside):
             e = int(np.flatnonzero(outside)[0])
-            raise ValueError(f"{name}[{e}] = {int(ends[e])}; expected an item index in 0..{n - 1}")
+            raise ValueError(
+                f"{name}[{e}] = {int(ends[e])}; expected an item index in 0..{n - 1}"
+            )
     if np.any(tails >= heads):
         e = int(np.flatnonzero(tails >= heads)[0])
         raise ValueError(
@@ -289,16 +290,12 @@ def tracking_flow_program(
     has_entry = np.flatnonzero(np.isfinite(entry))
     has_exit = np.flatnonzero(np.isfinite(exits))
     parts = [
-        (
-            EDGE_ENTRY,
-            has_entry,
-            np.full(has_entry.size, SOURCE),
-            _in_node(has_entry),
-            entry[has_entry],
-        ),
+        (EDGE_ENTRY, has_entry, np.full(has_entry.size, SOURCE), _in_node(has_entry),
+         entry[has_entry]),
         (EDGE_OBSERVATION, items, _in_node(items), _out_node(items), observation),
         (EDGE_LINK, tails, _out_node(tails), _in_node(heads), costs),
-        (EDGE_EXIT, has_exit, _out_node(has_exit), np.full(has_exit.size, SINK), exits[has_exit]),
+        (EDGE_EXIT, has_exit, _out_node(has_exit), np.full(has_exit.size, SINK),
+         exits[has_exit]),
     ]
     kind = np.concatenate([np.full(p[1].size, p[0], dtype=np.int64) for p in parts])
     edge_item = np.concatenate([p[1] for p in parts]).astype(np.int64)

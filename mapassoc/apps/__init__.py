@@ -1,1 +1,2 @@
-"""Applications: the command line, the benchmark, the demo and plots."""
+"""Applications: the command line, the benchmark, the demo and plots.
+"""

@@ -124,7 +124,9 @@ def _from_folder(source: Path) -> list[Recording]:
             )
         elif entry.suffix.lower() in detection_formats():
             config = entry.with_suffix(".toml")
-            recordings.append(Recording(entry.stem, entry, config if config.is_file() else None))
+            recordings.append(
+                Recording(entry.stem, entry, config if config.is_file() else None)
+            )
     return recordings
 
 
@@ -246,10 +248,8 @@ def run_recording(
         )
         if outcome.status == "complete":
             done = int(summary["scans"]) - outcome.resumed_at
-            row.update(
-                seconds=round(seconds, 3),
-                scans_per_second=round(done / seconds, 2) if seconds > 0 else "",
-            )
+            row.update(seconds=round(seconds, 3),
+                       scans_per_second=round(done / seconds, 2) if seconds > 0 else "")
     return row
 
 
@@ -417,14 +417,8 @@ def _blank_row(
     """A summary row of ``recording`` with its name, folder and detections; the counts
     empty."""
     row: dict[str, object] = {column: "" for column in SUMMARY_COLUMNS}
-    row.update(
-        name=recording.name,
-        status=status,
-        error=error,
-        out=str(out / recording.name),
-        detections=str(recording.detections),
-        config=config,
-    )
+    row.update(name=recording.name, status=status, error=error, out=str(out / recording.name),
+               detections=str(recording.detections), config=config)
     return row
 
 
@@ -434,9 +428,8 @@ def _row_of(future: Any, recording: Recording, out: Path, *, what: str) -> dict[
     try:
         return future.result()
     except Exception as exc:  # e.g. BrokenProcessPool: the worker died
-        return _blank_row(
-            recording, out, status="failed", error=f"{what} failed: {type(exc).__name__}: {exc}"
-        )
+        return _blank_row(recording, out, status="failed",
+                          error=f"{what} failed: {type(exc).__name__}: {exc}")
 
 
 def _dask_stop(event_name: str) -> Callable[[], bool]:

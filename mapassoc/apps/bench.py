@@ -821,7 +821,8 @@ def _comparison_text(summaries: Sequence[FamilySummary], priors: Sequence[str]) 
         for prior in priors
     }
     brier = {
-        prior: float(np.mean([by_key[f, prior].k_brier_mean for f in families])) for prior in priors
+        prior: float(np.mean([by_key[f, prior].k_brier_mean for f in families]))
+        for prior in priors
     }
     lines.append(
         f"  {'mean':{width}s}"

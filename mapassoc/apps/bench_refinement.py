@@ -219,7 +219,7 @@ def run_refinement_benchmark(
             for method, tracks, seconds, objective_value in runs:
                 rows.append(_score(family, seed, method, scenario, tracks, targets, seconds,
                                    objective_value))  # fmt: skip
-            say(_run_line(family, seed, rows[-len(runs) :]))
+            say(_run_line(family, seed, rows[-len(runs):]))
     _print_summary(rows, families, say)
     _print_reliability(reliability, say)
     if json_path is not None:

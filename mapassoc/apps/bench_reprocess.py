@@ -74,10 +74,8 @@ def startup_times(repeats: int = 5) -> dict[str, float]:
         seconds = sorted(run_child(arguments).seconds for _ in range(repeats))
         out[f"{label} median"], out[f"{label} max"] = seconds[len(seconds) // 2], seconds[-1]
         met = "met" if seconds[len(seconds) // 2] < STARTUP_GOAL_SECONDS else "NOT met"
-        print(
-            f"  mapassoc {label:10s} {seconds[len(seconds) // 2]:.3f} / {seconds[-1]:.3f} s"
-            f"  ({met})"
-        )
+        print(f"  mapassoc {label:10s} {seconds[len(seconds) // 2]:.3f} / {seconds[-1]:.3f} s"
+              f"  ({met})")
     return out
 
 
@@ -168,65 +166,39 @@ def run_reprocess_benchmark(
                                "--overwrite"])  # fmt: skip
             detections = sum(1 for _ in open(scen / "detections.csv")) - 1
             print(f"long recording: {long_family}, {long_scans} scans, {detections} lines")
-            print(
-                f"  {child.seconds:7.1f} s  {long_scans / child.seconds:7.1f} scans/s  "
-                f"peak memory {child.max_rss_mb:.0f} MB"
-            )
-            results["long"] = {
-                "family": long_family,
-                "scans": long_scans,
-                "seconds": child.seconds,
-                "max_rss_mb": child.max_rss_mb,
-            }
+            print(f"  {child.seconds:7.1f} s  {long_scans / child.seconds:7.1f} scans/s  "
+                  f"peak memory {child.max_rss_mb:.0f} MB")
+            results["long"] = {"family": long_family, "scans": long_scans,
+                               "seconds": child.seconds, "max_rss_mb": child.max_rss_mb}
         segments_out = {}
         if segment_scans and segment_families:
-            print(
-                f"segments: {segment_scans} scans, sequential vs --segments {workers} "
-                f"--jobs {workers}"
-            )
+            print(f"segments: {segment_scans} scans, sequential vs --segments {workers} "
+                  f"--jobs {workers}")
         for family in segment_families if segment_scans else ():
             scen = root / f"seg-{family}"
             run_child(["simulate", family, "--scans", str(segment_scans), "--seed", "0",
                        "--out", str(scen), "--overwrite"])  # fmt: skip
             runs = {}
-            for label, extra in (
-                ("sequential", []),
-                ("segments", ["--segments", str(max(2, workers)), "--jobs", str(workers)]),
-            ):
+            for label, extra in (("sequential", []),
+                                 ("segments", ["--segments", str(max(2, workers)),
+                                               "--jobs", str(workers)])):
                 folder = root / f"seg-{family}-{label}"
-                runs[label] = run_child(
-                    [
-                        "run",
-                        str(scen / "config.toml"),
-                        str(scen / "detections.csv"),
-                        "--out",
-                        str(folder),
-                        "--no-progress",
-                        "--overwrite",
-                        *extra,
-                    ]
-                )
+                runs[label] = run_child(["run", str(scen / "config.toml"),
+                                         str(scen / "detections.csv"), "--out", str(folder),
+                                         "--no-progress", "--overwrite", *extra])
             # fmt: skip
-            sets = {
-                label: _track_sets(root / f"seg-{family}-{label}" / "tracks.csv") for label in runs
-            }
-            gospa = {
-                label: _gospa(root / f"seg-{family}-{label}" / "tracks.csv", scen / "truth.csv")
-                for label in runs
-            }
+            sets = {label: _track_sets(root / f"seg-{family}-{label}" / "tracks.csv")
+                    for label in runs}
+            gospa = {label: _gospa(root / f"seg-{family}-{label}" / "tracks.csv",
+                                   scen / "truth.csv") for label in runs}
             speedup = runs["sequential"].seconds / runs["segments"].seconds
             same_tracks = len(sets["sequential"] & sets["segments"])
-            print(
-                f"  {family:10s} x{speedup:.2f}  GOSPA {gospa['segments']:.3f} vs "
-                f"{gospa['sequential']:.3f}  same tracks {same_tracks} of "
-                f"{len(sets['sequential'])} ({len(sets['segments'])} stitched)"
-            )
-            segments_out[family] = {
-                "speedup": speedup,
-                "gospa": gospa,
-                "same_tracks": same_tracks,
-                "tracks": {k: len(v) for k, v in sets.items()},
-            }
+            print(f"  {family:10s} x{speedup:.2f}  GOSPA {gospa['segments']:.3f} vs "
+                  f"{gospa['sequential']:.3f}  same tracks {same_tracks} of "
+                  f"{len(sets['sequential'])} ({len(sets['segments'])} stitched)")
+            segments_out[family] = {"speedup": speedup, "gospa": gospa,
+                                    "same_tracks": same_tracks,
+                                    "tracks": {k: len(v) for k, v in sets.items()}}
         if segments_out:
             results["segments"] = segments_out
     return results

@@ -72,7 +72,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise OutputError(str(out), "is a file, not a folder; choose another --out")
     if out.is_dir() and any(out.iterdir()) and not args.overwrite:
-        raise OutputError(str(out), "is not empty; pass --overwrite to replace its scenario files")
+        raise OutputError(
+            str(out), "is not empty; pass --overwrite to replace its scenario files"
+        )
     paths = write_scenario(scenario, out, data_format=args.format)
     for kind, path in paths.items():
         print(f"{kind:10s} {path}")
@@ -122,7 +124,8 @@ def _cmd_estimate_parameters(args: argparse.Namespace) -> int:
     how = "converged" if estimate.converged else "pass limit"
     print(
         f"{_count(len(estimate.passes), 'pass')} ({how}) over "
-        f"{_count(estimate.sample_scans, 'scan')}" + (f" -> {args.write}" if args.write else "")
+        f"{_count(estimate.sample_scans, 'scan')}"
+        + (f" -> {args.write}" if args.write else "")
     )
     for message in report.warnings:
         print(f"mapassoc: warning: {message}", file=sys.stderr)
@@ -321,7 +324,8 @@ def _tracker_options(
         tracker, dot, option = target.strip().partition(".")
         if not (sep and dot and tracker and option):
             raise InputError(
-                f"--option must look like TRACKER.OPTION=VALUE (such as mht.n_scan=5), got {text!r}"
+                f"--option must look like TRACKER.OPTION=VALUE (such as mht.n_scan=5), "
+                f"got {text!r}"
             )
         value: TrackerOption
         try:
@@ -464,7 +468,7 @@ def _add_estimate_parameters_command(sub: Subcommands) -> None:
         "and with --write writes the configuration with the estimates filled in.",
         allow_abbrev=False,
     )
-    p.add_argument("config", help='TOML configuration (numbers or "auto")')
+    p.add_argument("config", help="TOML configuration (numbers or \"auto\")")
     p.add_argument("detections", help="detections file, CSV or Parquet by its suffix")
     p.add_argument("--write", metavar="TOML", help="write the estimated configuration here "
                    "(a new file)")  # fmt: skip
@@ -487,7 +491,9 @@ def _add_batch_command(sub: Subcommands) -> None:
     )
     p.add_argument("source", help="folder of recordings, or a CSV list of them")
     p.add_argument("--out", required=True, help="batch folder (one run folder per recording)")
-    p.add_argument("--config", help="shared TOML configuration, for recordings without their own")
+    p.add_argument(
+        "--config", help="shared TOML configuration, for recordings without their own"
+    )
     p.add_argument(
         "--jobs",
         type=int,
@@ -511,7 +517,9 @@ def _add_batch_command(sub: Subcommands) -> None:
     p.add_argument(
         "--checkpoint-seconds", type=float, default=10.0, metavar="SECONDS", help="as for `run`"
     )
-    p.add_argument("--tracks-format", choices=format_names(), default="csv", help="as for `run`")
+    p.add_argument(
+        "--tracks-format", choices=format_names(), default="csv", help="as for `run`"
+    )
     p.set_defaults(func=_cmd_batch)
 
 
@@ -647,38 +655,31 @@ def _add_bench_command(sub: Subcommands) -> None:
     p.set_defaults(func=_cmd_bench)
 
 
+
 def _add_bench_parameters_command(sub: Subcommands) -> None:
     """``mapassoc bench-parameters``."""
     from mapassoc.apps.bench_defaults import DEFAULT_PARAMETER_FAMILIES
 
     p = sub.add_parser(
         "bench-parameters",
-        help='misstated clutter rate and Pd against "auto" and the truth, per family',
+        help="misstated clutter rate and Pd against \"auto\" and the truth, per family",
         description="Per family and seed (generic configuration): GOSPA of runs with the "
-        'rate x0.25, x0.5, x2, x4 and Pd -0.15, +0.15 and of the "auto" estimate, '
+        "rate x0.25, x0.5, x2, x4 and Pd -0.15, +0.15 and of the \"auto\" estimate, "
         "each divided by the run with the true values; the estimates beside the truth; "
-        'the cost of "auto" in true runs\' time.',
+        "the cost of \"auto\" in true runs' time.",
         allow_abbrev=False,
     )
-    p.add_argument(
-        "--families",
-        type=_comma_separated,
-        default=",".join(DEFAULT_PARAMETER_FAMILIES),
-        metavar="NAME,...",
-        help=f"one-sensor scenario families (default {','.join(DEFAULT_PARAMETER_FAMILIES)})",
-    )
-    p.add_argument(
-        "--seeds", type=int, default=2, metavar="N", help="seeds 0..N-1 per family (default 2)"
-    )
-    p.add_argument(
-        "--time-limit",
-        type=float,
-        default=2.0,
-        metavar="SECONDS",
-        help="estimator time limit per window (default 2.0)",
-    )
+    p.add_argument("--families", type=_comma_separated,
+                   default=",".join(DEFAULT_PARAMETER_FAMILIES), metavar="NAME,...",
+                   help=f"one-sensor scenario families (default "
+                   f"{','.join(DEFAULT_PARAMETER_FAMILIES)})")
+    p.add_argument("--seeds", type=int, default=2, metavar="N",
+                   help="seeds 0..N-1 per family (default 2)")
+    p.add_argument("--time-limit", type=float, default=2.0, metavar="SECONDS",
+                   help="estimator time limit per window (default 2.0)")
     p.add_argument("--json", metavar="PATH", help="also write the runs to this JSON file")
     p.set_defaults(func=_cmd_bench_parameters)
+
 
 
 def _add_bench_refinement_command(sub: Subcommands) -> None:
@@ -694,23 +695,13 @@ def _add_bench_refinement_command(sub: Subcommands) -> None:
         "the oracle, then the means beside the goals.",
         allow_abbrev=False,
     )
-    p.add_argument(
-        "--families",
-        type=_comma_separated,
-        default=",".join(DEFAULT_REFINEMENT_FAMILIES),
-        metavar="NAME,...",
-        help=f"scenario families (default {','.join(DEFAULT_REFINEMENT_FAMILIES)})",
-    )
-    p.add_argument(
-        "--seeds", type=int, default=5, metavar="N", help="seeds 0..N-1 per family (default 5)"
-    )
-    p.add_argument(
-        "--time-limit",
-        type=float,
-        default=2.0,
-        metavar="SECONDS",
-        help="estimator time limit per window (default 2.0)",
-    )
+    p.add_argument("--families", type=_comma_separated,
+                   default=",".join(DEFAULT_REFINEMENT_FAMILIES), metavar="NAME,...",
+                   help=f"scenario families (default {','.join(DEFAULT_REFINEMENT_FAMILIES)})")
+    p.add_argument("--seeds", type=int, default=5, metavar="N",
+                   help="seeds 0..N-1 per family (default 5)")
+    p.add_argument("--time-limit", type=float, default=2.0, metavar="SECONDS",
+                   help="estimator time limit per window (default 2.0)")
     p.add_argument("--json", metavar="PATH", help="also write the runs to this JSON file")
     p.add_argument(
         "--option",
@@ -734,52 +725,23 @@ def _add_bench_reprocess_command(sub: Subcommands) -> None:
         "every command runs in a child process.",
         allow_abbrev=False,
     )
-    p.add_argument(
-        "--recordings",
-        type=int,
-        default=6,
-        metavar="R",
-        help="batch recordings (default 6; 0 skips the batch)",
-    )
-    p.add_argument(
-        "--scans",
-        type=int,
-        default=300,
-        metavar="S",
-        help="scans per batch recording (default 300)",
-    )
-    p.add_argument(
-        "--long-scans",
-        type=int,
-        default=10_000,
-        metavar="L",
-        help="scans of the long recording (default 10000; 0 skips it)",
-    )
-    p.add_argument(
-        "--long-family",
-        default="crossing",
-        metavar="NAME",
-        help="scenario of the long recording (default crossing)",
-    )
-    p.add_argument(
-        "--segment-families",
-        type=_comma_separated,
-        default="crossing,dense",
-        metavar="NAME,...",
-        help="scenarios of the segments comparison",
-    )
-    p.add_argument(
-        "--segment-scans",
-        type=int,
-        default=1000,
-        metavar="M",
-        help="scans of each segments recording (default 1000; 0 skips it)",
-    )
-    p.add_argument(
-        "--jobs", type=int, default=None, metavar="N", help="pool size (default: every usable core)"
-    )
+    p.add_argument("--recordings", type=int, default=6, metavar="R",
+                   help="batch recordings (default 6; 0 skips the batch)")
+    p.add_argument("--scans", type=int, default=300, metavar="S",
+                   help="scans per batch recording (default 300)")
+    p.add_argument("--long-scans", type=int, default=10_000, metavar="L",
+                   help="scans of the long recording (default 10000; 0 skips it)")
+    p.add_argument("--long-family", default="crossing", metavar="NAME",
+                   help="scenario of the long recording (default crossing)")
+    p.add_argument("--segment-families", type=_comma_separated, default="crossing,dense",
+                   metavar="NAME,...", help="scenarios of the segments comparison")
+    p.add_argument("--segment-scans", type=int, default=1000, metavar="M",
+                   help="scans of each segments recording (default 1000; 0 skips it)")
+    p.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="pool size (default: every usable core)")
     p.add_argument("--json", metavar="PATH", help="also write the numbers to this JSON file")
     p.set_defaults(func=_cmd_bench_reprocess)
+
 
 
 def _add_compare_command(sub: Subcommands) -> None:
@@ -821,7 +783,9 @@ def _add_compare_command(sub: Subcommands) -> None:
         help="each scenario's own configuration or the untuned generic one (default scenario)",
     )
     p.add_argument("--scans", type=int, default=None, metavar="N", help="first N scans only")
-    p.add_argument("--window-length", type=int, default=None, metavar="N", help="scans per window")
+    p.add_argument(
+        "--window-length", type=int, default=None, metavar="N", help="scans per window"
+    )
     p.add_argument(
         "--ospa2-window",
         type=int,

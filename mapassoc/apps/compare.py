@@ -218,7 +218,9 @@ def compare(
                     "scans_per_second": float("nan"),
                 }
                 try:
-                    tracker = build_tracker(name, config=run_config, origins=scenario.origins)
+                    tracker = build_tracker(
+                        name, config=run_config, origins=scenario.origins
+                    )
                     start = time.perf_counter()
                     output = tracker.track(scenario.scans)
                     seconds = time.perf_counter() - start
@@ -256,8 +258,7 @@ def summarize(table: pd.DataFrame) -> pd.DataFrame:
         raise InputError(f"table lacks the columns {missing}: pass the result of compare()")
     ok = table[table["status"] == "ok"]
     numeric = [
-        col
-        for col in ok.columns
+        col for col in ok.columns
         if col not in (*_SUMMARY_KEYS, "seed", "status") and pd.api.types.is_numeric_dtype(ok[col])
     ]
     means = ok.groupby(list(_SUMMARY_KEYS), sort=False)[numeric].mean()

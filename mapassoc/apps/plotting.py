@@ -231,7 +231,9 @@ def draw_tracks(
                 zorder=2,
             )  # fmt: skip
     if targets:
-        handles.append(Line2D([], [], label=f"truth ({len(targets)} targets)", **truth_style))
+        handles.append(
+            Line2D([], [], label=f"truth ({len(targets)} targets)", **truth_style)
+        )
     if estimated:
         handles.append(
             Line2D([], [], ls="", marker="o", ms=6, mfc="white", mec="0.2",
@@ -277,10 +279,7 @@ def draw_tracks(
     if estimated and not each:
         handles.append(
             Line2D(
-                [],
-                [],
-                lw=1.6,
-                color=_TRACK_COLOURS[0],
+                [], [], lw=1.6, color=_TRACK_COLOURS[0],
                 label=f"tracks ({len(estimated)}), id at end",
             )  # fmt: skip
         )
@@ -343,7 +342,8 @@ def draw_comparison(axes: Sequence[Axes], summary: pd.DataFrame) -> None:
         for i, tracker in enumerate(trackers):
             rows = summary[summary["tracker"] == tracker].set_index("scenario")
             values = [
-                float(rows[column].get(s, np.nan)) if column in rows else np.nan for s in scenarios
+                float(rows[column].get(s, np.nan)) if column in rows else np.nan
+                for s in scenarios
             ]
             ax.bar(positions + i * width, values, width, label=tracker)
         ax.set_xticks(positions + 0.4 - width / 2, scenarios, rotation=20)

@@ -199,7 +199,9 @@ class RunFolder:
         """Raise OutputError when ``OUT`` cannot be a folder (a file, below a file)."""
         for candidate in (self.path, self.partial):
             if candidate.exists() and not candidate.is_dir():
-                raise OutputError(str(candidate), "is a file, not a folder; choose another --out")
+                raise OutputError(
+                    str(candidate), "is a file, not a folder; choose another --out"
+                )
         parent = self.path.parent
         while not parent.exists() and parent != parent.parent:
             parent = parent.parent
@@ -288,7 +290,8 @@ class RunFolder:
             handle.close()
             raise OutputError(
                 str(self.partial),
-                f"another mapassoc run (pid {owner}) is writing it; wait for it to end or stop it",
+                f"another mapassoc run (pid {owner}) is writing it; wait for it to end or "
+                "stop it",
             ) from None
         handle.seek(0)
         handle.truncate()

@@ -147,10 +147,13 @@ class RunOptions:
         if self.overwrite and self.resume:
             raise InputError("--overwrite and --resume exclude each other; choose one")
         if not (self.checkpoint_seconds >= 0):
-            raise InputError(f"checkpoint_seconds must be >= 0, got {self.checkpoint_seconds!r}")
+            raise InputError(
+                f"checkpoint_seconds must be >= 0, got {self.checkpoint_seconds!r}"
+            )
         if self.tracks_format not in format_names():
             raise InputError(
-                f"tracks_format must be one of {sorted(format_names())}, got {self.tracks_format!r}"
+                f"tracks_format must be one of {sorted(format_names())}, got "
+                f"{self.tracks_format!r}"
             )
         # Stored as an int: the run's settings record is written to JSON.
         object.__setattr__(self, "segments", check_integer("segments", self.segments, minimum=1))
@@ -286,7 +289,9 @@ def _with_estimates(config: Any, parameters: dict[str, Any]) -> Any:
 
 def _as_warnings(messages: Iterable[str]) -> list[warnings.WarningMessage]:
     """Messages in the shape of recorded warnings (to join the configuration's)."""
-    return [warnings.WarningMessage(message, UserWarning, __file__, 0) for message in messages]
+    return [
+        warnings.WarningMessage(message, UserWarning, __file__, 0) for message in messages
+    ]
 
 
 def _integer_solvers() -> tuple[str, ...]:
@@ -329,9 +334,8 @@ def _settings_record(
     }
 
 
-def _same_run(
-    manifest: dict[str, Any], inputs: dict[str, Any], settings: dict[str, Any], folder: Path
-) -> None:
+def _same_run(manifest: dict[str, Any], inputs: dict[str, Any], settings: dict[str, Any],
+              folder: Path) -> None:
     """Raise InputError unless ``manifest`` is of a run over the same inputs and settings."""
     for kind in ("config", "detections"):
         before = manifest["inputs"][kind]
@@ -342,7 +346,9 @@ def _same_run(
                 f"{before['sha256'][:12]}...); pass --overwrite to start again"
             )
     if manifest["settings"] != json.loads(json.dumps(settings)):
-        changed = sorted(key for key in settings if manifest["settings"].get(key) != settings[key])
+        changed = sorted(
+            key for key in settings if manifest["settings"].get(key) != settings[key]
+        )
         raise InputError(
             f"cannot resume {folder}: settings {changed} differ from those the run started "
             "with (for example --no-timings or --segments); resume with the same options, "
@@ -464,13 +470,8 @@ def run_files(
                 summary: dict[str, Any] = json.loads(
                     (folder.path / SUMMARY_NAME).read_text(encoding="utf-8")
                 )
-                return RunOutcome(
-                    folder.path,
-                    "complete",
-                    summary,
-                    int(partial["scans_total"]),
-                    time.perf_counter() - t_session,
-                )
+                return RunOutcome(folder.path, "complete", summary, int(partial["scans_total"]),
+                                  time.perf_counter() - t_session)
             checkpoint = folder.read_checkpoint()  # type: ignore[assignment]
             if checkpoint is not None:
                 manifest = partial
@@ -673,7 +674,9 @@ def _run_segments(
     from mapassoc.apps.workers import check_jobs, run_on_pool
     from mapassoc.estimator.segments import plan_segments, solve_segment, stitch_segments
 
-    plan = plan_segments(len(scans), segments=segments, overlap=4 * config.estimator.window_length)
+    plan = plan_segments(
+        len(scans), segments=segments, overlap=4 * config.estimator.window_length
+    )
     done: dict[int, Any] = dict(checkpoint["segments"]) if checkpoint is not None else {}
     todo = [segment for segment in plan if segment.index not in done]
     workers = min(check_jobs(jobs), len(todo)) if todo else 1

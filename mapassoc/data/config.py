@@ -189,7 +189,9 @@ class Config:
     estimator: EstimatorSettings
     source: str | None = None
     auto: AutoParameters = AutoParameters()
-    trackers: Mapping[str, Mapping[str, TrackerOption]] = dataclasses.field(default_factory=dict)
+    trackers: Mapping[str, Mapping[str, TrackerOption]] = dataclasses.field(
+        default_factory=dict
+    )
 
     def __post_init__(self) -> None:
         if not isinstance(self.motion, MotionModel):
@@ -259,7 +261,9 @@ def _checked_tracker_options(
     return out
 
 
-def check_config(config: object, *, argument: str = "config", allow_auto: bool = False) -> Config:
+def check_config(
+    config: object, *, argument: str = "config", allow_auto: bool = False
+) -> Config:
     """``config`` if it is a :class:`Config`, else an InputError saying how to get one.
 
     The estimator and every tracker take a ``Config`` object, not a file name: a path
@@ -273,7 +277,7 @@ def check_config(config: object, *, argument: str = "config", allow_auto: bool =
             names = [f"sensor '{n}' false_alarms_per_scan" for n in config.auto.false_alarms]
             names += [f"sensor '{n}' detection_probability" for n in config.auto.pd_starts()]
             raise InputError(
-                f'{argument} leaves {", ".join(names)} = "auto"; estimate them from the '
+                f"{argument} leaves {', '.join(names)} = \"auto\"; estimate them from the "
                 "recording first: mapassoc.estimate_parameters(config, scans).config (what "
                 "`mapassoc run` does), or give numbers"
             )
@@ -543,7 +547,9 @@ def _parse_sensor(
         (rate_value, "false_alarms_per_scan", "a number >= 0"),
     ):
         if isinstance(value, str) and value != AUTO:
-            raise parser.fail(f"{prefix}.{what}", f'must be {expected} or "auto", got {value!r}')
+            raise parser.fail(
+                f"{prefix}.{what}", f'must be {expected} or "auto", got {value!r}'
+            )
     auto_pd = pd_value == AUTO
     start_key = f"{prefix}.detection_probability_start"
     start = None

@@ -107,11 +107,7 @@ FILE_FORMATS: dict[str, FileFormat] = {
     for row in (
         FileFormat("csv", (".csv",), "mapassoc.data.io", "", "CSV"),
         FileFormat(
-            "parquet",
-            (".parquet", ".pq"),
-            "mapassoc.data.parquet",
-            "_parquet",
-            "Parquet",
+            "parquet", (".parquet", ".pq"), "mapassoc.data.parquet", "_parquet", "Parquet",
             extra="parquet",
         ),
     )

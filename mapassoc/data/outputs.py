@@ -106,9 +106,6 @@ class TrackerOutput:
     def __post_init__(self) -> None:
         if not isinstance(self.tracks, TrackTable):
             raise InputError(f"tracks must be a TrackTable, got {type(self.tracks).__name__}")
-        if not (
-            isinstance(self.seconds, (int, float))
-            and math.isfinite(self.seconds)
-            and self.seconds >= 0
-        ):
+        if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds)
+                and self.seconds >= 0):
             raise InputError(f"seconds must be a finite number >= 0, got {self.seconds!r}")

@@ -82,7 +82,6 @@ def measurement_columns(sensors: Sequence[Sensor]) -> list[str]:
                 union.append(name)
     return union
 
-
 def check_scans_for_writing(scans: Sequence[Scan], sensors: Mapping[str, Sensor]) -> None:
     if isinstance(scans, str) or not isinstance(scans, Sequence):
         raise InputError(f"scans must be a sequence of Scan, got {scans!r}")
@@ -119,7 +118,6 @@ def check_scans_for_writing(scans: Sequence[Scan], sensors: Mapping[str, Sensor]
                 "expected one scan per (sensor, time)"
             )
         seen.add(key)
-
 
 def _check_plain_name(what: str, name: object, forbidden: str, described: str) -> None:
     """Refuse a column or sensor name a CSV cell cannot hold as it is."""
@@ -380,7 +378,9 @@ class TrackTable(_StateRecords):
         if self.existence is not None:
             existence = np.asarray(self.existence, dtype=float)
             if existence.shape != (count,):
-                raise InputError(f"existence must have shape ({count},), got {existence.shape}")
+                raise InputError(
+                    f"existence must have shape ({count},), got {existence.shape}"
+                )
             if np.any(~np.isnan(existence) & ((existence < 0) | (existence > 1))):
                 raise InputError("existence must hold probabilities in [0, 1] (or nan)")
             existence = existence.copy()
@@ -445,7 +445,8 @@ def truth_state_names(path: str, header: Sequence[str], *, row: int | None) -> l
             found = header[position] if position < len(header) else None
             raise DataFileError(
                 path,
-                f"column {position + 1} is {found!r}; expected {name!r} (columns {TRUTH_HEADER})",
+                f"column {position + 1} is {found!r}; expected {name!r} "
+                f"(columns {TRUTH_HEADER})",
                 row=row,
                 column=name,
             )
@@ -455,7 +456,6 @@ def truth_state_names(path: str, header: Sequence[str], *, row: int | None) -> l
             path, f"no state columns after target_id,time; expected {TRUTH_HEADER}", row=row
         )
     return names
-
 
 TRACKS_HEADER = (
     "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row[,existence]"

@@ -174,7 +174,8 @@ def _not_scans(value: object, argument: str) -> str | None:
         return f"{argument} must be a sequence of mapassoc.Scan, got one Scan; pass [scan]"
     if not isinstance(value, Sequence):
         return (
-            f"{argument} must be a sequence of mapassoc.Scan, got {kind} {value!r:.80}; {convert}"
+            f"{argument} must be a sequence of mapassoc.Scan, got {kind} {value!r:.80}; "
+            f"{convert}"
         )
     for i, item in enumerate(value):
         if not isinstance(item, Scan):

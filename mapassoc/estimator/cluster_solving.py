@@ -516,7 +516,10 @@ class ClusterSolver:
         """
         started = time.perf_counter()
         kmax = min(kmax, int(np.count_nonzero(problem.counts)))
-        if problem.num_hypotheses >= _SMALL_AFTER_DEADLINE and time.perf_counter() >= deadline:
+        if (
+            problem.num_hypotheses >= _SMALL_AFTER_DEADLINE
+            and time.perf_counter() >= deadline
+        ):
             return self._bounded(problem, kmax, deadline, 0, started)
         try:
             table = exact_cardinality_table(
@@ -722,7 +725,9 @@ class ClusterSolver:
             )
         best_upper = np.maximum(tables.best_upper, best)
         mass_upper = np.maximum(tables.mass_upper, log_mass)
-        table = CardinalityTable(best, log_mass, tuple(tables.sets), False, best_upper, mass_upper)
+        table = CardinalityTable(
+            best, log_mass, tuple(tables.sets), False, best_upper, mass_upper
+        )
         found, bound = float(logsumexp(log_mass)), float(logsumexp(mass_upper))
         return table, ClusterReport(
             size=problem.num_hypotheses,
@@ -756,7 +761,9 @@ class ClusterSolver:
         ):
             chosen = decode_selection(result.solution)
             if not problem.is_feasible(chosen, k):
-                raise RuntimeError(f"solver {result.solver!r} returned an infeasible set for k={k}")
+                raise RuntimeError(
+                    f"solver {result.solver!r} returned an infeasible set for k={k}"
+                )
             score = problem.value(chosen)
             if score > best[k] or sets[k] is None:
                 best[k], sets[k] = score, tuple(int(h) for h in chosen)
@@ -806,3 +813,4 @@ class ClusterSolver:
             best[:n], mass[:n] = found.best + constant, found.log_mass + constant
             return best, mass, work + found.work
         return None
+

@@ -220,7 +220,8 @@ class HypothesisNodes:
         for name in _NODE_FIELDS:
             if len(getattr(self, name)) != n:
                 raise ValueError(
-                    f"node field '{name}' has {len(getattr(self, name))} entries, 'parent' has {n}"
+                    f"node field '{name}' has {len(getattr(self, name))} entries, "
+                    f"'parent' has {n}"
                 )
 
     def __len__(self) -> int:

@@ -301,7 +301,9 @@ def window_marginals(
         probabilities[pruned] = lower[pruned] = 0.0
     if np.any(pruned):
         upper[pruned] = _upper(n_lo[pruned], n_hi[pruned], z_lo[pruned], pruned_only=True)
-    return _derived(solution, probabilities, lower, upper, exact, pruned, log_total, started)
+    return _derived(
+        solution, probabilities, lower, upper, exact, pruned, log_total, started
+    )
 
 
 def _upper(
@@ -342,7 +344,9 @@ def _cluster_marginals(
     merged = part.merged
     assert merged is not None
     kept = (
-        np.arange(merged.problem.num_hypotheses) if part.kept is None else np.flatnonzero(part.kept)
+        np.arange(merged.problem.num_hypotheses)
+        if part.kept is None
+        else np.flatnonzero(part.kept)
     )
     sub = merged.problem if part.kept is None else merged.problem.subproblem(kept)
     bounded = bool(part.table.bounded) or part.status is not ClusterStatus.EXACT

@@ -241,7 +241,9 @@ class RecordingObjective:
         log_ps = math.log(birth.survival_probability)
         with np.errstate(divide="ignore"):
             self.birth_terms = (
-                np.log(u) + np.log(pd) - np.log([s.false_alarms_per_scan for s in sensors])
+                np.log(u)
+                + np.log(pd)
+                - np.log([s.false_alarms_per_scan for s in sensors])
             )
             self.miss_terms = np.log1p(-(pd * self.gate_probability))
             gaps = np.diff(self.times)
@@ -477,7 +479,9 @@ class RecordingObjective:
         P_post = A @ P @ np.swapaxes(A, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
         return d2, loglik, x_post, 0.5 * (P_post + np.swapaxes(P_post, -1, -2))
 
-    def _detection_term(self, m: int | IntArray, d2: FloatArray, loglik: FloatArray) -> FloatArray:
+    def _detection_term(
+        self, m: int | IntArray, d2: FloatArray, loglik: FloatArray
+    ) -> FloatArray:
         """``c_m`` of a detection at scan ``m`` (per track, or per track's own scan):
         ``log Pd + log N(nu; 0, S) - log lambda`` inside the gate, ``-inf`` outside."""
         term = self.log_pd[m] + loglik - self.log_clutter[m]

@@ -478,14 +478,13 @@ def estimate_parameters(
     for name in rates:
         _check_sensor(config, name, "false_alarms_per_scan")
     pds = _check_starts(config, detection_probability or {})
-    left = [
-        f"sensor '{n}' false_alarms_per_scan" for n in config.auto.false_alarms if n not in rates
-    ]
+    left = [f"sensor '{n}' false_alarms_per_scan" for n in config.auto.false_alarms
+            if n not in rates]
     left += [f"sensor '{n}' detection_probability" for n in config.auto.pd_starts()
              if n not in pds]  # fmt: skip
     if left:
         raise InputError(
-            f'the configuration leaves {", ".join(left)} = "auto", which this call does '
+            f"the configuration leaves {', '.join(left)} = \"auto\", which this call does "
             "not estimate; ask for it too, or call without false_alarms and "
             "detection_probability to estimate what the configuration asks",
             key="auto",

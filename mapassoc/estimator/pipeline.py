@@ -76,7 +76,6 @@ __all__ = [
     "time_scale_warning",
 ]
 
-
 class WindowStatus(StrEnum):
     """A window's status, from best to worst.  Members are strings: they compare with
     and serialise as their values (``windows.jsonl``, ``summary.json``)."""

@@ -103,6 +103,7 @@ smallest number relative to it (e^-745): the posterior stops there (see
 :func:`k_posterior`)."""
 
 
+
 MAX_K_RANGE = 2**20
 """Most K values :func:`k_posterior` computes when Kmax is larger: a posterior that has
 not provably ended by then (a prior with its mass far beyond the data, such as a
@@ -184,10 +185,8 @@ class KPosterior:
     def piles_up_at_kmax(self) -> bool:
         """Whether p(Kmax | Z) exceeds :data:`PILE_UP_THRESHOLD` (raise Kmax)."""
         reaches_kmax = self.probabilities.shape[0] == self.max_tracks + 1
-        return (
-            reaches_kmax
-            and bool(self.probabilities[-1] > PILE_UP_THRESHOLD)
-            and (self.max_tracks > 0)
+        return reaches_kmax and bool(self.probabilities[-1] > PILE_UP_THRESHOLD) and (
+            self.max_tracks > 0
         )
 
     @property
@@ -540,3 +539,4 @@ def k_posterior(
         marginal_certain=_beats_others(joint, sweep.mass_upper, marginal_k),
         joint_certain=_beats_others(sweep.joint, sweep.joint_upper, joint_map_k),
     )
+

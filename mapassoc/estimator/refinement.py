@@ -513,7 +513,9 @@ class Refiner:
         if not 0 <= a < b <= len(self.scans):
             raise InputError(f"window {a}..{b - 1} is not within the recording's scans")
         generator = self.long_generator if b - a > self.window_length else self.generator
-        hyps, carried, anchors, touched = self._window_hypotheses(tracks, values, a, b, generator)
+        hyps, carried, anchors, touched = self._window_hypotheses(
+            tracks, values, a, b, generator
+        )
         problem, joins = self._program(
             hyps, carried, anchors, a, prune_log_ratio=generator.prune_log_ratio
         )
@@ -1106,11 +1108,8 @@ class Refiner:
                 gain[ends.index(t1), starts.index(t2)] = delta
             rows, cols = linear_sum_assignment(gain, maximize=True)
             chosen = sorted(
-                (
-                    (float(gain[r, c]), ends[r], starts[c])
-                    for r, c in zip(rows, cols, strict=True)
-                    if gain[r, c] > 0
-                ),
+                ((float(gain[r, c]), ends[r], starts[c]) for r, c in zip(rows, cols, strict=True)
+                 if gain[r, c] > 0),
                 reverse=True,
             )
             used: set[int] = set()
@@ -1205,6 +1204,8 @@ def refine_track_rows(
     sure = refiner.confidence(refined) if confidence else None
     dropped: tuple[int, ...] = ()
     if sure is not None and min_existence > 0:
-        dropped = tuple(tid for tid in refined if sure.existence.get(tid, math.nan) < min_existence)
+        dropped = tuple(
+            tid for tid in refined if sure.existence.get(tid, math.nan) < min_existence
+        )
         refined = {tid: path for tid, path in refined.items() if tid not in dropped}
     return RefinedTracks(rows_from_paths(scans, refined), report, sure, dropped)

@@ -186,12 +186,16 @@ def solve_segment(
     )
 
 
-def _match(earlier: dict[int, set[int]], later: dict[int, set[int]]) -> list[tuple[int, int]]:
+def _match(
+    earlier: dict[int, set[int]], later: dict[int, set[int]]
+) -> list[tuple[int, int]]:
     """One-to-one pairs (earlier id, later id) maximising shared detections (> 0 each)."""
     a_ids, b_ids = sorted(earlier), sorted(later)
     if not a_ids or not b_ids:
         return []
-    shared = np.array([[len(earlier[a] & later[b]) for b in b_ids] for a in a_ids], dtype=float)
+    shared = np.array(
+        [[len(earlier[a] & later[b]) for b in b_ids] for a in a_ids], dtype=float
+    )
     rows, cols = linear_sum_assignment(shared, maximize=True)
     return [(a_ids[r], b_ids[c]) for r, c in zip(rows, cols, strict=True) if shared[r, c] > 0]
 
@@ -348,6 +352,8 @@ def run_segmented(
     if executor is None:
         solved = [solve_segment(config, scans[s.first : s.stop], s) for s in plan]
     else:
-        futures = [executor.submit(solve_segment, config, scans[s.first : s.stop], s) for s in plan]
+        futures = [
+            executor.submit(solve_segment, config, scans[s.first : s.stop], s) for s in plan
+        ]
         solved = [future.result() for future in futures]
     return stitch_segments(scans, [r for r in solved if r is not None], config)

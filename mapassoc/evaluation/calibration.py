@@ -228,18 +228,17 @@ def expected_calibration_error(
     bins = _check_bins(num_bins)
     conf = np.asarray(confidences, dtype=float)
     hit = np.asarray(correct)
-    if (
-        conf.ndim != 1
-        or conf.size == 0
-        or not np.all(np.isfinite(conf))
-        or np.any((conf < 0) | (conf > 1))
+    if conf.ndim != 1 or conf.size == 0 or not np.all(np.isfinite(conf)) or np.any(
+        (conf < 0) | (conf > 1)
     ):
         raise InputError(
             f"confidences must be a non-empty 1-D array of probabilities in [0, 1], got "
             f"{confidences!r}"
         )
     if hit.shape != conf.shape or hit.dtype != bool:
-        raise InputError(f"correct must be a boolean array of shape {conf.shape}, got {correct!r}")
+        raise InputError(
+            f"correct must be a boolean array of shape {conf.shape}, got {correct!r}"
+        )
     edges = np.linspace(0.0, 1.0, bins + 1)
     which = np.maximum(np.digitize(conf, edges, right=True), 1) - 1  # bin ((b-1)/M, b/M]
     error = 0.0
@@ -283,7 +282,11 @@ def _scores(
 
 def _check_true_counts(true_counts: ArrayLike, n: int, what: str) -> NDArray[np.int64]:
     truth_k = np.asarray(true_counts)
-    if truth_k.shape != (n,) or not np.issubdtype(truth_k.dtype, np.integer) or np.any(truth_k < 0):
+    if (
+        truth_k.shape != (n,)
+        or not np.issubdtype(truth_k.dtype, np.integer)
+        or np.any(truth_k < 0)
+    ):
         raise InputError(
             f"true_counts must hold one integer >= 0 per {what} ({n}), got {true_counts!r}"
         )

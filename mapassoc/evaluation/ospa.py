@@ -454,10 +454,8 @@ def ospa2_over_time(
     """
     cutoff = check_positive("c", c)
     order = check_order(p)
-    if (
-        isinstance(window_length, bool)
-        or not isinstance(window_length, int | np.integer)
-        or (window_length < 1)
+    if isinstance(window_length, bool) or not isinstance(window_length, int | np.integer) or (
+        window_length < 1
     ):
         raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
     check_runs(truth, estimates)

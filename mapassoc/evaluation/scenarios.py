@@ -1200,7 +1200,9 @@ def _origins_by_scan(origins: Origins, scans: Sequence[Scan]) -> list[NDArray[np
     order = np.argsort(origins.rows, kind="stable")
     sorted_rows = origins.rows[order]
     sizes = [scan.size for scan in scans]
-    rows = np.concatenate([scan.rows for scan in scans]) if scans else np.empty(0, dtype=np.int64)
+    rows = (
+        np.concatenate([scan.rows for scan in scans]) if scans else np.empty(0, dtype=np.int64)
+    )
     where = np.searchsorted(sorted_rows, rows)
     found = where < sorted_rows.shape[0]
     found[found] = sorted_rows[where[found]] == rows[found]
@@ -1254,7 +1256,9 @@ def add_false_alarms(scenario: Scenario, scan_index: int, count: int, *, seed: i
     return _add_false_alarms_at(scenario, {index: extra}, seed=seed)
 
 
-def _add_false_alarms_at(scenario: Scenario, counts: Mapping[int, int], *, seed: int) -> Scenario:
+def _add_false_alarms_at(
+    scenario: Scenario, counts: Mapping[int, int], *, seed: int
+) -> Scenario:
     """:func:`add_false_alarms` for several scans at once (``counts``: scan index -> count).
 
     The scans are visited in index order with one generator, so one entry gives exactly

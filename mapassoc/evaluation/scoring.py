@@ -177,8 +177,8 @@ def score_tracks(
         raise InputError("truth has no records: there is nothing to score against")
     cutoff = check_positive("c", c)
     order = check_order(p)
-    threshold = (
-        cutoff if motp_threshold is None else check_positive("motp_threshold", motp_threshold)
+    threshold = cutoff if motp_threshold is None else check_positive(
+        "motp_threshold", motp_threshold
     )
     gamma = cutoff if switch_cost is None else check_positive("switch_cost", switch_cost)
     method = _check_method(tgospa_method)
@@ -236,3 +236,4 @@ def score_tracks(
         fragments_per_target=fragmentation.fragments_per_target,
         tgospa_id_switches=fragmentation.num_id_switches,
     )
+

@@ -123,7 +123,8 @@ def disjoint_times_message(truth: TruthTable, tracks: TrackTable) -> str | None:
             else "there is nothing to evaluate (the tracks are empty too)"
         )
         return (
-            f"the truth has no record: {counted}; check that it is the truth file of this recording"
+            f"the truth has no record: {counted}; check that it is the truth file of this "
+            "recording"
         )
     if tracks.size == 0:
         return None

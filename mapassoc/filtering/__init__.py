@@ -1,1 +1,2 @@
-"""Kalman / extended Kalman filtering, gating and RTS smoothing."""
+"""Kalman / extended Kalman filtering, gating and RTS smoothing.
+"""

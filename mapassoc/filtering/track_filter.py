@@ -171,15 +171,14 @@ def innovations(config: Config, track: FilteredTrack, scan: Scan) -> Innovations
     return Innovations(nu=nu, S=S0, H=H0, d2=d2[0], log_likelihood=loglik[0])
 
 
-def _converted_after_update(
-    config: Config, track: FilteredTrack, x: FloatArray, P: FloatArray
-) -> FilteredTrack:
+def _converted_after_update(config: Config, track: FilteredTrack, x: FloatArray,
+                            P: FloatArray) -> FilteredTrack:
     if not track.converted and track.time > track.first_time:
         x, P = convert_initiated(config.motion, x, P, config.birth)
-        return FilteredTrack(x=x, P=P, time=track.time, first_time=track.first_time, converted=True)
-    return FilteredTrack(
-        x=x, P=P, time=track.time, first_time=track.first_time, converted=track.converted
-    )
+        return FilteredTrack(x=x, P=P, time=track.time, first_time=track.first_time,
+                             converted=True)
+    return FilteredTrack(x=x, P=P, time=track.time, first_time=track.first_time,
+                         converted=track.converted)
 
 
 def update_track(config: Config, track: FilteredTrack, scan: Scan, detection: int) -> FilteredTrack:

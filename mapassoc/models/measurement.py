@@ -50,6 +50,9 @@ __all__ = [
 ]
 
 
+
+
+
 @runtime_checkable
 class MeasurementModel(Protocol):
     """What the filters, the track initiation and the hypothesis generator need of a model.
@@ -190,7 +193,9 @@ class LinearMeasurement(MeasurementModel):
         self._position_indices = None if position_indices is None else tuple(position_indices)
 
     @classmethod
-    def position(cls, motion: MotionModel, *, noise_std: float | ArrayLike) -> LinearMeasurement:
+    def position(
+        cls, motion: MotionModel, *, noise_std: float | ArrayLike
+    ) -> LinearMeasurement:
         """Position-only measurement of a Cartesian motion model.
 
         Parameters

@@ -293,8 +293,8 @@ class _LinearKinematic(MotionModel):
         layout [positions, velocities, ...].
         """
         key = (_check_dt(dt), self.ndim, *self._parameters())
-        cache: dict[tuple[float, ...], tuple[FloatArray, FloatArray]] = self.__dict__.setdefault(
-            "_matrix_cache", {}
+        cache: dict[tuple[float, ...], tuple[FloatArray, FloatArray]] = (
+            self.__dict__.setdefault("_matrix_cache", {})
         )
         found = cache.get(key)
         if found is None:
@@ -646,7 +646,9 @@ class CoordinatedTurn(MotionModel):
     is_linear = False
 
     def __init__(self, *, speed_noise_intensity: float, turn_rate_noise_intensity: float) -> None:
-        self.speed_noise_intensity = check_positive("speed_noise_intensity", speed_noise_intensity)
+        self.speed_noise_intensity = check_positive(
+            "speed_noise_intensity", speed_noise_intensity
+        )
         self.turn_rate_noise_intensity = check_positive(
             "turn_rate_noise_intensity", turn_rate_noise_intensity
         )

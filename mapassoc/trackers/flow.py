@@ -227,7 +227,9 @@ def _log_end(dt: float, log_survival: float) -> float:
     return math.log(value) if value > 0.0 else -math.inf
 
 
-def window_tails(times: FloatArray, log_miss: FloatArray, log_survival: float) -> FloatArray:
+def window_tails(
+    times: FloatArray, log_miss: FloatArray, log_survival: float
+) -> FloatArray:
     """Best score of "no further detection in the window" after each scan.
 
     The MAP estimator's tails of a track alive at scan ``j`` of an ``N``-scan window
@@ -455,22 +457,16 @@ class FlowTracker:
             u = float(population.first_detection_means[p])
             if u > 0.0:
                 entry[sl] = -(math.log(u) - math.log(sensor.region.volume))
-            observation[sl] = -(math.log(sensor.detection_probability) - sensor.log_clutter_density)
+            observation[sl] = -(math.log(sensor.detection_probability)
+                                - sensor.log_clutter_density)
             if math.isfinite(tails[p]):
                 exits[sl] = -tails[p]
         tails_list: list[int] = []
         heads_list: list[int] = []
         costs_list: list[float] = []
 
-        def add_links(
-            tail: int,
-            p_from: int,
-            t_from: float,
-            track: FilteredTrack | None,
-            first_p: int,
-            last_p: int,
-            key: tuple[int, int] | None,
-        ) -> None:
+        def add_links(tail: int, p_from: int, t_from: float, track: FilteredTrack | None,
+                      first_p: int, last_p: int, key: tuple[int, int] | None) -> None:
             """Links from item ``tail`` (state ``track`` at position ``p_from``) to the
             detections of positions ``first_p..last_p``; two-point links are cached under
             ``key`` (``track`` may be None when every one of them is cached)."""
@@ -497,10 +493,8 @@ class FlowTracker:
             # The carried state is at the scan before the window; exit = its tail then.
             t_c = track.state.time
             dt0 = float(times[0] - t_c)
-            tail0 = max(
-                _log_end(dt0, self._log_survival),
-                dt0 * self._log_survival + float(log_miss[start]) + tails[0],
-            )
+            tail0 = max(_log_end(dt0, self._log_survival),
+                        dt0 * self._log_survival + float(log_miss[start]) + tails[0])
             if math.isfinite(tail0):
                 exits[c] = -tail0
             add_links(c, -1, t_c, track.state, 0, self.max_gap - track.misses, None)
@@ -508,10 +502,8 @@ class FlowTracker:
             for a in range(scan.size):
                 item = int(first_item[p] + a)
                 key = (start + p, a)
-                if all(
-                    (key[0], a, start + q) in two_point
-                    for q in range(p + 1, min(p + 1 + self.max_gap, n_scans - 1) + 1)
-                ):
+                if all((key[0], a, start + q) in two_point
+                       for q in range(p + 1, min(p + 1 + self.max_gap, n_scans - 1) + 1)):
                     born = None
                 else:
                     born = births.get(key)
@@ -526,12 +518,8 @@ class FlowTracker:
         forced = np.zeros(n, dtype=bool)
         forced[:C] = True
         through = through_costs(
-            entry_costs=entry,
-            observation_costs=observation,
-            exit_costs=exits,
-            link_tails=link_tails,
-            link_heads=link_heads,
-            link_costs=link_costs,
+            entry_costs=entry, observation_costs=observation, exit_costs=exits,
+            link_tails=link_tails, link_heads=link_heads, link_costs=link_costs,
         )
         keep = (through <= 0.0) | reachable_items(forced, link_tails, link_heads)
         kept = np.flatnonzero(keep)

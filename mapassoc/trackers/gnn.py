@@ -43,9 +43,9 @@ from mapassoc.trackers.management import (
 __all__ = ["GnnTracker", "gnn_assignment", "hard_step", "check_ratio_matrix"]
 
 
-def check_ratio_matrix(
-    log_lik_ratio: FloatArray, log_miss: FloatArray
-) -> tuple[FloatArray, FloatArray]:
+def check_ratio_matrix(log_lik_ratio: FloatArray, log_miss: FloatArray) -> tuple[
+    FloatArray, FloatArray
+]:
     """Validate a (T, M) log-likelihood-ratio matrix and its (T,) miss terms.
 
     Entries may be finite or ``-inf`` (outside the gate); ``log_miss`` may be ``-inf``
@@ -128,9 +128,8 @@ def hard_step(
         ``log(1 - Pd P_G)``.
     """
     if detection < 0:
-        return StepOutcome(
-            filtered=track.filtered, detection=-1, detected=False, increment=log_miss
-        )
+        return StepOutcome(filtered=track.filtered, detection=-1, detected=False,
+                           increment=log_miss)
     return StepOutcome(
         filtered=update_track(config, track.filtered, scan, detection),
         detection=detection,

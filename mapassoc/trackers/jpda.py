@@ -107,7 +107,9 @@ def association_clusters(log_lik_ratio: FloatArray) -> list[tuple[IntArray, IntA
     L = np.asarray(log_lik_ratio, dtype=float)
     T, M = L.shape
     t_idx, j_idx = np.nonzero(np.isfinite(L))
-    graph = coo_matrix((np.ones(t_idx.size), (t_idx, T + j_idx)), shape=(T + M, T + M))
+    graph = coo_matrix(
+        (np.ones(t_idx.size), (t_idx, T + j_idx)), shape=(T + M, T + M)
+    )
     _, labels = connected_components(graph, directed=False)
     clusters: list[int] = []  # component labels, by smallest track index
     seen: dict[int, int] = {}
@@ -376,13 +378,8 @@ class JpdaTracker:
                 largest = size
             for row, t in enumerate(conf_idx.tolist()):
                 outcomes[t] = self._soft_step(
-                    live[t].filtered,
-                    scan,
-                    innov[t],
-                    beta[row],
-                    float(beta0[row]),
-                    log_ratio[t],
-                    log_miss,
+                    live[t].filtered, scan, innov[t], beta[row], float(beta0[row]),
+                    log_ratio[t], log_miss,
                 )
             # Detections more probably from a confirmed track than not (module docstring).
             reserved = beta.sum(axis=0) > 0.5

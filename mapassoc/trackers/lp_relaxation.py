@@ -545,7 +545,9 @@ class _LpRule:
                 relaxation=certificate,
                 decision=decision,
                 selected_value=problem.value(selection),
-                matches_estimator=bool(np.array_equal(np.sort(selection), np.sort(estimator_set))),
+                matches_estimator=bool(
+                    np.array_equal(np.sort(selection), np.sort(estimator_set))
+                ),
                 hypotheses=problem.num_hypotheses,
             )
         )

@@ -149,34 +149,35 @@ class ScoreRule:
 
     def __post_init__(self) -> None:
         a = check_probability(
-            "false_track_probability",
-            self.false_track_probability,
-            allow_zero=False,
-            allow_one=False,
+            "false_track_probability", self.false_track_probability,
+            allow_zero=False, allow_one=False,
         )
         b = check_probability(
-            "missed_track_probability",
-            self.missed_track_probability,
-            allow_zero=False,
-            allow_one=False,
+            "missed_track_probability", self.missed_track_probability,
+            allow_zero=False, allow_one=False,
         )
         if not a + b < 1.0:
             raise InputError(
-                f"false_track_probability + missed_track_probability must be < 1, got {a} + {b}"
+                f"false_track_probability + missed_track_probability must be < 1, got "
+                f"{a} + {b}"
             )
         check_positive("deletion_drop", self.deletion_drop)
 
     @property
     def confirmation_threshold(self) -> float:
         """Wald's upper threshold ``T2 = log((1 - beta) / alpha)`` (Blackman & Popoli, eq. 6.18)."""
-        return math.log1p(-self.missed_track_probability) - math.log(self.false_track_probability)
+        return math.log1p(-self.missed_track_probability) - math.log(
+            self.false_track_probability
+        )
 
     @property
     def rejection_threshold(self) -> float:
         """Wald's lower threshold ``T1 = log(beta / (1 - alpha))`` (eq. 6.18); reported for
         reference: deletion uses the score drop, as the initial score of a birth among
         clutter is often already below ``T1``."""
-        return math.log(self.missed_track_probability) - math.log1p(-self.false_track_probability)
+        return math.log(self.missed_track_probability) - math.log1p(
+            -self.false_track_probability
+        )
 
     def start(self, initial_score: float) -> TrackLife:
         """A new track's life from its first detection's score."""
@@ -245,7 +246,11 @@ class MOfNRule:
     def step(self, life: TrackLife, *, detected: bool, increment: float) -> TrackLife:
         """The life after one more scan (``increment`` only updates the kept score)."""
         new = _advance(life, detected, increment)
-        if not new.confirmed and new.scans <= self.confirm_scans and new.hits >= self.confirm_hits:
+        if (
+            not new.confirmed
+            and new.scans <= self.confirm_scans
+            and new.hits >= self.confirm_hits
+        ):
             new = replace(new, confirmed=True)
         return new
 
@@ -343,8 +348,7 @@ def new_target_log_ratio(
     population = window_population([scan], [sensor.detection_probability], config.birth, start)
     u = float(population.first_detection_means[0])
     log_new = (
-        math.log(u)
-        + math.log(sensor.detection_probability)
+        math.log(u) + math.log(sensor.detection_probability)
         - math.log(sensor.false_alarms_per_scan)
         if u > 0.0
         else -math.inf
@@ -554,13 +558,8 @@ class TrackManager:
             )
             self.history[track.track_id].append(
                 TrackStep(
-                    k,
-                    outcome.filtered,
-                    outcome.detection,
-                    outcome.detected,
-                    outcome.hard,
-                    life.score,
-                    life.confirmed,
+                    k, outcome.filtered, outcome.detection, outcome.detected, outcome.hard,
+                    life.score, life.confirmed,
                 )
             )
             if life.confirmed:

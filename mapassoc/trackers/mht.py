@@ -237,15 +237,8 @@ class _Tree:
     score is ``fixed_score`` (0 and empty while nothing is decided).
     """
 
-    __slots__ = (
-        "tree_id",
-        "root_scan",
-        "fixed_scan",
-        "fixed_path",
-        "fixed_score",
-        "fixed_max",
-        "leaves",
-    )
+    __slots__ = ("tree_id", "root_scan", "fixed_scan", "fixed_path", "fixed_score",
+                 "fixed_max", "leaves")
 
     def __init__(self, tree_id: int, root_scan: int, leaf: _Leaf) -> None:
         self.tree_id = tree_id
@@ -262,9 +255,8 @@ class _Tree:
         return bool(self.fixed_path)
 
     def decided_track(self) -> _Track:
-        return _Track(
-            self.tree_id, self.root_scan, self.fixed_path, self.fixed_score, self.fixed_max
-        )
+        return _Track(self.tree_id, self.root_scan, self.fixed_path, self.fixed_score,
+                      self.fixed_max)
 
 
 @dataclass(frozen=True, eq=False)
@@ -301,7 +293,7 @@ def _top_sums(
         out.append((-neg, idx))
         for c, opts in enumerate(options):
             if idx[c] + 1 < len(opts):
-                nxt = idx[:c] + (idx[c] + 1,) + idx[c + 1 :]
+                nxt = idx[:c] + (idx[c] + 1,) + idx[c + 1:]
                 if nxt not in seen:
                     seen.add(nxt)
                     value = -neg - opts[idx[c]].value + opts[idx[c] + 1].value
@@ -438,9 +430,8 @@ class MhtTracker:
                 tree.leaves = self._prune(self._branch(tree.leaves, scan))
             if log_new > -math.inf:
                 for j in range(scan.size):
-                    root = _Leaf(
-                        (j,), (log_new,), start_track(self.config, scan, j), log_new, False
-                    )
+                    root = _Leaf((j,), (log_new,), start_track(self.config, scan, j), log_new,
+                                 False)
                     trees.append(_Tree(next_id, k, root))
                     next_id += 1
             counts_trees.append(len(trees))
@@ -470,30 +461,25 @@ class MhtTracker:
             # terminated, or past the age limit.
             oldest = -1 if self.tentative_scans is None else k - self.tentative_scans
             trees = [
-                t
-                for t in trees
+                t for t in trees
                 if t.tree_id in selected
                 or (t.root_scan > oldest and not all(lf.terminated for lf in t.leaves))
             ]
 
         # The last best hypothesis decides every branch left.
         final = closed + [
-            _Track(
-                t.tree_id,
-                t.root_scan,
-                selected[t.tree_id].path,
-                selected[t.tree_id].score,
-                selected[t.tree_id].max_score,
-            )
-            if t.tree_id in selected
-            else t.decided_track()
+            _Track(t.tree_id, t.root_scan, selected[t.tree_id].path,
+                   selected[t.tree_id].score, selected[t.tree_id].max_score)
+            if t.tree_id in selected else t.decided_track()
             for t in trees
             if t.tree_id in selected or t.committed
         ]
         threshold = self.management.confirmation_threshold
         associations: dict[int, dict[int, int]] = {}
         for track in sorted(final, key=lambda t: t.tree_id):
-            detections = {track.root_scan + i: j for i, j in enumerate(track.path) if j >= 0}
+            detections = {
+                track.root_scan + i: j for i, j in enumerate(track.path) if j >= 0
+            }
             if track.max_score >= threshold and detections:
                 associations[track.tree_id] = detections
         tracks = smooth_tracks(scans, associations, self.config)
@@ -530,25 +516,15 @@ class MhtTracker:
         for leaf, track, row in zip(live, predicted, log_ratio, strict=True):
             score = leaf.score + log_miss
             out.append(
-                _Leaf(
-                    leaf.path + (-1,),
-                    leaf.scores + (score,),
-                    track,
-                    leaf.max_score,
-                    leaf.max_score - score > drop,
-                )
+                _Leaf(leaf.path + (-1,), leaf.scores + (score,), track, leaf.max_score,
+                      leaf.max_score - score > drop)
             )
             for j in np.flatnonzero(row > -math.inf).tolist():
                 score = leaf.score + float(row[j])
                 top = max(leaf.max_score, score)
                 out.append(
-                    _Leaf(
-                        leaf.path + (j,),
-                        leaf.scores + (score,),
-                        update_track(self.config, track, scan, j),
-                        top,
-                        top - score > drop,
-                    )
+                    _Leaf(leaf.path + (j,), leaf.scores + (score,),
+                          update_track(self.config, track, scan, j), top, top - score > drop)
                 )
         return out
 
@@ -595,8 +571,7 @@ class MhtTracker:
         for tree in survivors:
             if tree.tree_id not in selected and tree.root_scan <= decided:
                 tree.leaves = [
-                    lf
-                    for lf in tree.leaves
+                    lf for lf in tree.leaves
                     if all(
                         fixed_owner.get((tree.root_scan + i, j), tree.tree_id) == tree.tree_id
                         for i, j in enumerate(lf.path[: decided - tree.root_scan + 1])

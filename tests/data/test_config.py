@@ -26,9 +26,7 @@ from mapassoc.models.motion import (
 )
 from mapassoc.models.sensor import Region, Sensor
 
-FULL_TOML = (
-    MINIMAL_CONFIG_TOML
-    + """
+FULL_TOML = MINIMAL_CONFIG_TOML + """
 [[sensors]]
 name = "esm"
 measurement = "range_bearing"
@@ -51,7 +49,6 @@ k_prior = "weights"
 k_prior_weights = [1, 2.5, 0]
 k_estimate = "joint"
 """
-)
 
 
 def _full() -> dict[str, object]:
@@ -458,9 +455,7 @@ def test_config_constructor_validates() -> None:
         )
 
 
-TRACKERS_TOML = (
-    MINIMAL_CONFIG_TOML
-    + """
+TRACKERS_TOML = MINIMAL_CONFIG_TOML + """
 [trackers.mht]
 n_scan = 4
 prune_log_ratio = inf
@@ -470,7 +465,6 @@ solver = "highs"
 [trackers."my tracker"]
 level = 0.25
 """
-)
 
 
 def test_tracker_tables_parse_and_round_trip() -> None:
@@ -486,7 +480,7 @@ def test_tracker_tables_parse_and_round_trip() -> None:
     }
     assert isinstance(config.trackers["mht"]["n_scan"], int)
     text = config_to_toml(config)
-    assert "[trackers.mht]\nn_scan = 4\nprune_log_ratio = inf\nm_best_pruning = true\n" in text
+    assert '[trackers.mht]\nn_scan = 4\nprune_log_ratio = inf\nm_best_pruning = true\n' in text
     assert '[trackers."my tracker"]\nlevel = 0.25\n' in text
     _assert_same_config(parse_config(tomllib.loads(text)), config)
     # No table: nothing written, nothing read.

@@ -45,7 +45,9 @@ def test_clusters_convolve_to_whole(seed: int) -> None:
     whole = exact_cardinality_table(problem, kmax)
     clusters = cluster_hypotheses(problem)
     assert sorted(np.concatenate(clusters).tolist()) == list(range(problem.num_hypotheses))
-    tables = [exact_cardinality_table(problem.subproblem(c), kmax).remapped(c) for c in clusters]
+    tables = [
+        exact_cardinality_table(problem.subproblem(c), kmax).remapped(c) for c in clusters
+    ]
     combined = combine_tables(tables, kmax)
     np.testing.assert_allclose(combined.best, whole.best, atol=1e-9)
     np.testing.assert_allclose(combined.log_mass, whole.log_mass, atol=1e-9)
@@ -55,10 +57,7 @@ def test_clusters_convolve_to_whole(seed: int) -> None:
 def test_ties_go_to_lexicographically_smallest_set() -> None:
     # Two hypotheses compete for one detection with equal scores.
     problem = PackingProblem(
-        np.array([1.5, 1.5]),
-        np.array([0, 1, 2]),
-        np.array([0, 0]),
-        np.zeros(1, bool),
+        np.array([1.5, 1.5]), np.array([0, 1, 2]), np.array([0, 0]), np.zeros(1, bool),
         np.ones(2, bool),
     )
     table = exact_cardinality_table(problem, 2)
