@@ -162,6 +162,7 @@ def frontier_marginals(
     entry_margin: float | None = None,
     work_limit: int | None = None,
     deadline: float | None = None,
+    work_projection: float | None = None,
 ) -> FrontierMarginals:
     """Forward-backward frontier search: ``log N_h`` and ``log Z`` for each seed.
 
@@ -178,6 +179,10 @@ def frontier_marginals(
         sum over the sets the beam kept (``exact`` False when it dropped any).
     work_limit : int, optional
         Most transitions of the forward pass, as in the frontier search.
+    work_projection : float, optional
+        With ``work_limit``: also stop when on course for more than this many times the
+        limit, as :func:`~mapassoc.formulations.frontier.frontier_search` does (reason
+        ``"projected"``).
     deadline : float, optional
         ``time.perf_counter()`` value past which the search stops.
 
@@ -188,7 +193,7 @@ def frontier_marginals(
     Raises
     ------
     SearchLimitExceeded
-        Past ``work_limit`` or ``deadline``.
+        Past ``work_limit`` (or its projection) or ``deadline``.
     """
     seeds = np.asarray(seeds, dtype=float)
     if seeds.ndim == 1:
@@ -197,6 +202,13 @@ def frontier_marginals(
         raise ValueError("seeds must be a (S, kmax + 1) array without NaN")
     if max_frontiers is not None and max_frontiers < 1:
         raise ValueError(f"max_frontiers must be >= 1, got {max_frontiers!r}")
+    if work_projection is not None and not (work_projection >= 1 and work_limit is not None):
+        raise ValueError(
+            f"work_projection must be >= 1 and come with a work_limit, got {work_projection!r}"
+        )
+    projected_limit = (
+        None if work_projection is None or work_limit is None else work_projection * work_limit
+    )
     with np.errstate(invalid="ignore", over="ignore"):
         return _forward_backward(
             _with_private_resources(problem),
@@ -205,6 +217,7 @@ def frontier_marginals(
             entry_margin,
             work_limit,
             deadline,
+            projected_limit,
         )
 
 
@@ -215,6 +228,7 @@ def _forward_backward(
     entry_margin: float | None,
     work_limit: int | None,
     deadline: float | None,
+    projected_limit: float | None = None,
 ) -> FrontierMarginals:
     H = problem.num_hypotheses
     S, width = seeds.shape
@@ -278,8 +292,16 @@ def _forward_backward(
         grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and reach < kmax)
         cols = reach + 1 + grow
         source = np.concatenate([keep, pair_row]).astype(np.int64)
-        work += -(-source.size * cols // _ENTRIES_PER_TRANSITION)
+        step_work = -(-source.size * cols // _ENTRIES_PER_TRANSITION)
+        work += step_work
         _check(work, work_limit, deadline)
+        if projected_limit is not None and work + step_work * (R - 1 - step) > projected_limit:
+            raise SearchLimitExceeded(
+                f"frontier marginals projected past {projected_limit:.0f} transitions "
+                f"(work_projection x the work limit of {work_limit}) after {work}",
+                reason="projected",
+                work=work,
+            )
         if source.size == 0:  # an exactly-once resource no frontier can satisfy
             return FrontierMarginals(
                 empty.log_mass, empty.log_total, empty.log_containing, exact, work

@@ -69,7 +69,11 @@ from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
-from mapassoc.estimator.cluster_solving import best_set_by_fixing, default_lp_solver
+from mapassoc.estimator.cluster_solving import (
+    WORK_PROJECTION,
+    best_set_by_fixing,
+    default_lp_solver,
+)
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
 from mapassoc.estimator.objective import (
     PathState,
@@ -103,8 +107,11 @@ re-filtering)."""
 
 _MARGINALS_WORK = 50_000
 """Transitions of the exact forward-backward search per cluster of the confidence pass;
-past them the cluster's marginals come from the beam of :data:`_MARGINALS_BEAM`
-frontiers."""
+past them, or on course for more than ``WORK_PROJECTION`` times them, the cluster's
+marginals come from the beam of :data:`_MARGINALS_BEAM` frontiers.  (The projection
+spares the searches that would fail anyway: 1.15 s -> 0.14 s of failed searches on
+dense_pd08, 0.95 -> 0.12 s on parallel, with every search that finished before still
+finishing.)"""
 
 _MARGINALS_BEAM = 32
 
@@ -1029,7 +1036,9 @@ class Refiner:
         for members in cluster_hypotheses(uncounted):
             sub = uncounted.subproblem(members)
             try:
-                found = frontier_marginals(sub, seed, work_limit=_MARGINALS_WORK)
+                found = frontier_marginals(
+                    sub, seed, work_limit=_MARGINALS_WORK, work_projection=WORK_PROJECTION
+                )
             except SearchLimitExceeded:
                 found = frontier_marginals(
                     sub, seed, max_frontiers=_MARGINALS_BEAM, entry_margin=_BEAM_MARGIN

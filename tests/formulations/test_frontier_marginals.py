@@ -192,3 +192,30 @@ def test_log_subtract_refuses_a_negative_difference() -> None:
     assert log_subtract(np.array(1.0), np.array(1.0)) == -math.inf
     with pytest.raises(ValueError):
         log_subtract(np.array(0.0), np.array(1.0))
+
+
+def test_the_projection_stops_marginals_only_early_and_changes_no_result() -> None:
+    """As for the frontier search: with a projection the marginals are exactly those
+    without one, or the pass stops ("projected") before its limit."""
+    from mapassoc.formulations.frontier import SearchLimitExceeded
+
+    stopped = finished = 0
+    for index in range(30):
+        rng = np.random.default_rng(4100 + index)
+        problem = random_problem(rng, int(rng.integers(40, 90)), D=int(rng.integers(10, 25)), G=0)
+        seed = np.zeros(1)
+        plain = frontier_marginals(problem, seed)
+        for limit in (max(1, plain.work // 8), plain.work, 2 * plain.work):
+            try:
+                found = frontier_marginals(problem, seed, work_limit=limit, work_projection=2.0)
+            except SearchLimitExceeded as stop:
+                if stop.reason == "projected":
+                    assert stop.work <= limit
+                    stopped += 1
+                continue
+            finished += 1
+            np.testing.assert_array_equal(found.log_containing, plain.log_containing)
+            np.testing.assert_array_equal(found.log_total, plain.log_total)
+    assert stopped >= 10 and finished >= 15
+    with pytest.raises(ValueError, match="work_projection"):
+        frontier_marginals(problem, seed, work_projection=2.0)
