@@ -176,8 +176,8 @@ WORK_PROJECTION = 8.0
 its work limit (``work_projection`` of
 :func:`~mapassoc.formulations.frontier.frontier_search`).  Measured on the forward passes
 of converging, dense_radar, parallel and dense_pd08 (seeds 0 and 1, 1,093 exact searches,
-52 of them failing at the limit after up to 0.9 s each): 8 stops 30 of the failing ones
-early and 1 that would have finished; 4 would stop 11 that finish."""
+52 of them failing at the limit after up to 0.9 s each): 8 stops 33 of the failing ones
+early and 1 that would have finished; 4 would stop 50 of them, and 11 that finish."""
 
 BOUND_PRUNE_MIN_HYPOTHESES = 100
 """Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of
