@@ -193,6 +193,37 @@ def _check_limits(work: int, work_limit: int | None, deadline: float | None) -> 
         )
 
 
+def projected_work_limit(work_projection: float | None, work_limit: int | None) -> float | None:
+    """``work_projection * work_limit``, the work a search may be on course for (None
+    without a projection); a projection needs a work limit and a factor >= 1."""
+    if work_projection is None:
+        return None
+    if not (work_projection >= 1 and work_limit is not None):
+        raise ValueError(
+            f"work_projection must be >= 1 and come with a work_limit, got {work_projection!r}"
+        )
+    return work_projection * work_limit
+
+
+def check_projection(
+    what: str,
+    work: int,
+    step_work: int,
+    remaining_steps: int,
+    projected_limit: float | None,
+    work_limit: int | None,
+) -> None:
+    """Raise :class:`SearchLimitExceeded` (reason ``"projected"``) when the work done plus
+    this step's work repeated for every remaining step passes ``projected_limit``."""
+    if projected_limit is not None and work + step_work * remaining_steps > projected_limit:
+        raise SearchLimitExceeded(
+            f"{what} projected past {projected_limit:.0f} transitions "
+            f"(work_projection x the work limit of {work_limit}) after {work}",
+            reason="projected",
+            work=work,
+        )
+
+
 def _log_add(a: float, b: float) -> float:
     if a < b:
         a, b = b, a
@@ -284,10 +315,7 @@ def frontier_search(
     SearchLimitExceeded
         Past ``work_limit`` (or its projection) or ``deadline``.
     """
-    if work_projection is not None and not (work_projection >= 1 and work_limit is not None):
-        raise ValueError(
-            f"work_projection must be >= 1 and come with a work_limit, got {work_projection!r}"
-        )
+    projected_limit = projected_work_limit(work_projection, work_limit)
     if int(kmax) != kmax or kmax < 0:
         raise ValueError(f"kmax must be an integer >= 0, got {kmax!r}")
     if work_limit is not None and work_limit < 1:
@@ -314,9 +342,6 @@ def frontier_search(
             main = _result(np.zeros(1), np.zeros(1), [()], 0, 1)
         return _with_lone(main, rest, problem, np.flatnonzero(lone), kmax)
     order = resource_order(problem)
-    projected_limit = (
-        None if work_projection is None or work_limit is None else work_projection * work_limit
-    )
     vectorised = _vectorised_search(
         problem, kmax, order, work_limit, deadline, max_frontiers, entry_margin, projected_limit
     )
@@ -518,13 +543,9 @@ def _vectorised_search(
         step_work = -(-source.size * cols // _VECTOR_ENTRIES_PER_TRANSITION)
         work += step_work
         _check_limits(work, work_limit, deadline)
-        if projected_limit is not None and work + step_work * (R - 1 - step) > projected_limit:
-            raise SearchLimitExceeded(
-                f"frontier search projected past {projected_limit:.0f} transitions "
-                f"(work_projection x its work limit of {work_limit}) after {work}",
-                reason="projected",
-                work=work,
-            )
+        check_projection(
+            "frontier search", work, step_work, R - 1 - step, projected_limit, work_limit
+        )
         if source.size == 0:  # an exactly-once resource no frontier can satisfy
             infeasible = np.full(width, _NEG_INF)
             return _result(infeasible, infeasible, [None] * width, work, widest, exact)

@@ -45,7 +45,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.formulations.convolution import sum_product
-from mapassoc.formulations.frontier import SearchLimitExceeded, resource_order
+from mapassoc.formulations.frontier import (
+    SearchLimitExceeded,
+    check_projection,
+    projected_work_limit,
+    resource_order,
+)
 from mapassoc.formulations.packing import PackingProblem
 
 __all__ = [
@@ -202,13 +207,7 @@ def frontier_marginals(
         raise ValueError("seeds must be a (S, kmax + 1) array without NaN")
     if max_frontiers is not None and max_frontiers < 1:
         raise ValueError(f"max_frontiers must be >= 1, got {max_frontiers!r}")
-    if work_projection is not None and not (work_projection >= 1 and work_limit is not None):
-        raise ValueError(
-            f"work_projection must be >= 1 and come with a work_limit, got {work_projection!r}"
-        )
-    projected_limit = (
-        None if work_projection is None or work_limit is None else work_projection * work_limit
-    )
+    projected_limit = projected_work_limit(work_projection, work_limit)
     with np.errstate(invalid="ignore", over="ignore"):
         return _forward_backward(
             _with_private_resources(problem),
@@ -295,13 +294,9 @@ def _forward_backward(
         step_work = -(-source.size * cols // _ENTRIES_PER_TRANSITION)
         work += step_work
         _check(work, work_limit, deadline)
-        if projected_limit is not None and work + step_work * (R - 1 - step) > projected_limit:
-            raise SearchLimitExceeded(
-                f"frontier marginals projected past {projected_limit:.0f} transitions "
-                f"(work_projection x the work limit of {work_limit}) after {work}",
-                reason="projected",
-                work=work,
-            )
+        check_projection(
+            "frontier marginals", work, step_work, R - 1 - step, projected_limit, work_limit
+        )
         if source.size == 0:  # an exactly-once resource no frontier can satisfy
             return FrontierMarginals(
                 empty.log_mass, empty.log_total, empty.log_containing, exact, work

@@ -284,19 +284,13 @@ def with_own_gate(config: Config, gate_probability: float | None) -> Config:
 
     The baselines gate with ``config.estimator.gate_probability`` unless their
     ``gate_probability`` option (``[trackers.<name>] gate_probability = ...``) says
-    otherwise; the option is checked as that setting is (in (0, 1]).
+    otherwise; the option is checked as that setting is (a probability in (0, 1], by
+    :class:`~mapassoc.data.settings.EstimatorSettings`).
     """
     check_config(config)
     if gate_probability is None:
         return config
-    if isinstance(gate_probability, bool) or not isinstance(gate_probability, int | float):
-        raise InputError(
-            f"gate_probability must be a number in (0, 1], got {gate_probability!r}",
-            key="gate_probability",
-        )
-    return replace(
-        config, estimator=replace(config.estimator, gate_probability=float(gate_probability))
-    )
+    return replace(config, estimator=replace(config.estimator, gate_probability=gate_probability))
 
 
 def check_tracker_config(config: Config) -> None:
