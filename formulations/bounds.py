@@ -245,12 +245,12 @@ def relaxed_problem(
     remap = np.full(R, -1, dtype=np.int64)
     remap[~relaxed] = np.arange(int(np.count_nonzero(~relaxed)))
     lengths = np.bincount(owner[kept_entry], minlength=H)
-    out = PackingProblem(
+    out = PackingProblem.derived(
         scores=problem.scores - charge,
         resource_indptr=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
         resource_indices=remap[problem.resource_indices[kept_entry]],
         exactly_one=problem.exactly_one[~relaxed],
         counts=problem.counts,
-        log_weights=problem.log_weights - charge,  # type: ignore[operator]
+        log_weights=problem.weights - charge,
     )
     return out, float(np.sum(y))

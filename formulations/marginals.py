@@ -139,13 +139,13 @@ def _with_private_resources(problem: PackingProblem) -> PackingProblem:
     offset_old = np.arange(problem.resource_indices.size) - problem.resource_indptr[owner_old]
     indices[indptr[owner_old] + offset_old] = problem.resource_indices
     indices[indptr[lone]] = R + np.arange(lone.size)
-    return PackingProblem(
+    return PackingProblem.derived(
         scores=problem.scores,
         resource_indptr=indptr,
         resource_indices=indices,
         exactly_one=np.r_[problem.exactly_one, np.zeros(lone.size, dtype=bool)],
         counts=problem.counts,
-        log_weights=problem.log_weights,
+        log_weights=problem.weights,
     )
 
 

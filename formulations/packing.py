@@ -140,6 +140,38 @@ class PackingProblem:
         object.__setattr__(self, "counts", counts)
         object.__setattr__(self, "log_weights", log_weights)
 
+    @classmethod
+    def derived(
+        cls,
+        *,
+        scores: NDArray[np.float64],
+        resource_indptr: NDArray[np.int64],
+        resource_indices: NDArray[np.int64],
+        exactly_one: NDArray[np.bool_],
+        counts: NDArray[np.bool_],
+        log_weights: NDArray[np.float64],
+    ) -> PackingProblem:
+        """A problem built from a checked one's arrays, without checking them again.
+
+        For transformations of a constructed problem (restrictions, merges, relabelled
+        counts, charged scores) whose output satisfies the constructor's checks by
+        construction: the arrays must already have their dtypes and shapes, the log-weights
+        must be given, and each hypothesis must list a resource at most once.  The
+        constructor's checks cost more than most of the searches run on small clusters
+        (a sort of every resource entry), so the solvers' inner loops go through here.
+        """
+        problem = object.__new__(cls)
+        for name, value in (
+            ("scores", scores),
+            ("resource_indptr", resource_indptr),
+            ("resource_indices", resource_indices),
+            ("exactly_one", exactly_one),
+            ("counts", counts),
+            ("log_weights", log_weights),
+        ):
+            object.__setattr__(problem, name, value)
+        return problem
+
     @property
     def weights(self) -> NDArray[np.float64]:
         """The log-weights as construction filled them in: ``log_weights``, or ``scores``
@@ -177,7 +209,7 @@ class PackingProblem:
         used = np.unique(resources)
         remap = np.full(self.num_resources, -1, dtype=np.int64)
         remap[used] = np.arange(len(used))
-        return PackingProblem(
+        return PackingProblem.derived(
             scores=self.scores[hyp],
             resource_indptr=indptr,
             resource_indices=remap[resources],
@@ -265,13 +297,13 @@ def merge_interchangeable(problem: PackingProblem) -> MergedProblem:
     indptr = np.concatenate([[0], np.cumsum(rep_lengths)]).astype(np.int64)
     entry = np.repeat(problem.resource_indptr[reps] - indptr[:-1], rep_lengths)
     indices = problem.resource_indices[entry + np.arange(indptr[-1])]
-    merged = PackingProblem(
+    merged = PackingProblem.derived(
         scores=scores[reps],
         resource_indptr=indptr,
         resource_indices=indices.astype(np.int64),
         exactly_one=problem.exactly_one,
         counts=problem.counts[reps],
-        log_weights=merged_weights,
+        log_weights=merged_weights.astype(np.float64),
     )
     return MergedProblem(merged, reps, members)
 

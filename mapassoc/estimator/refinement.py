@@ -128,13 +128,13 @@ def _uncounted(problem: PackingProblem) -> PackingProblem:
     """``problem`` with no hypothesis counted: its per-k tables have one entry, k = 0,
     the best set and the mass over every size (the re-solve's program has no
     cardinality row)."""
-    return PackingProblem(
+    return PackingProblem.derived(
         scores=problem.scores,
         resource_indptr=problem.resource_indptr,
         resource_indices=problem.resource_indices,
         exactly_one=problem.exactly_one,
         counts=np.zeros(problem.num_hypotheses, dtype=bool),
-        log_weights=problem.log_weights,
+        log_weights=problem.weights,
     )
 
 

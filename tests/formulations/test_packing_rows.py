@@ -1,11 +1,15 @@
-"""gather_rows: CSR rows taken (repeats, empty rows) with an optional resource appended."""
+"""gather_rows: CSR rows taken (repeats, empty rows) with an optional resource appended;
+PackingProblem.derived: the transformations that skip the checks produce checked arrays."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from support import random_problem
 
-from mapassoc.formulations.packing import gather_rows
+from mapassoc.formulations.bounds import relaxed_problem
+from mapassoc.formulations.marginals import _with_private_resources
+from mapassoc.formulations.packing import PackingProblem, gather_rows, merge_interchangeable
 
 
 def _rows_by_loop(indptr, indices, rows, extra):  # type: ignore[no-untyped-def]
@@ -38,3 +42,42 @@ def test_gather_rows_golden() -> None:
     ptr, got = gather_rows(indptr, indices, np.array([2, 0, 1, 0]), np.array([9, -1, 8, 7]))
     assert ptr.tolist() == [0, 2, 4, 5, 8]
     assert got.tolist() == [6, 9, 4, 5, 8, 4, 5, 7]
+
+
+def _checked_again(problem: PackingProblem) -> PackingProblem:
+    """The constructor's checks run on a derived problem's arrays (raises if one fails)."""
+    return PackingProblem(
+        scores=problem.scores,
+        resource_indptr=problem.resource_indptr,
+        resource_indices=problem.resource_indices,
+        exactly_one=problem.exactly_one,
+        counts=problem.counts,
+        log_weights=problem.log_weights,
+    )
+
+
+@pytest.mark.parametrize("seed", range(15))
+def test_derived_problems_pass_the_constructor_checks(seed: int) -> None:
+    """PackingProblem.derived skips the checks: every transformation that uses it must
+    produce arrays the checked constructor accepts, with the same dtypes."""
+    rng = np.random.default_rng(seed)
+    problem = random_problem(rng, int(rng.integers(1, 14)), 6, int(rng.integers(0, 3)))
+    members = np.sort(
+        rng.choice(
+            problem.num_hypotheses, size=rng.integers(1, problem.num_hypotheses + 1), replace=False
+        )
+    )
+    relaxed = ~problem.exactly_one & (rng.random(problem.num_resources) < 0.5)
+    derived = [
+        problem.subproblem(members),
+        merge_interchangeable(problem).problem,
+        _with_private_resources(problem),
+        relaxed_problem(problem, relaxed, rng.random(problem.num_resources))[0],
+    ]
+    for out in derived:
+        again = _checked_again(out)
+        for name in ("scores", "resource_indptr", "resource_indices", "exactly_one", "counts"):
+            assert getattr(out, name).dtype == getattr(again, name).dtype, name
+            assert np.array_equal(getattr(out, name), getattr(again, name)), name
+        assert out.weights.dtype == np.float64
+        assert np.array_equal(out.weights, again.weights)
