@@ -112,8 +112,9 @@ class EstimatorSettings:
         Sweeps of the whole recording's refinement after the forward pass
         (:mod:`mapassoc.estimator.refinement`: window re-solves with both boundaries and
         fragment linking, each accepted only where the recording objective J rises):
-        windows of ``window_length`` scans, then of twice that, forward, then both
-        backward; 0 turns it off and gives the forward pass's tracks.
+        windows of ``window_length`` scans, then of twice that, then of single scans,
+        forward, then all three backward; 0 turns it off and gives the forward pass's
+        tracks.
     refine_link_gap : int
         Most scans between one track's last detection and another's first for the
         refinement to try joining them (0: no fragment linking).
@@ -147,7 +148,7 @@ class EstimatorSettings:
     time_limit: float = 2.0
     exact_work_limit: int = 500_000
     beam_width: int = 200
-    refine_passes: int = 4
+    refine_passes: int = 6
     refine_link_gap: int = 10
     refine_prune_log_ratio: float = 18.0
     min_existence: float = 0.0

@@ -40,13 +40,15 @@ The best set of joins (each end to at most one start) is an assignment
 where J rises, and linking repeats until none does.
 
 Sweeps go over the recording's windows of ``window_length`` scans (every ``stride``
-scans), then over windows twice as long, forward, then both backward, re-solving only
-windows near a change, until a sweep of each length changes nothing or ``passes`` sweeps
-are done.  The long windows start the targets that no short window found worth a
-track.  Every move is accepted only when the exact J of the changed tracks rises, so J
-never decreases; with the integer program's time limit (``EstimatorSettings.time_limit``)
-and the pass budget the work is bounded, and without a time limit reached the result is a
-function of the input alone.
+scans), then over windows twice as long, then over single scans, forward, then all three
+backward, re-solving only windows near a change, until a sweep of each length changes
+nothing or ``passes`` sweeps are done.  The long windows start the targets that no short
+window found worth a track; the single-scan windows, run at the scans where the
+per-tree cap cut a longer window's trees, are exact coordinate-ascent steps whose trees
+the cap never cuts, which closely spaced targets need.  Every move is accepted only when the exact J of the changed
+tracks rises, so J never decreases; with the integer program's time limit
+(``EstimatorSettings.time_limit``) and the pass budget the work is bounded, and without a
+time limit reached the result is a function of the input alone.
 
 Proposals re-filter at most ``refilter_detections`` of an anchor's detections (the
 acceptance re-filters all of them), and the joins to one anchor are pruned like the
@@ -124,6 +126,14 @@ _SMALL_CLUSTER = 12
 larger ones go to the integer program together."""
 
 
+def _required(problem: PackingProblem) -> NDArray[np.bool_]:
+    """Whether each hypothesis uses an exactly-once resource, shape (H,)."""
+    owner = np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr))
+    out = np.zeros(problem.num_hypotheses, dtype=bool)
+    out[owner[problem.exactly_one[problem.resource_indices]]] = True
+    return out
+
+
 def _uncounted(problem: PackingProblem) -> PackingProblem:
     """``problem`` with no hypothesis counted: its per-k tables have one entry, k = 0,
     the best set and the mass over every size (the re-solve's program has no
@@ -162,9 +172,9 @@ class RefinementSettings:
     ----------
     passes : int
         Most sweeps over the recording's windows; 0 turns refinement off.  Sweeps
-        alternate between the short and the long windows (short, long, short, ...), and
-        between forward and backward every two; they stop once a sweep of each length
-        changed nothing.
+        cycle through the window lengths (short, long, single scan, short, ...), forward
+        then backward once per cycle; they stop once a sweep of each length changed
+        nothing.
     window_length : int or None
         Scans per short re-solved window; ``None``: the estimator's ``window_length``.
     long_window_length : int or None
@@ -177,6 +187,17 @@ class RefinementSettings:
         Scans between the starts of consecutive re-solved windows; ``None``: about half
         the window (``(window_length + 1) // 2``), so that every window boundary of one
         sweep lies inside a window of the next.
+    scan_windows : bool
+        Also sweep windows of a single scan (when the short window is longer) at the scans
+        of the re-solved windows whose trees the per-tree cap cut: the scan's associations
+        re-solved with both boundaries, the tracks before it carried in and the tracks
+        after it anchors (where nothing was capped, the longer window's program already
+        held every change of one scan that its width keeps).  A one-scan tree is a carried track's gated
+        detections, its miss and its ending, so the per-tree cap never cuts it, and the
+        re-solve is exact over what the refinement's width keeps: block coordinate ascent
+        on J, one scan's associations at a time.  It completes what the cap cuts from the
+        longer windows' trees where targets are closely spaced (converging seeds 0 and 1:
+        J 1408 -> 1476 and 1408 -> 1513, the truth's 1504 and 1508).
     link_gap : int
         Most scans between a track's last detection and another's first for a
         fragment-linking candidate; 0 turns fragment linking off.
@@ -199,10 +220,11 @@ class RefinementSettings:
         other two 0.3 and 0.1 nats lower, in 0.66-0.90x the refinement's time).
     """
 
-    passes: int = 4
+    passes: int = 6
     window_length: int | None = None
     long_window_length: int | None = None
     stride: int | None = None
+    scan_windows: bool = True
     link_gap: int = 10
     refilter_detections: int = 15
     prune_log_ratio: float = 18.0
@@ -216,6 +238,11 @@ class RefinementSettings:
                     f"refine {name} must be an integer >= {minimum}, got {value!r}",
                     key=f"refine_{name}",
                 )
+        if not isinstance(self.scan_windows, bool):
+            raise InputError(
+                f"refine scan_windows must be true or false, got {self.scan_windows!r}",
+                key="refine_scan_windows",
+            )
         for name in ("window_length", "long_window_length", "stride"):
             value = getattr(self, name)
             if value is not None and (
@@ -418,6 +445,7 @@ class Refiner:
         self.lp_solver = default_lp_solver(self.solver)
         self.time_limit = est.time_limit
         self._refilter = settings.refilter_detections
+        self._capped_scans: set[int] = set()  # scans of re-solves whose trees the cap cut
         self.exact_work_limit = est.exact_work_limit
         self.beam_width = est.beam_width
         self._gain_bounds = np.array(
@@ -440,17 +468,24 @@ class Refiner:
         current = {int(tid): tuple(path) for tid, path in tracks.items() if path}
         values = self._exact_values(current)
         self._next_id = next_id if next_id is not None else max(current, default=0) + 1
+        self._capped_scans.clear()
         report = RefinementReport(objective_forward=float(sum(values.values())))
         lengths = [self.window_length]
         if self.long_window_length > self.window_length:
             lengths.append(self.long_window_length)
-        lengths = [min(n, len(self.scans)) for n in lengths]
+        if self.settings.scan_windows and self.window_length > 1:
+            lengths.append(1)
+        lengths = list(dict.fromkeys(min(n, len(self.scans)) for n in lengths))
         starts = {n: self.window_starts(n) for n in lengths}
         dirty = {n: set(starts[n]) for n in lengths}
         unchanged = 0
         for sweep in range(self.settings.passes):
             N = lengths[sweep % len(lengths)]
             order = starts[N] if (sweep // len(lengths)) % 2 == 0 else starts[N][::-1]
+            if N == 1 and N < self.window_length:
+                # Single scans only where a longer window's trees were cut by the cap:
+                # elsewhere those windows' programs held every one-scan change already.
+                dirty[N] &= self._capped_scans
             changed = False
             for a in order:
                 if a not in dirty[N]:
@@ -523,6 +558,8 @@ class Refiner:
         hyps, carried, anchors, touched = self._window_hypotheses(
             tracks, values, a, b, generator
         )
+        if hyps.nodes_capped > 0:
+            self._capped_scans.update(range(a, b))
         problem, joins = self._program(
             hyps, carried, anchors, a, prune_log_ratio=generator.prune_log_ratio
         )
@@ -564,7 +601,16 @@ class Refiner:
         uncounted = _uncounted(problem)
         chosen: list[NDArray[np.int64]] = []
         large: list[NDArray[np.int64]] = []
-        for members in cluster_hypotheses(uncounted):
+        clusters = cluster_hypotheses(uncounted)
+        lone = np.array([int(m[0]) for m in clusters if len(m) == 1], dtype=np.int64)
+        if lone.size:
+            # A hypothesis sharing no resource with another is taken when it must be (it
+            # alone holds an exactly-once resource) or when it adds to J (score > 0, as
+            # the frontier search breaks the tie at 0 towards the empty set).
+            chosen.append(lone[_required(problem)[lone] | (problem.scores[lone] > 0)])
+        for members in clusters:
+            if len(members) == 1:
+                continue
             if len(members) > _SMALL_CLUSTER:
                 large.append(members)
                 continue

@@ -37,7 +37,7 @@ def test_a_missing_estimator_section_warns_with_the_file_and_the_defaults(
         "(window_length 5, stride 1, max_tracks 20, gate_probability 0.999, "
         "max_hypotheses_per_tree 64, prune_log_ratio 9.0, k_prior 'birth', k_prior_mean 5.0, "
         "k_prior_weights [], k_estimate 'marginal', solver 'highs', time_limit 2.0, "
-        "exact_work_limit 500000, beam_width 200, refine_passes 4, refine_link_gap 10, "
+        "exact_work_limit 500000, beam_width 200, refine_passes 6, refine_link_gap 10, "
         "refine_prune_log_ratio 18.0, min_existence 0.0)"
     ]
     assert config.estimator == EstimatorSettings()  # still optional: the defaults are used

@@ -16,7 +16,14 @@ import math
 
 import numpy as np
 import pytest
-from support import NO_TIME_LIMIT, make_config, make_scans, partitions
+from support import (
+    NO_TIME_LIMIT,
+    brute_force_tables,
+    make_config,
+    make_scans,
+    partitions,
+    random_problem,
+)
 
 from mapassoc.errors import InputError
 from mapassoc.estimator import refinement
@@ -224,6 +231,59 @@ def test_refinement_over_the_whole_recording_finds_the_global_map(seed: int) -> 
     assert _feasible(refined)
     assert objective.value(refined) == pytest.approx(best, abs=1e-9)
     assert report.objective == pytest.approx(best, abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(16))
+def test_a_resolve_programs_best_set_equals_enumeration(seed: int) -> None:
+    """Refiner._best_set (lone hypotheses in closed form, small clusters by the frontier
+    search, large ones by the integer program) against every subset, sizes uncounted."""
+    config, scans = _tiny_recording(0)
+    refiner = Refiner(config=config, scans=scans, settings=RefinementSettings())
+    rng = np.random.default_rng(seed)
+    H = int(rng.integers(1, 15))
+    problem = random_problem(rng, H, int(rng.integers(H, 3 * H + 1)), int(rng.integers(0, 3)))
+    selection, limited = refiner._best_set(problem)
+    best, _ = brute_force_tables(refinement._uncounted(problem), 0)
+    assert not limited
+    if not math.isfinite(best[0]):
+        assert selection is None
+        return
+    assert selection is not None and problem.is_feasible(selection)
+    assert problem.value(selection) == pytest.approx(best[0], abs=1e-9)
+
+
+def test_single_scan_windows_go_where_the_cap_cut_a_longer_windows_trees() -> None:
+    scenario = build_scenario("converging", seed=0)
+    scans = scenario.scans[25:40]  # the six targets close together
+    config = _forward_config(scenario.config)
+    config = dataclasses.replace(
+        config, estimator=dataclasses.replace(config.estimator, max_hypotheses_per_tree=8)
+    )
+    solved: list[tuple[int, int]] = []
+
+    class Recording(Refiner):
+        def resolve_window(self, tracks, values, a, b):  # type: ignore[no-untyped-def]
+            solved.append((a, b))
+            return super().resolve_window(tracks, values, a, b)
+
+    forward = WindowEstimator(config=config).run(scans)
+    objective = RecordingObjective(config=config, scans=scans)
+    paths = paths_from_rows(objective, forward.track_rows)
+    refiner = Recording(config=config, scans=scans, settings=RefinementSettings(passes=3))
+    refined, report = refiner.refine(paths)
+    N = config.estimator.window_length
+    assert {b - a for a, b in solved} == {N, 2 * N, 1}
+    singles = {a for a, b in solved if b - a == 1}
+    assert singles and singles <= refiner._capped_scans
+    assert report.objective >= report.objective_forward - 1e-9
+    solved.clear()
+    Recording(
+        config=config, scans=scans, settings=RefinementSettings(passes=3, scan_windows=False)
+    ).refine(paths)
+    assert {b - a for a, b in solved} == {N, 2 * N}
+    with pytest.raises(InputError) as error:
+        RefinementSettings(scan_windows=1)  # type: ignore[arg-type]
+    assert error.value.key == "refine_scan_windows"
 
 
 @pytest.mark.parametrize("seed", range(8))
