@@ -42,11 +42,11 @@ where J rises, and linking repeats until none does.
 Sweeps go over the recording's windows of ``window_length`` scans (every ``stride``
 scans), then over windows twice as long, then over single scans, forward, then all three
 backward, re-solving only windows near a change, until a sweep of each length changes
-nothing or ``passes`` sweeps are done.  The long windows start the targets that no short
-window found worth a track; the single-scan windows, run at the scans where the
-per-tree cap cut a longer window's trees, are exact coordinate-ascent steps whose trees
-the cap never cuts, which closely spaced targets need.  Every move is accepted only when the exact J of the changed
-tracks rises, so J never decreases; with the integer program's time limit
+nothing or ``passes`` sweeps are done. The long windows start the targets that no short
+window found worth a track; the single-scan windows, run at the scans where the per-tree
+cap cut a longer window's trees, are exact coordinate-ascent steps whose trees the cap
+never cuts, which closely spaced targets need. Every move is accepted only when the exact
+J of the changed tracks rises, so J never decreases; with the integer program's time limit
 (``EstimatorSettings.time_limit``) and the pass budget the work is bounded, and without a
 time limit reached the result is a function of the input alone.
 
@@ -188,16 +188,17 @@ class RefinementSettings:
         the window (``(window_length + 1) // 2``), so that every window boundary of one
         sweep lies inside a window of the next.
     scan_windows : bool
-        Also sweep windows of a single scan (when the short window is longer) at the scans
-        of the re-solved windows whose trees the per-tree cap cut: the scan's associations
-        re-solved with both boundaries, the tracks before it carried in and the tracks
-        after it anchors (where nothing was capped, the longer window's program already
-        held every change of one scan that its width keeps).  A one-scan tree is a carried track's gated
-        detections, its miss and its ending, so the per-tree cap never cuts it, and the
-        re-solve is exact over what the refinement's width keeps: block coordinate ascent
-        on J, one scan's associations at a time.  It completes what the cap cuts from the
-        longer windows' trees where targets are closely spaced (converging seeds 0 and 1:
-        J 1408 -> 1476 and 1408 -> 1513, the truth's 1504 and 1508).
+        Also sweep windows of a single scan (when the short window is longer) at the
+        scans of the re-solved windows whose trees the per-tree cap cut: the scan's
+        associations re-solved with both boundaries, the tracks before it carried in and
+        the tracks after it anchors (where nothing was capped, the longer window's
+        program already held every change of one scan that its width keeps). A one-scan
+        tree is a carried track's gated detections, its miss and its ending, so the
+        per-tree cap never cuts it, and the re-solve is exact over what the refinement's
+        width keeps: block coordinate ascent on J, one scan's associations at a time. It
+        completes what the cap cuts from the longer windows' trees where targets are
+        closely spaced (converging seeds 0 and 1: J 1408 -> 1476 and 1408 -> 1513, the
+        truth's 1504 and 1508).
     link_gap : int
         Most scans between a track's last detection and another's first for a
         fragment-linking candidate; 0 turns fragment linking off.
@@ -1079,7 +1080,17 @@ class Refiner:
         exact = True
         seed = np.zeros(1)
         clusters: list[tuple[NDArray[np.int64], float]] = []
+        required = _required(uncounted)
         for members in cluster_hypotheses(uncounted):
+            if len(members) == 1:
+                # A lone hypothesis: the sets are {h} and, unless it alone holds an
+                # exactly-once resource, {}; in closed form.
+                h = int(members[0])
+                weight = float(uncounted.weights[h])
+                total = weight if required[h] else float(np.logaddexp(0.0, weight))
+                out[h] = math.exp(weight - total)
+                clusters.append((members, total))
+                continue
             sub = uncounted.subproblem(members)
             try:
                 found = frontier_marginals(

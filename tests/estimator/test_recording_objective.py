@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -241,7 +242,8 @@ def test_a_resolve_programs_best_set_equals_enumeration(seed: int) -> None:
     refiner = Refiner(config=config, scans=scans, settings=RefinementSettings())
     rng = np.random.default_rng(seed)
     H = int(rng.integers(1, 15))
-    problem = random_problem(rng, H, int(rng.integers(H, 3 * H + 1)), int(rng.integers(0, 3)))
+    groups = min(H, int(rng.integers(0, 3)))  # every exactly-once resource has a member
+    problem = random_problem(rng, H, int(rng.integers(H, 3 * H + 1)), groups)
     selection, limited = refiner._best_set(problem)
     best, _ = brute_force_tables(refinement._uncounted(problem), 0)
     assert not limited
@@ -250,6 +252,33 @@ def test_a_resolve_programs_best_set_equals_enumeration(seed: int) -> None:
         return
     assert selection is not None and problem.is_feasible(selection)
     assert problem.value(selection) == pytest.approx(best[0], abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_a_windows_marginals_equal_enumeration(seed: int) -> None:
+    """Refiner._marginals (lone hypotheses in closed form, the other clusters by the
+    frontier search forward and backward) against a sum over every feasible set."""
+    config, scans = _tiny_recording(0)
+    refiner = Refiner(config=config, scans=scans, settings=RefinementSettings())
+    rng = np.random.default_rng(50 + seed)
+    H = int(rng.integers(1, 11))
+    groups = min(H, int(rng.integers(0, 3)))  # every exactly-once resource has a member
+    problem = random_problem(rng, H, int(rng.integers(H, 3 * H + 1)), groups)
+    probabilities, exact, clusters = refiner._marginals(problem)
+    masses = []
+    for r in range(H + 1):
+        for chosen in itertools.combinations(range(H), r):
+            selection = np.array(chosen, dtype=np.int64)
+            if problem.is_feasible(selection):
+                masses.append((set(chosen), float(np.sum(problem.weights[selection]))))
+    total = np.logaddexp.reduce([m for _, m in masses])
+    expected = [
+        math.exp(np.logaddexp.reduce([m for c, m in masses if h in c] or [-math.inf]) - total)
+        for h in range(H)
+    ]
+    assert exact
+    assert probabilities == pytest.approx(expected, abs=1e-9)
+    assert sum(t for _, t in clusters) == pytest.approx(total, abs=1e-9)
 
 
 def test_single_scan_windows_go_where_the_cap_cut_a_longer_windows_trees() -> None:
