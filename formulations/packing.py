@@ -189,6 +189,24 @@ class PackingProblem:
     def resources_of(self, h: int) -> NDArray[np.int64]:
         return self.resource_indices[self.resource_indptr[h] : self.resource_indptr[h + 1]]
 
+    def uses_any(self, resources: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """Whether each hypothesis uses at least one of the marked resources, shape (H,).
+
+        Parameters
+        ----------
+        resources : ndarray of bool, shape (R,)
+        """
+        marked = np.asarray(resources, dtype=bool)
+        if marked.shape != (self.num_resources,):
+            raise ValueError(
+                f"resources must be a bool mask of shape ({self.num_resources},), "
+                f"got shape {marked.shape}"
+            )
+        owner = np.repeat(np.arange(self.num_hypotheses), np.diff(self.resource_indptr))
+        out = np.zeros(self.num_hypotheses, dtype=bool)
+        out[owner[marked[self.resource_indices]]] = True
+        return out
+
     def incidence(self) -> sp.csr_array:
         """Resource-by-hypothesis 0/1 matrix, shape (R, H)."""
         H = self.num_hypotheses

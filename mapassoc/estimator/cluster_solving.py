@@ -402,13 +402,7 @@ class ClusterSolver:
         parts: list[WindowCluster] = []
         bound_pruned = 0
         pruning_cut_short = False
-        required = problem.exactly_one[problem.resource_indices]
-        has_required = np.zeros(problem.num_hypotheses, dtype=bool)
-        np.logical_or.at(
-            has_required,
-            np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr)),
-            required,
-        )
+        has_required = problem.uses_any(problem.exactly_one)
         independent: list[int] = []  # lone hypotheses that may be taken or not
         for members in clusters:
             if len(members) == 1:
@@ -500,10 +494,7 @@ class ClusterSolver:
         # A hypothesis that uses no detection (a carried track ended, or missed
         # throughout) is never dropped: with it every K down to 0 stays feasible, so a
         # K reported infeasible really has no track set.
-        uses_detection = np.zeros(problem.num_hypotheses, dtype=bool)
-        owner = np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr))
-        uses_detection[owner[~problem.exactly_one[problem.resource_indices]]] = True
-        keep |= ~uses_detection
+        keep |= ~problem.uses_any(~problem.exactly_one)
         return None if np.all(keep) else keep
 
     # -- tables ------------------------------------------------------------------------

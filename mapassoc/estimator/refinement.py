@@ -126,14 +126,6 @@ _SMALL_CLUSTER = 12
 larger ones go to the integer program together."""
 
 
-def _required(problem: PackingProblem) -> NDArray[np.bool_]:
-    """Whether each hypothesis uses an exactly-once resource, shape (H,)."""
-    owner = np.repeat(np.arange(problem.num_hypotheses), np.diff(problem.resource_indptr))
-    out = np.zeros(problem.num_hypotheses, dtype=bool)
-    out[owner[problem.exactly_one[problem.resource_indices]]] = True
-    return out
-
-
 def _uncounted(problem: PackingProblem) -> PackingProblem:
     """``problem`` with no hypothesis counted: its per-k tables have one entry, k = 0,
     the best set and the mass over every size (the re-solve's program has no
@@ -608,7 +600,8 @@ class Refiner:
             # A hypothesis sharing no resource with another is taken when it must be (it
             # alone holds an exactly-once resource) or when it adds to J (score > 0, as
             # the frontier search breaks the tie at 0 towards the empty set).
-            chosen.append(lone[_required(problem)[lone] | (problem.scores[lone] > 0)])
+            required = problem.uses_any(problem.exactly_one)
+            chosen.append(lone[required[lone] | (problem.scores[lone] > 0)])
         for members in clusters:
             if len(members) == 1:
                 continue
@@ -1080,7 +1073,7 @@ class Refiner:
         exact = True
         seed = np.zeros(1)
         clusters: list[tuple[NDArray[np.int64], float]] = []
-        required = _required(uncounted)
+        required = uncounted.uses_any(uncounted.exactly_one)
         for members in cluster_hypotheses(uncounted):
             if len(members) == 1:
                 # A lone hypothesis: the sets are {h} and, unless it alone holds an

@@ -81,3 +81,19 @@ def test_derived_problems_pass_the_constructor_checks(seed: int) -> None:
             assert np.array_equal(getattr(out, name), getattr(again, name)), name
         assert out.weights.dtype == np.float64
         assert np.array_equal(out.weights, again.weights)
+
+
+def test_uses_any_marks_the_hypotheses_of_the_marked_resources() -> None:
+    # hypothesis 0 uses resources {0, 2}, 1 uses none, 2 uses {1}, 3 uses {2}
+    problem = PackingProblem(
+        scores=np.zeros(4),
+        resource_indptr=np.array([0, 2, 2, 3, 4]),
+        resource_indices=np.array([0, 2, 1, 2]),
+        exactly_one=np.array([False, True, False]),
+        counts=np.ones(4, dtype=bool),
+    )
+    assert problem.uses_any(problem.exactly_one).tolist() == [False, False, True, False]
+    assert problem.uses_any(~problem.exactly_one).tolist() == [True, False, False, True]
+    assert problem.uses_any(np.zeros(3, dtype=bool)).tolist() == [False] * 4
+    with pytest.raises(ValueError, match="shape \\(3,\\)"):
+        problem.uses_any(np.ones(2, dtype=bool))
