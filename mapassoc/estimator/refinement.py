@@ -475,7 +475,7 @@ class Refiner:
         for sweep in range(self.settings.passes):
             N = lengths[sweep % len(lengths)]
             order = starts[N] if (sweep // len(lengths)) % 2 == 0 else starts[N][::-1]
-            if N == 1 and N < self.window_length:
+            if N == 1 < min(self.window_length, len(self.scans)):
                 # Single scans only where a longer window's trees were cut by the cap:
                 # elsewhere those windows' programs held every one-scan change already.
                 dirty[N] &= self._capped_scans

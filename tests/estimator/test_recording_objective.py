@@ -310,6 +310,13 @@ def test_single_scan_windows_go_where_the_cap_cut_a_longer_windows_trees() -> No
         config=config, scans=scans, settings=RefinementSettings(passes=3, scan_windows=False)
     ).refine(paths)
     assert {b - a for a, b in solved} == {N, 2 * N}
+    # A recording of one scan: its one window is the short window, solved as always
+    # (not held back as a single-scan window the cap never cut).
+    solved.clear()
+    Recording(config=config, scans=scans[:1], settings=RefinementSettings(passes=3)).refine(
+        paths_from_rows(RecordingObjective(config=config, scans=scans[:1]), {})
+    )
+    assert solved == [(0, 1)]
     with pytest.raises(InputError) as error:
         RefinementSettings(scan_windows=1)  # type: ignore[arg-type]
     assert error.value.key == "refine_scan_windows"
