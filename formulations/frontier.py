@@ -517,11 +517,14 @@ def _vectorised_search(
 
     exact = True
     covers = np.zeros(1, dtype=np.uint64)
-    best = np.zeros((1, 1))  # columns: k = 0..reach, reach growing with the sets
+    # Columns: k = low..reach, reach growing with the sets; low rises when every
+    # frontier's entries below it are empty (the beam's entry margin drops them).
+    best = np.zeros((1, 1))
     mass = np.zeros((1, 1))
-    # Per step: the winning candidate of each (frontier, k) (int32, the big array), and
-    # each candidate's previous frontier and decision.
-    back: list[tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.int64]]] = []
+    low = 0
+    # Per step: the winning candidate of each (frontier, k) (int32, the big array), each
+    # candidate's previous frontier and decision, and the k of the winners' column 0.
+    back: list[tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], int]] = []
     work = 0
     widest = 1
     for step in range(R):
@@ -535,9 +538,9 @@ def _vectorised_search(
             pair_row, pair_h = open_rows[pair_row], starting[pair_h]
         else:
             pair_row = pair_h = np.zeros(0, dtype=np.int64)
-        reach = best.shape[1] - 1
-        grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and reach < kmax)
-        cols = reach + 1 + grow
+        span_now = best.shape[1]  # columns k = low..low + span_now - 1
+        grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and low + span_now <= kmax)
+        cols = span_now + grow
         source = np.concatenate([keep, pair_row])
         # Charged before the step's arrays are built, so a limit never overshoots.
         step_work = -(-source.size * cols // _VECTOR_ENTRIES_PER_TRANSITION)
@@ -551,15 +554,15 @@ def _vectorised_search(
             return _result(infeasible, infeasible, [None] * width, work, widest, exact)
         cand_best = np.full((source.size, cols), _NEG_INF)
         cand_mass = np.full((source.size, cols), _NEG_INF)
-        cand_best[: keep.size, : reach + 1] = best[keep]
-        cand_mass[: keep.size, : reach + 1] = mass[keep]
+        cand_best[: keep.size, :span_now] = best[keep]
+        cand_mass[: keep.size, :span_now] = mass[keep]
         taken = keep.size + np.arange(pair_h.size)
         for c in (0, 1):
             sel = counts[pair_h] == c
             if not np.any(sel):
                 continue
             rows_in, rows_out = pair_row[sel], taken[sel]
-            span = min(reach + 1, cols - c)
+            span = min(span_now, cols - c)
             cand_best[rows_out, c : c + span] = best[rows_in, :span] + scores[pair_h[sel], None]
             cand_mass[rows_out, c : c + span] = mass[rows_in, :span] + weights[pair_h[sel], None]
         cand_covers = np.concatenate(
@@ -588,24 +591,32 @@ def _vectorised_search(
             if np.any(light):
                 mass[light] = best[light] = _NEG_INF
                 exact = False
+                # Columns empty in every frontier go (the next steps' work shrinks).
+                live = np.flatnonzero(np.isfinite(mass).any(axis=0))
+                if live.size and (live[0] > 0 or live[-1] < mass.shape[1] - 1):
+                    lo, hi = int(live[0]), int(live[-1]) + 1
+                    best, mass = best[:, lo:hi], mass[:, lo:hi]
+                    winner = winner[:, lo:hi]
+                    low += lo
         if max_frontiers is not None and covers.size > max_frontiers:
             heaviest = mass.max(axis=1)
             kept = np.sort(np.argsort(-heaviest, kind="stable")[:max_frontiers])
             covers, best, mass, winner = covers[kept], best[kept], mass[kept], winner[kept]
             exact = False
-        back.append((winner.astype(np.int32), source, cand_decision))
+        back.append((winner.astype(np.int32), source, cand_decision, low))
     # Every frontier word is 0 after the last position: one state remains.
     final_best = np.full(width, _NEG_INF)
     final_mass = np.full(width, _NEG_INF)
-    final_best[: best.shape[1]], final_mass[: mass.shape[1]] = best[0], mass[0]
+    final_best[low : low + best.shape[1]] = best[0]
+    final_mass[low : low + mass.shape[1]] = mass[0]
     sets: list[tuple[int, ...] | None] = [None] * width
-    for k in range(best.shape[1]):
+    for k in range(low, low + best.shape[1]):
         if not np.isfinite(final_best[k]):
             continue
         chosen = []
         state, remaining = 0, k
-        for winners, src, decision in reversed(back):
-            candidate = int(winners[state, remaining])
+        for winners, src, decision, first_k in reversed(back):
+            candidate = int(winners[state, remaining - first_k])
             h = int(decision[candidate])
             state = int(src[candidate])
             if h >= 0:
