@@ -3,7 +3,8 @@
 Backends (one module each) consume :class:`~mapassoc.formulations.program.Program` /
 :class:`~mapassoc.formulations.program.FlowProgram` and know nothing about tracks:
 
-* :class:`HighsSolver` (``"highs"``): HiGHS via ``scipy.optimize.milp``, exact MILP/LP.
+* :class:`HighsSolver` (``"highs"``): HiGHS, exact MILP (``scipy.optimize.milp``) and LP
+  relaxations (``highspy``, warm-started when only equality right-hand sides change).
 * :class:`CvxpySolver` (``"cvxpy-clarabel"``, ``"cvxpy-highs"``): cvxpy; Clarabel for LP
   bounds and duals (interior point: midpoints on ties), HiGHS for MILPs.
 * :class:`EnumerationSolver` (``"enumeration"``): exact oracle for small binary programs,
@@ -13,7 +14,9 @@ Backends (one module each) consume :class:`~mapassoc.formulations.program.Progra
 
 One table, :data:`SOLVERS` (:mod:`mapassoc.solvers.registry`), names every backend with
 its capabilities; :func:`get_solver` builds one.  Backends with ``supports_relaxation``
-are :class:`RelaxationSolver`: ``solve_relaxation`` returns the LP relaxation with duals.
+are :class:`RelaxationSolver`: ``solve_relaxation`` returns the LP relaxation with duals;
+:func:`relaxation_sequence` keeps one relaxation for solves with other equality
+right-hand sides (warm-started where the backend can).
 Optional libraries (cvxpy, networkx) are imported on first use, not by this package.
 
 Infeasible, unbounded and limited solves are :class:`SolveStatus` values; only a broken
@@ -34,6 +37,11 @@ from mapassoc.solvers.registry import (
     get_solver,
     solver_spec,
 )
+from mapassoc.solvers.relaxation_sequences import (
+    ColdRelaxationSequence,
+    RelaxationSequence,
+    relaxation_sequence,
+)
 from mapassoc.solvers.results import (
     EnumerationResult,
     FlowResult,
@@ -47,6 +55,7 @@ from mapassoc.solvers.results import (
 )
 
 __all__ = [
+    "ColdRelaxationSequence",
     "CvxpySolver",
     "EnumerationResult",
     "EnumerationSolver",
@@ -56,6 +65,7 @@ __all__ = [
     "LPResult",
     "NetworkxFlowSolver",
     "ProgramSolver",
+    "RelaxationSequence",
     "RelaxationSolver",
     "SOLVERS",
     "SOLVER_NAMES",
@@ -69,6 +79,7 @@ __all__ = [
     "get_solver",
     "lagrangian_bound",
     "no_good_cut",
+    "relaxation_sequence",
     "solve_k_best",
     "solver_spec",
 ]

@@ -77,9 +77,11 @@ from mapassoc.solvers import (
     HighsSolver,
     LPResult,
     ProgramSolver,
+    RelaxationSequence,
     RelaxationSolver,
     SolverError,
     SolveStatus,
+    relaxation_sequence,
 )
 
 __all__ = [
@@ -198,6 +200,10 @@ _BEAM_ENTRY_MARGIN = 40.0
 
 _NEGLIGIBLE_LOG_MASS = 50.0
 """A k whose mass bound is this far below the mass found holds < e^-50 of it."""
+
+_INTEGRAL_VERTEX = 1e-9
+"""An LP optimum whose every variable is this close to an integer is taken as integral
+(:meth:`ClusterSolver._take_integral_vertex`; the HiGHS backend's relaxation-first test)."""
 
 _MU_GRID = np.linspace(-30.0, 30.0, 25)
 """Cardinality multipliers tried for the mass bound of k values no LP reached."""
@@ -577,8 +583,10 @@ class ClusterSolver:
                 tables.best_upper = np.minimum(tables.best_upper, relaxed_best)
                 tables.mass_upper = np.minimum(tables.mass_upper, relaxed_mass)
         start_k = int(np.argmax(tables.best))
+        # One LP kept over the walk: only the cardinality row's right-hand side changes.
+        lps = relaxation_sequence(self.lp_solver, set_packing_program(problem, start_k))
         for step, k in ((-1, start_k), (1, start_k + 1)):
-            self._walk_k(problem, groups, tables, k, step, top, deadline)
+            self._walk_k(problem, groups, tables, lps, k, step, top, deadline)
         return self._bounded_result(problem, tables, started)
 
     def _beam(
@@ -615,13 +623,15 @@ class ClusterSolver:
         problem: PackingProblem,
         groups: tuple[NDArray[np.int64], NDArray[np.bool_]],
         tables: _BoundedTables,
+        lps: RelaxationSequence,
         k: int,
         step: int,
         top: int,
         deadline: float,
     ) -> None:
         """LP relaxations with the cardinality row at k, k + step, ... (one direction),
-        tightening ``tables`` in place.
+        tightening ``tables`` in place.  ``lps`` holds the relaxation (its last row the
+        cardinality row), warm-started from one k to the next.
 
         At each k: the LP value bounds best(k) (and proves the beam's set optimal where
         they meet), its duals bound the mass; where the beam's set falls short of a
@@ -632,13 +642,13 @@ class ClusterSolver:
         """
         size = top + 1
         line: tuple[int, float, float, NDArray[np.float64]] | None = None
+        right_hand_sides = np.array(lps.program.b_eq, dtype=float)
         while 0 <= k <= top:
             if time.perf_counter() >= deadline:
                 tables.limited = True
                 break
-            lp = self.lp_solver.solve_relaxation(
-                set_packing_program(problem, k), time_limit=_remaining(deadline)
-            )
+            right_hand_sides[-1] = k
+            lp = lps.solve(right_hand_sides, time_limit=_remaining(deadline))
             tables.solves += 1
             if lp.status is SolveStatus.INFEASIBLE:
                 tables.best_upper[k] = tables.mass_upper[k] = -math.inf
@@ -650,6 +660,7 @@ class ClusterSolver:
                 break
             multipliers, mu = resource_multipliers(problem, *_duals(lp))
             tables.best_upper[k] = min(tables.best_upper[k], lp.objective)
+            self._take_integral_vertex(problem, k, lp, tables)
             upper = tables.best_upper[k]
             if tables.best[k] >= upper - 1e-9 * (1.0 + abs(upper)):
                 tables.best_upper[k] = tables.best[k]  # the beam's set meets the LP bound
@@ -686,6 +697,22 @@ class ClusterSolver:
                     tables.mass_upper[ahead],
                     log_mass_upper_bounds(problem, multipliers, mu, ahead, groups),
                 )
+
+    @staticmethod
+    def _take_integral_vertex(
+        problem: PackingProblem, k: int, lp: LPResult, tables: _BoundedTables
+    ) -> None:
+        """An integral LP optimum at k is a best set of k (no set beats the relaxation):
+        it becomes the table's set when it beats the beam's, and the LP bound is met."""
+        x = lp.solution
+        if x is None or np.any(np.abs(x - np.round(x)) > _INTEGRAL_VERTEX):
+            return
+        chosen = decode_selection(np.round(x))
+        if not problem.is_feasible(chosen, k):
+            return
+        score = problem.value(chosen)
+        if score > tables.best[k] or tables.sets[k] is None:
+            tables.best[k], tables.sets[k] = score, tuple(int(h) for h in chosen)
 
     def _tighten_by_integer_program(
         self, problem: PackingProblem, k: int, deadline: float, tables: _BoundedTables

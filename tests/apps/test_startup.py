@@ -15,7 +15,16 @@ from pathlib import Path
 
 import pytest
 
-HEAVY = ("scipy.optimize", "scipy.sparse", "cvxpy", "networkx", "pandas", "tqdm", "matplotlib")
+HEAVY = (
+    "scipy.optimize",
+    "scipy.sparse",
+    "cvxpy",
+    "highspy",
+    "networkx",
+    "pandas",
+    "tqdm",
+    "matplotlib",
+)
 
 
 def _imported_after(code: str) -> list[str]:
