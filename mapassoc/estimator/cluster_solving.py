@@ -17,11 +17,13 @@ per-k table of best scores, best sets and log-masses, and says how it got it:
     deterministically, to spare the time it would spend before failing).  A beam
     frontier search (``beam_width`` frontiers) sums a subset of the feasible sets: lower
     bounds on every log-mass and a feasible set for every k it reaches.  LP relaxations
-    with the cardinality row, walked outward from the best k, bound the best score of
-    every k from above (the LP value is concave in k, so the supporting line of the last
-    LP bounds every k beyond it); where the beam's set does not meet its LP bound and
-    the k can matter (LP bound within ``map_margin`` of the best set found), the integer
-    program is solved. The LP duals also bound every log-mass from above
+    with the cardinality row, walked outward from the best k (one LP kept by the backend
+    and warm-started from k to k, :func:`~mapassoc.solvers.relaxation_sequence`), bound
+    the best score of every k from above (the LP value is concave in k, so the supporting
+    line of the last LP bounds every k beyond it); an integral LP optimum is k's best
+    set; where the beam's set does not meet its LP bound and the k can matter (LP bound
+    within ``map_margin`` of the best set found), the integer program is solved.  The LP
+    duals also bound every log-mass from above
     (:func:`~mapassoc.formulations.bounds.log_mass_upper_bounds`).  So every k gets a
     best score that is proven optimal, or a proven upper bound that is reported, and the
     mass gets an interval ``[log_mass, log_mass_upper]``.
