@@ -181,7 +181,11 @@ its work limit (``work_projection`` of
 :func:`~mapassoc.formulations.frontier.frontier_search`).  Measured on the forward passes
 of converging, dense_radar, parallel and dense_pd08 (seeds 0 and 1, 1,093 exact searches,
 52 of them failing at the limit after up to 0.9 s each): 8 stops 33 of the failing ones
-early and 1 that would have finished; 4 would stop 50 of them, and 11 that finish."""
+early and 1 that would have finished; 4 would stop 50 of them, and 11 that finish.
+Since, the exact search of a cluster of
+:data:`~mapassoc.formulations.frontier.WORK_COUNT_MIN_HYPOTHESES` hypotheses or more counts
+its work beforehand and needs no projection (it stops at once or runs whole); the
+projection still applies to smaller clusters and to the window marginals."""
 
 BOUND_PRUNE_MIN_HYPOTHESES = 100
 """Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of

@@ -1,0 +1,86 @@
+"""The exact search's work, counted on the frontier words before the search.
+
+* ``exact_search_work`` returns exactly the work the vectorised exact search charges:
+  its whole work where it fits the limit, and the work at which it raises where not;
+* ``frontier_search`` on a large problem stops at once, with that work and reason
+  ``"work"``, where the search would pass the limit, and otherwise gives the same tables
+  as the search without any limit (no projection cuts a search that fits).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mapassoc.formulations.frontier import (
+    WORK_COUNT_MIN_HYPOTHESES,
+    SearchLimitExceeded,
+    _vectorised_search,
+    exact_search_work,
+    frontier_search,
+    resource_order,
+)
+from mapassoc.formulations.packing import PackingProblem
+
+
+def banded_problem(rng: np.random.Generator, H: int, D: int, band: int) -> PackingProblem:
+    """Hypotheses like a window's: each uses 1-3 detections close together (within
+    ``band`` of each other, as a track's detections are close in time) and belongs to a
+    tree (one per three detection positions) whose exactly-once resource it uses; each
+    tree also has a member with no detection, so every exactly-once row can be met."""
+    trees = (D - band) // 3 + 1
+    lists = [[D + t] for t in range(trees)]  # the trees' detection-free members
+    for _ in range(H - trees):
+        start = int(rng.integers(0, D - band))
+        chosen = rng.choice(np.arange(start, start + band), size=int(rng.integers(1, 4)))
+        lists.append(sorted(set(chosen.tolist())) + [D + start // 3])
+    indptr = np.concatenate([[0], np.cumsum([len(r) for r in lists])])
+    indices = np.concatenate([np.asarray(r, dtype=np.int64) for r in lists])
+    exactly_one = np.r_[np.zeros(D, dtype=bool), np.ones(trees, dtype=bool)]
+    return PackingProblem(
+        rng.normal(0.0, 3.0, size=H), indptr, indices, exactly_one, rng.random(H) < 0.9
+    )
+
+
+@pytest.mark.parametrize("seed", range(16))
+def test_the_count_is_the_searchs_work(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    problem = banded_problem(rng, int(rng.integers(60, 200)), D=int(rng.integers(20, 60)), band=8)
+    kmax = int(rng.integers(1, 30))
+    order = resource_order(problem)
+    whole = _vectorised_search(problem, kmax, order, None, None)
+    assert whole is not None
+    assert exact_search_work(problem, kmax, order, work_limit=10**12) == whole.work
+    for limit in (whole.work // 3, whole.work - 1, whole.work):
+        counted = exact_search_work(problem, kmax, order, work_limit=limit)
+        if limit >= whole.work:
+            assert counted == whole.work
+            continue
+        with pytest.raises(SearchLimitExceeded) as stop:
+            _vectorised_search(problem, kmax, order, limit, None)
+        assert counted == stop.value.work > limit
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_large_search_stops_at_once_or_runs_whole(seed: int) -> None:
+    rng = np.random.default_rng(100 + seed)
+    problem = banded_problem(rng, WORK_COUNT_MIN_HYPOTHESES + 100, D=80, band=8)
+    kmax = 25
+    free = frontier_search(problem, kmax)
+    # Too little work: stops before searching, with the count, whatever the projection.
+    with pytest.raises(SearchLimitExceeded) as stop:
+        frontier_search(problem, kmax, work_limit=free.work - 1, work_projection=1.0)
+    assert stop.value.reason == "work"
+    assert stop.value.work == exact_search_work(
+        problem, kmax, resource_order(problem), work_limit=free.work - 1
+    )
+    # Just enough: runs whole even with the tightest projection (which alone would
+    # stop a search whose steps grow).
+    with pytest.raises(SearchLimitExceeded, match="projected"):
+        _vectorised_search(
+            problem, kmax, resource_order(problem), free.work, None, None, None, free.work
+        )
+    fits = frontier_search(problem, kmax, work_limit=free.work, work_projection=1.0)
+    np.testing.assert_array_equal(fits.best, free.best)
+    np.testing.assert_array_equal(fits.log_mass, free.log_mass)
+    assert fits.best_sets == free.best_sets and fits.work == free.work
