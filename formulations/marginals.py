@@ -46,8 +46,10 @@ from numpy.typing import NDArray
 
 from mapassoc.formulations.convolution import sum_product
 from mapassoc.formulations.frontier import (
+    WORK_COUNT_MIN_HYPOTHESES,
     SearchLimitExceeded,
     check_projection,
+    exact_search_work,
     projected_work_limit,
     resource_order,
 )
@@ -187,7 +189,9 @@ def frontier_marginals(
     work_projection : float, optional
         With ``work_limit``: also stop when on course for more than this many times the
         limit, as :func:`~mapassoc.formulations.frontier.frontier_search` does (reason
-        ``"projected"``).
+        ``"projected"``); and, as there, an exact run of
+        :data:`~mapassoc.formulations.frontier.WORK_COUNT_MIN_HYPOTHESES` hypotheses or
+        more counts its work first and stops at once or runs whole.
     deadline : float, optional
         ``time.perf_counter()`` value past which the search stops.
 
@@ -208,9 +212,34 @@ def frontier_marginals(
     if max_frontiers is not None and max_frontiers < 1:
         raise ValueError(f"max_frontiers must be >= 1, got {max_frontiers!r}")
     projected_limit = projected_work_limit(work_projection, work_limit)
+    private = _with_private_resources(problem)
+    if (
+        work_limit is not None
+        and max_frontiers is None
+        and entry_margin is None
+        and private.num_hypotheses >= WORK_COUNT_MIN_HYPOTHESES
+    ):
+        # The forward pass is the exact frontier search's (the same rows and columns,
+        # the same work per entry): its work is counted first, as the search's is.
+        needed = exact_search_work(
+            private,
+            seeds.shape[1] - 1,
+            resource_order(private),
+            work_limit=work_limit,
+            deadline=deadline,
+        )
+        if needed is not None:
+            if needed > work_limit:
+                raise SearchLimitExceeded(
+                    f"frontier marginals would exceed the work limit of {work_limit} "
+                    "transitions (counted on the frontier words, before the search)",
+                    reason="work",
+                    work=needed,
+                )
+            projected_limit = None
     with np.errstate(invalid="ignore", over="ignore"):
         return _forward_backward(
-            _with_private_resources(problem),
+            private,
             seeds,
             max_frontiers,
             entry_margin,

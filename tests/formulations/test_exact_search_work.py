@@ -2,7 +2,8 @@
 
 * ``exact_search_work`` returns exactly the work the vectorised exact search charges:
   its whole work where it fits the limit, and the work at which it raises where not;
-* ``frontier_search`` on a large problem stops at once, with that work and reason
+* ``frontier_search`` and ``frontier_marginals`` (whose forward pass is the same search)
+  on a large problem stops at once, with that work and reason
   ``"work"``, where the search would pass the limit, and otherwise gives the same tables
   as the search without any limit (no projection cuts a search that fits).
 """
@@ -20,6 +21,7 @@ from mapassoc.formulations.frontier import (
     frontier_search,
     resource_order,
 )
+from mapassoc.formulations.marginals import frontier_marginals
 from mapassoc.formulations.packing import PackingProblem
 
 
@@ -84,3 +86,18 @@ def test_a_large_search_stops_at_once_or_runs_whole(seed: int) -> None:
     np.testing.assert_array_equal(fits.best, free.best)
     np.testing.assert_array_equal(fits.log_mass, free.log_mass)
     assert fits.best_sets == free.best_sets and fits.work == free.work
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_marginals_forward_pass_is_counted_the_same_way(seed: int) -> None:
+    rng = np.random.default_rng(200 + seed)
+    problem = banded_problem(rng, WORK_COUNT_MIN_HYPOTHESES + 60, D=70, band=8)
+    seeds = np.zeros(16)  # k = 0..15, every set weighted alike
+    free = frontier_marginals(problem, seeds)
+    with pytest.raises(SearchLimitExceeded) as stop:
+        frontier_marginals(problem, seeds, work_limit=free.work - 1, work_projection=1.0)
+    assert stop.value.reason == "work" and stop.value.work > free.work - 1
+    fits = frontier_marginals(problem, seeds, work_limit=free.work, work_projection=1.0)
+    assert fits.work == free.work
+    np.testing.assert_array_equal(fits.log_containing, free.log_containing)
+    np.testing.assert_array_equal(fits.log_total, free.log_total)
