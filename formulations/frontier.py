@@ -55,7 +55,9 @@ __all__ = [
     "FrontierResult",
     "WORK_COUNT_MIN_HYPOTHESES",
     "exact_search_work",
+    "fits_counted_work",
     "frontier_search",
+    "hypothesis_spans",
     "resource_order",
     "tie_precedes",
     "independent_sums",
@@ -352,20 +354,11 @@ def frontier_search(
         work_limit is not None
         and max_frontiers is None
         and entry_margin is None
-        and problem.num_hypotheses >= WORK_COUNT_MIN_HYPOTHESES
+        and fits_counted_work(
+            "frontier search", problem, kmax, order, work_limit=work_limit, deadline=deadline
+        )
     ):
-        # The exact search's work is known beforehand, for a fraction of its cost: a
-        # search that would pass the limit stops here, and one that fits runs whole.
-        needed = exact_search_work(problem, kmax, order, work_limit=work_limit, deadline=deadline)
-        if needed is not None:
-            if needed > work_limit:
-                raise SearchLimitExceeded(
-                    f"frontier search would exceed its work limit of {work_limit} "
-                    "transitions (counted on the frontier words, before the search)",
-                    reason="work",
-                    work=needed,
-                )
-            projected_limit = None
+        projected_limit = None  # it runs whole: nothing to project
     vectorised = _vectorised_search(
         problem, kmax, order, work_limit, deadline, max_frontiers, entry_margin, projected_limit
     )
@@ -495,6 +488,34 @@ searches up to the limit: 3.4 s), and on the 23 of that size that fit the count 
 a fifth (0.29 s to 1.42 s); below 200 the count is never needed."""
 
 
+def hypothesis_spans(
+    problem: PackingProblem, order: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """Where each hypothesis's resources lie in the resource ``order``.
+
+    Returns
+    -------
+    owner : ndarray of int, shape (nnz,)
+        The hypothesis of each entry of ``problem.resource_indices``.
+    offsets : ndarray of int, shape (nnz,)
+        Each entry's position relative to its hypothesis's first position.
+    first, last : ndarray of int, shape (H,)
+        Each hypothesis's first and last position (``R`` and 0 for one without
+        resources).
+    """
+    H = problem.num_hypotheses
+    R = order.size
+    position = np.empty(R, dtype=np.int64)
+    position[order] = np.arange(R)
+    owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
+    spots = position[problem.resource_indices]
+    first = np.full(H, R, dtype=np.int64)
+    np.minimum.at(first, owner, spots)
+    last = np.zeros(H, dtype=np.int64)
+    np.maximum.at(last, owner, spots)
+    return owner, spots - first[owner], first, last
+
+
 _WordLayout = tuple[NDArray[np.uint64], NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]
 
 
@@ -509,19 +530,11 @@ def _word_layout(problem: PackingProblem, order: NDArray[np.int64]) -> _WordLayo
     R = order.size
     if H < _VECTORISE_MIN_HYPOTHESES or R == 0:
         return None
-    position = np.empty(R, dtype=np.int64)
-    position[order] = np.arange(R)
-    owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
-    spots = position[problem.resource_indices]
-    first = np.full(H, R, dtype=np.int64)
-    np.minimum.at(first, owner, spots)
-    last = np.zeros(H, dtype=np.int64)
-    np.maximum.at(last, owner, spots)
+    owner, offsets, first, last = hypothesis_spans(problem, order)
     if np.any(last - first >= _WORD_BITS):
         return None
     relative = np.zeros(H, dtype=np.uint64)
-    offsets = (spots - first[owner]).astype(np.uint64)
-    np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets))
+    np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets.astype(np.uint64)))
     by_start = np.argsort(first, kind="stable")
     bounds = np.searchsorted(first[by_start], np.arange(R + 1))
     return relative, by_start, bounds, problem.exactly_one[order]
@@ -587,6 +600,39 @@ def exact_search_work(
             np.concatenate([covers[keep] >> one, (covers[pair_row] | relative[pair_h]) >> one])
         )
     return work
+
+
+def fits_counted_work(
+    what: str,
+    problem: PackingProblem,
+    kmax: int,
+    order: NDArray[np.int64],
+    *,
+    work_limit: int,
+    deadline: float | None,
+) -> bool:
+    """Count an exact search's work before it runs (:func:`exact_search_work`), for a
+    problem of :data:`WORK_COUNT_MIN_HYPOTHESES` hypotheses or more.
+
+    Returns True when the search fits ``work_limit`` (it will run whole), False when the
+    work was not counted (a smaller problem, or one the vectorised search does not
+    take).  Raises :class:`SearchLimitExceeded` (reason ``"work"``, with the work at
+    which the search would stop) when it would pass the limit; ``what`` names the
+    search in the message.
+    """
+    if problem.num_hypotheses < WORK_COUNT_MIN_HYPOTHESES:
+        return False
+    needed = exact_search_work(problem, kmax, order, work_limit=work_limit, deadline=deadline)
+    if needed is None:
+        return False
+    if needed > work_limit:
+        raise SearchLimitExceeded(
+            f"{what} would exceed its work limit of {work_limit} transitions (counted on "
+            "the frontier words, before the search)",
+            reason="work",
+            work=needed,
+        )
+    return True
 
 
 def _vectorised_search(

@@ -46,10 +46,10 @@ from numpy.typing import NDArray
 
 from mapassoc.formulations.convolution import sum_product
 from mapassoc.formulations.frontier import (
-    WORK_COUNT_MIN_HYPOTHESES,
     SearchLimitExceeded,
     check_projection,
-    exact_search_work,
+    fits_counted_work,
+    hypothesis_spans,
     projected_work_limit,
     resource_order,
 )
@@ -213,33 +213,27 @@ def frontier_marginals(
         raise ValueError(f"max_frontiers must be >= 1, got {max_frontiers!r}")
     projected_limit = projected_work_limit(work_projection, work_limit)
     private = _with_private_resources(problem)
+    order = resource_order(private)
+    # The forward pass is the exact frontier search's (the same rows and columns, the
+    # same work per entry): its work is counted first, as the search's is.
     if (
         work_limit is not None
         and max_frontiers is None
         and entry_margin is None
-        and private.num_hypotheses >= WORK_COUNT_MIN_HYPOTHESES
-    ):
-        # The forward pass is the exact frontier search's (the same rows and columns,
-        # the same work per entry): its work is counted first, as the search's is.
-        needed = exact_search_work(
+        and fits_counted_work(
+            "frontier marginals",
             private,
             seeds.shape[1] - 1,
-            resource_order(private),
+            order,
             work_limit=work_limit,
             deadline=deadline,
         )
-        if needed is not None:
-            if needed > work_limit:
-                raise SearchLimitExceeded(
-                    f"frontier marginals would exceed the work limit of {work_limit} "
-                    "transitions (counted on the frontier words, before the search)",
-                    reason="work",
-                    work=needed,
-                )
-            projected_limit = None
+    ):
+        projected_limit = None  # it runs whole: nothing to project
     with np.errstate(invalid="ignore", over="ignore"):
         return _forward_backward(
             private,
+            order,
             seeds,
             max_frontiers,
             entry_margin,
@@ -251,6 +245,7 @@ def frontier_marginals(
 
 def _forward_backward(
     problem: PackingProblem,
+    order: NDArray[np.int64],
     seeds: NDArray[np.float64],
     max_frontiers: int | None,
     entry_margin: float | None,
@@ -261,17 +256,8 @@ def _forward_backward(
     H = problem.num_hypotheses
     S, width = seeds.shape
     kmax = width - 1
-    order = resource_order(problem)
     R = order.size
-    position = np.empty(R, dtype=np.int64)
-    position[order] = np.arange(R)
-    owner = np.repeat(np.arange(H), np.diff(problem.resource_indptr))
-    spots = position[problem.resource_indices]
-    first = np.full(H, R, dtype=np.int64)
-    np.minimum.at(first, owner, spots)
-    last = np.zeros(H, dtype=np.int64)
-    np.maximum.at(last, owner, spots)
-    offsets = spots - first[owner]
+    owner, offsets, first, last = hypothesis_spans(problem, order)
     # Frontier words relative to the current position: one uint64 when every hypothesis
     # spans fewer than 64 positions, Python integers (object arrays) otherwise.
     if H == 0 or np.all(last - first < _WORD_BITS):

@@ -65,6 +65,7 @@ from mapassoc.solvers._common import (
     integrality_violation,
     snap_integer_variables,
 )
+from mapassoc.solvers.relaxation_sequences import checked_b_eq
 from mapassoc.solvers.results import (
     LPResult,
     SolverError,
@@ -477,15 +478,14 @@ class HighsRelaxation:
         """
         limit = validate_time_limit(time_limit)
         started = time.perf_counter()
-        if b_eq is not None:
-            self._check_equalities(b_eq)
+        new = None if b_eq is None else checked_b_eq(b_eq, self.program)
         if self.program.num_variables == 0:  # HiGHS wants a column; the answer is known
-            if b_eq is not None:
-                self._b_eq = np.array(b_eq, dtype=float)
+            if new is not None:
+                self._b_eq = new
             return self._empty(time.perf_counter() - started)
         highs = self._model()
-        if b_eq is not None:
-            self._change_equalities(highs, b_eq)
+        if new is not None:
+            self._change_equalities(highs, new)
         # HiGHS compares its time limit with the instance's run time summed over solves.
         spent = float(highs.getRunTime())
         highs.setOptionValue("time_limit", math.inf if limit is None else spent + limit)
@@ -524,17 +524,6 @@ class HighsRelaxation:
             eq_duals=duals[self._num_ub :],
         )
 
-    def _check_equalities(self, b_eq: NDArray[np.float64]) -> None:
-        """Raise unless ``b_eq`` is one finite value per ``A_eq`` row."""
-        new = np.asarray(b_eq, dtype=float)
-        if new.shape != self._b_eq.shape:
-            raise ValueError(
-                f"b_eq must have shape {self._b_eq.shape} (one value per A_eq row), got "
-                f"shape {new.shape}"
-            )
-        if not np.all(np.isfinite(new)):
-            raise ValueError(f"b_eq must be finite, got {new!r}")
-
     def _empty(self, seconds: float) -> LPResult:
         """The relaxation of a program without variables: its constant, or infeasible."""
         program = replace(self.program, b_eq=self._b_eq)
@@ -560,9 +549,9 @@ class HighsRelaxation:
             eq_duals=np.zeros(self._b_eq.shape[0]),
         )
 
-    def _change_equalities(self, highs: highspy.Highs, b_eq: NDArray[np.float64]) -> None:
-        """Set the ``A_eq`` rows' right-hand sides to ``b_eq`` (only the changed rows)."""
-        new = np.array(b_eq, dtype=float)  # a copy: the caller may reuse its array
+    def _change_equalities(self, highs: highspy.Highs, new: NDArray[np.float64]) -> None:
+        """Set the ``A_eq`` rows' right-hand sides to ``new`` (only the changed rows); the
+        sequence keeps ``new`` (a checked copy, :func:`checked_b_eq`)."""
         changed = np.flatnonzero(new != self._b_eq)
         for row in changed.tolist():  # one row, the cardinality row, in a walk over k
             value = float(new[row])

@@ -21,7 +21,12 @@ from numpy.typing import NDArray
 from mapassoc.formulations.program import Program
 from mapassoc.solvers.results import LPResult, RelaxationSolver
 
-__all__ = ["ColdRelaxationSequence", "RelaxationSequence", "relaxation_sequence"]
+__all__ = [
+    "ColdRelaxationSequence",
+    "RelaxationSequence",
+    "checked_b_eq",
+    "relaxation_sequence",
+]
 
 
 class RelaxationSequence(Protocol):
@@ -59,16 +64,22 @@ class ColdRelaxationSequence:
     ) -> LPResult:
         """Solve the relaxation with ``b_eq`` (see :class:`RelaxationSequence`)."""
         if b_eq is not None:
-            new = np.array(b_eq, dtype=float)  # a copy: the caller may reuse its array
-            if new.shape != self.program.b_eq.shape:
-                raise ValueError(
-                    f"b_eq must have shape {self.program.b_eq.shape} (one value per A_eq "
-                    f"row), got shape {new.shape}"
-                )
-            if not np.all(np.isfinite(new)):
-                raise ValueError(f"b_eq must be finite, got {new!r}")
-            self._current = replace(self.program, b_eq=new)
+            self._current = replace(self.program, b_eq=checked_b_eq(b_eq, self.program))
         return self.solver.solve_relaxation(self._current, time_limit=time_limit)
+
+
+def checked_b_eq(b_eq: NDArray[np.float64], program: Program) -> NDArray[np.float64]:
+    """A copy of ``b_eq`` (the caller may reuse its array), after checking that it holds
+    one finite value per ``A_eq`` row of ``program``; ValueError naming ``b_eq`` if not."""
+    new = np.array(b_eq, dtype=float)
+    if new.shape != program.b_eq.shape:
+        raise ValueError(
+            f"b_eq must have shape {program.b_eq.shape} (one value per A_eq row), got "
+            f"shape {new.shape}"
+        )
+    if not np.all(np.isfinite(new)):
+        raise ValueError(f"b_eq must be finite, got {new!r}")
+    return new
 
 
 def relaxation_sequence(solver: RelaxationSolver, program: Program) -> RelaxationSequence:
