@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -58,6 +59,8 @@ __all__ = [
     "fits_counted_work",
     "frontier_search",
     "hypothesis_spans",
+    "open_pairs",
+    "pair_budget",
     "resource_order",
     "tie_precedes",
     "independent_sums",
@@ -540,21 +543,60 @@ def _word_layout(problem: PackingProblem, order: NDArray[np.int64]) -> _WordLayo
     return relative, by_start, bounds, problem.exactly_one[order]
 
 
-def _open_pairs(
-    covers: NDArray[np.uint64],
+_PAIR_BLOCK_ENTRIES = 1 << 18
+"""Open frontiers are tested against a step's hypotheses in blocks of about this many
+(frontier, hypothesis) entries, so a step past the work limit stops after a block."""
+
+
+def open_pairs(
+    covers: NDArray[Any],
     covered: NDArray[np.bool_],
-    relative: NDArray[np.uint64],
+    relative: NDArray[Any],
     starting: NDArray[np.int64],
+    most: int | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Every (frontier, hypothesis) pair where a hypothesis starting at this position
-    fits a frontier that has not covered it: frontier rows, hypotheses (rows first)."""
+    fits a frontier that has not covered it: frontier rows, hypotheses (rows first).
+
+    ``covers`` and ``relative`` are frontier and hypothesis words (uint64, or Python
+    integers in object arrays).  With ``most``, the open frontiers are tested block by
+    block and the test stops once more than ``most`` pairs are found: the pairs returned
+    are then a prefix of the whole list, more than ``most`` of them (none when ``most``
+    is negative).  A search whose work limit leaves room for ``most`` pairs knows then
+    that the step passes the limit without building the step's whole pair matrix.
+    """
     open_rows = np.flatnonzero(~covered)
-    if not (starting.size and open_rows.size):
+    if not (starting.size and open_rows.size) or (most is not None and most < 0):
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty
-    fits = (covers[open_rows, None] & relative[starting][None, :]) == 0
-    pair_row, pair_h = np.nonzero(fits)
-    return open_rows[pair_row], starting[pair_h]
+    words = relative[starting][None, :]
+    block = max(1, _PAIR_BLOCK_ENTRIES // starting.size)
+    rows_found: list[NDArray[np.int64]] = []
+    hypotheses_found: list[NDArray[np.int64]] = []
+    found = 0
+    for lo in range(0, open_rows.size, block):
+        rows = open_rows[lo : lo + block]
+        fits = np.asarray((covers[rows, None] & words) == 0, dtype=bool)
+        pair_row, pair_h = np.nonzero(fits)
+        rows_found.append(rows[pair_row])
+        hypotheses_found.append(starting[pair_h])
+        found += pair_row.size
+        if most is not None and found > most:
+            break
+    if len(rows_found) == 1:
+        return rows_found[0], hypotheses_found[0]
+    return np.concatenate(rows_found), np.concatenate(hypotheses_found)
+
+
+def pair_budget(
+    work_limit: int | None, work: int, columns: int, kept: int, entries_per_transition: int
+) -> int | None:
+    """The most (frontier, hypothesis) pairs a step can add to ``kept`` rows of at least
+    ``columns`` k-entries each without taking the work past ``work_limit`` (``None``
+    without a limit): the ``most`` of :func:`open_pairs`."""
+    if work_limit is None:
+        return None
+    return (work_limit - work) * entries_per_transition // columns - kept
 
 
 def exact_search_work(
@@ -589,16 +631,19 @@ def exact_search_work(
         covered = (covers & one).astype(bool)
         keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(covers.size)
         starting = by_start[bounds[step] : bounds[step + 1]]
-        pair_row, pair_h = _open_pairs(covers, covered, relative, starting)
+        most = pair_budget(work_limit, work, span, keep.size, _VECTOR_ENTRIES_PER_TRANSITION)
+        pair_row, pair_h = open_pairs(covers, covered, relative, starting, most)
         grow = int(pair_h.size > 0 and bool(np.any(counts[pair_h])) and span <= kmax)
         span += grow
         rows = keep.size + pair_h.size
         work += -(-rows * span // _VECTOR_ENTRIES_PER_TRANSITION)
         if work > work_limit or rows == 0:
             return work
-        covers = np.unique(
+        # Sorted distinct words (np.unique's hashing is several times slower on these).
+        reached = np.sort(
             np.concatenate([covers[keep] >> one, (covers[pair_row] | relative[pair_h]) >> one])
         )
+        covers = reached[np.r_[True, reached[1:] != reached[:-1]]]
     return work
 
 
@@ -688,8 +733,9 @@ def _vectorised_search(
         covered = (covers & one).astype(bool)
         keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(covers.size)
         starting = by_start[bounds[step] : bounds[step + 1]]
-        pair_row, pair_h = _open_pairs(covers, covered, relative, starting)
         span_now = best.shape[1]  # columns k = low..low + span_now - 1
+        most = pair_budget(work_limit, work, span_now, keep.size, _VECTOR_ENTRIES_PER_TRANSITION)
+        pair_row, pair_h = open_pairs(covers, covered, relative, starting, most)
         grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and low + span_now <= kmax)
         cols = span_now + grow
         source = np.concatenate([keep, pair_row])

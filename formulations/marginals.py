@@ -50,6 +50,8 @@ from mapassoc.formulations.frontier import (
     check_projection,
     fits_counted_work,
     hypothesis_spans,
+    open_pairs,
+    pair_budget,
     projected_work_limit,
     resource_order,
 )
@@ -295,14 +297,9 @@ def _forward_backward(
         covered = (covers & one).astype(bool)
         keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(covers.size)
         starting = by_start[bounds[step] : bounds[step + 1]]
-        open_rows = np.flatnonzero(~covered)
-        if starting.size and open_rows.size:
-            fits = (covers[open_rows, None] & relative[starting][None, :]) == 0
-            pair_row, pair_h = np.nonzero(fits.astype(bool))
-            pair_row, pair_h = open_rows[pair_row], starting[pair_h]
-        else:
-            pair_row = pair_h = np.zeros(0, dtype=np.int64)
         reach = mass.shape[1] - 1
+        most = pair_budget(work_limit, work, reach + 1, keep.size, _ENTRIES_PER_TRANSITION)
+        pair_row, pair_h = open_pairs(covers, covered, relative, starting, most)
         grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and reach < kmax)
         cols = reach + 1 + grow
         source = np.concatenate([keep, pair_row]).astype(np.int64)

@@ -2,6 +2,8 @@
 
 * ``exact_search_work`` returns exactly the work the vectorised exact search charges:
   its whole work where it fits the limit, and the work at which it raises where not;
+* a step's (frontier, hypothesis) pairs are found block by block, and a step that would
+  pass the limit stops after the block that shows it (count and search alike);
 * ``frontier_search`` and ``frontier_marginals`` (whose forward pass is the same search)
   on a large problem stops at once, with that work and reason
   ``"work"``, where the search would pass the limit, and otherwise gives the same tables
@@ -13,12 +15,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import mapassoc.formulations.frontier as frontier
 from mapassoc.formulations.frontier import (
     WORK_COUNT_MIN_HYPOTHESES,
     SearchLimitExceeded,
     _vectorised_search,
     exact_search_work,
     frontier_search,
+    open_pairs,
     resource_order,
 )
 from mapassoc.formulations.marginals import frontier_marginals
@@ -44,8 +48,39 @@ def banded_problem(rng: np.random.Generator, H: int, D: int, band: int) -> Packi
     )
 
 
+@pytest.mark.parametrize("seed", range(12))
+def test_open_pairs_are_the_whole_list_or_a_longer_prefix(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    rng = np.random.default_rng(300 + seed)
+    covers = rng.integers(0, 1 << 12, size=int(rng.integers(1, 60))).astype(np.uint64)
+    covered = rng.random(covers.size) < 0.3
+    relative = rng.integers(1, 1 << 12, size=40).astype(np.uint64)
+    starting = np.sort(rng.choice(40, size=int(rng.integers(1, 12)), replace=False))
+    open_rows = np.flatnonzero(~covered)
+    rows, cols = np.nonzero((covers[open_rows, None] & relative[starting][None, :]) == 0)
+    whole_rows, whole_h = open_rows[rows], starting[cols]
+    monkeypatch.setattr(frontier, "_PAIR_BLOCK_ENTRIES", int(rng.integers(1, 30)))
+    for most in (None, -1, 0, 1, whole_h.size // 2, whole_h.size - 1, whole_h.size):
+        found_rows, found_h = open_pairs(covers, covered, relative, starting, most)
+        if most is None or most >= whole_h.size:
+            np.testing.assert_array_equal(found_rows, whole_rows)
+            np.testing.assert_array_equal(found_h, whole_h)
+        elif most < 0:
+            assert found_h.size == 0
+        else:
+            assert most < found_h.size <= whole_h.size
+            np.testing.assert_array_equal(found_rows, whole_rows[: found_h.size])
+            np.testing.assert_array_equal(found_h, whole_h[: found_h.size])
+
+
+@pytest.mark.parametrize("block", [1 << 18, 3])
 @pytest.mark.parametrize("seed", range(16))
-def test_the_count_is_the_searchs_work(seed: int) -> None:
+def test_the_count_is_the_searchs_work(
+    seed: int, block: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Small blocks: a step past the limit stops part-way, in the count and the search.
+    monkeypatch.setattr(frontier, "_PAIR_BLOCK_ENTRIES", block)
     rng = np.random.default_rng(seed)
     problem = banded_problem(rng, int(rng.integers(60, 200)), D=int(rng.integers(20, 60)), band=8)
     kmax = int(rng.integers(1, 30))
