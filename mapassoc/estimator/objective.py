@@ -49,6 +49,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,6 +58,7 @@ from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
+from mapassoc.filtering.compiled import kalman_kernels
 from mapassoc.filtering.kalman import (
     gate_threshold,
     pairwise_gate_and_loglik,
@@ -266,6 +268,10 @@ class RecordingObjective:
         )
         self._trajectories: dict[TrackPath, Trajectory] = {}
         self._motion_cache: dict[tuple[int, float], tuple[FloatArray, FloatArray]] = {}
+        self._scan_matrices: (
+            tuple[NDArray[np.bool_], FloatArray, FloatArray, FloatArray, FloatArray, IntArray]
+            | None
+        ) = None
         self._row_of = {
             int(row): (m, j) for m, scan in enumerate(self.scans) for j, row in enumerate(scan.rows)
         }
@@ -457,7 +463,9 @@ class RecordingObjective:
 
         The same algebra as :func:`~mapassoc.filtering.kalman.update` (gain through
         ``S^-1``, Joseph-form covariance) with a batched inverse of the small S instead of
-        Cholesky solves: for one track at a time, numpy's per-call overhead is the cost.
+        Cholesky solves: for one track at a time, numpy's per-call overhead is the cost,
+        so the compiled kernel takes the step where numba is installed
+        (:func:`~mapassoc.filtering.compiled.kalman_kernels`).
 
         Returns
         -------
@@ -465,6 +473,19 @@ class RecordingObjective:
             Squared Mahalanobis distance and ``log N(nu; 0, S)``.
         x_post, P_post
         """
+        kernels = kalman_kernels()
+        if kernels is not None:
+            # Fresh writable C arrays: one compiled signature whatever the inputs' flags.
+            d2, loglik, x_post, P_post, positive = kernels.kalman_update(
+                np.array(x, dtype=np.float64),
+                np.array(P, dtype=np.float64),
+                np.array(np.broadcast_to(z, (x.shape[0], H.shape[0])), dtype=np.float64),
+                np.array(H, dtype=np.float64),
+                np.array(R, dtype=np.float64),
+            )
+            if not positive:
+                raise InputError("innovation covariance S is not positive-definite")
+            return d2, loglik, x_post, P_post
         HP = H @ P  # (B, d, n)
         S = HP @ H.T + R
         S = 0.5 * (S + np.swapaxes(S, -1, -2))
@@ -721,6 +742,12 @@ class RecordingObjective:
         P = np.concatenate([requests[i][0].covariances for i in chosen])
         value = np.concatenate([requests[i][0].value for i in chosen])
         scan = np.repeat(np.array([requests[i][0].scan for i in chosen], dtype=np.int64), sizes)
+        kernels = kalman_kernels()
+        if kernels is not None:
+            flat = self._converge_compiled(kernels, table, x, P, value, scan, request)
+            for c, i in enumerate(chosen):
+                out[i] = flat[offsets[c] : offsets[c + 1]]
+            return
         track = np.arange(int(offsets[-1]))  # position in the flat output
         flat = np.full(int(offsets[-1]), -math.inf)
         step = np.zeros(track.size, dtype=np.int64)  # detections of the reference taken
@@ -778,6 +805,78 @@ class RecordingObjective:
             scan, step = scan[keep], step[keep] + 1
         for c, i in enumerate(chosen):
             out[i] = flat[offsets[c] : offsets[c + 1]]
+
+    def _converge_compiled(
+        self,
+        kernels: ModuleType,
+        table: _ReferenceSteps,
+        x: FloatArray,
+        P: FloatArray,
+        value: FloatArray,
+        scan: IntArray,
+        request: IntArray,
+    ) -> FloatArray:
+        """The batched continuation's loop in the compiled kernel
+        (``continue_along_references``), track by track; the same steps as the numpy
+        loop of :meth:`_converge_batch`."""
+        moves, F, Q, H, R, dims = self._linear_scan_matrices()
+        flat, positive = kernels.continue_along_references(
+            np.ascontiguousarray(x, dtype=np.float64),
+            np.ascontiguousarray(P, dtype=np.float64),
+            np.ascontiguousarray(value, dtype=np.float64),
+            scan.astype(np.int64),
+            request.astype(np.int64),
+            table.steps,
+            table.scan,
+            table.detection,
+            table.rest,
+            table.mean,
+            table.covariance,
+            table.tail,
+            moves,
+            F,
+            Q,
+            H,
+            R,
+            dims,
+            self.survival_terms,
+            self.miss_terms,
+            self.log_pd,
+            self.log_clutter,
+            self._thresholds,
+            CONVERGED,
+        )
+        if not positive:
+            raise InputError("innovation covariance S is not positive-definite")
+        return np.asarray(flat, dtype=np.float64)
+
+    def _linear_scan_matrices(
+        self,
+    ) -> tuple[NDArray[np.bool_], FloatArray, FloatArray, FloatArray, FloatArray, IntArray]:
+        """Per scan ``m``: whether the step from ``m - 1`` has a positive time step, the
+        motion model's ``F`` and ``Q`` over it, and the scan's linear measurement ``H``,
+        ``R`` (zero-padded to the largest measurement dimension) with its dimension;
+        zeros where a step does not move or a measurement is not linear.  Computed once."""
+        if self._scan_matrices is None:
+            M, n, dz = len(self.scans), self.motion.state_dim, self._measurement_dim
+            moves = np.zeros(M, dtype=bool)
+            F, Q = np.zeros((M, n, n)), np.zeros((M, n, n))
+            H, R = np.zeros((M, dz, n)), np.zeros((M, dz, dz))
+            dims = np.zeros(M, dtype=np.int64)
+            for m in range(M):
+                dt = float(self.times[m] - self.times[m - 1]) if m else 0.0
+                matrices = self._linear_motion(self.motion, dt) if dt > 0 else None
+                if matrices is not None:
+                    moves[m] = True
+                    F[m], Q[m] = matrices
+                measurement = self._sensors[m].measurement
+                if isinstance(measurement, LinearMeasurement):
+                    d = measurement.H.shape[0]
+                    dims[m] = d
+                    H[m, :d] = measurement.H
+                    R[m, :d, :d] = measurement.noise_covariance
+            self._scan_matrices = (moves, F, Q, H, R, dims)
+        return self._scan_matrices
 
     def value(self, tracks: Mapping[int, TrackPath] | Iterable[TrackPath]) -> float:
         """J(omega) = sum of the tracks' values (0 for no track; ``-inf`` if impossible)."""

@@ -24,6 +24,7 @@ HEAVY = (
     "pandas",
     "tqdm",
     "matplotlib",
+    "numba",
 )
 
 

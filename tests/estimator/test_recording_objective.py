@@ -32,6 +32,7 @@ from mapassoc.estimator.objective import PathState, RecordingObjective, paths_fr
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.estimator.refinement import RefinementSettings, Refiner, refine_track_rows
 from mapassoc.evaluation.scenarios import build_scenario
+from mapassoc.filtering.compiled import COMPILED_SWITCH
 from mapassoc.models.motion import ConstantVelocity
 
 NOISE_INTENSITY = 0.4
@@ -423,12 +424,19 @@ def test_converging_continuation_agrees_with_the_whole_filter_run() -> None:
     assert checked > 10
 
 
+@pytest.mark.parametrize("kalman_path", ["compiled", "numpy"])
 @pytest.mark.parametrize("family", ["crossing", "dense", "two_sensors"])
-def test_batched_continuation_equals_one_request_at_a_time(family: str) -> None:
+def test_batched_continuation_equals_one_request_at_a_time(
+    family: str, kalman_path: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """continue_converging_many gives what continue_converging gives per request, with
     and without a cap, for requests that start at different scans, continue different
     references (two sensors: different measurement models in one batch) and leave at
-    different steps."""
+    different steps; on the numpy path and on the compiled kernels (numba), which also
+    agree with each other."""
+    if kalman_path == "compiled":
+        pytest.importorskip("numba")
+    monkeypatch.setenv(COMPILED_SWITCH, "1" if kalman_path == "compiled" else "0")
     scenario = build_scenario(family, seed=1)
     config, scans = scenario.config, scenario.scans[:25]
     result = WindowEstimator(config=_forward_config(config)).run(scans)
@@ -475,6 +483,12 @@ def test_batched_continuation_equals_one_request_at_a_time(family: str) -> None:
         for (start, reference, first), got in zip(requests, many, strict=True):
             one = objective.continue_converging(start, reference, first, max_detections=cap)
             np.testing.assert_allclose(got, one, rtol=1e-9, atol=1e-9)
+        if kalman_path == "compiled":
+            monkeypatch.setenv(COMPILED_SWITCH, "0")
+            plain = objective.continue_converging_many(requests, max_detections=cap)
+            monkeypatch.setenv(COMPILED_SWITCH, "1")
+            for got, expected in zip(many, plain, strict=True):
+                np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9)
     assert any(np.isneginf(v).any() for v in many)  # some requests leave at the gate
     assert any(np.isfinite(v).any() for v in many)
 
