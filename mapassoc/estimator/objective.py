@@ -574,18 +574,31 @@ class RecordingObjective:
             if not path:
                 raise InputError("a track needs at least one detection")
             state = self.start_path(path)
-            states = [state]
-            for m, j in path[1:]:
-                state = self.continue_paths(state, ((m, j),))
-                states.append(state)
+            means, covariances = [state.means[0]], [state.covariances[0]]
+            initiated, values = [state.initiated], [float(state.value[0])]
+            kernels = kalman_kernels()
+            for k in range(1, len(path)):
+                if kernels is not None and self._linear_from(state, path[k:]):
+                    # The rest of the run in the compiled kernel (the same steps).
+                    rest = self._filter_compiled(kernels, state, path[k:])
+                    means.extend(rest[0])
+                    covariances.extend(rest[1])
+                    values.extend(rest[2].tolist())
+                    initiated.extend([True] * (len(path) - k))
+                    break
+                state = self.continue_paths(state, (path[k],))
+                means.append(state.means[0])
+                covariances.append(state.covariances[0])
+                initiated.append(state.initiated)
+                values.append(float(state.value[0]))
             cached = Trajectory(
                 path=path,
-                means=tuple(s.means[0] for s in states),
-                covariances=tuple(s.covariances[0] for s in states),
-                initiated=np.array([s.initiated for s in states], dtype=bool),
-                first_time=float(states[0].first_time[0]),
-                values=np.array([float(s.value[0]) for s in states]),
-                value=float(states[-1].value[0] + self.tails[path[-1][0]]),
+                means=tuple(means),
+                covariances=tuple(covariances),
+                initiated=np.array(initiated, dtype=bool),
+                first_time=float(state.first_time[0]),
+                values=np.array(values),
+                value=float(values[-1] + self.tails[path[-1][0]]),
             )
             if len(self._trajectories) >= TRAJECTORY_CACHE:
                 del self._trajectories[next(iter(self._trajectories))]
@@ -703,15 +716,52 @@ class RecordingObjective:
 
     def _batchable(self, start: PathState, reference: Trajectory, first: int) -> bool:
         """Whether a request's steps are all linear Kalman steps in one state space."""
-        if not (start.initiated and self.motion.is_linear) or first >= len(reference.path):
+        if first >= len(reference.path) or not bool(np.all(reference.initiated[first:])):
             return False
-        n = self.motion.state_dim
-        if start.means.shape[1] != n or not bool(np.all(reference.initiated[first:])):
+        return self._linear_from(start, reference.path[first:])
+
+    def _linear_from(self, start: PathState, path: TrackPath) -> bool:
+        """Whether every step from ``start`` through ``path`` is a linear Kalman step in
+        the motion model's state space (an initiated track, a linear motion model and
+        linear measurements at the path's scans)."""
+        if not (start.initiated and self.motion.is_linear):
             return False
-        return all(
-            isinstance(self._sensors[m].measurement, LinearMeasurement)
-            for m, _ in reference.path[first:]
+        if start.means.shape[1] != self.motion.state_dim:
+            return False
+        return all(isinstance(self._sensors[m].measurement, LinearMeasurement) for m, _ in path)
+
+    def _filter_compiled(
+        self, kernels: ModuleType, state: PathState, path: TrackPath
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """One track's run from ``state`` through ``path`` in the compiled kernel
+        (``filter_along_path``): its means, covariances and values after each detection."""
+        moves, F, Q, H, R, dims = self._linear_scan_matrices()
+        detections = np.zeros((len(path), self._measurement_dim))
+        for i, (m, j) in enumerate(path):
+            z = self.scans[m].detections[j]
+            detections[i, : z.shape[0]] = z
+        means, covariances, values, positive = kernels.filter_along_path(
+            np.array(state.means[0], dtype=np.float64),
+            np.array(state.covariances[0], dtype=np.float64),
+            float(state.value[0]),
+            int(state.scan),
+            np.array([m for m, _ in path], dtype=np.int64),
+            detections,
+            moves,
+            F,
+            Q,
+            H,
+            R,
+            dims,
+            self.survival_terms,
+            self.miss_terms,
+            self.log_pd,
+            self.log_clutter,
+            self._thresholds,
         )
+        if not positive:
+            raise InputError("innovation covariance S is not positive-definite")
+        return means, covariances, values
 
     def _converge_batch(
         self,

@@ -198,6 +198,169 @@ def _update_one(
 
 
 @njit(cache=True)
+def _step_to(
+    xt: FloatArray,
+    Pt: FloatArray,
+    v: float,
+    cur: int,
+    target: int,
+    z: FloatArray,
+    moves: BoolArray,
+    F: FloatArray,
+    Q: FloatArray,
+    H: FloatArray,
+    R: FloatArray,
+    dims: IntArray,
+    survival: FloatArray,
+    miss: FloatArray,
+    log_pd: FloatArray,
+    log_clutter: FloatArray,
+    thresholds: FloatArray,
+    x_tmp: FloatArray,
+    P_tmp: FloatArray,
+    FP: FloatArray,
+    scratch: tuple[FloatArray, ...],
+) -> tuple[float, bool]:
+    """One track from scan ``cur`` to its detection ``z`` at scan ``target``: predicted
+    scan by scan (a miss at every scan in between), then updated; ``xt``, ``Pt`` in
+    place.  Returns the value with the step's terms added (``-inf`` outside the gate)
+    and whether ``S`` was positive-definite.  ``x_tmp``, ``P_tmp``, ``FP`` and
+    ``scratch`` are work arrays."""
+    n = xt.shape[0]
+    while cur < target:
+        nxt = cur + 1
+        if moves[nxt]:
+            Fm = F[nxt]
+            Qm = Q[nxt]
+            for a in range(n):
+                total = 0.0
+                for k in range(n):
+                    total += Fm[a, k] * xt[k]
+                x_tmp[a] = total
+            xt[:] = x_tmp
+            for a in range(n):
+                for b in range(n):
+                    total = 0.0
+                    for k in range(n):
+                        total += Fm[a, k] * Pt[k, b]
+                    FP[a, b] = total
+            for a in range(n):
+                for b in range(n):
+                    total = Qm[a, b]
+                    for k in range(n):
+                        total += FP[a, k] * Fm[b, k]
+                    P_tmp[a, b] = total
+            for a in range(n):
+                for b in range(n):
+                    Pt[a, b] = 0.5 * (P_tmp[a, b] + P_tmp[b, a])
+        if nxt < target:
+            v += survival[nxt] + miss[nxt]
+        cur = nxt
+    dim = dims[target]
+    d2, loglik, positive = _update_one(
+        xt, Pt, z[:dim], H[target, :dim, :], R[target, :dim, :dim], x_tmp, P_tmp, scratch
+    )
+    if not positive:
+        return v, False
+    xt[:] = x_tmp
+    Pt[:, :] = P_tmp
+    term = -math.inf
+    if d2 <= thresholds[target]:
+        term = log_pd[target] + loglik - log_clutter[target]
+    return v + survival[target] + term, True
+
+
+@njit(cache=True)
+def filter_along_path(
+    x: FloatArray,
+    P: FloatArray,
+    value: float,
+    scan: int,
+    path_scans: IntArray,
+    detections: FloatArray,
+    moves: BoolArray,
+    F: FloatArray,
+    Q: FloatArray,
+    H: FloatArray,
+    R: FloatArray,
+    dims: IntArray,
+    survival: FloatArray,
+    miss: FloatArray,
+    log_pd: FloatArray,
+    log_clutter: FloatArray,
+    thresholds: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, bool]:
+    """One track's filter run through its detections, as ``RecordingObjective.trajectory``
+    takes it once the track's state is in the motion model's space.
+
+    Parameters
+    ----------
+    x, P : ndarray, shapes (n,) and (n, n)
+        The state at scan ``scan``, with the value ``value`` so far.
+    path_scans : ndarray of int, shape (L,)
+        The scans of the next detections (increasing, after ``scan``).
+    detections : ndarray, shape (L, dz)
+        The detections (zero-padded to dz).
+    moves, F, Q, H, R, dims, survival, miss, log_pd, log_clutter, thresholds
+        As in :func:`continue_along_references`.
+
+    Returns
+    -------
+    means, covariances : ndarray, shapes (L, n) and (L, n, n)
+        The filtered state after each detection.
+    values : ndarray, shape (L,)
+        The value after each detection (``-inf`` from a detection outside the gate on).
+    positive : bool
+        False where some ``S`` is not positive-definite.
+    """
+    n = x.shape[0]
+    L = path_scans.shape[0]
+    means = np.empty((L, n))
+    covariances = np.empty((L, n, n))
+    values = np.empty(L)
+    xt = x.copy()
+    Pt = P.copy()
+    x_tmp = np.empty(n)
+    P_tmp = np.empty((n, n))
+    FP = np.empty((n, n))
+    scratch = _scratch(n, detections.shape[1])
+    v = value
+    cur = scan
+    for i in range(L):
+        target = path_scans[i]
+        v, positive = _step_to(
+            xt,
+            Pt,
+            v,
+            cur,
+            target,
+            detections[i],
+            moves,
+            F,
+            Q,
+            H,
+            R,
+            dims,
+            survival,
+            miss,
+            log_pd,
+            log_clutter,
+            thresholds,
+            x_tmp,
+            P_tmp,
+            FP,
+            scratch,
+        )
+        if not positive:
+            return means, covariances, values, False
+        cur = target
+        means[i] = xt
+        covariances[i] = Pt
+        values[i] = v
+    return means, covariances, values, True
+
+
+@njit(cache=True)
 def kalman_update(
     x: FloatArray, P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, bool]:
@@ -314,54 +477,32 @@ def continue_along_references(
         s = 0
         while True:
             target = ref_scan[c, s]
-            while cur < target:
-                nxt = cur + 1
-                if moves[nxt]:
-                    Fm = F[nxt]
-                    Qm = Q[nxt]
-                    for a in range(n):
-                        total = 0.0
-                        for k in range(n):
-                            total += Fm[a, k] * xt[k]
-                        x_post[a] = total
-                    xt[:] = x_post
-                    for a in range(n):
-                        for b in range(n):
-                            total = 0.0
-                            for k in range(n):
-                                total += Fm[a, k] * Pt[k, b]
-                            FP[a, b] = total
-                    for a in range(n):
-                        for b in range(n):
-                            total = Qm[a, b]
-                            for k in range(n):
-                                total += FP[a, k] * Fm[b, k]
-                            P_post[a, b] = total
-                    for a in range(n):
-                        for b in range(n):
-                            Pt[a, b] = 0.5 * (P_post[a, b] + P_post[b, a])
-                if nxt < target:
-                    v += survival[nxt] + miss[nxt]
-                cur = nxt
-            dim = dims[target]
-            d2, loglik, positive = _update_one(
+            v, positive = _step_to(
                 xt,
                 Pt,
-                detection[c, s, :dim],
-                H[target, :dim, :],
-                R[target, :dim, :dim],
+                v,
+                cur,
+                target,
+                detection[c, s],
+                moves,
+                F,
+                Q,
+                H,
+                R,
+                dims,
+                survival,
+                miss,
+                log_pd,
+                log_clutter,
+                thresholds,
                 x_post,
                 P_post,
+                FP,
                 scratch,
             )
             if not positive:
                 return out, False
-            xt[:] = x_post
-            Pt[:, :] = P_post
-            term = -math.inf
-            if d2 <= thresholds[target]:
-                term = log_pd[target] + loglik - log_clutter[target]
-            v += survival[target] + term
+            cur = target
             if not math.isfinite(v):
                 out[t] = -math.inf
                 break

@@ -7,6 +7,10 @@
   numpy path there (``MAPASSOC_COMPILED=0``) on the requests of
   ``test_batched_continuation_equals_one_request_at_a_time``, which itself runs on both
   paths;
+* ``filter_along_path`` (a track's whole filter run, ``RecordingObjective.trajectory``)
+  gives the numpy path's states and values on true tracks of a linear scene, a scene
+  with a range-bearing sensor (its steps stay in numpy) and a coordinated-turn scene
+  (numpy throughout);
 * ``MAPASSOC_COMPILED=0`` turns the kernels off.
 """
 
@@ -17,6 +21,8 @@ import math
 import numpy as np
 import pytest
 
+from mapassoc.estimator.objective import RecordingObjective, paths_from_rows
+from mapassoc.evaluation.scenarios import build_scenario
 from mapassoc.filtering import compiled
 from mapassoc.filtering.kalman import update
 
@@ -74,3 +80,44 @@ def test_the_switch_turns_the_kernels_off(monkeypatch: pytest.MonkeyPatch) -> No
     assert compiled.kalman_kernels() is None
     monkeypatch.setenv(compiled.COMPILED_SWITCH, "1")
     assert compiled.kalman_kernels() is not None
+
+
+@pytest.mark.parametrize("family", ["crossing", "two_sensors", "turning"])
+def test_a_tracks_filter_run_is_the_numpy_run(family: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    scenario = build_scenario(family, seed=0)
+    scans = scenario.scans[:40]
+    rows = np.concatenate([scan.rows for scan in scans])
+    origins = scenario.origins
+    origin = dict(zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True))
+    true_rows: dict[int, list[int]] = {}
+    for row in rows.tolist():
+        if origin.get(row, -1) >= 0:
+            true_rows.setdefault(origin[row], []).append(row)
+    compiled_runs = []
+    filter_compiled = RecordingObjective._filter_compiled
+
+    def spy(self: RecordingObjective, kernels: object, state: object, path: tuple) -> object:
+        compiled_runs.append(len(path))
+        return filter_compiled(self, kernels, state, path)
+
+    monkeypatch.setattr(RecordingObjective, "_filter_compiled", spy)
+    runs = {}
+    for switch in ("1", "0"):
+        monkeypatch.setenv(compiled.COMPILED_SWITCH, switch)
+        objective = RecordingObjective(config=scenario.config, scans=scans)  # fresh cache
+        paths = paths_from_rows(objective, true_rows)
+        # Whole tracks and pieces starting part-way (their first steps initiate).
+        pieces = [p for path in paths.values() for p in (path, path[len(path) // 2 :])]
+        runs[switch] = [objective.trajectory(p) for p in pieces if p]
+    assert len(runs["1"]) >= 4
+    # Linear motion: the kernel ran (only with the switch on); coordinated turn: never.
+    assert (len(compiled_runs) > 0) == (family != "turning")
+    for fast, plain in zip(runs["1"], runs["0"], strict=True):
+        assert fast.path == plain.path
+        np.testing.assert_array_equal(fast.initiated, plain.initiated)
+        np.testing.assert_allclose(fast.values, plain.values, rtol=1e-9, atol=1e-9)
+        assert fast.value == pytest.approx(plain.value, rel=1e-9, abs=1e-9)
+        for a, b in zip(fast.means, plain.means, strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+        for a, b in zip(fast.covariances, plain.covariances, strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
