@@ -463,9 +463,7 @@ class RecordingObjective:
 
         The same algebra as :func:`~mapassoc.filtering.kalman.update` (gain through
         ``S^-1``, Joseph-form covariance) with a batched inverse of the small S instead of
-        Cholesky solves: for one track at a time, numpy's per-call overhead is the cost,
-        so the compiled kernel takes the step where numba is installed
-        (:func:`~mapassoc.filtering.compiled.kalman_kernels`).
+        Cholesky solves: for one track at a time, numpy's per-call overhead is the cost.
 
         Returns
         -------
@@ -473,19 +471,6 @@ class RecordingObjective:
             Squared Mahalanobis distance and ``log N(nu; 0, S)``.
         x_post, P_post
         """
-        kernels = kalman_kernels()
-        if kernels is not None:
-            # Fresh writable C arrays: one compiled signature whatever the inputs' flags.
-            d2, loglik, x_post, P_post, positive = kernels.kalman_update(
-                np.array(x, dtype=np.float64),
-                np.array(P, dtype=np.float64),
-                np.array(np.broadcast_to(z, (x.shape[0], H.shape[0])), dtype=np.float64),
-                np.array(H, dtype=np.float64),
-                np.array(R, dtype=np.float64),
-            )
-            if not positive:
-                raise InputError("innovation covariance S is not positive-definite")
-            return d2, loglik, x_post, P_post
         HP = H @ P  # (B, d, n)
         S = HP @ H.T + R
         S = 0.5 * (S + np.swapaxes(S, -1, -2))

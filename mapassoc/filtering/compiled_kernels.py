@@ -28,10 +28,10 @@ _LOG_2PI = math.log(2.0 * math.pi)
 
 
 @njit(cache=True)
-def _inverse_and_logdet(S: FloatArray, out: FloatArray) -> tuple[float, bool]:
-    """``out = S^-1`` of a symmetric (d, d) matrix; returns ``(log det S, positive)``:
-    closed forms for d = 1 and 2, Cholesky otherwise."""
-    d = S.shape[0]
+def _inverse_and_logdet(S: FloatArray, out: FloatArray, d: int) -> tuple[float, bool]:
+    """``out = S^-1`` of the symmetric leading (d, d) block of ``S`` (into the leading
+    block of ``out``); returns ``(log det S, positive)``: closed forms for d = 1 and 2,
+    Cholesky otherwise."""
     if d == 1:
         det = S[0, 0]
         if not det > 0:
@@ -103,23 +103,25 @@ def _update_one(
     z: FloatArray,
     H: FloatArray,
     R: FloatArray,
+    d: int,
     x_out: FloatArray,
     P_out: FloatArray,
     scratch: tuple[FloatArray, ...],
 ) -> tuple[float, float, bool]:
-    """One track's Kalman update by one detection: writes the posterior into ``x_out``,
-    ``P_out`` (n,) and (n, n); returns ``(d2, loglik, positive)``.  ``scratch`` is
-    :func:`_scratch`'s work arrays."""
+    """One track's Kalman update by one detection of dimension ``d`` (the leading
+    entries of ``z``, rows of ``H`` and block of ``R``; no slices, so every array keeps
+    one layout and the function one compiled version): writes the posterior into
+    ``x_out``, ``P_out`` (n,) and (n, n); returns ``(d2, loglik, positive)``.
+    ``scratch`` is :func:`_scratch`'s work arrays."""
     n = x.shape[0]
-    d = z.shape[0]
-    HP = scratch[0][:d]
+    HP = scratch[0]
     for i in range(d):
         for k in range(n):
             total = 0.0
             for j in range(n):
                 total += H[i, j] * P[j, k]
             HP[i, k] = total
-    S = scratch[1][:d, :d]
+    S = scratch[1]
     for i in range(d):
         for m in range(d):
             total = R[i, m]
@@ -131,14 +133,14 @@ def _update_one(
             mean = 0.5 * (S[i, m] + S[m, i])
             S[i, m] = mean
             S[m, i] = mean
-    nu = scratch[2][:d]
+    nu = scratch[2]
     for i in range(d):
         total = z[i]
         for j in range(n):
             total -= H[i, j] * x[j]
         nu[i] = total
-    S_inv = scratch[3][:d, :d]
-    logdet, positive = _inverse_and_logdet(S, S_inv)
+    S_inv = scratch[3]
+    logdet, positive = _inverse_and_logdet(S, S_inv, d)
     if not positive:
         return 0.0, 0.0, False
     d2 = 0.0
@@ -148,7 +150,7 @@ def _update_one(
             total += S_inv[i, m] * nu[m]
         d2 += nu[i] * total
     loglik = -0.5 * (d * _LOG_2PI + logdet + d2)
-    K = scratch[4][:, :d]  # HP^T S^-1
+    K = scratch[4]  # HP^T S^-1
     for a in range(n):
         for i in range(d):
             total = 0.0
@@ -174,7 +176,7 @@ def _update_one(
             for k in range(n):
                 total += A[a, k] * P[k, b]
             AP[a, b] = total
-    KR = scratch[7][:, :d]
+    KR = scratch[7]
     for a in range(n):
         for i in range(d):
             total = 0.0
@@ -237,7 +239,8 @@ def _step_to(
                 for k in range(n):
                     total += Fm[a, k] * xt[k]
                 x_tmp[a] = total
-            xt[:] = x_tmp
+            for a in range(n):
+                xt[a] = x_tmp[a]
             for a in range(n):
                 for b in range(n):
                     total = 0.0
@@ -256,14 +259,15 @@ def _step_to(
         if nxt < target:
             v += survival[nxt] + miss[nxt]
         cur = nxt
-    dim = dims[target]
     d2, loglik, positive = _update_one(
-        xt, Pt, z[:dim], H[target, :dim, :], R[target, :dim, :dim], x_tmp, P_tmp, scratch
+        xt, Pt, z, H[target], R[target], dims[target], x_tmp, P_tmp, scratch
     )
     if not positive:
         return v, False
-    xt[:] = x_tmp
-    Pt[:, :] = P_tmp
+    for a in range(n):
+        xt[a] = x_tmp[a]
+        for b in range(n):
+            Pt[a, b] = P_tmp[a, b]
     term = -math.inf
     if d2 <= thresholds[target]:
         term = log_pd[target] + loglik - log_clutter[target]
@@ -354,48 +358,12 @@ def filter_along_path(
         if not positive:
             return means, covariances, values, False
         cur = target
-        means[i] = xt
-        covariances[i] = Pt
+        for a in range(n):
+            means[i, a] = xt[a]
+            for b in range(n):
+                covariances[i, a, b] = Pt[a, b]
         values[i] = v
     return means, covariances, values, True
-
-
-@njit(cache=True)
-def kalman_update(
-    x: FloatArray, P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, bool]:
-    """Batched linear Kalman update, each track by its own detection.
-
-    Parameters
-    ----------
-    x : ndarray, shape (B, n)
-    P : ndarray, shape (B, n, n)
-    z : ndarray, shape (B, d)
-    H : ndarray, shape (d, n)
-    R : ndarray, shape (d, d)
-
-    Returns
-    -------
-    d2, loglik : ndarray, shape (B,)
-    x_post : ndarray, shape (B, n)
-    P_post : ndarray, shape (B, n, n)
-    positive : bool
-        False where some ``S`` is not positive-definite (the other outputs are then
-        not to be used).
-    """
-    B = x.shape[0]
-    d2 = np.empty(B)
-    loglik = np.empty(B)
-    x_post = np.empty_like(x)
-    P_post = np.empty_like(P)
-    scratch = _scratch(x.shape[1], z.shape[1])
-    for b in range(B):
-        d2[b], loglik[b], positive = _update_one(
-            x[b], P[b], z[b], H, R, x_post[b], P_post[b], scratch
-        )
-        if not positive:
-            return d2, loglik, x_post, P_post, False
-    return d2, loglik, x_post, P_post, True
 
 
 @njit(cache=True)

@@ -1,6 +1,6 @@
 """The compiled Kalman kernels (numba, optional) against the textbook numpy filter.
 
-* ``kalman_update`` gives the Joseph-form update, ``d^2`` and ``log N(nu; 0, S)`` of
+* a step of the kernels gives the Joseph-form update and ``log N(nu; 0, S)`` of
   :mod:`mapassoc.filtering.kalman` for measurement dimensions 1, 2 (closed-form
   inverses) and 3 (Cholesky), and flags an ``S`` that is not positive-definite;
 * ``continue_along_references`` (the refinement's batched continuation) agrees with the
@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import math
+from types import ModuleType
 
 import numpy as np
 import pytest
@@ -34,31 +35,64 @@ def _spd(rng: np.random.Generator, size: int, n: int) -> np.ndarray:
     return A @ np.swapaxes(A, -1, -2) + 0.5 * np.eye(n)
 
 
+def _one_update(
+    kernels: ModuleType,
+    x: np.ndarray,
+    P: np.ndarray,
+    z: np.ndarray,
+    H: np.ndarray,
+    R: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """``filter_along_path`` through one detection at the next scan, with no time
+    step between (no prediction): the update alone."""
+    n, d = x.shape[0], z.shape[0]
+    moves = np.zeros(2, dtype=bool)
+    eye = np.zeros((2, n, n))
+    return kernels.filter_along_path(
+        x,
+        P,
+        0.0,
+        0,
+        np.array([1]),
+        z[None, :],
+        moves,
+        eye,
+        eye,
+        np.stack([H, H]),
+        np.stack([R, R]),
+        np.full(2, d),
+        np.zeros(2),
+        np.zeros(2),
+        np.zeros(2),
+        np.zeros(2),
+        np.full(2, np.inf),
+    )
+
+
 @pytest.mark.parametrize("d", [1, 2, 3])
 @pytest.mark.parametrize("seed", range(4))
-def test_kalman_update_is_the_textbook_update(d: int, seed: int) -> None:
+def test_one_step_is_the_textbook_update(d: int, seed: int) -> None:
     kernels = compiled.kalman_kernels()
     assert kernels is not None
     rng = np.random.default_rng(seed)
-    n, B = 4, 7
-    x = rng.normal(size=(B, n))
-    P = _spd(rng, B, n)
+    n = 4
+    x = rng.normal(size=n)
+    P = _spd(rng, 1, n)[0]
     H = rng.normal(size=(d, n))
     R = _spd(rng, 1, d)[0]
-    z = rng.normal(size=(B, d))
-    d2, loglik, x_post, P_post, positive = kernels.kalman_update(x, P, z, H, R)
+    z = rng.normal(size=d)
+    means, covariances, values, positive = _one_update(kernels, x, P, z, H, R)
     assert positive
     S = H @ P @ H.T + R
-    nu = z - x @ H.T
+    nu = z - H @ x
     expected_x, expected_P = update(x, P, nu, S, H, R)
-    np.testing.assert_allclose(x_post, expected_x, rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(P_post, expected_P, rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(P_post, np.swapaxes(P_post, -1, -2), rtol=0, atol=0)
-    expected_d2 = np.einsum("bi,bi->b", nu, np.linalg.solve(S, nu[..., None])[..., 0])
-    np.testing.assert_allclose(d2, expected_d2, rtol=1e-10)
+    np.testing.assert_allclose(means[0], expected_x, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(covariances[0], expected_P, rtol=1e-10, atol=1e-10)
+    np.testing.assert_array_equal(covariances[0], covariances[0].T)
+    # The value adds log N(nu; 0, S) (log Pd = log lambda = 0 here, no survival term).
     _, logdet = np.linalg.slogdet(S)
-    expected_loglik = -0.5 * (d * math.log(2 * math.pi) + logdet + expected_d2)
-    np.testing.assert_allclose(loglik, expected_loglik, rtol=1e-10)
+    d2 = float(nu @ np.linalg.solve(S, nu))
+    assert values[0] == pytest.approx(-0.5 * (d * math.log(2 * math.pi) + logdet + d2))
 
 
 @pytest.mark.parametrize("d", [1, 2, 3])
@@ -66,11 +100,10 @@ def test_a_covariance_that_is_not_positive_definite_is_flagged(d: int) -> None:
     kernels = compiled.kalman_kernels()
     assert kernels is not None
     n = 4
-    x = np.zeros((2, n))
-    P = np.zeros((2, n, n))
-    H = np.eye(d, n)
-    R = -np.eye(d)  # S = H P H^T + R = -I
-    *_, positive = kernels.kalman_update(x, P, np.zeros((2, d)), H, R)
+    # S = H P H^T + R = -I.
+    *_, positive = _one_update(
+        kernels, np.zeros(n), np.zeros((n, n)), np.zeros(d), np.eye(d, n), -np.eye(d)
+    )
     assert not positive
 
 
