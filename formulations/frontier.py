@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -48,6 +49,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from mapassoc.accelerate import compiled_module
 from mapassoc.formulations.convolution import max_plus, sum_product
 from mapassoc.formulations.packing import PackingProblem
 
@@ -223,12 +225,18 @@ def check_projection(
     """Raise :class:`SearchLimitExceeded` (reason ``"projected"``) when the work done plus
     this step's work repeated for every remaining step passes ``projected_limit``."""
     if projected_limit is not None and work + step_work * remaining_steps > projected_limit:
-        raise SearchLimitExceeded(
-            f"{what} projected past {projected_limit:.0f} transitions "
-            f"(work_projection x the work limit of {work_limit}) after {work}",
-            reason="projected",
-            work=work,
-        )
+        raise _projected_stop(what, work, projected_limit, work_limit)
+
+
+def _projected_stop(
+    what: str, work: int, projected_limit: float, work_limit: int | None
+) -> SearchLimitExceeded:
+    return SearchLimitExceeded(
+        f"{what} projected past {projected_limit:.0f} transitions "
+        f"(work_projection x the work limit of {work_limit}) after {work}",
+        reason="projected",
+        work=work,
+    )
 
 
 def _log_add(a: float, b: float) -> float:
@@ -709,6 +717,17 @@ def _vectorised_search(
     layout = _word_layout(problem, order)
     if layout is None:
         return None
+    if (
+        max_frontiers is None
+        and entry_margin is None
+        and (work_limit is not None or deadline is None)
+    ):
+        # Exact and bounded by its work (or by nothing): the compiled kernel, where
+        # numba is installed, takes the same steps.
+        kernel = compiled_module("mapassoc.formulations.compiled_frontier")
+        if kernel is not None:
+            _check_limits(0, None, deadline)
+            return _compiled_search(kernel, problem, kmax, layout, work_limit, projected_limit)
     R = order.size
     relative, by_start, bounds, exactly_one = layout
     counts = problem.counts.astype(np.int64)
@@ -821,6 +840,47 @@ def _vectorised_search(
                 remaining -= int(counts[h])
         sets[k] = tuple(sorted(chosen))
     return _result(final_best, final_mass, sets, work, widest, exact)
+
+
+def _compiled_search(
+    kernel: ModuleType,
+    problem: PackingProblem,
+    kmax: int,
+    layout: _WordLayout,
+    work_limit: int | None,
+    projected_limit: float | None,
+) -> FrontierResult:
+    """The exact vectorised search in the compiled kernel
+    (:func:`mapassoc.formulations.compiled_frontier.exact_search`): the same result, the
+    same work, and the same stops as :func:`_vectorised_search` without a beam."""
+    relative, by_start, bounds, exactly_one = layout
+    status, work, widest, best, mass, members, sizes = kernel.exact_search(
+        relative,
+        by_start.astype(np.int64),
+        bounds.astype(np.int64),
+        np.ascontiguousarray(exactly_one, dtype=np.bool_),
+        problem.counts.astype(np.int64),
+        np.ascontiguousarray(problem.scores, dtype=np.float64),
+        np.ascontiguousarray(problem.weights, dtype=np.float64),
+        int(kmax),
+        -1 if work_limit is None else int(work_limit),
+        math.inf if projected_limit is None else float(projected_limit),
+        _VECTOR_ENTRIES_PER_TRANSITION,
+        _PAIR_BLOCK_ENTRIES,
+    )
+    work, widest = int(work), int(widest)
+    if status == kernel.PAST_WORK_LIMIT:
+        _check_limits(work, work_limit, None)
+    if status == kernel.PAST_PROJECTION and projected_limit is not None:
+        raise _projected_stop("frontier search", work, projected_limit, work_limit)
+    if status == kernel.INFEASIBLE:
+        infeasible = np.full(kmax + 1, _NEG_INF)
+        return _result(infeasible, infeasible, [None] * (kmax + 1), work, widest)
+    sets: list[tuple[int, ...] | None] = [
+        None if size < 0 else tuple(members[k, :size].tolist())
+        for k, size in enumerate(sizes.tolist())
+    ]
+    return _result(best, mass, sets, work, widest)
 
 
 def _result(

@@ -262,3 +262,22 @@ def brute_force_tables(problem: PackingProblem, kmax: int) -> tuple[np.ndarray, 
             terms[k].append(v)
     mass = np.array([np.logaddexp.reduce(t) if t else -math.inf for t in terms])
     return best, mass
+
+
+def banded_problem(rng: np.random.Generator, H: int, D: int, band: int) -> PackingProblem:
+    """Hypotheses like a window's: each uses 1-3 detections close together (within
+    ``band`` of each other, as a track's detections are close in time) and belongs to a
+    tree (one per three detection positions) whose exactly-once resource it uses; each
+    tree also has a member with no detection, so every exactly-once row can be met."""
+    trees = (D - band) // 3 + 1
+    lists = [[D + t] for t in range(trees)]  # the trees' detection-free members
+    for _ in range(H - trees):
+        start = int(rng.integers(0, D - band))
+        chosen = rng.choice(np.arange(start, start + band), size=int(rng.integers(1, 4)))
+        lists.append(sorted(set(chosen.tolist())) + [D + start // 3])
+    indptr = np.concatenate([[0], np.cumsum([len(r) for r in lists])])
+    indices = np.concatenate([np.asarray(r, dtype=np.int64) for r in lists])
+    exactly_one = np.r_[np.zeros(D, dtype=bool), np.ones(trees, dtype=bool)]
+    return PackingProblem(
+        rng.normal(0.0, 3.0, size=H), indptr, indices, exactly_one, rng.random(H) < 0.9
+    )

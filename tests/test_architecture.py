@@ -2,8 +2,9 @@
 
 * ``formulations/`` never imports a solver library or ``mapassoc.solvers``, nor domain code;
 * ``solvers/`` never imports domain code (only ``mapassoc.formulations.program``);
-* every layer may import ``mapassoc.array_types`` (type aliases), which imports nothing of
-  the package;
+* every layer may import ``mapassoc.array_types`` (type aliases) and
+  ``mapassoc.accelerate`` (the switch of the optional compiled kernels), which import
+  nothing of the package;
 * domain modules never import formulations or solvers: only the pipeline (with its
   per-cluster strategy, ``cluster_solving``, its posterior marginals, ``marginals``, and
   the whole recording's refinement, ``refinement``), the trackers of ``mapassoc/trackers/`` that
@@ -29,7 +30,12 @@ WIRING_MODULES = {
 }
 WIRING_FOLDERS = ("trackers", "apps")
 PACKAGE_FOLDERS = ("mapassoc", "formulations", "solvers")
-SHARED_LEAF = "mapassoc.array_types"  # type aliases only; imports nothing of the package
+# Type aliases, and the switch of the compiled kernels: each imports nothing of the package.
+SHARED_LEAVES = ("mapassoc.array_types", "mapassoc.accelerate")
+
+
+def shared(name: str) -> bool:
+    return any(starts(name, leaf) for leaf in SHARED_LEAVES)
 
 
 def is_wiring(path: Path) -> bool:
@@ -63,21 +69,22 @@ def starts(name: str, prefix: str) -> bool:
 def test_formulations_import_no_solver_and_no_domain(path: Path) -> None:
     for name in imported_modules(path):
         assert not any(starts(name, lib) for lib in SOLVER_LIBRARIES), f"{path.name}: {name}"
-        if starts(name, "mapassoc") and not starts(name, SHARED_LEAF):
+        if starts(name, "mapassoc") and not shared(name):
             assert starts(name, "mapassoc.formulations"), f"{path.name} imports {name}"
 
 
 @pytest.mark.parametrize("path", files("solvers"), ids=lambda p: p.name)
 def test_solvers_import_no_domain(path: Path) -> None:
     for name in imported_modules(path):
-        if starts(name, "mapassoc") and not starts(name, SHARED_LEAF):
+        if starts(name, "mapassoc") and not shared(name):
             assert starts(name, "mapassoc.solvers") or starts(
                 name, "mapassoc.formulations.program"
             ), f"{path.name} imports {name}"
 
 
-def test_the_shared_array_types_import_nothing_of_the_package() -> None:
-    names = imported_modules(ROOT / "mapassoc" / "array_types.py")
+@pytest.mark.parametrize("leaf", SHARED_LEAVES)
+def test_the_shared_leaves_import_nothing_of_the_package(leaf: str) -> None:
+    names = imported_modules(ROOT / "mapassoc" / f"{leaf.split('.')[-1]}.py")
     assert names and not any(starts(name, "mapassoc") for name in names)
 
 
@@ -213,7 +220,13 @@ def test_the_cycle_check_sees_a_deferred_type_only_cycle(tmp_path: Path) -> None
 LAYERS = (
     (
         "base",
-        ("mapassoc.errors", "mapassoc.validation", "mapassoc.array_types", "mapassoc.version"),
+        (
+            "mapassoc.errors",
+            "mapassoc.validation",
+            "mapassoc.array_types",
+            "mapassoc.accelerate",
+            "mapassoc.version",
+        ),
     ),
     ("models", ("mapassoc.models",)),
     ("data", ("mapassoc.data",)),

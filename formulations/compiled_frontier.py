@@ -1,0 +1,276 @@
+"""Numba kernel of the exact vectorised frontier search (optional accelerator).
+
+Imported only through :func:`mapassoc.accelerate.compiled_module` (numba is the
+``accelerate`` extra).  :func:`exact_search` takes the steps of
+:func:`mapassoc.formulations.frontier._vectorised_search` without a beam: the same
+frontier words, the same candidate rows in the same order (frontiers kept first, then
+(frontier, hypothesis) pairs row by row), the same stable sort by the next word, masses
+summed by ``logaddexp`` in the same order and best scores taken by the first candidate
+reaching the maximum, so the tables and best sets are the numpy search's.  Work is
+charged as there, with the open pairs found in the same blocks, so a search stops at
+the same work; it also stops on the same projection.  The kernel does not raise: it
+returns a status the caller turns into the search's exception.
+
+A small search costs microseconds here instead of numpy's thousand array calls.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from mapassoc.array_types import FloatArray, IntArray
+
+FOUND, PAST_WORK_LIMIT, PAST_PROJECTION, INFEASIBLE = 0, 1, 2, 3
+"""Statuses of :func:`exact_search`."""
+
+
+@njit(cache=True)
+def _log_add(a: float, b: float) -> float:
+    """``np.logaddexp(a, b)``, as numpy computes it."""
+    if a == b:
+        return a + math.log(2.0)
+    tmp = a - b
+    if tmp > 0:
+        return a + math.log1p(math.exp(-tmp))
+    if tmp <= 0:
+        return b + math.log1p(math.exp(tmp))
+    return tmp  # NaN
+
+
+@njit(cache=True)
+def _stable_order(keys: NDArray[np.uint64]) -> IntArray:
+    """``np.argsort(keys, kind="stable")`` by a bottom-up merge sort (numba's own
+    sorts cost seconds to compile; this, a fraction)."""
+    n = keys.shape[0]
+    order = np.arange(n)
+    spare = np.empty(n, dtype=np.int64)
+    width = 1
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid = min(lo + width, n)
+            hi = min(lo + 2 * width, n)
+            i, j, out = lo, mid, lo
+            while i < mid and j < hi:
+                if keys[order[j]] < keys[order[i]]:  # ties: the left run first
+                    spare[out] = order[j]
+                    j += 1
+                else:
+                    spare[out] = order[i]
+                    i += 1
+                out += 1
+            while i < mid:
+                spare[out] = order[i]
+                i += 1
+                out += 1
+            while j < hi:
+                spare[out] = order[j]
+                j += 1
+                out += 1
+        order, spare = spare, order
+        width *= 2
+    return order
+
+
+@njit(cache=True)
+def exact_search(
+    relative: NDArray[np.uint64],
+    by_start: IntArray,
+    bounds: IntArray,
+    exactly_one: NDArray[np.bool_],
+    counts: IntArray,
+    scores: FloatArray,
+    weights: FloatArray,
+    kmax: int,
+    work_limit: int,
+    projected_limit: float,
+    entries_per_transition: int,
+    pair_block_entries: int,
+) -> tuple[int, int, int, FloatArray, FloatArray, IntArray, IntArray]:
+    """The exact frontier search over the resource positions ``0..R-1``.
+
+    Parameters
+    ----------
+    relative : ndarray of uint64, shape (H,)
+        Each hypothesis's resources as a word relative to its first position.
+    by_start, bounds : ndarray of int, shapes (H,) and (R + 1,)
+        Hypotheses by first position, and each position's run of them.
+    exactly_one : ndarray of bool, shape (R,)
+        Which positions are exactly-once resources.
+    counts, scores, weights : ndarray, shape (H,)
+    kmax : int
+    work_limit : int
+        Most work (``-1``: no limit).
+    projected_limit : float
+        Most projected work (``inf``: no projection).
+    entries_per_transition, pair_block_entries : int
+        The search's work unit and its block of (frontier, hypothesis) tests.
+
+    Returns
+    -------
+    status : int
+        :data:`FOUND`, :data:`PAST_WORK_LIMIT`, :data:`PAST_PROJECTION` or
+        :data:`INFEASIBLE`.
+    work, widest : int
+        Work charged (at the stop, for a stopped search) and most frontiers at once.
+    best, mass : ndarray, shape (kmax + 1,)
+    sets, set_sizes : ndarray of int, shapes (kmax + 1, H) and (kmax + 1,)
+        Each k's best set in its first ``set_sizes[k]`` entries (``-1`` sizes: none).
+    """
+    H = relative.shape[0]
+    R = bounds.shape[0] - 1
+    width = kmax + 1
+    covers = np.zeros(1, dtype=np.uint64)
+    best = np.zeros((1, 1))
+    mass = np.zeros((1, 1))
+    work = 0
+    widest = 1
+    final_best = np.full(width, -np.inf)
+    final_mass = np.full(width, -np.inf)
+    sets = np.full((width, max(H, 1)), -1, dtype=np.int64)
+    set_sizes = np.full(width, -1, dtype=np.int64)
+    back_winner = [np.zeros((0, 0), dtype=np.int32)]
+    back_source = [np.zeros(0, dtype=np.int64)]
+    back_decision = [np.zeros(0, dtype=np.int64)]
+    for step in range(R):
+        F = covers.shape[0]
+        span_now = best.shape[1]
+        keep = np.empty(F, dtype=np.int64)
+        n_keep = 0
+        for row in range(F):
+            if (not exactly_one[step]) or (covers[row] & np.uint64(1)) != np.uint64(0):
+                keep[n_keep] = row
+                n_keep += 1
+        first = bounds[step]
+        n_start = bounds[step + 1] - first
+        # Open pairs, block by block of open frontiers as open_pairs finds them.
+        most = -1
+        if work_limit >= 0:
+            most = (work_limit - work) * entries_per_transition // span_now - n_keep
+        pair_row = np.empty(16, dtype=np.int64)
+        pair_h = np.empty(16, dtype=np.int64)
+        n_pairs = 0
+        if n_start > 0 and not (work_limit >= 0 and most < 0):
+            block = max(1, pair_block_entries // n_start)
+            in_block = 0
+            for row in range(F):
+                word = covers[row]
+                if (word & np.uint64(1)) != np.uint64(0):
+                    continue
+                for i in range(n_start):
+                    h = by_start[first + i]
+                    if (word & relative[h]) == np.uint64(0):
+                        if n_pairs == pair_row.shape[0]:
+                            pair_row = np.concatenate((pair_row, np.empty_like(pair_row)))
+                            pair_h = np.concatenate((pair_h, np.empty_like(pair_h)))
+                        pair_row[n_pairs] = row
+                        pair_h[n_pairs] = h
+                        n_pairs += 1
+                in_block += 1
+                if in_block == block:
+                    in_block = 0
+                    if work_limit >= 0 and n_pairs > most:
+                        break
+        grow = 0
+        if n_pairs > 0 and span_now <= kmax:
+            for p in range(n_pairs):
+                if counts[pair_h[p]] > 0:
+                    grow = 1
+                    break
+        cols = span_now + grow
+        C = n_keep + n_pairs
+        step_work = -(-C * cols // entries_per_transition)
+        work += step_work
+        if work_limit >= 0 and work > work_limit:
+            return PAST_WORK_LIMIT, work, widest, final_best, final_mass, sets, set_sizes
+        if work + step_work * (R - 1 - step) > projected_limit:
+            return PAST_PROJECTION, work, widest, final_best, final_mass, sets, set_sizes
+        if C == 0:  # an exactly-once resource no frontier can satisfy
+            return INFEASIBLE, work, widest, final_best, final_mass, sets, set_sizes
+        cand_best = np.full((C, cols), -np.inf)
+        cand_mass = np.full((C, cols), -np.inf)
+        cand_covers = np.empty(C, dtype=np.uint64)
+        source = np.empty(C, dtype=np.int64)
+        decision = np.empty(C, dtype=np.int64)
+        for c in range(n_keep):
+            row = keep[c]
+            for k in range(span_now):
+                cand_best[c, k] = best[row, k]
+                cand_mass[c, k] = mass[row, k]
+            cand_covers[c] = covers[row] >> np.uint64(1)
+            source[c] = row
+            decision[c] = -1
+        for p in range(n_pairs):
+            c = n_keep + p
+            row = pair_row[p]
+            h = pair_h[p]
+            shift = counts[h]
+            span = min(span_now, cols - shift)
+            for k in range(span):
+                cand_best[c, k + shift] = best[row, k] + scores[h]
+                cand_mass[c, k + shift] = mass[row, k] + weights[h]
+            cand_covers[c] = (covers[row] | relative[h]) >> np.uint64(1)
+            source[c] = row
+            decision[c] = h
+        ranked = _stable_order(cand_covers)
+        n_new = 1
+        for i in range(1, C):
+            if cand_covers[ranked[i]] != cand_covers[ranked[i - 1]]:
+                n_new += 1
+        new_covers = np.empty(n_new, dtype=np.uint64)
+        new_best = np.empty((n_new, cols))
+        new_mass = np.empty((n_new, cols))
+        winner = np.empty((n_new, cols), dtype=np.int32)
+        g = -1
+        for i in range(C):
+            c = ranked[i]
+            if i == 0 or cand_covers[c] != cand_covers[ranked[i - 1]]:
+                g += 1
+                new_covers[g] = cand_covers[c]
+                for k in range(cols):
+                    new_best[g, k] = cand_best[c, k]
+                    new_mass[g, k] = cand_mass[c, k]
+                    winner[g, k] = c
+            else:
+                for k in range(cols):
+                    new_mass[g, k] = _log_add(new_mass[g, k], cand_mass[c, k])
+                    if cand_best[c, k] > new_best[g, k]:
+                        new_best[g, k] = cand_best[c, k]
+                        winner[g, k] = c
+        covers = new_covers
+        best = new_best
+        mass = new_mass
+        widest = max(widest, n_new)
+        back_winner.append(winner)
+        back_source.append(source)
+        back_decision.append(decision)
+    # Every frontier word is 0 after the last position: one state remains.
+    for k in range(best.shape[1]):
+        final_best[k] = best[0, k]
+        final_mass[k] = mass[0, k]
+    for k in range(best.shape[1]):
+        if not np.isfinite(final_best[k]):
+            continue
+        size = 0
+        state = 0
+        remaining = k
+        for s in range(R, 0, -1):
+            candidate = back_winner[s][state, remaining]
+            h = back_decision[s][candidate]
+            state = back_source[s][candidate]
+            if h >= 0:
+                sets[k, size] = h
+                size += 1
+                remaining -= counts[h]
+        for i in range(1, size):  # insertion sort: a set has a few members
+            member = sets[k, i]
+            j = i - 1
+            while j >= 0 and sets[k, j] > member:
+                sets[k, j + 1] = sets[k, j]
+                j -= 1
+            sets[k, j + 1] = member
+        set_sizes[k] = size
+    return FOUND, work, widest, final_best, final_mass, sets, set_sizes

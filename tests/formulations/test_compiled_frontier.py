@@ -1,0 +1,113 @@
+"""The compiled exact frontier search (numba, optional) is the numpy search.
+
+On random window-like problems, the kernel and the numpy path (``MAPASSOC_COMPILED=0``)
+give bit-identical tables (best scores and log-masses), the same best sets, the same
+work and the same widest frontier; where a work limit or a projection stops the numpy
+search, the kernel stops with the same reason and the same work; an exactly-once
+resource that no set can meet gives the same infeasible result.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from support import banded_problem
+
+from mapassoc.accelerate import COMPILED_SWITCH
+from mapassoc.formulations.frontier import (
+    FrontierResult,
+    SearchLimitExceeded,
+    _vectorised_search,
+    resource_order,
+)
+from mapassoc.formulations.packing import PackingProblem
+
+pytest.importorskip("numba")
+
+
+def _both(
+    monkeypatch: pytest.MonkeyPatch,
+    problem: PackingProblem,
+    kmax: int,
+    work_limit: int | None,
+    projected_limit: float | None = None,
+) -> list[FrontierResult | SearchLimitExceeded]:
+    order = resource_order(problem)
+    found: list[FrontierResult | SearchLimitExceeded] = []
+    for switch in ("1", "0"):
+        monkeypatch.setenv(COMPILED_SWITCH, switch)
+        try:
+            result = _vectorised_search(
+                problem, kmax, order, work_limit, None, None, None, projected_limit
+            )
+            assert result is not None
+            found.append(result)
+        except SearchLimitExceeded as stop:
+            found.append(stop)
+    return found
+
+
+def _assert_same(fast: FrontierResult, plain: FrontierResult) -> None:
+    np.testing.assert_array_equal(fast.best, plain.best)
+    np.testing.assert_array_equal(fast.log_mass, plain.log_mass)
+    assert fast.best_sets == plain.best_sets
+    assert (fast.work, fast.max_frontiers, fast.exact) == (
+        plain.work,
+        plain.max_frontiers,
+        plain.exact,
+    )
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_kernel_is_the_numpy_search(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    rng = np.random.default_rng(seed)
+    problem = banded_problem(
+        rng,
+        int(rng.integers(40, 260)),
+        D=int(rng.integers(20, 70)),
+        band=int(rng.integers(3, 10)),
+    )
+    kmax = int(rng.integers(0, 30))
+    fast, plain = _both(monkeypatch, problem, kmax, None)
+    assert isinstance(fast, FrontierResult) and isinstance(plain, FrontierResult)
+    _assert_same(fast, plain)
+    # Stopped by a work limit (at the same work) or by a projection, or not.
+    for limit, projection in ((fast.work // 4, None), (fast.work - 1, None), (fast.work, 1.0)):
+        projected = None if projection is None else projection * limit
+        fast_stop, plain_stop = _both(monkeypatch, problem, kmax, limit, projected)
+        assert type(fast_stop) is type(plain_stop)
+        if isinstance(fast_stop, SearchLimitExceeded):
+            assert isinstance(plain_stop, SearchLimitExceeded)
+            assert (fast_stop.reason, fast_stop.work) == (plain_stop.reason, plain_stop.work)
+            assert str(fast_stop) == str(plain_stop)
+        else:
+            assert isinstance(fast_stop, FrontierResult)
+            assert isinstance(plain_stop, FrontierResult)
+            _assert_same(fast_stop, plain_stop)
+
+
+def test_an_exactly_once_resource_no_set_meets_is_infeasible_on_both(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Two exactly-once resources, each used only by hypotheses that also use a shared
+    # detection: no set holds both.
+    rng = np.random.default_rng(7)
+    base = banded_problem(rng, 60, D=30, band=6)
+    lists = [
+        base.resource_indices[base.resource_indptr[h] : base.resource_indptr[h + 1]].tolist()
+        for h in range(base.num_hypotheses)
+    ]
+    R = base.exactly_one.size
+    lists += [[0, R], [0, R + 1]]
+    indptr = np.concatenate([[0], np.cumsum([len(r) for r in lists])])
+    problem = PackingProblem(
+        np.r_[base.scores, 1.0, 1.0],
+        indptr,
+        np.concatenate([np.asarray(r, dtype=np.int64) for r in lists]),
+        np.r_[base.exactly_one, True, True],
+        np.r_[base.counts, True, True],
+    )
+    fast, plain = _both(monkeypatch, problem, 10, None)
+    assert isinstance(fast, FrontierResult) and isinstance(plain, FrontierResult)
+    assert np.all(np.isneginf(fast.best)) and fast.best_sets == (None,) * 11
+    _assert_same(fast, plain)
