@@ -479,6 +479,9 @@ def _dictionary_search(
     )
 
 
+_SEARCH_KERNEL = "mapassoc.formulations.compiled_frontier"
+"""The compiled exact search (:func:`mapassoc.accelerate.compiled_module`)."""
+
 _WORD_BITS = 64
 """Frontiers of the vectorised search are one unsigned 64-bit word."""
 
@@ -724,7 +727,7 @@ def _vectorised_search(
     ):
         # Exact and bounded by its work (or by nothing): the compiled kernel, where
         # numba is installed, takes the same steps.
-        kernel = compiled_module("mapassoc.formulations.compiled_frontier")
+        kernel = compiled_module(_SEARCH_KERNEL)
         if kernel is not None:
             _check_limits(0, None, deadline)
             return _compiled_search(kernel, problem, kmax, layout, work_limit, projected_limit)
