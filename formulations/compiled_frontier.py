@@ -274,3 +274,24 @@ def exact_search(
             sets[k, j + 1] = member
         set_sizes[k] = size
     return FOUND, work, widest, final_best, final_mass, sets, set_sizes
+
+
+def _warm_up() -> None:
+    """Compile (or load) :func:`exact_search` for the argument types the search passes."""
+    exact_search(
+        np.array([1, 1], dtype=np.uint64),
+        np.arange(2, dtype=np.int64),
+        np.array([0, 1, 2], dtype=np.int64),
+        np.array([True, False]),
+        np.ones(2, dtype=np.int64),
+        np.zeros(2),
+        np.zeros(2),
+        1,
+        100,
+        math.inf,
+        8,
+        1 << 18,
+    )
+
+
+_warm_up()

@@ -497,3 +497,29 @@ def continue_along_references(
                 break
             s += 1
     return out, True
+
+
+def _warm_up() -> None:
+    """Compile (or load) the kernels for the argument types the objective passes."""
+    n, dz, M = 2, 1, 3
+    moves = np.ones(M, dtype=np.bool_)
+    F = np.tile(np.eye(n), (M, 1, 1))
+    H = np.tile(np.eye(dz, n), (M, 1, 1))
+    R = np.tile(np.eye(dz), (M, 1, 1))
+    dims = np.full(M, dz, dtype=np.int64)
+    terms = np.zeros(M)
+    gate = np.full(M, 10.0)
+    filter_along_path(
+        np.zeros(n), np.eye(n), 0.0, 0, np.array([1, 2], dtype=np.int64), np.zeros((2, dz)),
+        moves, F, F, H, R, dims, terms, terms, terms, terms, gate,
+    )  # fmt: skip
+    continue_along_references(
+        np.zeros((1, n)), np.eye(n)[None], np.zeros(1), np.zeros(1, dtype=np.int64),
+        np.zeros(1, dtype=np.int64), np.array([2], dtype=np.int64),
+        np.array([[1, 2]], dtype=np.int64), np.zeros((1, 2, dz)), np.zeros((1, 2)),
+        np.zeros((1, 2, n)), np.zeros((1, 2, n, n)), np.zeros(1), moves, F, F, H, R, dims,
+        terms, terms, terms, terms, gate, 1e-9,
+    )  # fmt: skip
+
+
+_warm_up()

@@ -11,18 +11,22 @@
   gives the numpy path's states and values on true tracks of a linear scene, a scene
   with a range-bearing sensor (its steps stay in numpy) and a coordinated-turn scene
   (numpy throughout);
-* ``MAPASSOC_COMPILED=0`` turns the kernels off.
+* ``MAPASSOC_COMPILED=0`` turns the kernels off, and ``load_kernels`` compiles every
+  kernel for the argument types the estimator passes (no compilation inside a window).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from types import ModuleType
 
 import numpy as np
 import pytest
 
+from mapassoc.accelerate import KERNEL_MODULES, compiled_module, load_kernels
 from mapassoc.estimator.objective import RecordingObjective, paths_from_rows
+from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.evaluation.scenarios import build_scenario
 from mapassoc.filtering import compiled
 from mapassoc.filtering.kalman import update
@@ -154,3 +158,31 @@ def test_a_tracks_filter_run_is_the_numpy_run(family: str, monkeypatch: pytest.M
             np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
         for a, b in zip(fast.covariances, plain.covariances, strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+
+
+def test_kernels_compile_once_before_any_window(monkeypatch: pytest.MonkeyPatch) -> None:
+    """load_kernels (which the estimator calls before a window's clock starts) compiles
+    each kernel for the argument types the package passes: a run adds no other
+    compiled version (which would be compiled inside a window, on its time)."""
+    monkeypatch.setenv(compiled.COMPILED_SWITCH, "0")
+    assert all(compiled_module(name) is None for name in KERNEL_MODULES)
+    monkeypatch.setenv(compiled.COMPILED_SWITCH, "1")
+    load_kernels()
+    modules = [compiled_module(name) for name in KERNEL_MODULES]
+    assert all(module is not None for module in modules)
+    kernels = [
+        getattr(module, name)
+        for module in modules
+        for name in ("exact_search", "filter_along_path", "continue_along_references")
+        if hasattr(module, name)
+    ]
+    assert len(kernels) == 3
+    before = [len(kernel.signatures) for kernel in kernels]
+    assert min(before) >= 1
+    scenario = build_scenario("parallel", seed=0)
+    config = dataclasses.replace(
+        scenario.config,
+        estimator=dataclasses.replace(scenario.config.estimator, window_length=4),
+    )
+    WindowEstimator(config=config).run(scenario.scans[:12])
+    assert [len(kernel.signatures) for kernel in kernels] == before
