@@ -58,7 +58,7 @@ from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
-from mapassoc.filtering.compiled import kalman_kernels
+from mapassoc.filtering.compiled import ScanModel, kalman_kernels
 from mapassoc.filtering.kalman import (
     gate_threshold,
     pairwise_gate_and_loglik,
@@ -268,10 +268,7 @@ class RecordingObjective:
         )
         self._trajectories: dict[TrackPath, Trajectory] = {}
         self._motion_cache: dict[tuple[int, float], tuple[FloatArray, FloatArray]] = {}
-        self._scan_matrices: (
-            tuple[NDArray[np.bool_], FloatArray, FloatArray, FloatArray, FloatArray, IntArray]
-            | None
-        ) = None
+        self._scan_model_cache: ScanModel | None = None
         self._row_of = {
             int(row): (m, j) for m, scan in enumerate(self.scans) for j, row in enumerate(scan.rows)
         }
@@ -720,7 +717,6 @@ class RecordingObjective:
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """One track's run from ``state`` through ``path`` in the compiled kernel
         (``filter_along_path``): its means, covariances and values after each detection."""
-        moves, F, Q, H, R, dims = self._linear_scan_matrices()
         detections = np.zeros((len(path), self._measurement_dim))
         for i, (m, j) in enumerate(path):
             z = self.scans[m].detections[j]
@@ -732,17 +728,7 @@ class RecordingObjective:
             int(state.scan),
             np.array([m for m, _ in path], dtype=np.int64),
             detections,
-            moves,
-            F,
-            Q,
-            H,
-            R,
-            dims,
-            self.survival_terms,
-            self.miss_terms,
-            self.log_pd,
-            self.log_clutter,
-            self._thresholds,
+            self._scan_model(),
         )
         if not positive:
             raise InputError("innovation covariance S is not positive-definite")
@@ -854,7 +840,6 @@ class RecordingObjective:
         """The batched continuation's loop in the compiled kernel
         (``continue_along_references``), track by track; the same steps as the numpy
         loop of :meth:`_converge_batch`."""
-        moves, F, Q, H, R, dims = self._linear_scan_matrices()
         flat, positive = kernels.continue_along_references(
             np.ascontiguousarray(x, dtype=np.float64),
             np.ascontiguousarray(P, dtype=np.float64),
@@ -868,31 +853,21 @@ class RecordingObjective:
             table.mean,
             table.covariance,
             table.tail,
-            moves,
-            F,
-            Q,
-            H,
-            R,
-            dims,
-            self.survival_terms,
-            self.miss_terms,
-            self.log_pd,
-            self.log_clutter,
-            self._thresholds,
+            self._scan_model(),
             CONVERGED,
         )
         if not positive:
             raise InputError("innovation covariance S is not positive-definite")
         return np.asarray(flat, dtype=np.float64)
 
-    def _linear_scan_matrices(
-        self,
-    ) -> tuple[NDArray[np.bool_], FloatArray, FloatArray, FloatArray, FloatArray, IntArray]:
-        """Per scan ``m``: whether the step from ``m - 1`` has a positive time step, the
-        motion model's ``F`` and ``Q`` over it, and the scan's linear measurement ``H``,
-        ``R`` (zero-padded to the largest measurement dimension) with its dimension;
-        zeros where a step does not move or a measurement is not linear.  Computed once."""
-        if self._scan_matrices is None:
+    def _scan_model(self) -> ScanModel:
+        """What the compiled kernels read of the recording per scan
+        (:data:`~mapassoc.filtering.compiled.ScanModel`): whether the step from
+        scan ``m - 1`` has a positive time step, the motion model's ``F`` and ``Q`` over
+        it, the scan's linear measurement ``H``, ``R`` (zero-padded to the largest
+        measurement dimension) with its dimension (zeros where a step does not move or
+        a measurement is not linear), and the per-scan terms and gates.  Built once."""
+        if self._scan_model_cache is None:
             M, n, dz = len(self.scans), self.motion.state_dim, self._measurement_dim
             moves = np.zeros(M, dtype=bool)
             F, Q = np.zeros((M, n, n)), np.zeros((M, n, n))
@@ -910,8 +885,20 @@ class RecordingObjective:
                     dims[m] = d
                     H[m, :d] = measurement.H
                     R[m, :d, :d] = measurement.noise_covariance
-            self._scan_matrices = (moves, F, Q, H, R, dims)
-        return self._scan_matrices
+            self._scan_model_cache = (
+                moves,
+                F,
+                Q,
+                H,
+                R,
+                dims,
+                np.ascontiguousarray(self.survival_terms, dtype=np.float64),
+                np.ascontiguousarray(self.miss_terms, dtype=np.float64),
+                np.ascontiguousarray(self.log_pd, dtype=np.float64),
+                np.ascontiguousarray(self.log_clutter, dtype=np.float64),
+                np.ascontiguousarray(self._thresholds, dtype=np.float64),
+            )
+        return self._scan_model_cache
 
     def value(self, tracks: Mapping[int, TrackPath] | Iterable[TrackPath]) -> float:
         """J(omega) = sum of the tracks' values (0 for no track; ``-inf`` if impossible)."""

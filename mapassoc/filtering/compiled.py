@@ -9,9 +9,37 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from mapassoc.accelerate import COMPILED_SWITCH, compiled_module
+import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ["COMPILED_SWITCH", "kalman_kernels"]
+from mapassoc.accelerate import COMPILED_SWITCH, compiled_module
+from mapassoc.array_types import FloatArray, IntArray
+
+__all__ = ["COMPILED_SWITCH", "ScanModel", "kalman_kernels"]
+
+ScanModel = tuple[
+    NDArray[np.bool_],
+    FloatArray,
+    FloatArray,
+    FloatArray,
+    FloatArray,
+    IntArray,
+    FloatArray,
+    FloatArray,
+    FloatArray,
+    FloatArray,
+    FloatArray,
+]
+"""What every kernel reads of the recording, per scan ``m`` (M scans):
+
+* ``moves`` (M,) bool: whether the step from scan ``m - 1`` to ``m`` has a positive
+  time step; ``F``, ``Q`` (M, n, n): the motion model's matrices of that step;
+* ``H`` (M, dz, n), ``R`` (M, dz, dz), ``dims`` (M,) int: the scan's linear
+  measurement, in its first ``dims[m]`` rows and columns;
+* ``survival``, ``miss``, ``log_pd``, ``log_clutter``, ``thresholds`` (M,): the
+  recording objective's per-scan terms and the gate.
+
+Built once per recording by ``RecordingObjective``."""
 
 
 def kalman_kernels() -> ModuleType | None:

@@ -18,11 +18,9 @@ import math
 
 import numpy as np
 from numba import njit
-from numpy.typing import NDArray
 
 from mapassoc.array_types import FloatArray, IntArray
-
-BoolArray = NDArray[np.bool_]
+from mapassoc.filtering.compiled import ScanModel
 
 _LOG_2PI = math.log(2.0 * math.pi)
 
@@ -207,17 +205,7 @@ def _step_to(
     cur: int,
     target: int,
     z: FloatArray,
-    moves: BoolArray,
-    F: FloatArray,
-    Q: FloatArray,
-    H: FloatArray,
-    R: FloatArray,
-    dims: IntArray,
-    survival: FloatArray,
-    miss: FloatArray,
-    log_pd: FloatArray,
-    log_clutter: FloatArray,
-    thresholds: FloatArray,
+    scan_model: ScanModel,
     x_tmp: FloatArray,
     P_tmp: FloatArray,
     FP: FloatArray,
@@ -228,6 +216,7 @@ def _step_to(
     place.  Returns the value with the step's terms added (``-inf`` outside the gate)
     and whether ``S`` was positive-definite.  ``x_tmp``, ``P_tmp``, ``FP`` and
     ``scratch`` are work arrays."""
+    moves, F, Q, H, R, dims, survival, miss, log_pd, log_clutter, thresholds = scan_model
     n = xt.shape[0]
     while cur < target:
         nxt = cur + 1
@@ -282,17 +271,7 @@ def filter_along_path(
     scan: int,
     path_scans: IntArray,
     detections: FloatArray,
-    moves: BoolArray,
-    F: FloatArray,
-    Q: FloatArray,
-    H: FloatArray,
-    R: FloatArray,
-    dims: IntArray,
-    survival: FloatArray,
-    miss: FloatArray,
-    log_pd: FloatArray,
-    log_clutter: FloatArray,
-    thresholds: FloatArray,
+    scan_model: ScanModel,
 ) -> tuple[FloatArray, FloatArray, FloatArray, bool]:
     """One track's filter run through its detections, as ``RecordingObjective.trajectory``
     takes it once the track's state is in the motion model's space.
@@ -305,8 +284,7 @@ def filter_along_path(
         The scans of the next detections (increasing, after ``scan``).
     detections : ndarray, shape (L, dz)
         The detections (zero-padded to dz).
-    moves, F, Q, H, R, dims, survival, miss, log_pd, log_clutter, thresholds
-        As in :func:`continue_along_references`.
+    scan_model : ScanModel
 
     Returns
     -------
@@ -339,17 +317,7 @@ def filter_along_path(
             cur,
             target,
             detections[i],
-            moves,
-            F,
-            Q,
-            H,
-            R,
-            dims,
-            survival,
-            miss,
-            log_pd,
-            log_clutter,
-            thresholds,
+            scan_model,
             x_tmp,
             P_tmp,
             FP,
@@ -380,17 +348,7 @@ def continue_along_references(
     mean: FloatArray,
     covariance: FloatArray,
     tail: FloatArray,
-    moves: BoolArray,
-    F: FloatArray,
-    Q: FloatArray,
-    H: FloatArray,
-    R: FloatArray,
-    dims: IntArray,
-    survival: FloatArray,
-    miss: FloatArray,
-    log_pd: FloatArray,
-    log_clutter: FloatArray,
-    thresholds: FloatArray,
+    scan_model: ScanModel,
     converged: float,
 ) -> tuple[FloatArray, bool]:
     """Each track continued along its request's reference detections, as the batched
@@ -411,14 +369,7 @@ def continue_along_references(
     steps, ref_scan, detection, rest, mean, covariance, tail
         The reference tables (``_ReferenceSteps``), shapes (C,), (C, W), (C, W, dz),
         (C, W), (C, W, n), (C, W, n, n), (C,).
-    moves : ndarray of bool, shape (M,)
-        Whether the step from scan ``m - 1`` to ``m`` has a positive time step.
-    F, Q : ndarray, shape (M, n, n)
-        The motion model's matrices of that step (where ``moves``).
-    H, R, dims : ndarrays, shapes (M, dz, n), (M, dz, dz), (M,)
-        Each scan's linear measurement (its first ``dims[m]`` rows and columns).
-    survival, miss, log_pd, log_clutter, thresholds : ndarray, shape (M,)
-        Per-scan terms of the recording objective and gate thresholds.
+    scan_model : ScanModel
     converged : float
         Relative tolerance of the converged test.
 
@@ -452,17 +403,7 @@ def continue_along_references(
                 cur,
                 target,
                 detection[c, s],
-                moves,
-                F,
-                Q,
-                H,
-                R,
-                dims,
-                survival,
-                miss,
-                log_pd,
-                log_clutter,
-                thresholds,
+                scan_model,
                 x_post,
                 P_post,
                 FP,
@@ -502,23 +443,20 @@ def continue_along_references(
 def _warm_up() -> None:
     """Compile (or load) the kernels for the argument types the objective passes."""
     n, dz, M = 2, 1, 3
-    moves = np.ones(M, dtype=np.bool_)
     F = np.tile(np.eye(n), (M, 1, 1))
-    H = np.tile(np.eye(dz, n), (M, 1, 1))
-    R = np.tile(np.eye(dz), (M, 1, 1))
-    dims = np.full(M, dz, dtype=np.int64)
     terms = np.zeros(M)
-    gate = np.full(M, 10.0)
-    filter_along_path(
-        np.zeros(n), np.eye(n), 0.0, 0, np.array([1, 2], dtype=np.int64), np.zeros((2, dz)),
-        moves, F, F, H, R, dims, terms, terms, terms, terms, gate,
+    scan_model = (
+        np.ones(M, dtype=np.bool_), F, F, np.tile(np.eye(dz, n), (M, 1, 1)),
+        np.tile(np.eye(dz), (M, 1, 1)), np.full(M, dz, dtype=np.int64),
+        terms, terms, terms, terms, np.full(M, 10.0),
     )  # fmt: skip
+    path = np.array([1, 2], dtype=np.int64)
+    filter_along_path(np.zeros(n), np.eye(n), 0.0, 0, path, np.zeros((2, dz)), scan_model)
     continue_along_references(
         np.zeros((1, n)), np.eye(n)[None], np.zeros(1), np.zeros(1, dtype=np.int64),
-        np.zeros(1, dtype=np.int64), np.array([2], dtype=np.int64),
-        np.array([[1, 2]], dtype=np.int64), np.zeros((1, 2, dz)), np.zeros((1, 2)),
-        np.zeros((1, 2, n)), np.zeros((1, 2, n, n)), np.zeros(1), moves, F, F, H, R, dims,
-        terms, terms, terms, terms, gate, 1e-9,
+        np.zeros(1, dtype=np.int64), np.array([2], dtype=np.int64), path[None],
+        np.zeros((1, 2, dz)), np.zeros((1, 2)), np.zeros((1, 2, n)),
+        np.zeros((1, 2, n, n)), np.zeros(1), scan_model, 1e-9,
     )  # fmt: skip
 
 

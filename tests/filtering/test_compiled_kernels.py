@@ -50,27 +50,21 @@ def _one_update(
     """``filter_along_path`` through one detection at the next scan, with no time
     step between (no prediction): the update alone."""
     n, d = x.shape[0], z.shape[0]
-    moves = np.zeros(2, dtype=bool)
-    eye = np.zeros((2, n, n))
-    return kernels.filter_along_path(
-        x,
-        P,
-        0.0,
-        0,
-        np.array([1]),
-        z[None, :],
-        moves,
-        eye,
-        eye,
+    zeros, still = np.zeros(2), np.zeros((2, n, n))
+    scan_model = (
+        np.zeros(2, dtype=bool),  # no time step: no prediction
+        still,
+        still,
         np.stack([H, H]),
         np.stack([R, R]),
         np.full(2, d),
-        np.zeros(2),
-        np.zeros(2),
-        np.zeros(2),
-        np.zeros(2),
+        zeros,
+        zeros,
+        zeros,
+        zeros,
         np.full(2, np.inf),
     )
+    return kernels.filter_along_path(x, P, 0.0, 0, np.array([1]), z[None, :], scan_model)
 
 
 @pytest.mark.parametrize("d", [1, 2, 3])
