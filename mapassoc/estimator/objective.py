@@ -559,8 +559,11 @@ class RecordingObjective:
             means, covariances = [state.means[0]], [state.covariances[0]]
             initiated, values = [state.initiated], [float(state.value[0])]
             kernels = kalman_kernels()
+            # Detections from which every step is linear: the kernel takes over there
+            # once the state is in the motion model's space.
+            linear_from = self._linear_suffix(path) if kernels is not None else len(path)
             for k in range(1, len(path)):
-                if kernels is not None and self._linear_from(state, path[k:]):
+                if kernels is not None and k >= linear_from and self._in_motion_space(state):
                     # The rest of the run in the compiled kernel (the same steps).
                     rest = self._filter_compiled(kernels, state, path[k:])
                     means.extend(rest[0])
@@ -700,17 +703,22 @@ class RecordingObjective:
         """Whether a request's steps are all linear Kalman steps in one state space."""
         if first >= len(reference.path) or not bool(np.all(reference.initiated[first:])):
             return False
-        return self._linear_from(start, reference.path[first:])
+        return self._in_motion_space(start) and self._linear_suffix(reference.path[first:]) == 0
 
-    def _linear_from(self, start: PathState, path: TrackPath) -> bool:
-        """Whether every step from ``start`` through ``path`` is a linear Kalman step in
-        the motion model's state space (an initiated track, a linear motion model and
-        linear measurements at the path's scans)."""
-        if not (start.initiated and self.motion.is_linear):
-            return False
-        if start.means.shape[1] != self.motion.state_dim:
-            return False
-        return all(isinstance(self._sensors[m].measurement, LinearMeasurement) for m, _ in path)
+    def _in_motion_space(self, state: PathState) -> bool:
+        """Whether ``state`` is an initiated track in the motion model's state space."""
+        return state.initiated and state.means.shape[1] == self.motion.state_dim
+
+    def _linear_suffix(self, path: TrackPath) -> int:
+        """The first index of ``path`` from which every step is a linear Kalman step (a
+        linear motion model and linear measurements at the path's scans); ``len(path)``
+        where the motion model is not linear."""
+        if not self.motion.is_linear:
+            return len(path)
+        k = len(path)
+        while k > 0 and isinstance(self._sensors[path[k - 1][0]].measurement, LinearMeasurement):
+            k -= 1
+        return k
 
     def _filter_compiled(
         self, kernels: ModuleType, state: PathState, path: TrackPath
