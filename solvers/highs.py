@@ -1,20 +1,28 @@
-"""HiGHS: integer programs through :func:`scipy.optimize.milp`, LP relaxations through
-``highspy`` (HiGHS's own Python interface).
+"""HiGHS: integer programs and LP relaxations through ``highspy`` (HiGHS's own Python
+interface).
 
 Gaps.  HiGHS stops branch and bound when the relative gap ``|bound - incumbent| /
 |incumbent|`` or the absolute gap ``|bound - incumbent|`` falls below ``mip_rel_gap`` /
 ``mip_abs_gap`` (defaults 1e-4 and 1e-6).  Our objectives are log-likelihood sums that
 can be near zero or negative, where a relative gap means nothing, so both default to 0
-here: OPTIMAL means the incumbent met the dual bound.  scipy's ``milp`` documents
-``mip_rel_gap`` but not ``mip_abs_gap``; it passes options it does not recognise "to HiGHS
-verbatim" with a RuntimeWarning, which this module expects and filters for that one
-option only.
+here: OPTIMAL means the incumbent met the dual bound.
+
+Probing.  HiGHS's MIP presolve probes binary variables (fixes one, propagates, learns
+implications).  On the set-packing programs of track association it finds nothing
+(0 rows and 0 columns deleted by 1,001 probing evaluations on a 3,788-hypothesis
+program of the converging bench family) and costs most of the solve: the 12 integer
+programs of the converging family's first seed took 5.1 s with it and 1.9 s without,
+the same optima; parallel 1.23 -> 0.86 s, dense_radar 0.15 -> 0.09 s, scale100
+1.84 -> 1.71 s (switching presolve off altogether helped converging as much but made
+scale100's programs of 12,000 hypotheses twice as slow).  So :class:`HighsSolver` turns
+this one presolve rule off (``probing=False``, HiGHS option ``presolve_rule_off``, which
+:func:`scipy.optimize.milp` does not pass on: hence ``highspy`` for integer programs too).
 
 Relaxation first.  An integer program is first solved as its LP relaxation (dual
 simplex, no MIP presolve); when the LP optimum is a vertex whose integer variables are
 integral to :data:`RELAXATION_INTEGRALITY` and the rounded point is feasible with the LP's
 value, that point is optimal (no integer point can beat the relaxation) and is returned
-as OPTIMAL with the LP optimum as its bound.  Otherwise ``milp`` solves the program.  On
+as OPTIMAL with the LP optimum as its bound.  Otherwise branch and bound solves it.  On
 the set-packing programs of track association the relaxation is mostly integral, and
 HiGHS's MIP presolve alone can cost twenty times the LP (about 1 s against 0.05 s on
 programs of 3,000 hypotheses and 200 detections); ``relaxation_first=False`` turns this
@@ -48,14 +56,12 @@ import os
 import sys
 import threading
 import time
-import warnings
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import highspy
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.optimize import Bounds, LinearConstraint, OptimizeResult, milp
 
 from mapassoc.formulations.program import Program
 from mapassoc.solvers._common import (
@@ -80,15 +86,19 @@ RELAXATION_INTEGRALITY = 1e-9
 """Largest distance from an integer of an integer variable of an LP optimum taken as
 integral by the relaxation-first solve (module docstring)."""
 
-# scipy.optimize.milp status codes (scipy/optimize/_milp.py).
-_SCIPY_OPTIMAL = 0
-_SCIPY_LIMIT = 1
-_SCIPY_INFEASIBLE = 2
-_SCIPY_UNBOUNDED = 3
+_PROBING_RULE = 1 << 15
+"""Bit of HiGHS's probing in its ``presolve_rule_off`` mask (rule 15 in the table HiGHS
+prints with ``presolve_rule_logging``; module docstring)."""
+
+_LIMIT_STATUSES: dict[str, SolveStatus] = {
+    "kTimeLimit": SolveStatus.TIME_LIMIT,
+    "kSolutionLimit": SolveStatus.WORK_LIMIT,  # HiGHS's status at mip_max_nodes
+    "kIterationLimit": SolveStatus.WORK_LIMIT,
+}
 
 
 class HighsSolver:
-    """Exact MILP/LP backend: HiGHS branch and bound / simplex via ``scipy.optimize.milp``.
+    """Exact MILP/LP backend: HiGHS branch and bound / simplex through ``highspy``.
 
     Parameters
     ----------
@@ -98,6 +108,9 @@ class HighsSolver:
         Absolute optimality gap at which branch and bound stops (>= 0).
     presolve : bool, default True
         Whether HiGHS presolves integer programs.
+    probing : bool, default False
+        Whether HiGHS's MIP presolve probes binary variables (off: on set-packing programs
+        it finds nothing and costs most of the solve; module docstring).
     lp_presolve : bool, default False
         Whether HiGHS presolves LP relaxations (``solve_relaxation``, the relaxation-first
         step and :meth:`relaxation_sequence`).  Off by default: on the set-packing
@@ -123,6 +136,7 @@ class HighsSolver:
         mip_rel_gap: float = 0.0,
         mip_abs_gap: float = 0.0,
         presolve: bool = True,
+        probing: bool = False,
         lp_presolve: bool = False,
         node_limit: int | None = None,
         relaxation_first: bool = True,
@@ -135,6 +149,7 @@ class HighsSolver:
         self.mip_rel_gap = float(mip_rel_gap)
         self.mip_abs_gap = float(mip_abs_gap)
         self.presolve = bool(presolve)
+        self.probing = bool(probing)
         self.lp_presolve = bool(lp_presolve)
         self.node_limit = None if node_limit is None else int(node_limit)
         if not isinstance(relaxation_first, bool):
@@ -144,7 +159,8 @@ class HighsSolver:
     def __repr__(self) -> str:
         return (
             f"HighsSolver(mip_rel_gap={self.mip_rel_gap}, mip_abs_gap={self.mip_abs_gap}, "
-            f"presolve={self.presolve}, lp_presolve={self.lp_presolve}, "
+            f"presolve={self.presolve}, probing={self.probing}, "
+            f"lp_presolve={self.lp_presolve}, "
             f"node_limit={self.node_limit}, "
             f"relaxation_first={self.relaxation_first})"
         )
@@ -178,36 +194,24 @@ class HighsSolver:
             if limit is not None:
                 limit = max(0.0, limit - (time.perf_counter() - started))
 
-        constraints = []
-        if program.A_ub.shape[0]:
-            constraints.append(LinearConstraint(program.A_ub, -np.inf, program.b_ub))
-        if program.A_eq.shape[0]:
-            constraints.append(LinearConstraint(program.A_eq, program.b_eq, program.b_eq))
-        options: dict[str, float | bool | int] = {
+        highs = _silent_highs()
+        _load_program(highs, program, program.b_eq, integrality=program.integrality)
+        options: dict[str, float | int | str] = {
             "mip_rel_gap": self.mip_rel_gap,
             "mip_abs_gap": self.mip_abs_gap,
-            "presolve": self.presolve,
+            "presolve": "on" if self.presolve else "off",
+            "presolve_rule_off": 0 if self.probing else _PROBING_RULE,
         }
         if limit is not None:
             options["time_limit"] = limit
         if self.node_limit is not None:
-            options["node_limit"] = self.node_limit
-        with warnings.catch_warnings():
-            # milp warns that it passes mip_abs_gap to HiGHS verbatim; that is the intent.
-            warnings.filterwarnings(
-                "ignore",
-                message=r"Unrecognized options detected: \{'mip_abs_gap'\}",
-                category=RuntimeWarning,
-            )
-            raw = milp(
-                -program.objective,  # milp minimises
-                integrality=program.integrality.astype(np.uint8),
-                bounds=Bounds(program.lower, program.upper),
-                constraints=constraints,
-                options=options,
-            )
+            options["mip_max_nodes"] = self.node_limit
+        for option, value in options.items():
+            if highs.setOptionValue(option, value) != highspy.HighsStatus.kOk:
+                raise SolverError(f"{self.name}: HiGHS rejected option {option}={value!r}")
+        highs.run()
         seconds = time.perf_counter() - started
-        return self._translate(program, raw, seconds)
+        return self._translate(program, _MipRun.read(highs, program), seconds)
 
     def solve_relaxation(self, program: Program, *, time_limit: float | None = None) -> LPResult:
         """Solve the LP relaxation with HiGHS simplex and return it with its duals.
@@ -287,45 +291,41 @@ class HighsSolver:
             message="program has no variables and its right-hand sides exclude the empty point",
         )
 
-    def _translate(self, program: Program, raw: OptimizeResult, seconds: float) -> SolveResult:
-        """Map a ``scipy.optimize.OptimizeResult`` from ``milp`` to a :class:`SolveResult`."""
-        code = int(raw.status)
-        message = str(raw.message)
+    def _translate(self, program: Program, run: _MipRun, seconds: float) -> SolveResult:
+        """Map what a HiGHS run of ``program`` left (:class:`_MipRun`) to a
+        :class:`SolveResult`."""
+        message = run.message
         point = None
-        if raw.x is not None and code == _SCIPY_OPTIMAL:
-            point = snap_integer_variables(program, raw.x, self.name)
-        elif raw.x is not None and code == _SCIPY_LIMIT:
-            point = _usable_incumbent(program, raw.x)
+        if run.x is not None and run.status == "kOptimal":
+            point = snap_integer_variables(program, run.x, self.name)
+        elif run.x is not None and run.status in _LIMIT_STATUSES:
+            point = _usable_incumbent(program, run.x)
             if point is None:
                 message += " The point HiGHS returned is not feasible and was not kept."
         objective = math.nan if point is None else program.value(point)
 
         bound = math.nan
-        if raw.mip_dual_bound is not None and program.is_integer:
-            bound = -float(raw.mip_dual_bound) + program.constant
-        elif code == _SCIPY_OPTIMAL and not program.is_integer:
-            bound = -float(raw.fun) + program.constant  # simplex optimum certifies itself
+        if program.is_integer and math.isfinite(run.dual_bound):
+            bound = -run.dual_bound + program.constant
+        elif run.status == "kOptimal" and not program.is_integer:
+            bound = objective  # the simplex optimum certifies itself
 
-        if code == _SCIPY_OPTIMAL:
+        if run.status == "kOptimal":
             status = SolveStatus.OPTIMAL
-        elif code == _SCIPY_LIMIT:
-            status = (
-                SolveStatus.TIME_LIMIT
-                if "time limit" in message.lower()
-                else SolveStatus.WORK_LIMIT
-            )
-        elif code == _SCIPY_INFEASIBLE:
+        elif run.status in _LIMIT_STATUSES:
+            status = _LIMIT_STATUSES[run.status]
+        elif run.status == "kInfeasible":
             status, bound = SolveStatus.INFEASIBLE, math.nan
-        elif code == _SCIPY_UNBOUNDED:
+        elif run.status == "kUnbounded":
             status, bound = SolveStatus.UNBOUNDED, math.nan
-        elif "unbounded or infeasible" in message.lower() and all_bounds_finite(program):
+        elif run.status == "kUnboundedOrInfeasible" and all_bounds_finite(program):
             # Every variable is boxed, so the objective cannot be unbounded.
             status, bound = SolveStatus.INFEASIBLE, math.nan
-            message += " All variables have finite bounds, so the program is infeasible."
+            message += ". All variables have finite bounds, so the program is infeasible."
         else:
             status, bound = SolveStatus.FAILED, math.nan
-            if "unbounded or infeasible" in message.lower():
-                message += " HiGHS cannot tell which because some variable bounds are infinite."
+            if run.status == "kUnboundedOrInfeasible":
+                message += ". HiGHS cannot tell which because some variable bounds are infinite."
         return SolveResult(
             status=status,
             objective=objective,
@@ -335,6 +335,28 @@ class HighsSolver:
             message=message,
             bound=bound,
         )
+
+
+@dataclass(frozen=True)
+class _MipRun:
+    """What one HiGHS run of a program left: the model status's name (``"kOptimal"``,
+    ``"kTimeLimit"``, ...), its text, the point (None when HiGHS has none) and the dual
+    bound of the minimisation HiGHS solved (``nan`` when there is none)."""
+
+    status: str
+    message: str
+    x: NDArray[np.float64] | None
+    dual_bound: float
+
+    @classmethod
+    def read(cls, highs: highspy.Highs, program: Program) -> _MipRun:
+        model_status = highs.getModelStatus()
+        solution = highs.getSolution()
+        x = np.asarray(solution.col_value, dtype=float) if solution.value_valid else None
+        dual_bound = math.nan
+        if program.is_integer:
+            dual_bound = float(highs.getInfo().mip_dual_bound)
+        return cls(model_status.name, highs.modelStatusToString(model_status), x, dual_bound)
 
 
 def _usable_incumbent(program: Program, x: NDArray[np.float64]) -> NDArray[np.float64] | None:
@@ -394,6 +416,42 @@ def _construct_with_stdout_closed() -> highspy.Highs:
     return highs
 
 
+def _load_program(
+    highs: highspy.Highs,
+    program: Program,
+    b_eq: NDArray[np.float64],
+    *,
+    integrality: NDArray[np.bool_] | None,
+) -> None:
+    """Pass ``program`` (rows ``A_ub`` then ``A_eq``, the latter with right-hand sides
+    ``b_eq``) to ``highs`` as the minimisation of ``-objective``; ``integrality`` None
+    passes every variable as continuous (the LP relaxation)."""
+    rows = sp.vstack([program.A_ub, program.A_eq], format="csc")
+    n = program.num_variables
+    kinds = np.zeros(n, dtype=np.int32) if integrality is None else integrality.astype(np.int32)
+    b_eq = np.asarray(b_eq, dtype=float)
+    # The array form of passModel: numpy buffers, no per-field conversion of a HighsLp.
+    status = highs.passModel(
+        n,
+        rows.shape[0],
+        rows.nnz,
+        int(highspy.MatrixFormat.kColwise),
+        int(highspy.ObjSense.kMinimize),  # of -objective
+        0.0,
+        -np.asarray(program.objective, dtype=float),
+        np.asarray(program.lower, dtype=float),
+        np.asarray(program.upper, dtype=float),
+        np.concatenate([np.full(program.A_ub.shape[0], -np.inf), b_eq]),
+        np.concatenate([np.asarray(program.b_ub, dtype=float), b_eq]),
+        rows.indptr.astype(np.int32),
+        rows.indices.astype(np.int32),
+        rows.data.astype(float),
+        kinds,  # HiGHS's variable types: 0 continuous, 1 integer
+    )
+    if status != highspy.HighsStatus.kOk:
+        raise SolverError(f"{HighsSolver.name}: HiGHS rejected the program's model")
+
+
 _MODEL_STATUSES: dict[str, SolveStatus] = {
     "kOptimal": SolveStatus.OPTIMAL,
     "kInfeasible": SolveStatus.INFEASIBLE,
@@ -431,30 +489,9 @@ class HighsRelaxation:
         """The HiGHS instance holding the program (built on the first solve)."""
         if self._highs is not None:
             return self._highs
-        program = self.program
-        rows = sp.vstack([program.A_ub, program.A_eq], format="csc")
         highs = _silent_highs()
         highs.setOptionValue("presolve", "on" if self._presolve else "off")
-        # The array form of passModel: numpy buffers, no per-field conversion of a HighsLp.
-        status = highs.passModel(
-            program.num_variables,
-            rows.shape[0],
-            rows.nnz,
-            int(highspy.MatrixFormat.kColwise),
-            int(highspy.ObjSense.kMinimize),  # of -objective
-            0.0,
-            -np.asarray(program.objective, dtype=float),
-            np.asarray(program.lower, dtype=float),
-            np.asarray(program.upper, dtype=float),
-            np.concatenate([np.full(self._num_ub, -np.inf), self._b_eq]),
-            np.concatenate([np.asarray(program.b_ub, dtype=float), self._b_eq]),
-            rows.indptr.astype(np.int32),
-            rows.indices.astype(np.int32),
-            rows.data.astype(float),
-            np.zeros(program.num_variables, dtype=np.int32),  # continuous: the relaxation
-        )
-        if status != highspy.HighsStatus.kOk:
-            raise SolverError(f"{self.name}: HiGHS rejected the LP relaxation's model")
+        _load_program(highs, self.program, self._b_eq, integrality=None)
         self._highs = highs
         return highs
 

@@ -418,24 +418,41 @@ def test_tiny_time_limit_never_claims_a_wrong_optimum() -> None:
 
 
 def test_limit_statuses_keep_only_feasible_integral_incumbents() -> None:
-    # Feed HiGHS-style raw results to the status translation: a time-limited MILP whose point
-    # is feasible keeps it as incumbent (never OPTIMAL); an infeasible or fractional point is
+    # Feed HiGHS-style runs to the status translation: a time-limited MILP whose point is
+    # feasible keeps it as incumbent (never OPTIMAL); an infeasible or fractional point is
     # dropped.  x0 + x1 <= 1, objective [1, 2], constant 0.5.
-    from scipy.optimize import OptimizeResult
+    from mapassoc.solvers.highs import _MipRun
 
     program = make_program([1.0, 2.0], A_ub=[[1, 1]], b_ub=[1], constant=0.5)
 
-    def raw(x: list[float] | None, message: str) -> OptimizeResult:
-        return OptimizeResult(status=1, message=message, x=None if x is None else np.array(x),
-                              fun=None, mip_dual_bound=-3.0)
+    def run(x: list[float] | None, status: str) -> _MipRun:
+        return _MipRun(status, "limit reached", None if x is None else np.array(x), -3.0)
 
-    kept = HIGHS._translate(program, raw([1.0, 1e-9], "Time limit reached. (HiGHS)"), 0.1)
+    kept = HIGHS._translate(program, run([1.0, 1e-9], "kTimeLimit"), 0.1)
     assert kept.status is SolveStatus.TIME_LIMIT and list(kept.solution) == [1.0, 0.0]
     assert kept.objective == 1.5 and kept.bound == 3.5
     for bad in ([1.0, 1.0], [0.5, 0.5]):
-        dropped = HIGHS._translate(program, raw(bad, "Iteration limit reached."), 0.1)
+        dropped = HIGHS._translate(program, run(bad, "kSolutionLimit"), 0.1)
         assert dropped.status is SolveStatus.WORK_LIMIT and dropped.solution is None
         assert "not kept" in dropped.message
+
+
+def test_node_limit_and_probing_reach_highs() -> None:
+    """The node limit stops branch and bound with WORK_LIMIT (HiGHS's status at
+    ``mip_max_nodes``), and probing on or off gives the same optimum."""
+    program = independent_set_program(5, n=40)
+    exact = HighsSolver(relaxation_first=False).solve(program)
+    probed = HighsSolver(relaxation_first=False, probing=True).solve(program)
+    assert exact.status is probed.status is SolveStatus.OPTIMAL
+    assert probed.objective == pytest.approx(exact.objective, abs=1e-9)
+    # Without presolve this program needs more than its root node (measured: the root's
+    # bound 11.416 against the optimum 11.395).
+    limited = HighsSolver(relaxation_first=False, node_limit=1, presolve=False).solve(program)
+    assert limited.status is SolveStatus.WORK_LIMIT and "limit" in limited.message.lower()
+    assert limited.bound >= exact.objective - 1e-9
+    if limited.solution is not None:
+        assert program.is_feasible(limited.solution)
+        assert limited.objective <= exact.objective + 1e-9
 
 
 def test_invalid_time_limit_is_rejected() -> None:
