@@ -25,7 +25,10 @@ hypotheses need only what the rest of the window makes of the cluster's own coun
 per-k masses convolved and weighted by W), and within a cluster the frontier search
 runs forward and backward with that message as its seed
 (:func:`~mapassoc.formulations.marginals.frontier_marginals`): about three times the
-cost of the cluster's search.  Hypotheses merged as interchangeable share their merged
+cost of the cluster's search; an exact cluster of at most
+:data:`~mapassoc.formulations.marginals.ENUMERATION_MAX_HYPOTHESES` hypotheses lists its
+subsets instead (:func:`~mapassoc.formulations.marginals.enumerated_marginals`, the same
+sums).  Hypotheses merged as interchangeable share their merged
 node's probability in proportion to ``exp(score)``.
 
 **What is exact and what is bounded.**
@@ -77,7 +80,13 @@ from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.errors import InputError
 from mapassoc.estimator.cluster_solving import ClusterStatus, WindowCluster
 from mapassoc.formulations.bounds import exclusive_groups
-from mapassoc.formulations.marginals import cluster_messages, frontier_marginals, log_subtract
+from mapassoc.formulations.marginals import (
+    ENUMERATION_MAX_HYPOTHESES,
+    cluster_messages,
+    enumerated_marginals,
+    frontier_marginals,
+    log_subtract,
+)
 from mapassoc.formulations.packing import MergedProblem
 from mapassoc.models.population import poisson_log_pmf
 
@@ -353,12 +362,15 @@ def _cluster_marginals(
     size = g_lo.shape[0]
     same = np.array_equal(g_lo, g_hi)
     seeds = np.stack([g_lo] if same else [g_lo, g_hi])
-    found = frontier_marginals(
-        sub,
-        seeds,
-        max_frontiers=beam_width if bounded else None,
-        entry_margin=entry_margin if bounded else None,
-    )
+    if not bounded and sub.num_hypotheses <= ENUMERATION_MAX_HYPOTHESES:
+        found = enumerated_marginals(sub, seeds)  # every subset listed
+    else:
+        found = frontier_marginals(
+            sub,
+            seeds,
+            max_frontiers=beam_width if bounded else None,
+            entry_margin=entry_margin if bounded else None,
+        )
     hi = 0 if same else 1
     node_lo = found.log_containing[0]
     node_hi = found.log_containing[hi]

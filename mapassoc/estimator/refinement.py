@@ -86,7 +86,11 @@ from mapassoc.estimator.objective import (
 )
 from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.frontier import SearchLimitExceeded, frontier_search
-from mapassoc.formulations.marginals import frontier_marginals
+from mapassoc.formulations.marginals import (
+    ENUMERATION_MAX_HYPOTHESES,
+    enumerated_marginals,
+    frontier_marginals,
+)
 from mapassoc.formulations.packing import PackingProblem, gather_rows
 from mapassoc.solvers import get_integer_solver
 
@@ -934,7 +938,9 @@ class Refiner:
         program is built as in :meth:`resolve_window` (the tracks outside it fixed, the
         tracks crossing it carried in and anchored after it), and the posterior marginal
         of every hypothesis and join is computed by the frontier search run forward and
-        backward (:func:`mapassoc.formulations.marginals.frontier_marginals`) with the
+        backward (:func:`mapassoc.formulations.marginals.frontier_marginals`; a cluster of
+        at most eight hypotheses lists its subsets instead,
+        :func:`~mapassoc.formulations.marginals.enumerated_marginals`) with the
         weights ``exp(J)`` (endings summed).  A track's existence is the probability that
         its detections in the window of its first detection are not all false alarms: that
         some track uses at least one of them (one minus the mass of the sets that use none,
@@ -1086,9 +1092,12 @@ class Refiner:
                 continue
             sub = uncounted.subproblem(members)
             try:
-                found = frontier_marginals(
-                    sub, seed, work_limit=_MARGINALS_WORK, work_projection=WORK_PROJECTION
-                )
+                if len(members) <= ENUMERATION_MAX_HYPOTHESES:
+                    found = enumerated_marginals(sub, seed)  # every subset listed
+                else:
+                    found = frontier_marginals(
+                        sub, seed, work_limit=_MARGINALS_WORK, work_projection=WORK_PROJECTION
+                    )
             except SearchLimitExceeded:
                 found = frontier_marginals(
                     sub, seed, max_frontiers=_MARGINALS_BEAM, entry_margin=_BEAM_MARGIN

@@ -14,7 +14,9 @@ from support import random_problem
 from mapassoc.formulations.convolution import sum_product
 from mapassoc.formulations.frontier import frontier_search
 from mapassoc.formulations.marginals import (
+    ENUMERATION_MAX_HYPOTHESES,
     cluster_messages,
+    enumerated_marginals,
     frontier_marginals,
     log_subtract,
 )
@@ -51,6 +53,47 @@ def assert_log_close(a: np.ndarray, b: np.ndarray) -> None:
     assert np.array_equal(np.isneginf(a), np.isneginf(b)), (a, b)
     finite = np.isfinite(a)
     np.testing.assert_allclose(a[finite], b[finite], rtol=0, atol=TOLERANCE)
+
+
+@pytest.mark.parametrize("trial", range(40))
+def test_listed_subsets_give_the_frontier_searchs_sums(trial: int) -> None:
+    """enumerated_marginals: the brute force's log Z and log N_h, and the forward-backward
+    search's per-k masses, on problems with exactly-once resources, uncounted hypotheses,
+    hypotheses without resources, seeds cut at kmax and seeds of -inf."""
+    rng = np.random.default_rng(5000 + trial)
+    H = int(rng.integers(1, ENUMERATION_MAX_HYPOTHESES + 1))
+    problem = random_problem(rng, H, int(rng.integers(1, 6)), int(rng.integers(0, 3)))
+    if trial % 4 == 0 and H < ENUMERATION_MAX_HYPOTHESES:  # plus one using no resource
+        problem = PackingProblem(
+            np.r_[problem.scores, rng.normal(0.0, 3.0)],
+            np.r_[problem.resource_indptr, problem.resource_indptr[-1]],
+            problem.resource_indices,
+            problem.exactly_one,
+            np.r_[problem.counts, trial % 8 == 0],
+        )
+        H += 1
+    kmax = int(rng.integers(0, 5))
+    seeds = rng.normal(0.0, 2.0, size=(3, kmax + 1))
+    seeds[1, rng.integers(0, kmax + 1)] = -math.inf
+    seeds[2] = -math.inf  # no count allowed: every sum is empty
+    listed = enumerated_marginals(problem, seeds)
+    searched = frontier_marginals(problem, seeds)
+    assert listed.exact and listed.work == 2**H
+    assert_log_close(listed.log_mass, searched.log_mass)
+    for s in range(3):
+        z, n = brute_force(problem, seeds[s])
+        assert_log_close(np.array([listed.log_total[s]]), np.array([z]))
+        assert_log_close(listed.log_containing[s], n)
+    assert np.all(np.isneginf(listed.log_containing[2]))
+
+
+def test_listing_subsets_refuses_a_large_problem() -> None:
+    rng = np.random.default_rng(0)
+    problem = random_problem(rng, ENUMERATION_MAX_HYPOTHESES + 1, 4, 1)
+    with pytest.raises(ValueError, match="at most"):
+        enumerated_marginals(problem, np.zeros(3))
+    with pytest.raises(ValueError, match="seeds"):
+        enumerated_marginals(random_problem(rng, 3, 2, 0), np.array([math.nan]))
 
 
 @pytest.mark.parametrize("trial", range(60))
