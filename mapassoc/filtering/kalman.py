@@ -19,13 +19,11 @@ clamped or pseudo-inverted.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 from scipy.special import gammaincinv
 
 from mapassoc.array_types import FloatArray, IntArray
@@ -275,13 +273,19 @@ def pairwise_gate_and_loglik(nu: FloatArray, S: FloatArray) -> tuple[FloatArray,
 def gated_pairs_and_loglik(
     z_hat: FloatArray, S: FloatArray, Z: FloatArray, threshold: float
 ) -> tuple[IntArray, IntArray, FloatArray, FloatArray, FloatArray]:
-    """Gated (track, detection) pairs of a linear measurement, found through a k-d tree.
+    """Gated (track, detection) pairs of a linear measurement, found on sorted detections.
 
     A pair can pass the gate ``nu^T S^-1 nu <= threshold`` only if
-    ``|nu| <= sqrt(threshold * lambda_max(S))``, so a radius query per track returns a
-    superset of the gated pairs; only those are scored.  Cost grows with the number of
-    nearby pairs, not with tracks x detections.  For residuals that are plain
-    differences ``z - z_hat`` only (no angle wrapping).
+    ``|nu| <= r = sqrt(threshold * lambda_max(S))``, so every coordinate of ``nu`` is
+    within ``r`` too.  The detections are sorted along the coordinate where they spread
+    most; each track's candidates are the run of detections within ``r`` of its
+    prediction there (two binary searches), the other coordinates filter them, and only
+    the rest are scored.  Cost grows with the number of candidates in the strips, not with
+    tracks x detections.  (A k-d tree radius query per prediction found the same pairs in
+    2.4 s against 0.85 s on the 870 gates of the dense_radar bench family's first seed,
+    about 1,700 predictions against 56 detections each: its lists of hits cost more than
+    the search.)  For residuals that are plain differences ``z - z_hat`` only (no angle
+    wrapping).
 
     Parameters
     ----------
@@ -314,15 +318,7 @@ def gated_pairs_and_loglik(
         largest = np.asarray(np.linalg.eigvalsh(S)[:, -1], dtype=np.float64)
         logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
     radius = np.sqrt(threshold * largest)
-    tree = cKDTree(Z)
-    hits = tree.query_ball_point(z_hat, radius, return_sorted=True)
-    counts = np.fromiter(map(len, hits), dtype=np.int64, count=T)
-    track = np.repeat(np.arange(T, dtype=np.int64), counts)
-    # One pass over the sorted hit lists (a sort and an array per track cost more than
-    # the whole query when most tracks have a few hits).
-    detection = np.fromiter(
-        itertools.chain.from_iterable(hits), dtype=np.int64, count=int(counts.sum())
-    )
+    track, detection = _strip_candidates(z_hat, radius, Z)
     nu = Z[detection] - z_hat[track]
     if S_inv is not None:
         W = S_inv[track]
@@ -335,6 +331,59 @@ def gated_pairs_and_loglik(
     loglik = -0.5 * (d * _LOG_2PI + logdet[track] + d2)
     keep = d2 <= threshold
     return track[keep], detection[keep], nu[keep], d2[keep], loglik[keep]
+
+
+_STRIP_BLOCK = 1 << 20
+"""Most candidate pairs :func:`_strip_candidates` holds at once (tracks are taken in
+blocks, so that detections bunched along one line cost time, not memory)."""
+
+
+def _strip_candidates(
+    z_hat: FloatArray, radius: FloatArray, Z: FloatArray
+) -> tuple[IntArray, IntArray]:
+    """Every (track, detection) pair with ``|Z[detection] - z_hat[track]|`` at most
+    ``radius[track]`` in every coordinate, sorted by track then detection.
+
+    Parameters
+    ----------
+    z_hat : ndarray, shape (T, d)
+    radius : ndarray, shape (T,)
+    Z : ndarray, shape (M, d)
+
+    Returns
+    -------
+    track, detection : ndarray of int, shape (P,)
+    """
+    T, M = z_hat.shape[0], Z.shape[0]
+    if T == 0 or M == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    axis = int(np.argmax(np.ptp(Z, axis=0)))
+    order = np.argsort(Z[:, axis], kind="stable")
+    along = Z[order, axis]
+    low = np.searchsorted(along, z_hat[:, axis] - radius, side="left")
+    high = np.searchsorted(along, z_hat[:, axis] + radius, side="right")
+    counts = np.maximum(high - low, 0)
+    ends = np.cumsum(counts)
+    tracks_out: list[IntArray] = []
+    detections_out: list[IntArray] = []
+    first = 0
+    while first < T:
+        # Tracks first..last-1: at least one, and no more than a block of candidates.
+        done = int(ends[first - 1]) if first else 0
+        last = max(first + 1, int(np.searchsorted(ends, done + _STRIP_BLOCK, side="right")))
+        track = np.repeat(np.arange(first, last, dtype=np.int64), counts[first:last])
+        # Position of each candidate in the sorted detections: its track's run start
+        # plus its place in the run.
+        detection = order[low[track] + np.arange(track.size) - (ends[track] - counts[track] - done)]
+        for other in range(Z.shape[1]):
+            if other != axis:
+                near = np.abs(Z[detection, other] - z_hat[track, other]) <= radius[track]
+                track, detection = track[near], detection[near]
+        ranked = np.lexsort((detection, track))
+        tracks_out.append(track[ranked])
+        detections_out.append(detection[ranked])
+        first = last
+    return np.concatenate(tracks_out), np.concatenate(detections_out)
 
 
 def gate_threshold(probability: float, dim: int) -> float:

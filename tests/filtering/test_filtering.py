@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import multivariate_normal
 
+import mapassoc.filtering.kalman as kalman_module
 from mapassoc.errors import InputError, NotPositiveDefiniteError
 from mapassoc.filtering.kalman import (
     FilterStep,
@@ -297,16 +298,26 @@ def test_update_names_the_innovation_covariance_that_is_not_positive_definite(dz
         update(np.zeros((2, 2)), P, np.zeros((2, dz)), S, H, np.eye(dz))
 
 
+@pytest.mark.parametrize("layout", ["spread", "on_a_line", "small_blocks"])
 @pytest.mark.parametrize("d", [1, 2, 3])
-def test_gated_pairs_are_the_dense_gate_pairs(d: int) -> None:
-    """The k-d tree's gated pairs (closed forms for d = 2, Cholesky otherwise) are the
-    pairs of the dense computation within the gate, with the same d2 and loglik."""
+def test_gated_pairs_are_the_dense_gate_pairs(
+    d: int, layout: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The strip search's gated pairs (closed forms for d = 2, Cholesky otherwise) are
+    the pairs of the dense computation within the gate, with the same d2 and loglik:
+    detections spread out, detections strung along one line (every strip holds most of
+    them), and candidates taken a few at a time (tracks in many blocks)."""
     rng = np.random.default_rng(10 + d)
     T, M = 40, 60
     A = rng.normal(size=(T, d, d))
     S = A @ np.swapaxes(A, -1, -2) + 0.3 * np.eye(d)
     z_hat = rng.uniform(-5.0, 5.0, size=(T, d))
     Z = rng.uniform(-5.0, 5.0, size=(M, d))
+    if layout == "on_a_line":  # one coordinate spreads, the others barely
+        Z[:, 1:] = 0.01 * Z[:, 1:]
+        z_hat[:, 1:] = 0.01 * z_hat[:, 1:]
+    if layout == "small_blocks":
+        monkeypatch.setattr(kalman_module, "_STRIP_BLOCK", 5)
     threshold = 6.0
     track, detection, nu, d2, loglik = gated_pairs_and_loglik(z_hat, S, Z, threshold)
     dense_d2, dense_loglik = pairwise_gate_and_loglik(Z[None, :, :] - z_hat[:, None, :], S)
@@ -322,3 +333,6 @@ def test_gated_pairs_are_the_dense_gate_pairs(d: int) -> None:
     bad[3] = -np.eye(d)
     with pytest.raises(NotPositiveDefiniteError, match=r"\[3\]"):
         gated_pairs_and_loglik(z_hat, bad, Z, threshold)
+    for none in (gated_pairs_and_loglik(z_hat, S, Z[:0], threshold),
+                 gated_pairs_and_loglik(z_hat[:0], S[:0], Z, threshold)):
+        assert all(part.shape[0] == 0 for part in none)
