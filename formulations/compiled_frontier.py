@@ -41,38 +41,120 @@ def _log_add(a: float, b: float) -> float:
     return tmp  # NaN
 
 
+_INSERTION_SORT_BELOW = 32
+"""Fewer keys than this are ordered by insertion sort (radix passes cost more there)."""
+
+
 @njit(cache=True)
 def _stable_order(keys: NDArray[np.uint64]) -> IntArray:
-    """``np.argsort(keys, kind="stable")`` by a bottom-up merge sort (numba's own
-    sorts cost seconds to compile; this, a fraction)."""
+    """``np.argsort(keys, kind="stable")``: insertion sort for a few keys, else a
+    least-significant-digit radix sort by bytes (each pass stable, so the whole is; bytes
+    on which all keys agree are skipped).  numba's own sorts cost seconds to compile; a
+    merge sort here made a search of 708 hypotheses (1.06 million transitions) take
+    0.29 s against 0.22 s."""
     n = keys.shape[0]
     order = np.arange(n)
+    if n < _INSERTION_SORT_BELOW:
+        for i in range(1, n):
+            moving = order[i]
+            key = keys[moving]
+            j = i - 1
+            while j >= 0 and keys[order[j]] > key:  # ties keep their order
+                order[j + 1] = order[j]
+                j -= 1
+            order[j + 1] = moving
+        return order
+    ones = np.uint64(0)
+    zeros = ~np.uint64(0)
+    for i in range(n):
+        ones |= keys[i]
+        zeros &= keys[i]
+    varying = ones ^ zeros
     spare = np.empty(n, dtype=np.int64)
-    width = 1
-    while width < n:
-        for lo in range(0, n, 2 * width):
-            mid = min(lo + width, n)
-            hi = min(lo + 2 * width, n)
-            i, j, out = lo, mid, lo
-            while i < mid and j < hi:
-                if keys[order[j]] < keys[order[i]]:  # ties: the left run first
-                    spare[out] = order[j]
-                    j += 1
-                else:
-                    spare[out] = order[i]
-                    i += 1
-                out += 1
-            while i < mid:
-                spare[out] = order[i]
-                i += 1
-                out += 1
-            while j < hi:
-                spare[out] = order[j]
-                j += 1
-                out += 1
+    starts = np.empty(257, dtype=np.int64)
+    byte = np.uint64(0xFF)
+    for pass_ in range(8):
+        shift = np.uint64(8 * pass_)
+        if (varying >> shift) & byte == np.uint64(0):
+            continue
+        starts[:] = 0
+        for i in range(n):
+            starts[np.int64((keys[order[i]] >> shift) & byte) + 1] += 1
+        for d in range(256):
+            starts[d + 1] += starts[d]
+        for i in range(n):
+            d = np.int64((keys[order[i]] >> shift) & byte)
+            spare[starts[d]] = order[i]
+            starts[d] += 1
         order, spare = spare, order
-        width *= 2
     return order
+
+
+@njit(cache=True)
+def _step_pairs(
+    covers: NDArray[np.uint64],
+    relative: NDArray[np.uint64],
+    by_start: IntArray,
+    first: int,
+    n_start: int,
+    exactly_once: bool,
+    work_limit: int,
+    work: int,
+    span_now: int,
+    entries_per_transition: int,
+    pair_block_entries: int,
+) -> tuple[IntArray, int, IntArray, IntArray, int]:
+    """One step's candidate rows before any k-entry: the frontiers kept (all, or those
+    covering an exactly-once position), then the open (frontier, hypothesis) pairs found
+    block by block of open frontiers as
+    :func:`~mapassoc.formulations.frontier.open_pairs` finds them, stopping after the
+    block that passes what ``work_limit`` leaves (``-1``: no limit)."""
+    F = covers.shape[0]
+    keep = np.empty(F, dtype=np.int64)
+    n_keep = 0
+    for row in range(F):
+        if (not exactly_once) or (covers[row] & np.uint64(1)) != np.uint64(0):
+            keep[n_keep] = row
+            n_keep += 1
+    most = -1
+    if work_limit >= 0:
+        most = (work_limit - work) * entries_per_transition // span_now - n_keep
+    pair_row = np.empty(16, dtype=np.int64)
+    pair_h = np.empty(16, dtype=np.int64)
+    n_pairs = 0
+    if n_start > 0 and not (work_limit >= 0 and most < 0):
+        block = max(1, pair_block_entries // n_start)
+        in_block = 0
+        for row in range(F):
+            word = covers[row]
+            if (word & np.uint64(1)) != np.uint64(0):
+                continue
+            for i in range(n_start):
+                h = by_start[first + i]
+                if (word & relative[h]) == np.uint64(0):
+                    if n_pairs == pair_row.shape[0]:
+                        pair_row = np.concatenate((pair_row, np.empty_like(pair_row)))
+                        pair_h = np.concatenate((pair_h, np.empty_like(pair_h)))
+                    pair_row[n_pairs] = row
+                    pair_h[n_pairs] = h
+                    n_pairs += 1
+            in_block += 1
+            if in_block == block:
+                in_block = 0
+                if work_limit >= 0 and n_pairs > most:
+                    break
+    return keep, n_keep, pair_row, pair_h, n_pairs
+
+
+@njit(cache=True)
+def _grows(counts: IntArray, pair_h: IntArray, n_pairs: int, span_now: int, kmax: int) -> int:
+    """1 when a step's pairs add a k column (a counted hypothesis is taken and the span
+    is still at most ``kmax``), else 0."""
+    if n_pairs > 0 and span_now <= kmax:
+        for p in range(n_pairs):
+            if counts[pair_h[p]] > 0:
+                return 1
+    return 0
 
 
 @njit(cache=True)
@@ -136,51 +218,21 @@ def exact_search(
     back_source = [np.zeros(0, dtype=np.int64)]
     back_decision = [np.zeros(0, dtype=np.int64)]
     for step in range(R):
-        F = covers.shape[0]
         span_now = best.shape[1]
-        keep = np.empty(F, dtype=np.int64)
-        n_keep = 0
-        for row in range(F):
-            if (not exactly_one[step]) or (covers[row] & np.uint64(1)) != np.uint64(0):
-                keep[n_keep] = row
-                n_keep += 1
-        first = bounds[step]
-        n_start = bounds[step + 1] - first
-        # Open pairs, block by block of open frontiers as open_pairs finds them.
-        most = -1
-        if work_limit >= 0:
-            most = (work_limit - work) * entries_per_transition // span_now - n_keep
-        pair_row = np.empty(16, dtype=np.int64)
-        pair_h = np.empty(16, dtype=np.int64)
-        n_pairs = 0
-        if n_start > 0 and not (work_limit >= 0 and most < 0):
-            block = max(1, pair_block_entries // n_start)
-            in_block = 0
-            for row in range(F):
-                word = covers[row]
-                if (word & np.uint64(1)) != np.uint64(0):
-                    continue
-                for i in range(n_start):
-                    h = by_start[first + i]
-                    if (word & relative[h]) == np.uint64(0):
-                        if n_pairs == pair_row.shape[0]:
-                            pair_row = np.concatenate((pair_row, np.empty_like(pair_row)))
-                            pair_h = np.concatenate((pair_h, np.empty_like(pair_h)))
-                        pair_row[n_pairs] = row
-                        pair_h[n_pairs] = h
-                        n_pairs += 1
-                in_block += 1
-                if in_block == block:
-                    in_block = 0
-                    if work_limit >= 0 and n_pairs > most:
-                        break
-        grow = 0
-        if n_pairs > 0 and span_now <= kmax:
-            for p in range(n_pairs):
-                if counts[pair_h[p]] > 0:
-                    grow = 1
-                    break
-        cols = span_now + grow
+        keep, n_keep, pair_row, pair_h, n_pairs = _step_pairs(
+            covers,
+            relative,
+            by_start,
+            bounds[step],
+            bounds[step + 1] - bounds[step],
+            exactly_one[step],
+            work_limit,
+            work,
+            span_now,
+            entries_per_transition,
+            pair_block_entries,
+        )
+        cols = span_now + _grows(counts, pair_h, n_pairs, span_now, kmax)
         C = n_keep + n_pairs
         step_work = -(-C * cols // entries_per_transition)
         work += step_work

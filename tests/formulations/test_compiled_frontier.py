@@ -111,3 +111,18 @@ def test_an_exactly_once_resource_no_set_meets_is_infeasible_on_both(
     assert isinstance(fast, FrontierResult) and isinstance(plain, FrontierResult)
     assert np.all(np.isneginf(fast.best)) and fast.best_sets == (None,) * 11
     _assert_same(fast, plain)
+
+
+@pytest.mark.parametrize("size", [0, 1, 5, 31, 32, 33, 500, 4000])
+def test_the_kernels_stable_order_is_numpys(size: int) -> None:
+    """The kernel's argsort (insertion sort below 32 keys, radix passes by byte above)
+    is ``np.argsort(kind="stable")``: keys over the whole 64 bits, keys differing in one
+    high byte only, and many ties."""
+    from mapassoc.formulations.compiled_frontier import _stable_order
+
+    rng = np.random.default_rng(size)
+    full = rng.integers(0, 2**63, size=size, dtype=np.uint64) * np.uint64(2)
+    one_byte = np.uint64(7) | (rng.integers(0, 4, size=size).astype(np.uint64) << np.uint64(56))
+    ties = rng.integers(0, 3, size=size).astype(np.uint64)
+    for keys in (full, one_byte, ties):
+        np.testing.assert_array_equal(_stable_order(keys), np.argsort(keys, kind="stable"))
