@@ -939,7 +939,7 @@ class Refiner:
         tracks crossing it carried in and anchored after it), and the posterior marginal
         of every hypothesis and join is computed by the frontier search run forward and
         backward (:func:`mapassoc.formulations.marginals.frontier_marginals`; a cluster of
-        at most eight hypotheses lists its subsets instead,
+        at most twelve hypotheses lists its subsets instead,
         :func:`~mapassoc.formulations.marginals.enumerated_marginals`) with the
         weights ``exp(J)`` (endings summed).  A track's existence is the probability that
         its detections in the window of its first detection are not all false alarms: that
