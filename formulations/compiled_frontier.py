@@ -83,9 +83,9 @@ def _stable_order(keys: NDArray[np.uint64]) -> IntArray:
         for d in range(256):
             starts[d + 1] += starts[d]
         for i in range(n):
-            d = np.int64((keys[order[i]] >> shift) & byte)
-            spare[starts[d]] = order[i]
-            starts[d] += 1
+            digit = np.int64((keys[order[i]] >> shift) & byte)
+            spare[starts[digit]] = order[i]
+            starts[digit] += 1
         order, spare = spare, order
     return order
 
@@ -328,8 +328,289 @@ def exact_search(
     return FOUND, work, widest, final_best, final_mass, sets, set_sizes
 
 
+@njit(cache=True)
+def _float_key(x: float) -> np.uint64:
+    """A uint64 whose unsigned order is the order of the float ``x`` (not NaN)."""
+    bits = np.array([x]).view(np.uint64)[0]
+    if bits >> np.uint64(63):
+        return ~bits
+    return bits | (np.uint64(1) << np.uint64(63))
+
+
+@njit(cache=True)
+def forward_backward(
+    relative: NDArray[np.uint64],
+    by_start: IntArray,
+    bounds: IntArray,
+    exactly_one: NDArray[np.bool_],
+    counts: IntArray,
+    weights: FloatArray,
+    seeds: FloatArray,
+    max_frontiers: int,
+    entry_margin: float,
+    work_limit: int,
+    projected_limit: float,
+    entries_per_transition: int,
+    pair_block_entries: int,
+) -> tuple[int, int, int, int, bool, FloatArray, FloatArray, FloatArray]:
+    """The forward-backward frontier search of
+    :func:`mapassoc.formulations.marginals.frontier_marginals` (module docstring there).
+
+    The forward pass takes the numpy pass's steps: the same candidate rows, the same
+    stable order by next word, masses summed by ``logaddexp`` in the same order, the same
+    entry margin and beam (frontiers ranked by their heaviest entry, ties by word); the
+    backward pass and the per-hypothesis sums take the same terms, with sums of
+    exponentials in another order (equal to round-off).
+
+    Parameters
+    ----------
+    relative, by_start, bounds, exactly_one, counts
+        As for :func:`exact_search`.
+    weights : ndarray, shape (H,)
+    seeds : ndarray, shape (S, kmax + 1)
+    max_frontiers : int
+        Beam width (``-1``: none).
+    entry_margin : float
+        Entry margin (``inf``: none).
+    work_limit, projected_limit, entries_per_transition, pair_block_entries
+        As for :func:`exact_search`.
+
+    Returns
+    -------
+    status : int
+        :data:`FOUND`, :data:`PAST_WORK_LIMIT`, :data:`PAST_PROJECTION` or
+        :data:`INFEASIBLE` (no set: every sum ``-inf``).
+    work, step_work, remaining : int
+        Work charged, the last step's work and the steps after it (for the caller's
+        projection message).
+    exact : bool
+        Whether nothing was dropped by the margin or the beam.
+    log_mass : ndarray, shape (kmax + 1,)
+    log_total : ndarray, shape (S,)
+    log_containing : ndarray, shape (S, H)
+    """
+    H = relative.shape[0]
+    R = bounds.shape[0] - 1
+    S, width = seeds.shape
+    kmax = width - 1
+    log_mass = np.full(width, -np.inf)
+    log_total = np.full(S, -np.inf)
+    containing = np.full((S, H), -np.inf)
+    covers = np.zeros(1, dtype=np.uint64)
+    mass = np.zeros((1, 1))
+    work = 0
+    exact = True
+    alphas = [np.zeros((0, 0))]
+    sources = [np.zeros(0, dtype=np.int64)]
+    decisions = [np.zeros(0, dtype=np.int64)]
+    targets = [np.zeros(0, dtype=np.int64)]
+    for step in range(R):
+        reach = mass.shape[1] - 1
+        keep, n_keep, pair_row, pair_h, n_pairs = _step_pairs(
+            covers,
+            relative,
+            by_start,
+            bounds[step],
+            bounds[step + 1] - bounds[step],
+            exactly_one[step],
+            work_limit,
+            work,
+            reach + 1,
+            entries_per_transition,
+            pair_block_entries,
+        )
+        cols = reach + 1 + _grows(counts, pair_h, n_pairs, reach + 1, kmax)
+        C = n_keep + n_pairs
+        step_work = -(-C * cols // entries_per_transition)
+        work += step_work
+        if work_limit >= 0 and work > work_limit:
+            return (
+                PAST_WORK_LIMIT,
+                work,
+                step_work,
+                R - 1 - step,
+                exact,
+                log_mass,
+                log_total,
+                containing,
+            )
+        if work + step_work * (R - 1 - step) > projected_limit:
+            return (
+                PAST_PROJECTION,
+                work,
+                step_work,
+                R - 1 - step,
+                exact,
+                log_mass,
+                log_total,
+                containing,
+            )
+        if C == 0:  # an exactly-once resource no frontier can satisfy
+            return INFEASIBLE, work, step_work, R - 1 - step, exact, log_mass, log_total, containing
+        cand = np.full((C, cols), -np.inf)
+        cand_covers = np.empty(C, dtype=np.uint64)
+        source = np.empty(C, dtype=np.int64)
+        decision = np.empty(C, dtype=np.int64)
+        for c in range(n_keep):
+            row = keep[c]
+            for k in range(reach + 1):
+                cand[c, k] = mass[row, k]
+            cand_covers[c] = covers[row] >> np.uint64(1)
+            source[c] = row
+            decision[c] = -1
+        for p in range(n_pairs):
+            c = n_keep + p
+            row = pair_row[p]
+            h = pair_h[p]
+            shift = counts[h]
+            for k in range(min(reach + 1, cols - shift)):
+                cand[c, k + shift] = mass[row, k] + weights[h]
+            cand_covers[c] = (covers[row] | relative[h]) >> np.uint64(1)
+            source[c] = row
+            decision[c] = h
+        ranked = _stable_order(cand_covers)
+        target = np.empty(C, dtype=np.int64)
+        n_new = 0
+        for i in range(C):
+            if i == 0 or cand_covers[ranked[i]] != cand_covers[ranked[i - 1]]:
+                n_new += 1
+            target[ranked[i]] = n_new - 1
+        new_covers = np.empty(n_new, dtype=np.uint64)
+        new_mass = np.empty((n_new, cols))
+        g = -1
+        for i in range(C):
+            c = ranked[i]
+            if i == 0 or cand_covers[c] != cand_covers[ranked[i - 1]]:
+                g += 1
+                new_covers[g] = cand_covers[c]
+                for k in range(cols):
+                    new_mass[g, k] = cand[c, k]
+            else:
+                for k in range(cols):
+                    new_mass[g, k] = _log_add(new_mass[g, k], cand[c, k])
+        heaviest = np.empty(n_new)
+        for g in range(n_new):
+            top = -np.inf
+            for k in range(cols):
+                if new_mass[g, k] > top:
+                    top = new_mass[g, k]
+            heaviest[g] = top
+            if entry_margin < np.inf:
+                for k in range(cols):
+                    if new_mass[g, k] < top - entry_margin:
+                        new_mass[g, k] = -np.inf
+                        exact = False
+        if max_frontiers >= 0 and n_new > max_frontiers:
+            keys = np.empty(n_new, dtype=np.uint64)
+            for g in range(n_new):
+                keys[g] = _float_key(-heaviest[g])
+            chosen = _stable_order(keys)
+            kept = np.zeros(n_new, dtype=np.bool_)
+            for i in range(max_frontiers):
+                kept[chosen[i]] = True
+            renumber = np.full(n_new, -1, dtype=np.int64)
+            n_kept = 0
+            for g in range(n_new):
+                if kept[g]:
+                    renumber[g] = n_kept
+                    new_covers[n_kept] = new_covers[g]
+                    for k in range(cols):
+                        new_mass[n_kept, k] = new_mass[g, k]
+                    n_kept += 1
+            for c in range(C):
+                target[c] = renumber[target[c]]
+            new_covers = new_covers[:n_kept].copy()
+            new_mass = new_mass[:n_kept].copy()
+            exact = False
+        alphas.append(mass)
+        sources.append(source)
+        decisions.append(decision)
+        targets.append(target)
+        covers = new_covers
+        mass = new_mass
+    # Every frontier word is 0 after the last position: one frontier remains.
+    final_cols = mass.shape[1]
+    if covers.shape[0]:
+        for k in range(final_cols):
+            log_mass[k] = mass[0, k]
+    for s in range(S):
+        top = -np.inf
+        for k in range(width):
+            if log_mass[k] + seeds[s, k] > top:
+                top = log_mass[k] + seeds[s, k]
+        if top > -np.inf:
+            total = 0.0
+            for k in range(width):
+                total += math.exp(log_mass[k] + seeds[s, k] - top)
+            log_total[s] = top + math.log(total)
+        # Backward: beta[frontier, j], the completions' weight from each frontier.
+        beta = np.full((1, final_cols), -np.inf)
+        for k in range(final_cols):
+            beta[0, k] = seeds[s, k]
+        after = mass
+        for r in range(R, 0, -1):
+            alpha = alphas[r]
+            source = sources[r]
+            decision = decisions[r]
+            target = targets[r]
+            for f in range(beta.shape[0]):
+                for k in range(beta.shape[1]):
+                    if not np.isfinite(after[f, k]):
+                        beta[f, k] = -np.inf
+            frontiers, w_before = alpha.shape
+            n = min(beta.shape[1], w_before + 1)
+            new_beta = np.full((frontiers, w_before), -np.inf)
+            row = np.empty(w_before)
+            for c in range(source.shape[0]):
+                t = target[c]
+                if t < 0:
+                    continue
+                h = decision[c]
+                shift = 0
+                add = 0.0
+                if h >= 0:
+                    shift = counts[h]
+                    add = weights[h]
+                for k in range(w_before):
+                    j = k + shift
+                    row[k] = beta[t, j] + add if j < n else -np.inf
+                f = source[c]
+                for k in range(w_before):
+                    new_beta[f, k] = _log_add(new_beta[f, k], row[k])
+                if h >= 0:
+                    top = -np.inf
+                    for k in range(w_before):
+                        v = alpha[f, k] + row[k]
+                        if v > top:
+                            top = v
+                    if top > -np.inf:
+                        total = 0.0
+                        for k in range(w_before):
+                            total += math.exp(alpha[f, k] + row[k] - top)
+                        containing[s, h] = _log_add(containing[s, h], top + math.log(total))
+            beta = new_beta
+            after = alpha
+    return FOUND, work, 0, 0, exact, log_mass, log_total, containing
+
+
 def _warm_up() -> None:
-    """Compile (or load) :func:`exact_search` for the argument types the search passes."""
+    """Compile (or load) :func:`forward_backward` and :func:`exact_search` for the
+    argument types their callers pass."""
+    forward_backward(
+        np.array([1, 1], dtype=np.uint64),
+        np.arange(2, dtype=np.int64),
+        np.array([0, 1, 2], dtype=np.int64),
+        np.array([True, False]),
+        np.ones(2, dtype=np.int64),
+        np.zeros(2),
+        np.zeros((1, 2)),
+        4,
+        30.0,
+        100,
+        math.inf,
+        8,
+        1 << 18,
+    )
     exact_search(
         np.array([1, 1], dtype=np.uint64),
         np.arange(2, dtype=np.int64),

@@ -58,6 +58,8 @@ __all__ = [
     "FrontierResult",
     "WORK_COUNT_MIN_HYPOTHESES",
     "exact_search_work",
+    "FRONTIER_KERNELS",
+    "PAIR_BLOCK_ENTRIES",
     "fits_counted_work",
     "frontier_search",
     "hypothesis_spans",
@@ -479,8 +481,9 @@ def _dictionary_search(
     )
 
 
-_SEARCH_KERNEL = "mapassoc.formulations.compiled_frontier"
-"""The compiled exact search (:func:`mapassoc.accelerate.compiled_module`)."""
+FRONTIER_KERNELS = "mapassoc.formulations.compiled_frontier"
+"""The compiled frontier kernels, the exact search and the forward-backward marginals
+(:func:`mapassoc.accelerate.compiled_module`)."""
 
 _WORD_BITS = 64
 """Frontiers of the vectorised search are one unsigned 64-bit word."""
@@ -554,7 +557,7 @@ def _word_layout(problem: PackingProblem, order: NDArray[np.int64]) -> _WordLayo
     return relative, by_start, bounds, problem.exactly_one[order]
 
 
-_PAIR_BLOCK_ENTRIES = 1 << 18
+PAIR_BLOCK_ENTRIES = 1 << 18
 """Open frontiers are tested against a step's hypotheses in blocks of about this many
 (frontier, hypothesis) entries, so a step past the work limit stops after a block."""
 
@@ -581,7 +584,7 @@ def open_pairs(
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty
     words = relative[starting][None, :]
-    block = max(1, _PAIR_BLOCK_ENTRIES // starting.size)
+    block = max(1, PAIR_BLOCK_ENTRIES // starting.size)
     rows_found: list[NDArray[np.int64]] = []
     hypotheses_found: list[NDArray[np.int64]] = []
     found = 0
@@ -727,7 +730,7 @@ def _vectorised_search(
     ):
         # Exact and bounded by its work (or by nothing): the compiled kernel, where
         # numba is installed, takes the same steps.
-        kernel = compiled_module(_SEARCH_KERNEL)
+        kernel = compiled_module(FRONTIER_KERNELS)
         if kernel is not None:
             _check_limits(0, None, deadline)
             return _compiled_search(kernel, problem, kmax, layout, work_limit, projected_limit)
@@ -869,7 +872,7 @@ def _compiled_search(
         -1 if work_limit is None else int(work_limit),
         math.inf if projected_limit is None else float(projected_limit),
         _VECTOR_ENTRIES_PER_TRANSITION,
-        _PAIR_BLOCK_ENTRIES,
+        PAIR_BLOCK_ENTRIES,
     )
     work, widest = int(work), int(widest)
     if status == kernel.PAST_WORK_LIMIT:

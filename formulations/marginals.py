@@ -40,13 +40,17 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from mapassoc.accelerate import compiled_module
+from mapassoc.formulations import frontier as frontier_module
 from mapassoc.formulations.convolution import sum_product
 from mapassoc.formulations.frontier import (
+    FRONTIER_KERNELS,
     SearchLimitExceeded,
     check_projection,
     fits_counted_work,
@@ -235,6 +239,20 @@ def frontier_marginals(
         )
     ):
         projected_limit = None  # it runs whole: nothing to project
+    kernel = compiled_module(FRONTIER_KERNELS) if deadline is None else None
+    if kernel is not None:
+        compiled = _compiled_forward_backward(
+            kernel,
+            private,
+            order,
+            seeds,
+            max_frontiers,
+            entry_margin,
+            work_limit,
+            projected_limit,
+        )
+        if compiled is not None:
+            return compiled
     with np.errstate(invalid="ignore", over="ignore"):
         return _forward_backward(
             private,
@@ -246,6 +264,56 @@ def frontier_marginals(
             deadline,
             projected_limit,
         )
+
+
+def _compiled_forward_backward(
+    kernel: ModuleType,
+    problem: PackingProblem,
+    order: NDArray[np.int64],
+    seeds: NDArray[np.float64],
+    max_frontiers: int | None,
+    entry_margin: float | None,
+    work_limit: int | None,
+    projected_limit: float | None,
+) -> FrontierMarginals | None:
+    """:func:`_forward_backward` in the compiled kernel
+    (:func:`mapassoc.formulations.compiled_frontier.forward_backward`): the same sums to
+    round-off, the same work, stops and ``exact``; ``None`` where a hypothesis spans 64
+    positions or more (the numpy pass then takes Python integers as words)."""
+    H = problem.num_hypotheses
+    R = order.size
+    owner, offsets, first, last = hypothesis_spans(problem, order)
+    if H and np.any(last - first >= _WORD_BITS):
+        return None
+    relative = np.zeros(H, dtype=np.uint64)
+    np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets.astype(np.uint64)))
+    by_start = np.argsort(first, kind="stable")
+    bounds = np.searchsorted(first[by_start], np.arange(R + 1))
+    status, work, step_work, remaining, exact, log_mass, log_total, containing = (
+        kernel.forward_backward(
+            relative,
+            by_start.astype(np.int64),
+            bounds.astype(np.int64),
+            np.ascontiguousarray(problem.exactly_one[order], dtype=np.bool_),
+            problem.counts.astype(np.int64),
+            np.ascontiguousarray(problem.weights, dtype=np.float64),
+            np.ascontiguousarray(seeds, dtype=np.float64),
+            -1 if max_frontiers is None else int(max_frontiers),
+            math.inf if entry_margin is None else float(entry_margin),
+            -1 if work_limit is None else int(work_limit),
+            math.inf if projected_limit is None else float(projected_limit),
+            _ENTRIES_PER_TRANSITION,
+            frontier_module.PAIR_BLOCK_ENTRIES,  # read at the call, as open_pairs does
+        )
+    )
+    work = int(work)
+    if status == kernel.PAST_WORK_LIMIT:
+        _check(work, work_limit, None)
+    if status == kernel.PAST_PROJECTION:
+        check_projection(
+            "frontier marginals", work, int(step_work), int(remaining), projected_limit, work_limit
+        )
+    return FrontierMarginals(log_mass, log_total, containing, bool(exact), work)
 
 
 def _forward_backward(

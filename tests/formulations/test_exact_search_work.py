@@ -41,7 +41,7 @@ def test_open_pairs_are_the_whole_list_or_a_longer_prefix(
     open_rows = np.flatnonzero(~covered)
     rows, cols = np.nonzero((covers[open_rows, None] & relative[starting][None, :]) == 0)
     whole_rows, whole_h = open_rows[rows], starting[cols]
-    monkeypatch.setattr(frontier, "_PAIR_BLOCK_ENTRIES", int(rng.integers(1, 30)))
+    monkeypatch.setattr(frontier, "PAIR_BLOCK_ENTRIES", int(rng.integers(1, 30)))
     for most in (None, -1, 0, 1, whole_h.size // 2, whole_h.size - 1, whole_h.size):
         found_rows, found_h = open_pairs(covers, covered, relative, starting, most)
         if most is None or most >= whole_h.size:
@@ -61,7 +61,7 @@ def test_the_count_is_the_searchs_work(
     seed: int, block: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # Small blocks: a step past the limit stops part-way, in the count and the search.
-    monkeypatch.setattr(frontier, "_PAIR_BLOCK_ENTRIES", block)
+    monkeypatch.setattr(frontier, "PAIR_BLOCK_ENTRIES", block)
     rng = np.random.default_rng(seed)
     problem = banded_problem(rng, int(rng.integers(60, 200)), D=int(rng.integers(20, 60)), band=8)
     kmax = int(rng.integers(1, 30))
