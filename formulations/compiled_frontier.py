@@ -158,6 +158,96 @@ def _grows(counts: IntArray, pair_h: IntArray, n_pairs: int, span_now: int, kmax
 
 
 @njit(cache=True)
+def _step(
+    covers: NDArray[np.uint64],
+    relative: NDArray[np.uint64],
+    by_start: IntArray,
+    bounds: IntArray,
+    exactly_one: NDArray[np.bool_],
+    counts: IntArray,
+    step: int,
+    span_now: int,
+    kmax: int,
+    work: int,
+    work_limit: int,
+    projected_limit: float,
+    entries_per_transition: int,
+    pair_block_entries: int,
+) -> tuple[int, int, int, IntArray, int, IntArray, IntArray, int, int]:
+    """One step's candidate rows and work, as both kernels take them: the frontiers kept,
+    the open pairs (:func:`_step_pairs`), the k columns after the step, the step's work
+    and the work so far, and whether the search stops here (:data:`PAST_WORK_LIMIT`,
+    :data:`PAST_PROJECTION`, :data:`INFEASIBLE`; :data:`FOUND`: it goes on).
+
+    Returns
+    -------
+    status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols
+    """
+    R = bounds.shape[0] - 1
+    keep, n_keep, pair_row, pair_h, n_pairs = _step_pairs(
+        covers,
+        relative,
+        by_start,
+        bounds[step],
+        bounds[step + 1] - bounds[step],
+        exactly_one[step],
+        work_limit,
+        work,
+        span_now,
+        entries_per_transition,
+        pair_block_entries,
+    )
+    cols = span_now + _grows(counts, pair_h, n_pairs, span_now, kmax)
+    C = n_keep + n_pairs
+    step_work = -(-C * cols // entries_per_transition)
+    work += step_work
+    status = FOUND
+    if work_limit >= 0 and work > work_limit:
+        status = PAST_WORK_LIMIT
+    elif work + step_work * (R - 1 - step) > projected_limit:
+        status = PAST_PROJECTION
+    elif C == 0:  # an exactly-once resource no frontier can satisfy
+        status = INFEASIBLE
+    return status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols
+
+
+@njit(cache=True)
+def _candidates(
+    covers: NDArray[np.uint64],
+    relative: NDArray[np.uint64],
+    keep: IntArray,
+    n_keep: int,
+    pair_row: IntArray,
+    pair_h: IntArray,
+    n_pairs: int,
+) -> tuple[NDArray[np.uint64], IntArray, IntArray, IntArray, IntArray]:
+    """The step's candidate rows in order (frontiers kept, then pairs): each one's next
+    frontier word, its frontier before the step and its hypothesis (``-1``: none), then
+    the candidates by next word (stable) and each one's frontier after the step."""
+    C = n_keep + n_pairs
+    words = np.empty(C, dtype=np.uint64)
+    source = np.empty(C, dtype=np.int64)
+    decision = np.empty(C, dtype=np.int64)
+    for c in range(n_keep):
+        source[c] = keep[c]
+        decision[c] = -1
+        words[c] = covers[keep[c]] >> np.uint64(1)
+    for p in range(n_pairs):
+        c = n_keep + p
+        source[c] = pair_row[p]
+        decision[c] = pair_h[p]
+        words[c] = (covers[pair_row[p]] | relative[pair_h[p]]) >> np.uint64(1)
+    ranked = _stable_order(words)
+    target = np.empty(C, dtype=np.int64)
+    group = -1
+    for i in range(C):
+        if i == 0 or words[ranked[i]] != words[ranked[i - 1]]:
+            group += 1
+        target[ranked[i]] = group
+    return words, source, decision, ranked, target
+
+
+@njit(cache=True)
 def exact_search(
     relative: NDArray[np.uint64],
     by_start: IntArray,
@@ -219,69 +309,52 @@ def exact_search(
     back_decision = [np.zeros(0, dtype=np.int64)]
     for step in range(R):
         span_now = best.shape[1]
-        keep, n_keep, pair_row, pair_h, n_pairs = _step_pairs(
+        status, work, _, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
             covers,
             relative,
             by_start,
-            bounds[step],
-            bounds[step + 1] - bounds[step],
-            exactly_one[step],
-            work_limit,
-            work,
+            bounds,
+            exactly_one,
+            counts,
+            step,
             span_now,
+            kmax,
+            work,
+            work_limit,
+            projected_limit,
             entries_per_transition,
             pair_block_entries,
         )
-        cols = span_now + _grows(counts, pair_h, n_pairs, span_now, kmax)
+        if status != FOUND:
+            return status, work, widest, final_best, final_mass, sets, set_sizes
+        words, source, decision, ranked, target = _candidates(
+            covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
+        )
         C = n_keep + n_pairs
-        step_work = -(-C * cols // entries_per_transition)
-        work += step_work
-        if work_limit >= 0 and work > work_limit:
-            return PAST_WORK_LIMIT, work, widest, final_best, final_mass, sets, set_sizes
-        if work + step_work * (R - 1 - step) > projected_limit:
-            return PAST_PROJECTION, work, widest, final_best, final_mass, sets, set_sizes
-        if C == 0:  # an exactly-once resource no frontier can satisfy
-            return INFEASIBLE, work, widest, final_best, final_mass, sets, set_sizes
         cand_best = np.full((C, cols), -np.inf)
         cand_mass = np.full((C, cols), -np.inf)
-        cand_covers = np.empty(C, dtype=np.uint64)
-        source = np.empty(C, dtype=np.int64)
-        decision = np.empty(C, dtype=np.int64)
-        for c in range(n_keep):
-            row = keep[c]
-            for k in range(span_now):
-                cand_best[c, k] = best[row, k]
-                cand_mass[c, k] = mass[row, k]
-            cand_covers[c] = covers[row] >> np.uint64(1)
-            source[c] = row
-            decision[c] = -1
-        for p in range(n_pairs):
-            c = n_keep + p
-            row = pair_row[p]
-            h = pair_h[p]
+        for c in range(C):
+            row = source[c]
+            h = decision[c]
+            if h < 0:
+                for k in range(span_now):
+                    cand_best[c, k] = best[row, k]
+                    cand_mass[c, k] = mass[row, k]
+                continue
             shift = counts[h]
-            span = min(span_now, cols - shift)
-            for k in range(span):
+            for k in range(min(span_now, cols - shift)):
                 cand_best[c, k + shift] = best[row, k] + scores[h]
                 cand_mass[c, k + shift] = mass[row, k] + weights[h]
-            cand_covers[c] = (covers[row] | relative[h]) >> np.uint64(1)
-            source[c] = row
-            decision[c] = h
-        ranked = _stable_order(cand_covers)
-        n_new = 1
-        for i in range(1, C):
-            if cand_covers[ranked[i]] != cand_covers[ranked[i - 1]]:
-                n_new += 1
+        n_new = target[ranked[C - 1]] + 1
         new_covers = np.empty(n_new, dtype=np.uint64)
         new_best = np.empty((n_new, cols))
         new_mass = np.empty((n_new, cols))
         winner = np.empty((n_new, cols), dtype=np.int32)
-        g = -1
         for i in range(C):
             c = ranked[i]
-            if i == 0 or cand_covers[c] != cand_covers[ranked[i - 1]]:
-                g += 1
-                new_covers[g] = cand_covers[c]
+            g = target[c]
+            if i == 0 or g != target[ranked[i - 1]]:
+                new_covers[g] = words[c]
                 for k in range(cols):
                     new_best[g, k] = cand_best[c, k]
                     new_mass[g, k] = cand_mass[c, k]
@@ -406,83 +479,47 @@ def forward_backward(
     targets = [np.zeros(0, dtype=np.int64)]
     for step in range(R):
         reach = mass.shape[1] - 1
-        keep, n_keep, pair_row, pair_h, n_pairs = _step_pairs(
+        status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
             covers,
             relative,
             by_start,
-            bounds[step],
-            bounds[step + 1] - bounds[step],
-            exactly_one[step],
-            work_limit,
-            work,
+            bounds,
+            exactly_one,
+            counts,
+            step,
             reach + 1,
+            kmax,
+            work,
+            work_limit,
+            projected_limit,
             entries_per_transition,
             pair_block_entries,
         )
-        cols = reach + 1 + _grows(counts, pair_h, n_pairs, reach + 1, kmax)
+        if status != FOUND:
+            return status, work, step_work, R - 1 - step, exact, log_mass, log_total, containing
+        words, source, decision, ranked, target = _candidates(
+            covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
+        )
         C = n_keep + n_pairs
-        step_work = -(-C * cols // entries_per_transition)
-        work += step_work
-        if work_limit >= 0 and work > work_limit:
-            return (
-                PAST_WORK_LIMIT,
-                work,
-                step_work,
-                R - 1 - step,
-                exact,
-                log_mass,
-                log_total,
-                containing,
-            )
-        if work + step_work * (R - 1 - step) > projected_limit:
-            return (
-                PAST_PROJECTION,
-                work,
-                step_work,
-                R - 1 - step,
-                exact,
-                log_mass,
-                log_total,
-                containing,
-            )
-        if C == 0:  # an exactly-once resource no frontier can satisfy
-            return INFEASIBLE, work, step_work, R - 1 - step, exact, log_mass, log_total, containing
         cand = np.full((C, cols), -np.inf)
-        cand_covers = np.empty(C, dtype=np.uint64)
-        source = np.empty(C, dtype=np.int64)
-        decision = np.empty(C, dtype=np.int64)
-        for c in range(n_keep):
-            row = keep[c]
-            for k in range(reach + 1):
-                cand[c, k] = mass[row, k]
-            cand_covers[c] = covers[row] >> np.uint64(1)
-            source[c] = row
-            decision[c] = -1
-        for p in range(n_pairs):
-            c = n_keep + p
-            row = pair_row[p]
-            h = pair_h[p]
+        for c in range(C):
+            row = source[c]
+            h = decision[c]
+            if h < 0:
+                for k in range(reach + 1):
+                    cand[c, k] = mass[row, k]
+                continue
             shift = counts[h]
             for k in range(min(reach + 1, cols - shift)):
                 cand[c, k + shift] = mass[row, k] + weights[h]
-            cand_covers[c] = (covers[row] | relative[h]) >> np.uint64(1)
-            source[c] = row
-            decision[c] = h
-        ranked = _stable_order(cand_covers)
-        target = np.empty(C, dtype=np.int64)
-        n_new = 0
-        for i in range(C):
-            if i == 0 or cand_covers[ranked[i]] != cand_covers[ranked[i - 1]]:
-                n_new += 1
-            target[ranked[i]] = n_new - 1
+        n_new = target[ranked[C - 1]] + 1
         new_covers = np.empty(n_new, dtype=np.uint64)
         new_mass = np.empty((n_new, cols))
-        g = -1
         for i in range(C):
             c = ranked[i]
-            if i == 0 or cand_covers[c] != cand_covers[ranked[i - 1]]:
-                g += 1
-                new_covers[g] = cand_covers[c]
+            g = target[c]
+            if i == 0 or g != target[ranked[i - 1]]:
+                new_covers[g] = words[c]
                 for k in range(cols):
                     new_mass[g, k] = cand[c, k]
             else:
