@@ -224,7 +224,12 @@ def _check_compare_methods(ns: dict) -> None:  # type: ignore[type-arg]
     assert round(ratio.loc["map-forward", "parallel"], 2) == 6.13
     assert round(ratio.loc["map", "parallel"], 2) == 5.68
     brier = summary.set_index(["scenario", "tracker"])["k_brier"]
-    assert round(brier[("parallel", "map")], 2) == 1.56
+    # parallel's bounded windows take p(K | Z) from LP bounds whose duals are not unique,
+    # and which optimal duals HiGHS returns moves with the inputs' last bits: 1.573, 1.560
+    # and 1.553 were seen with the same tracks and GOSPA (1.553 on a fresh machine and
+    # install of 2026-12-03, the previous day's code included).  The notebook claims
+    # "about 1.56".
+    assert 1.54 <= brier[("parallel", "map")] <= 1.58
     assert round(brier[("crossing", "map")], 2) == 0.25
     switches = summary.set_index(["scenario", "tracker"])["id_switches"]
     assert switches[("parallel", "map-forward")] == 0.5
