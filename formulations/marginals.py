@@ -182,6 +182,11 @@ def frontier_marginals(
 ) -> FrontierMarginals:
     """Forward-backward frontier search: ``log N_h`` and ``log Z`` for each seed.
 
+    Where numba is installed (the ``accelerate`` extra) and no ``deadline`` is given, both
+    passes run compiled (:func:`mapassoc.formulations.compiled_frontier.forward_backward`:
+    the same per-k masses, work, stops and ``exact``; ``log N_h`` and ``log Z`` equal to
+    round-off); ``MAPASSOC_COMPILED=0`` keeps them in numpy.
+
     Parameters
     ----------
     problem : PackingProblem
