@@ -62,6 +62,7 @@ __all__ = [
     "PAIR_BLOCK_ENTRIES",
     "fits_counted_work",
     "frontier_search",
+    "frontier_words",
     "hypothesis_spans",
     "open_pairs",
     "pair_budget",
@@ -537,16 +538,22 @@ _WordLayout = tuple[NDArray[np.uint64], NDArray[np.int64], NDArray[np.int64], ND
 
 
 def _word_layout(problem: PackingProblem, order: NDArray[np.int64]) -> _WordLayout | None:
-    """What the vectorised search needs of ``problem`` in the resource ``order``: each
-    hypothesis's resources as a word relative to its first position, the hypotheses by
-    first position with the bounds of each position's run, and which positions are
-    exactly-once resources.  ``None`` where the vectorised search does not apply (fewer
+    """What the vectorised search needs of ``problem`` in the resource ``order``
+    (:func:`frontier_words`); ``None`` where the vectorised search does not apply (fewer
     than :data:`_VECTORISE_MIN_HYPOTHESES` hypotheses, none with a resource, or one
     spanning :data:`_WORD_BITS` positions or more)."""
+    if problem.num_hypotheses < _VECTORISE_MIN_HYPOTHESES or order.size == 0:
+        return None
+    return frontier_words(problem, order)
+
+
+def frontier_words(problem: PackingProblem, order: NDArray[np.int64]) -> _WordLayout | None:
+    """Each hypothesis's resources as a 64-bit word relative to its first position in the
+    resource ``order``, the hypotheses by first position with the bounds of each
+    position's run, and which positions are exactly-once resources; ``None`` where a
+    hypothesis spans :data:`_WORD_BITS` positions or more (its word would not fit)."""
     H = problem.num_hypotheses
     R = order.size
-    if H < _VECTORISE_MIN_HYPOTHESES or R == 0:
-        return None
     owner, offsets, first, last = hypothesis_spans(problem, order)
     if np.any(last - first >= _WORD_BITS):
         return None

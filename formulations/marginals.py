@@ -54,6 +54,7 @@ from mapassoc.formulations.frontier import (
     SearchLimitExceeded,
     check_projection,
     fits_counted_work,
+    frontier_words,
     hypothesis_spans,
     open_pairs,
     pair_budget,
@@ -133,6 +134,17 @@ def _row_logsumexp(x: NDArray[np.float64]) -> NDArray[np.float64]:
     if np.any(live):
         out[live] = top[live] + np.log(np.sum(np.exp(x[live] - top[live, None]), axis=1))
     return out
+
+
+def _checked_seeds(seeds: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``seeds`` as a (S, kmax + 1) float array (one row for a 1-D input); raises
+    ValueError for another shape or NaN."""
+    seeds = np.asarray(seeds, dtype=float)
+    if seeds.ndim == 1:
+        seeds = seeds[None, :]
+    if seeds.ndim != 2 or seeds.shape[1] < 1 or np.any(np.isnan(seeds)):
+        raise ValueError("seeds must be a (S, kmax + 1) array without NaN")
+    return seeds
 
 
 def _with_private_resources(problem: PackingProblem) -> PackingProblem:
@@ -218,11 +230,7 @@ def frontier_marginals(
     SearchLimitExceeded
         Past ``work_limit`` (or its projection) or ``deadline``.
     """
-    seeds = np.asarray(seeds, dtype=float)
-    if seeds.ndim == 1:
-        seeds = seeds[None, :]
-    if seeds.ndim != 2 or seeds.shape[1] < 1 or np.any(np.isnan(seeds)):
-        raise ValueError("seeds must be a (S, kmax + 1) array without NaN")
+    seeds = _checked_seeds(seeds)
     if max_frontiers is not None and max_frontiers < 1:
         raise ValueError(f"max_frontiers must be >= 1, got {max_frontiers!r}")
     projected_limit = projected_work_limit(work_projection, work_limit)
@@ -285,21 +293,16 @@ def _compiled_forward_backward(
     (:func:`mapassoc.formulations.compiled_frontier.forward_backward`): the same sums to
     round-off, the same work, stops and ``exact``; ``None`` where a hypothesis spans 64
     positions or more (the numpy pass then takes Python integers as words)."""
-    H = problem.num_hypotheses
-    R = order.size
-    owner, offsets, first, last = hypothesis_spans(problem, order)
-    if H and np.any(last - first >= _WORD_BITS):
+    layout = frontier_words(problem, order)
+    if layout is None:
         return None
-    relative = np.zeros(H, dtype=np.uint64)
-    np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets.astype(np.uint64)))
-    by_start = np.argsort(first, kind="stable")
-    bounds = np.searchsorted(first[by_start], np.arange(R + 1))
+    relative, by_start, bounds, exactly_one = layout
     status, work, step_work, remaining, exact, log_mass, log_total, containing = (
         kernel.forward_backward(
             relative,
             by_start.astype(np.int64),
             bounds.astype(np.int64),
-            np.ascontiguousarray(problem.exactly_one[order], dtype=np.bool_),
+            np.ascontiguousarray(exactly_one, dtype=np.bool_),
             problem.counts.astype(np.int64),
             np.ascontiguousarray(problem.weights, dtype=np.float64),
             np.ascontiguousarray(seeds, dtype=np.float64),
@@ -529,11 +532,7 @@ def enumerated_marginals(problem: PackingProblem, seeds: NDArray[np.float64]) ->
     ValueError
         With more than :data:`ENUMERATION_MAX_HYPOTHESES` hypotheses, or bad seeds.
     """
-    seeds = np.asarray(seeds, dtype=float)
-    if seeds.ndim == 1:
-        seeds = seeds[None, :]
-    if seeds.ndim != 2 or seeds.shape[1] < 1 or np.any(np.isnan(seeds)):
-        raise ValueError("seeds must be a (S, kmax + 1) array without NaN")
+    seeds = _checked_seeds(seeds)
     H = problem.num_hypotheses
     if H > ENUMERATION_MAX_HYPOTHESES:
         raise ValueError(
