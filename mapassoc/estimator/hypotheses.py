@@ -62,7 +62,7 @@ all misses), so pruning never makes a window infeasible.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
@@ -493,6 +493,37 @@ class _Frontier:
         return cls(kept.take(alive), ids[alive], np.full(int(np.count_nonzero(alive)), time))
 
 
+StatesOf = Callable[[IntArray], tuple[FloatArray, FloatArray]]
+"""Computes the states of some of a group's new nodes: positions in the group ->
+means ``(k, n_max)`` and covariances ``(k, n_max, n_max)``."""
+
+
+@dataclass(frozen=True, eq=False)
+class _NewNodes:
+    """A group of one scan's new nodes before pruning: what pruning reads, and how to
+    compute the states of the nodes it keeps.
+
+    Pruning reads only scores, trees and flags, and drops most of a layer's nodes in
+    dense clutter (the refinement's long windows of dense_radar: about nine of ten),
+    while the children's Kalman updates were most of the trees' growth: states are
+    computed for the kept nodes only, row by row the same as for all of them.
+    """
+
+    parent: IntArray
+    detection: IntArray
+    alive: bool
+    tree: IntArray
+    initiated: BoolArray
+    num_detections: IntArray
+    first_time: FloatArray
+    score: FloatArray
+    protected: BoolArray
+    states: StatesOf
+
+    def __len__(self) -> int:
+        return int(self.score.shape[0])
+
+
 def _window_detections(scans: Sequence[Scan]) -> tuple[WindowDetections, IntArray]:
     """The window's detections, and the window index of each scan's first detection."""
     det_counts = [s.size for s in scans]
@@ -516,6 +547,15 @@ def _pad(means: FloatArray, covs: FloatArray, n_max: int) -> tuple[FloatArray, F
     m[:, :d] = means
     c[:, :d, :d] = covs
     return m, c
+
+
+def _gathered(means: FloatArray, covs: FloatArray, rows: IntArray) -> StatesOf:
+    """States of the nodes whose states are rows ``rows`` of ``means``, ``covs``."""
+
+    def states(index: IntArray) -> tuple[FloatArray, FloatArray]:
+        return means[rows[index]], covs[rows[index]]
+
+    return states
 
 
 class HypothesisGenerator:
@@ -783,12 +823,13 @@ class HypothesisGenerator:
                 frontier, scan, j, offsets[j], len(tree_track_ids), float(first_detection[j])
             )
             tree_track_ids.extend([-1] * scan.size)
-            if len(layer) == 0:
+            size = sum(len(group) for group in layer)
+            if size == 0:
                 frontier = _Frontier.empty(self._n_max)
                 continue
-            generated += len(layer)
+            generated += size
             is_new_tree = np.array([tid < 0 for tid in tree_track_ids], dtype=bool)
-            kept, cut, cut_by_cap = self._prune_layer(layer, is_new_tree, remaining_gain[j])
+            kept, cut, cut_by_cap = self._prune_layer(layer, j, is_new_tree, remaining_gain[j])
             pruned += cut
             capped += cut_by_cap
             kept_layers.append(kept)
@@ -852,23 +893,56 @@ class HypothesisGenerator:
         det_offset: int,
         first_tree: int,
         undetected_mean: float,
-    ) -> HypothesisNodes:
-        """The nodes created at scan ``j``: children of the frontier, then births."""
+    ) -> list[_NewNodes]:
+        """The nodes created at scan ``j``, states not yet computed: children of the
+        frontier, then births."""
         sensor = self.sensors[scan.sensor]
-        parts = self._grow(frontier, scan, sensor, j, det_offset)
-        parts += self._births(scan, sensor, j, det_offset, first_tree, undetected_mean)
-        return HypothesisNodes.concat(parts, state_dim=self._n_max)
+        groups = self._grow(frontier, scan, sensor, j, det_offset)
+        groups += self._births(scan, sensor, det_offset, first_tree, undetected_mean)
+        return groups
 
     def _prune_layer(
-        self, layer: HypothesisNodes, is_new_tree: BoolArray, remaining_gain: float
+        self, layer: Sequence[_NewNodes], j: int, is_new_tree: BoolArray, remaining_gain: float
     ) -> tuple[HypothesisNodes, int, int]:
-        """The kept nodes of one scan's layer, how many were dropped and how many by the cap."""
+        """The kept nodes of one scan's layer (their states computed), how many were
+        dropped and how many by the cap."""
+        alive = np.concatenate([np.full(len(g), g.alive) for g in layer])
         # An ended node gains nothing more; an alive one at most G_j.
-        gain = np.where(layer.alive, remaining_gain, 0.0)
+        gain = np.where(alive, remaining_gain, 0.0)
         keep, cut_by_cap = self._prune_mask(
-            layer.tree, layer.score, layer.protected, is_new_tree, gain
+            np.concatenate([g.tree for g in layer]),
+            np.concatenate([g.score for g in layer]),
+            np.concatenate([g.protected for g in layer]),
+            is_new_tree,
+            gain,
         )
-        return layer.take(keep), int(np.count_nonzero(~keep)), cut_by_cap
+        kept: list[HypothesisNodes] = []
+        start = 0
+        for group in layer:
+            index = np.flatnonzero(keep[start : start + len(group)])
+            start += len(group)
+            if index.size:
+                kept.append(self._kept(group, j, index))
+        nodes = HypothesisNodes.concat(kept, state_dim=self._n_max)
+        return nodes, int(np.count_nonzero(~keep)), cut_by_cap
+
+    def _kept(self, group: _NewNodes, j: int, index: IntArray) -> HypothesisNodes:
+        """The nodes ``index`` of ``group`` at scan ``j``, with their states."""
+        means, covs = group.states(index)
+        return self._nodes(
+            parent=group.parent[index],
+            layer=j,
+            detection=group.detection[index],
+            alive=group.alive,
+            tree=group.tree[index],
+            initiated=group.initiated[index],
+            num_detections=group.num_detections[index],
+            first_time=group.first_time[index],
+            score=group.score[index],
+            protected=group.protected[index],
+            means=means,
+            covs=covs,
+        )
 
     def _leaves_in_canonical_order(
         self,
@@ -1009,11 +1083,11 @@ class HypothesisGenerator:
         sensor: Sensor,
         j: int,
         det_offset: int,
-    ) -> list[HypothesisNodes]:
+    ) -> list[_NewNodes]:
         """Children of every frontier node at scan ``j``: end, miss, each gated detection."""
         if len(frontier) == 0:
             return []
-        parts: list[HypothesisNodes] = []
+        groups: list[_NewNodes] = []
         f = frontier.nodes
         node_id = frontier.ids
         dt = scan.time - frontier.time
@@ -1026,11 +1100,10 @@ class HypothesisGenerator:
         protect_miss = f.protected & ~can_end
         idx = np.flatnonzero(can_end)
         if len(idx):
-            parts.append(
-                self._nodes(
+            groups.append(
+                _NewNodes(
                     parent=node_id[idx],
-                    layer=j,
-                    detection=np.full(len(idx), -1),
+                    detection=np.full(len(idx), -1, dtype=np.int64),
                     alive=False,
                     tree=f.tree[idx],
                     initiated=f.initiated[idx],
@@ -1038,8 +1111,7 @@ class HypothesisGenerator:
                     first_time=f.first_time[idx],
                     score=f.score[idx] + log_end[idx],
                     protected=protect_end[idx],
-                    means=f.means[idx],
-                    covs=f.covariances[idx],
+                    states=_gathered(f.means, f.covariances, idx),
                 )
             )
         log_miss = self._log_miss(sensor)
@@ -1070,12 +1142,10 @@ class HypothesisGenerator:
             base = f.score[group] + gdt * self._log_survival
             # Missed at this scan.
             if math.isfinite(log_miss):
-                mm, mc = _pad(x, P, self._n_max)
-                parts.append(
-                    self._nodes(
+                groups.append(
+                    _NewNodes(
                         parent=node_id[group],
-                        layer=j,
-                        detection=np.full(len(group), -1),
+                        detection=np.full(len(group), -1, dtype=np.int64),
                         alive=True,
                         tree=f.tree[group],
                         initiated=np.full(len(group), initiated),
@@ -1083,8 +1153,7 @@ class HypothesisGenerator:
                         first_time=f.first_time[group],
                         score=base + log_miss,
                         protected=protect_miss[group],
-                        means=mm,
-                        covs=mc,
+                        states=self._padded(x, P),
                     )
                 )
             if scan.size == 0:
@@ -1107,44 +1176,73 @@ class HypothesisGenerator:
                 nu_pairs, pair_loglik = nu[li, mi], loglik[li, mi]
             if len(li) == 0:
                 continue
-            xu, Pu = update(x[li], P[li], nu_pairs, S[li], H[li], R)
-            ndet = f.num_detections[group][li] + 1
-            um, uc = _pad(xu, Pu, self._n_max)
-            init_flags = np.full(len(li), initiated)
-            if not initiated:
-                # Only coordinated-turn tracks are ever uninitiated.  One enters the turn
-                # state at its first detection later in time than its first one (the
-                # velocity is then observed); the padded rows take the converted state.
-                init_flags = scan.time > f.first_time[group][li]
-                for k in np.flatnonzero(init_flags):
-                    um[k], uc[k] = convert_initiated(self.motion, xu[k], Pu[k], self.birth)
-            parts.append(
-                self._nodes(
+            first_time = f.first_time[group][li]
+            # Only coordinated-turn tracks are ever uninitiated.  One enters the turn
+            # state at its first detection later in time than its first one (the
+            # velocity is then observed); its padded row takes the converted state.
+            init_flags = np.full(len(li), True) if initiated else scan.time > first_time
+            groups.append(
+                _NewNodes(
                     parent=node_id[group][li],
-                    layer=j,
                     detection=det_offset + mi,
                     alive=True,
                     tree=f.tree[group][li],
                     initiated=init_flags,
-                    num_detections=ndet,
-                    first_time=f.first_time[group][li],
+                    num_detections=f.num_detections[group][li] + 1,
+                    first_time=first_time,
                     score=base[li] + log_pd + pair_loglik - log_lambda,
                     protected=np.zeros(len(li), dtype=bool),
-                    means=um,
-                    covs=uc,
+                    states=self._updated(
+                        x, P, H, S, R, li, nu_pairs, None if initiated else init_flags
+                    ),
                 )
             )
-        return parts
+        return groups
+
+    def _padded(self, x: FloatArray, P: FloatArray) -> StatesOf:
+        """States of the nodes at given rows of ``x``, ``P``, padded to ``n_max``."""
+
+        def states(index: IntArray) -> tuple[FloatArray, FloatArray]:
+            return _pad(x[index], P[index], self._n_max)
+
+        return states
+
+    def _updated(
+        self,
+        x: FloatArray,
+        P: FloatArray,
+        H: FloatArray,
+        S: FloatArray,
+        R: FloatArray,
+        pair_node: IntArray,
+        pair_residual: FloatArray,
+        convert: BoolArray | None,
+    ) -> StatesOf:
+        """States of the gated pairs' children: the Kalman update of node
+        ``pair_node[i]``'s prediction (``x``, ``P``, its ``H`` and ``S``) with the
+        residual ``pair_residual[i]``, padded to ``n_max``; a child flagged in
+        ``convert`` (an uninitiated track initiated by this detection) takes the
+        converted state."""
+
+        def states(index: IntArray) -> tuple[FloatArray, FloatArray]:
+            li = pair_node[index]
+            xu, Pu = update(x[li], P[li], pair_residual[index], S[li], H[li], R)
+            means, covs = _pad(xu, Pu, self._n_max)
+            if convert is not None:
+                for k in np.flatnonzero(convert[index]):
+                    means[k], covs[k] = convert_initiated(self.motion, xu[k], Pu[k], self.birth)
+            return means, covs
+
+        return states
 
     def _births(
         self,
         scan: Scan,
         sensor: Sensor,
-        j: int,
         det_offset: int,
         first_tree: int,
         undetected_mean: float,
-    ) -> list[HypothesisNodes]:
+    ) -> list[_NewNodes]:
         """One new tree rooted at every detection of the scan.
 
         The first detection of a target not detected before has density
@@ -1162,23 +1260,24 @@ class HypothesisGenerator:
             + math.log(sensor.detection_probability)
             - math.log(sensor.false_alarms_per_scan)
         )
-        x, P = birth_states(self.motion, sensor.measurement, scan.detections, self.birth)
-        initiated = not self._converts
-        mm, mc = _pad(x, P, self._n_max)
+
+        def states(index: IntArray) -> tuple[FloatArray, FloatArray]:
+            detections = scan.detections[index]
+            x, P = birth_states(self.motion, sensor.measurement, detections, self.birth)
+            return _pad(x, P, self._n_max)
+
         return [
-            self._nodes(
-                parent=np.full(m, -1),
-                layer=j,
+            _NewNodes(
+                parent=np.full(m, -1, dtype=np.int64),
                 detection=det_offset + np.arange(m),
                 alive=True,
                 tree=first_tree + np.arange(m),
-                initiated=np.full(m, initiated),
+                initiated=np.full(m, not self._converts),
                 num_detections=np.ones(m, dtype=np.int64),
                 first_time=np.full(m, scan.time),
                 score=np.full(m, score),
                 protected=np.zeros(m, dtype=bool),
-                means=mm,
-                covs=mc,
+                states=states,
             )
         ]
 
