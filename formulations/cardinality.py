@@ -30,7 +30,6 @@ from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import logsumexp
 
 from mapassoc.formulations.convolution import max_plus, sum_product
 from mapassoc.formulations.frontier import (
@@ -40,6 +39,7 @@ from mapassoc.formulations.frontier import (
     tie_precedes,
 )
 from mapassoc.formulations.packing import PackingProblem
+from mapassoc.log_space import log_sum_exp
 
 __all__ = [
     "CardinalityTable",
@@ -164,7 +164,7 @@ def _convolve(a: _Table, b: _Table, kmax: int) -> _Table:
                 cand = aset + bset  # type: ignore[operator]
                 if _better(score, cand, best[k], sets[k]):
                     best[k], sets[k] = score, cand
-    mass = [float(logsumexp(t)) if t else _NEG_INF for t in terms]
+    mass = [float(log_sum_exp(t)) if t else _NEG_INF for t in terms]
     return best, mass, sets
 
 
@@ -183,7 +183,7 @@ def _merge(options: list[_Table]) -> _Table:
             terms[k].append(tm)
             if _better(tb, ts, best[k], sets[k]):  # type: ignore[arg-type]
                 best[k], sets[k] = tb, ts
-    mass = [float(logsumexp(t)) if t else _NEG_INF for t in terms]
+    mass = [float(log_sum_exp(t)) if t else _NEG_INF for t in terms]
     return best, mass, sets
 
 

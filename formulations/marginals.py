@@ -62,6 +62,7 @@ from mapassoc.formulations.frontier import (
     resource_order,
 )
 from mapassoc.formulations.packing import PackingProblem
+from mapassoc.log_space import log_sum_exp
 
 __all__ = [
     "ENUMERATION_MAX_HYPOTHESES",
@@ -121,18 +122,6 @@ def log_subtract(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.f
     with np.errstate(divide="ignore", invalid="ignore"):
         diff = np.broadcast_to(b, out.shape) - np.broadcast_to(a, out.shape)
         out[live] = np.broadcast_to(a, out.shape)[live] + np.log(-np.expm1(diff[live]))
-    return out
-
-
-def _row_logsumexp(x: NDArray[np.float64]) -> NDArray[np.float64]:
-    """logsumexp along axis 1, ``-inf`` for rows that are all ``-inf`` (no warning)."""
-    if x.shape[1] == 0:
-        return np.full(x.shape[0], _NEG_INF)
-    top = np.max(x, axis=1)
-    out = np.full(x.shape[0], _NEG_INF)
-    live = np.isfinite(top)
-    if np.any(live):
-        out[live] = top[live] + np.log(np.sum(np.exp(x[live] - top[live, None]), axis=1))
     return out
 
 
@@ -478,7 +467,7 @@ def _backward(
                 cand[sel] = padded[rec.target[sel], shift : shift + width] + w[sel, None]
         pairs = np.flatnonzero(rec.decision >= 0)
         if pairs.size:
-            through = _row_logsumexp(rec.alpha[rec.source[pairs]] + cand[pairs])
+            through = log_sum_exp(rec.alpha[rec.source[pairs]] + cand[pairs], axis=1)
             np.logaddexp.at(containing, rec.decision[pairs], through)
         by_source = np.argsort(rec.source, kind="stable")
         sorted_source = rec.source[by_source]

@@ -31,7 +31,7 @@ WIRING_MODULES = {
 WIRING_FOLDERS = ("trackers", "apps")
 PACKAGE_FOLDERS = ("mapassoc", "formulations", "solvers")
 # Type aliases, and the switch of the compiled kernels: each imports nothing of the package.
-SHARED_LEAVES = ("mapassoc.array_types", "mapassoc.accelerate")
+SHARED_LEAVES = ("mapassoc.array_types", "mapassoc.accelerate", "mapassoc.log_space")
 
 
 def shared(name: str) -> bool:
@@ -224,6 +224,7 @@ LAYERS = (
             "mapassoc.errors",
             "mapassoc.validation",
             "mapassoc.array_types",
+            "mapassoc.log_space",
             "mapassoc.accelerate",
             "mapassoc.version",
         ),

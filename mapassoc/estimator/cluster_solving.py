@@ -45,7 +45,6 @@ from enum import StrEnum
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import logsumexp
 
 from mapassoc.array_types import IntArray
 from mapassoc.formulations.bounds import (
@@ -75,6 +74,7 @@ from mapassoc.formulations.packing import (
     resource_multipliers,
     set_packing_program,
 )
+from mapassoc.log_space import log_sum_exp
 from mapassoc.solvers import (
     HighsSolver,
     LPResult,
@@ -686,7 +686,7 @@ class ClusterSolver:
             if np.all(lp.objective + mu * (ahead - k) < found_best - self.map_margin) and (
                 np.all(
                     log_mass_upper_bounds(problem, multipliers, mu, ahead, groups)
-                    < float(logsumexp(tables.log_mass)) - _NEGLIGIBLE_LOG_MASS
+                    < float(log_sum_exp(tables.log_mass)) - _NEGLIGIBLE_LOG_MASS
                 )
             ):
                 break
@@ -752,7 +752,7 @@ class ClusterSolver:
         table = CardinalityTable(
             best, log_mass, tuple(tables.sets), False, best_upper, mass_upper
         )
-        found, bound = float(logsumexp(log_mass)), float(logsumexp(mass_upper))
+        found, bound = float(log_sum_exp(log_mass)), float(log_sum_exp(mass_upper))
         return table, ClusterReport(
             size=problem.num_hypotheses,
             status=ClusterStatus.TIME_LIMIT if tables.limited else ClusterStatus.BOUNDED,

@@ -74,7 +74,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import logsumexp
 
 from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.errors import InputError
@@ -88,6 +87,7 @@ from mapassoc.formulations.marginals import (
     log_subtract,
 )
 from mapassoc.formulations.packing import MergedProblem
+from mapassoc.log_space import log_sum_exp
 from mapassoc.models.population import poisson_log_pmf
 
 if TYPE_CHECKING:
@@ -193,7 +193,7 @@ def track_count_log_weights(solution: WindowSolution, length: int) -> FloatArray
     for t in range(min(length, top + 1)):
         terms = ratio[t:] + log_po[: top + 1 - t]
         if np.any(np.isfinite(terms)):
-            out[t] = float(logsumexp(terms))
+            out[t] = float(log_sum_exp(terms))
     return out
 
 
@@ -292,7 +292,7 @@ def window_marginals(
             c = int(counts[h])
             n_lo[h] = weights[h] + g_lo[c] if c < g_lo.shape[0] else -math.inf
             n_hi[h] = weights[h] + g_hi[c] if c < g_hi.shape[0] else -math.inf
-            z_lo[h] = float(logsumexp(f.lower + g_lo))
+            z_lo[h] = float(log_sum_exp(f.lower + g_lo))
             continue
         exact &= _cluster_marginals(
             part, f, g_lo, g_hi, weights, beam_width, entry_margin, n_lo, n_hi, z_lo, pruned
@@ -384,7 +384,7 @@ def _cluster_marginals(
         if np.any(upper < captured - slack):
             raise RuntimeError("a cluster's proven upper mass lies below the mass captured")
         missing = log_subtract(np.maximum(upper, captured), captured)
-        delta = float(logsumexp(missing + g_hi)) if np.any(np.isfinite(missing)) else -math.inf
+        delta = float(log_sum_exp(missing + g_hi)) if np.any(np.isfinite(missing)) else -math.inf
         node_hi = np.logaddexp(node_hi, delta)
     # Merged nodes to the window's hypotheses: shares in proportion to exp(weight).
     window_of = part.members
@@ -459,7 +459,7 @@ def _pruned_bounds(
         shifted[c:] = bound[row, : size - c]
         terms = shifted + g_hi
         reached = np.any(np.isfinite(terms))
-        node = float(log_w[p]) + float(logsumexp(terms)) if reached else -math.inf
+        node = float(log_w[p]) + float(log_sum_exp(terms)) if reached else -math.inf
         originals = part.members[merged.members[p]]
         share = weights[originals] - log_w[p]
         n_hi[originals] = node + share

@@ -50,10 +50,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import logsumexp
 
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
+from mapassoc.log_space import log_sum_exp
 from mapassoc.models.population import MAX_KMAX, WindowPopulation, poisson_log_pmf
 from mapassoc.models.target_count import (
     COUNT_LAWS,
@@ -328,13 +328,13 @@ def _sweep(
         ks = np.arange(k0, min(n, k0 + _BLOCK), dtype=np.int64)
         weight = weights(ks)
         lower = m[:, None] + weight
-        out.mass_lower[ks] = logsumexp(lower, axis=0)
-        out.mass_upper[ks] = logsumexp(mu[:, None] + weight, axis=0)
+        out.mass_lower[ks] = log_sum_exp(lower, axis=0)
+        out.mass_upper[ks] = log_sum_exp(mu[:, None] + weight, axis=0)
         scored = b[:, None] + weight
         out.joint[ks] = np.max(scored, axis=0)
         out.joint_tracks[ks] = rows[np.argmax(scored, axis=0)]
         out.joint_upper[ks] = np.max(bu[:, None] + weight, axis=0)
-        tracks = np.logaddexp(tracks, logsumexp(lower, axis=1))
+        tracks = np.logaddexp(tracks, log_sum_exp(lower, axis=1))
     out.tracks[rows] = tracks
     return out
 
@@ -351,7 +351,7 @@ def _log_tail(values: FloatArray, steps: FloatArray) -> float:
         return math.inf
     with np.errstate(divide="ignore"):
         factor = np.log(r) - np.log1p(-r)
-    return float(logsumexp(values[live] + factor))
+    return float(log_sum_exp(values[live] + factor))
 
 
 def _tail_is_negligible(
@@ -371,7 +371,7 @@ def _tail_is_negligible(
     with np.errstate(invalid="ignore"):
         mass_tail = _log_tail(mass_upper + at_top, steps)
         joint_tail = _log_tail(best_upper + at_top, steps)
-    total = float(logsumexp(sweep.mass_lower))
+    total = float(log_sum_exp(sweep.mass_lower))
     return mass_tail < total - NEGLIGIBLE_LOG_RATIO and joint_tail < float(np.max(sweep.joint))
 
 
