@@ -74,7 +74,7 @@ def test_stitching_by_hand() -> None:
 
 
 def test_one_segment_is_the_sequential_run() -> None:
-    scenario = build_scenario("turning", 2)
+    scenario = build_scenario("turning", 2, scans=30)
     sequential = WindowEstimator(config=scenario.config).run(scenario.scans)
     single = run_segmented(scenario.config, scenario.scans, segments=1)
     assert single.track_rows == sequential.track_rows
@@ -87,8 +87,8 @@ def test_one_segment_is_the_sequential_run() -> None:
 @pytest.mark.slow
 def test_segments_agree_with_the_sequential_run() -> None:
     """On a long crossing recording three segments find the sequential run's tracks
-    (300 scans: segments of 100, each far longer than a window)."""
-    scenario = build_scenario("crossing", 1, scans=300)
+    (180 scans: segments of 60, each far longer than a window)."""
+    scenario = build_scenario("crossing", 1, scans=180)
     sequential = WindowEstimator(config=scenario.config).run(scenario.scans)
     segmented = run_segmented(scenario.config, scenario.scans, segments=3)
     same = set(sequential.track_rows.values()) & set(segmented.track_rows.values())
