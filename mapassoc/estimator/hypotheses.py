@@ -64,8 +64,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields, replace
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mapassoc.array_types import BoolArray, FloatArray, IntArray
 from mapassoc.data.scans import Scan
@@ -906,43 +908,41 @@ class HypothesisGenerator:
     ) -> tuple[HypothesisNodes, int, int]:
         """The kept nodes of one scan's layer (their states computed), how many were
         dropped and how many by the cap."""
-        alive = np.concatenate([np.full(len(g), g.alive) for g in layer])
+
+        def joined(name: str) -> NDArray[Any]:
+            return np.concatenate([getattr(group, name) for group in layer])
+
+        sizes = [len(group) for group in layer]
+        alive = np.repeat([group.alive for group in layer], sizes)
+        tree, score, protected = joined("tree"), joined("score"), joined("protected")
         # An ended node gains nothing more; an alive one at most G_j.
         gain = np.where(alive, remaining_gain, 0.0)
-        keep, cut_by_cap = self._prune_mask(
-            np.concatenate([g.tree for g in layer]),
-            np.concatenate([g.score for g in layer]),
-            np.concatenate([g.protected for g in layer]),
-            is_new_tree,
-            gain,
-        )
-        kept: list[HypothesisNodes] = []
+        keep, cut_by_cap = self._prune_mask(tree, score, protected, is_new_tree, gain)
+        means: list[FloatArray] = [np.zeros((0, self._n_max))]
+        covs: list[FloatArray] = [np.zeros((0, self._n_max, self._n_max))]
         start = 0
-        for group in layer:
-            index = np.flatnonzero(keep[start : start + len(group)])
-            start += len(group)
+        for group, size in zip(layer, sizes, strict=True):
+            index = np.flatnonzero(keep[start : start + size])
+            start += size
             if index.size:
-                kept.append(self._kept(group, j, index))
-        nodes = HypothesisNodes.concat(kept, state_dim=self._n_max)
-        return nodes, int(np.count_nonzero(~keep)), cut_by_cap
-
-    def _kept(self, group: _NewNodes, j: int, index: IntArray) -> HypothesisNodes:
-        """The nodes ``index`` of ``group`` at scan ``j``, with their states."""
-        means, covs = group.states(index)
-        return self._nodes(
-            parent=group.parent[index],
+                group_means, group_covs = group.states(index)
+                means.append(group_means)
+                covs.append(group_covs)
+        nodes = self._nodes(
+            parent=joined("parent")[keep],
             layer=j,
-            detection=group.detection[index],
-            alive=group.alive,
-            tree=group.tree[index],
-            initiated=group.initiated[index],
-            num_detections=group.num_detections[index],
-            first_time=group.first_time[index],
-            score=group.score[index],
-            protected=group.protected[index],
-            means=means,
-            covs=covs,
+            detection=joined("detection")[keep],
+            alive=alive[keep],
+            tree=tree[keep],
+            initiated=joined("initiated")[keep],
+            num_detections=joined("num_detections")[keep],
+            first_time=joined("first_time")[keep],
+            score=score[keep],
+            protected=protected[keep],
+            means=np.concatenate(means),
+            covs=np.concatenate(covs),
         )
+        return nodes, int(np.count_nonzero(~keep)), cut_by_cap
 
     def _leaves_in_canonical_order(
         self,
@@ -1010,7 +1010,7 @@ class HypothesisGenerator:
         parent: IntArray,
         layer: int,
         detection: IntArray,
-        alive: bool,
+        alive: bool | BoolArray,
         tree: IntArray,
         initiated: BoolArray,
         num_detections: IntArray,
@@ -1027,7 +1027,7 @@ class HypothesisGenerator:
             parent=np.asarray(parent, dtype=np.int64),
             layer=np.full(k, layer, dtype=np.int64),
             detection=np.asarray(detection, dtype=np.int64),
-            alive=np.full(k, alive),
+            alive=np.broadcast_to(np.asarray(alive, dtype=bool), (k,)).copy(),
             tree=np.asarray(tree, dtype=np.int64),
             initiated=initiated,
             num_detections=np.asarray(num_detections, dtype=np.int64),
