@@ -505,10 +505,11 @@ class _NewNodes:
     """A group of one scan's new nodes before pruning: what pruning reads, and how to
     compute the states of the nodes it keeps.
 
-    Pruning reads only scores, trees and flags, and drops most of a layer's nodes in
-    dense clutter (the refinement's long windows of dense_radar: about nine of ten),
-    while the children's Kalman updates were most of the trees' growth: states are
-    computed for the kept nodes only, row by row the same as for all of them.
+    Pruning reads only scores, trees and flags, and drops about half of the nodes
+    generated in dense clutter (a dense_radar run: 2.6 of 5.0 million), while the
+    children's Kalman updates were the largest part of growing them: states are computed
+    for the kept nodes only (1.2 million updates instead of 1.9), row by row the same as
+    for all of them.
     """
 
     parent: IntArray
