@@ -358,7 +358,7 @@ def test_broken_pipe_is_one_line(
 @pytest.fixture(scope="module")
 def long_scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("scen") / "long"
-    assert main(["simulate", "crossing", "--scans", "240", "--out", str(out), "--seed", "4"]) == 0
+    assert main(["simulate", "crossing", "--scans", "150", "--out", str(out), "--seed", "4"]) == 0
     return out
 
 
@@ -372,16 +372,16 @@ def test_segmented_run_stops_and_resumes_to_the_same_files(
     manifest = read_manifest(whole)
     assert manifest is not None and manifest["settings"]["segments"] == 3
     lines = (whole / "windows.jsonl").read_text().splitlines()
-    assert sum(json.loads(line)["committed_scans"] for line in lines) == 240
+    assert sum(json.loads(line)["committed_scans"] for line in lines) == 150
 
     out = tmp_path / "out"
     polls = iter(range(10**6))
     # In this process (jobs=1) the stop is polled at every window: stop inside segment 2.
     with pytest.raises(RunInterrupted) as stopped:
-        _run(long_scenario, out, segments=3, jobs=1, stop=lambda: next(polls) >= 90)
+        _run(long_scenario, out, segments=3, jobs=1, stop=lambda: next(polls) >= 56)
     partial = out.with_name("out.partial")
     assert (read_manifest(partial) or {})["status"] == "interrupted"
-    assert 0 < stopped.value.scans_committed < 240
+    assert 0 < stopped.value.scans_committed < 150
     with pytest.raises(InputError, match="segments"):
         _run(long_scenario, out, segments=2, resume=True)
     outcome = _run(long_scenario, out, segments=3, jobs=2, resume=True)
