@@ -13,7 +13,7 @@ pytestmark = pytest.mark.slow
 def test_tiny_reprocess_benchmark(capsys: pytest.CaptureFixture[str]) -> None:
     results = run_reprocess_benchmark(
         recordings=2, scans=40, long_scans=80, segment_families=("crossing",),
-        segment_scans=160, jobs=2,
+        segment_scans=100, jobs=2,
     )  # fmt: skip
     batch = results["batch"]
     assert isinstance(batch, dict) and batch["same_files"] is True
