@@ -551,7 +551,8 @@ def frontier_words(problem: PackingProblem, order: NDArray[np.int64]) -> _WordLa
     """Each hypothesis's resources as a 64-bit word relative to its first position in the
     resource ``order``, the hypotheses by first position with the bounds of each
     position's run, and which positions are exactly-once resources; ``None`` where a
-    hypothesis spans :data:`_WORD_BITS` positions or more (its word would not fit)."""
+    hypothesis spans :data:`_WORD_BITS` positions or more (its word would not fit).
+    The arrays are as the compiled kernels take them (uint64, int64, contiguous bool)."""
     H = problem.num_hypotheses
     R = order.size
     owner, offsets, first, last = hypothesis_spans(problem, order)
@@ -559,9 +560,10 @@ def frontier_words(problem: PackingProblem, order: NDArray[np.int64]) -> _WordLa
         return None
     relative = np.zeros(H, dtype=np.uint64)
     np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets.astype(np.uint64)))
-    by_start = np.argsort(first, kind="stable")
-    bounds = np.searchsorted(first[by_start], np.arange(R + 1))
-    return relative, by_start, bounds, problem.exactly_one[order]
+    by_start = np.argsort(first, kind="stable").astype(np.int64, copy=False)
+    bounds = np.searchsorted(first[by_start], np.arange(R + 1)).astype(np.int64, copy=False)
+    exactly_one = np.ascontiguousarray(problem.exactly_one[order], dtype=np.bool_)
+    return relative, by_start, bounds, exactly_one
 
 
 PAIR_BLOCK_ENTRIES = 1 << 18
@@ -869,9 +871,9 @@ def _compiled_search(
     relative, by_start, bounds, exactly_one = layout
     status, work, widest, best, mass, members, sizes = kernel.exact_search(
         relative,
-        by_start.astype(np.int64),
-        bounds.astype(np.int64),
-        np.ascontiguousarray(exactly_one, dtype=np.bool_),
+        by_start,
+        bounds,
+        exactly_one,
         problem.counts.astype(np.int64),
         np.ascontiguousarray(problem.scores, dtype=np.float64),
         np.ascontiguousarray(problem.weights, dtype=np.float64),

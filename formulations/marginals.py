@@ -289,9 +289,9 @@ def _compiled_forward_backward(
     status, work, step_work, remaining, exact, log_mass, log_total, containing = (
         kernel.forward_backward(
             relative,
-            by_start.astype(np.int64),
-            bounds.astype(np.int64),
-            np.ascontiguousarray(exactly_one, dtype=np.bool_),
+            by_start,
+            bounds,
+            exactly_one,
             problem.counts.astype(np.int64),
             np.ascontiguousarray(problem.weights, dtype=np.float64),
             np.ascontiguousarray(seeds, dtype=np.float64),
