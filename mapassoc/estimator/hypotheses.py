@@ -75,6 +75,7 @@ from mapassoc.errors import InputError
 from mapassoc.filtering.kalman import (
     gate_threshold,
     gated_pairs_and_loglik,
+    innovation_covariance,
     pairwise_gate_and_loglik,
     predict_motion,
     update,
@@ -1162,8 +1163,7 @@ class HypothesisGenerator:
             # Gate and score every (node, detection) pair at once.
             H = measurement.jacobian(x)
             z_hat = measurement.predict(x)
-            S = H @ P @ np.swapaxes(H, -1, -2) + R
-            S = 0.5 * (S + np.swapaxes(S, -1, -2))
+            S = innovation_covariance(H, P, R)
             if (
                 measurement.is_linear
                 and math.isfinite(threshold)

@@ -61,6 +61,7 @@ from mapassoc.errors import InputError
 from mapassoc.filtering.compiled import ScanModel, kalman_kernels
 from mapassoc.filtering.kalman import (
     gate_threshold,
+    innovation_covariance,
     pairwise_gate_and_loglik,
     predict_motion,
     update,
@@ -364,8 +365,7 @@ class RecordingObjective:
             missed = self.advance_missed(start, m - 1)
             x, P = self._predict(missed, m)
             H, R = measurement.H, measurement.noise_covariance
-            S = H @ P @ H.T + R
-            S_inv, _ = _inverse_and_logdet(0.5 * (S + np.swapaxes(S, -1, -2)))
+            S_inv, _ = _inverse_and_logdet(innovation_covariance(H, P, R))
             predicted = x @ H.T
             # A slightly wider gate first; the exact one is applied by the update.
             wide = self._thresholds[m] * (1.0 + 1e-9)
@@ -469,8 +469,7 @@ class RecordingObjective:
         x_post, P_post
         """
         HP = H @ P  # (B, d, n)
-        S = HP @ H.T + R
-        S = 0.5 * (S + np.swapaxes(S, -1, -2))
+        S = innovation_covariance(H, P, R)
         nu = z - x @ H.T
         S_inv, logdet = _inverse_and_logdet(S)
         y = np.einsum("bij,bj->bi", S_inv, nu)
@@ -508,8 +507,7 @@ class RecordingObjective:
         else:
             H = measurement.jacobian(x)
             z_hat = measurement.predict(x)
-            S = H @ P @ np.swapaxes(H, -1, -2) + R
-            S = 0.5 * (S + np.swapaxes(S, -1, -2))
+            S = innovation_covariance(H, P, R)
             nu = measurement.residual(z[None, None, :], z_hat[:, None, :])
             d2, loglik = pairwise_gate_and_loglik(nu, S)
             d2, loglik, nu = d2[:, 0], loglik[:, 0], nu[:, 0]

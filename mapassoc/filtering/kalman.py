@@ -36,6 +36,7 @@ __all__ = [
     "predict",
     "predict_motion",
     "innovation",
+    "innovation_covariance",
     "update",
     "log_gaussian",
     "pairwise_gate_and_loglik",
@@ -149,8 +150,30 @@ def innovation(
     """
     H = measurement.jacobian(x)
     nu = measurement.residual(z, measurement.predict(x))
-    S = _symmetrize(H @ P @ np.swapaxes(H, -1, -2) + measurement.noise_covariance)
-    return nu, S, H
+    return nu, innovation_covariance(H, P, measurement.noise_covariance), H
+
+
+def innovation_covariance(H: FloatArray, P: FloatArray, R: FloatArray) -> FloatArray:
+    """The innovation covariance ``S = H P H^T + R``, symmetrised.
+
+    The one place the package forms S (the hypothesis trees, the recording objective and
+    the filters call it), so that every score of a detection sees the same matrix to the
+    last bit.
+
+    Parameters
+    ----------
+    H : ndarray, shape (dz, n) or (..., dz, n)
+        Measurement matrix or Jacobian.
+    P : ndarray, shape (..., n, n)
+        Predicted covariances.
+    R : ndarray, shape (dz, dz)
+        Measurement noise covariance.
+
+    Returns
+    -------
+    ndarray, shape (..., dz, dz)
+    """
+    return _symmetrize(H @ P @ np.swapaxes(H, -1, -2) + R)
 
 
 def _small_inverse(S: FloatArray) -> FloatArray | None:
