@@ -64,6 +64,7 @@ from mapassoc.filtering.kalman import (
     innovation_covariance,
     pairwise_gate_and_loglik,
     predict_motion,
+    predicted_covariance,
     update,
 )
 from mapassoc.models.birth import (
@@ -436,8 +437,7 @@ class RecordingObjective:
             else:
                 F, Q = matrices
                 x = x @ F.T
-                P = F @ P @ F.T + Q
-                P = 0.5 * (P + np.swapaxes(P, -1, -2))
+                P = predicted_covariance(F, P, Q)
         return x, P
 
     def _linear_motion(self, model: MotionModel, dt: float) -> tuple[FloatArray, FloatArray] | None:
@@ -791,8 +791,7 @@ class RecordingObjective:
                     rows = moving[dts == dt]
                     F, Q = self._linear_motion(self.motion, float(dt))  # type: ignore[misc]
                     x[rows] = x[rows] @ F.T
-                    Pr = F @ P[rows] @ F.T + Q
-                    P[rows] = 0.5 * (Pr + np.swapaxes(Pr, -1, -2))
+                    P[rows] = predicted_covariance(F, P[rows], Q)
                 missed = nxt < target[moving]
                 value[moving[missed]] += (
                     self.survival_terms[nxt[missed]] + self.miss_terms[nxt[missed]]

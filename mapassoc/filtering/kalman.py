@@ -35,6 +35,7 @@ __all__ = [
     "cholesky",
     "predict",
     "predict_motion",
+    "predicted_covariance",
     "innovation",
     "innovation_covariance",
     "update",
@@ -104,8 +105,24 @@ def predict(
     Q : ndarray, shape (n, n) or (..., n, n)
     """
     x_new = np.einsum("...ij,...j->...i", F, x)
-    P_new = F @ P @ np.swapaxes(F, -1, -2) + Q
-    return x_new, _symmetrize(P_new)
+    return x_new, predicted_covariance(F, P, Q)
+
+
+def predicted_covariance(F: FloatArray, P: FloatArray, Q: FloatArray) -> FloatArray:
+    """The predicted covariance ``F P F^T + Q``, symmetrised: the one place it is formed.
+
+    Parameters
+    ----------
+    F : ndarray, shape (n, n) or (..., n, n)
+        Transition matrix or Jacobian.
+    P : ndarray, shape (..., n, n)
+    Q : ndarray, shape (n, n) or (..., n, n)
+
+    Returns
+    -------
+    ndarray, shape (..., n, n)
+    """
+    return _symmetrize(F @ P @ np.swapaxes(F, -1, -2) + Q)
 
 
 def predict_motion(
@@ -123,8 +140,7 @@ def predict_motion(
     x = np.asarray(x, dtype=float)
     F = motion.jacobian(x, dt)
     x_new = motion.transition(x, dt)
-    P_new = F @ P @ np.swapaxes(F, -1, -2) + motion.process_noise(dt)
-    return x_new, _symmetrize(P_new), F
+    return x_new, predicted_covariance(F, P, motion.process_noise(dt)), F
 
 
 def innovation(
