@@ -94,7 +94,7 @@ import functools
 import itertools
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TypedDict
 
@@ -103,7 +103,7 @@ from numpy.typing import NDArray
 from scipy.sparse import coo_array
 from scipy.sparse.csgraph import connected_components
 
-from mapassoc.array_types import FloatArray
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan
 from mapassoc.data.windows import window_spans
@@ -118,13 +118,19 @@ from mapassoc.filtering.track_filter import (
     update_track,
 )
 from mapassoc.formulations.tracking_flow import (
+    TrackingFlow,
     combine_convex_costs,
     reachable_items,
     successive_shortest_paths,
     through_costs,
     tracking_flow_program,
 )
-from mapassoc.models.population import UndetectedTargets, recording_start, window_population
+from mapassoc.models.population import (
+    UndetectedTargets,
+    WindowPopulation,
+    recording_start,
+    window_population,
+)
 from mapassoc.solvers.networkx_flow import NetworkxFlowSolver
 from mapassoc.solvers.results import SolveStatus
 from mapassoc.trackers.base import TrackerOutput, check_scans
@@ -219,6 +225,112 @@ class _Track:
     associations: dict[int, int]
     state: FilteredTrack
     misses: int  # scans since its last detection, up to the last committed scan
+
+
+@dataclass
+class _WindowGraph:
+    """One window's flow graph while it is built: items (carried tracks ``0..C-1``, then
+    the detections in scan order, ``det_scan``/``det_index`` their recording scan and
+    index), their entry, observation and exit costs, and the links found so far."""
+
+    window: list[Scan]
+    start: int
+    times: FloatArray
+    tails: FloatArray
+    carried: int
+    det_scan: NDArray[np.int64]
+    det_index: NDArray[np.int64]
+    first_item: NDArray[np.int64]
+    entry: FloatArray
+    observation: FloatArray
+    exits: FloatArray
+    link_tails: list[int] = field(default_factory=list)
+    link_heads: list[int] = field(default_factory=list)
+    link_costs: list[float] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class _LinkSource:
+    """Where links start: an item, its state's window position (-1: a carried state
+    before the window) and time, the state (None when every link is cached), the window
+    positions it may link to, and its two-point cache key (None: not cached)."""
+
+    item: int
+    position: int
+    time: float
+    track: FilteredTrack | None
+    first: int
+    last: int
+    key: tuple[int, int] | None
+
+
+@dataclass(frozen=True)
+class _Links:
+    """Links between kept items, numbered in the kept items' order."""
+
+    tails: NDArray[np.int64]
+    heads: NDArray[np.int64]
+    costs: FloatArray
+
+
+@dataclass(frozen=True)
+class _SolvedComponent:
+    """One component's flow program, its items (window item numbers), the edge flows
+    per K and the track costs per K."""
+
+    flow: TrackingFlow
+    items: NDArray[np.int64]
+    edge_flows: list[NDArray[np.int64]]
+    costs: FloatArray
+
+
+def _shortest_paths_costs(
+    program: Callable[..., TrackingFlow],
+    items: NDArray[np.int64],
+    cap: int,
+    limit: int,
+    forced: int,
+) -> _SolvedComponent:
+    """A component's costs by successive shortest paths: one program up to ``limit``
+    whose steps are taken up to ``cap`` and further (doubling the new tracks) while the
+    minimum sits at the cap; the flows of K <= cap are those of a program solved up to
+    cap only."""
+    flow = program(max_flow=limit)
+    steps = successive_shortest_paths(flow)
+    raw_costs: list[float] = []
+    edge_flows: list[NDArray[np.int64]] = []
+    while True:
+        for cost, step_flows in itertools.islice(steps, cap + 1 - len(raw_costs)):
+            raw_costs.append(cost)
+            edge_flows.append(step_flows)
+        solved = np.full(cap + 1, math.inf)
+        solved[: len(raw_costs)] = raw_costs[: cap + 1]
+        costs = flow.track_costs(solved)
+        if cap >= limit or int(np.argmin(costs)) < cap:
+            return _SolvedComponent(flow, items, edge_flows, costs)
+        cap = min(limit, forced + 2 * (cap - forced))
+
+
+def _decode_paths(
+    graph: _WindowGraph, solved: list[_SolvedComponent], tracks_per_component: IntArray
+) -> list[_Path]:
+    """The chosen flow's paths as carried track and (scan, detection) pairs."""
+    C = graph.carried
+    paths: list[_Path] = []
+    for component, k in zip(solved, tracks_per_component, strict=True):
+        for path in component.flow.decode_paths(component.edge_flows[k]):
+            ids = [int(component.items[i]) for i in path]
+            paths.append(
+                _Path(
+                    carried=ids[0] if ids[0] < C else None,
+                    detections=tuple(
+                        (int(graph.det_scan[i - C]), int(graph.det_index[i - C]))
+                        for i in ids
+                        if i >= C
+                    ),
+                )
+            )
+    return paths
 
 
 def _log_end(dt: float, log_survival: float) -> float:
@@ -423,20 +535,68 @@ class FlowTracker:
         Returns the chosen paths, the report fields and the undetected targets after
         the last committed scan.
         """
-        config = self.config
         window = scans[start:end]
-        n_scans = len(window)
-        times = np.array([s.time for s in window])
         population = window_population(
             window,
-            [config.sensors[s.sensor].detection_probability for s in window],
-            config.birth,
+            [self.config.sensors[s.sensor].detection_probability for s in window],
+            self.config.birth,
             undetected,
             [t.state.time for t in carried],
         )
+        times = np.array([s.time for s in window])
         tails = window_tails(times, log_miss[start:end], self._log_survival)
-        # Items: carried tracks 0..C-1, then detections in scan order.
-        C = len(carried)
+        graph = self._window_items(window, start, len(carried), population, tails)
+        self._carried_links(graph, carried, log_miss, tails)
+        self._detection_links(graph, log_miss, two_point, births)
+        kept, forced, sub = self._kept_subgraph(graph)
+        # No flow has more tracks than items kept (each track holds one at least), so
+        # a huge max_tracks costs no more than that.
+        kmax = max(graph.carried, min(self.config.estimator.max_tracks, int(kept.size)))
+        count, label = connected_components(
+            coo_array(
+                (np.ones(sub.tails.size), (sub.tails, sub.heads)),
+                shape=(kept.size, kept.size),
+            ),
+            directed=True,
+            connection="weak",
+        )
+        solved = [
+            self._solve_component(graph, kept, forced, sub, label == comp, kmax)
+            for comp in range(count)
+        ]
+        if solved:
+            costs, split = combine_convex_costs([s.costs for s in solved], kmax)
+        else:
+            costs, split = np.r_[0.0, np.full(kmax, math.inf)], np.zeros((kmax + 1, 0), int)
+        if not np.any(np.isfinite(costs)):
+            raise RuntimeError(
+                f"flow window at scans {start}..{end - 1}: no flow of K >= {graph.carried} "
+                "tracks was found"
+            )
+        chosen = int(np.argmin(costs))
+        report: _WindowReportParts = {
+            "carried_tracks": graph.carried,
+            "detections": int(graph.det_scan.size),
+            "items_kept": int(kept.size),
+            "components": int(count),
+            "links": int(sub.tails.size),
+            "track_costs": costs,
+            "chosen_tracks": chosen,
+            "at_max_flow": chosen == kmax and kmax < kept.size,
+        }
+        paths = _decode_paths(graph, solved, split[chosen])
+        return paths, report, population.after_scan[commit - 1]
+
+    def _window_items(
+        self,
+        window: list[Scan],
+        start: int,
+        carried: int,
+        population: WindowPopulation,
+        tails: FloatArray,
+    ) -> _WindowGraph:
+        """The window's items (carried tracks, then detections in scan order) with their
+        entry, observation and exit costs (module docstring's table); no links yet."""
         det_scan = np.concatenate(
             [np.full(s.size, start + p, dtype=np.int64) for p, s in enumerate(window)]
             + [np.zeros(0, dtype=np.int64)]
@@ -444,186 +604,184 @@ class FlowTracker:
         det_index = np.concatenate(
             [np.arange(s.size, dtype=np.int64) for s in window] + [np.zeros(0, dtype=np.int64)]
         )
-        first_item = C + np.concatenate([[0], np.cumsum([s.size for s in window])])
-        D = int(det_scan.size)
-        n = C + D
-        entry = np.full(n, math.inf)
-        observation = np.zeros(n)
-        exits = np.full(n, math.inf)
-        entry[:C] = 0.0
+        first_item = carried + np.concatenate([[0], np.cumsum([s.size for s in window])])
+        n = carried + int(det_scan.size)
+        graph = _WindowGraph(
+            window=window,
+            start=start,
+            times=np.array([s.time for s in window]),
+            tails=tails,
+            carried=carried,
+            det_scan=det_scan,
+            det_index=det_index,
+            first_item=first_item.astype(np.int64),
+            entry=np.full(n, math.inf),
+            observation=np.zeros(n),
+            exits=np.full(n, math.inf),
+        )
+        graph.entry[:carried] = 0.0
         for p, scan in enumerate(window):
-            sensor = config.sensors[scan.sensor]
+            sensor = self.config.sensors[scan.sensor]
             sl = slice(first_item[p], first_item[p + 1])
             u = float(population.first_detection_means[p])
             if u > 0.0:
-                entry[sl] = -(math.log(u) - math.log(sensor.region.volume))
-            observation[sl] = -(math.log(sensor.detection_probability)
-                                - sensor.log_clutter_density)
+                graph.entry[sl] = -(math.log(u) - math.log(sensor.region.volume))
+            graph.observation[sl] = -(
+                math.log(sensor.detection_probability) - sensor.log_clutter_density
+            )
             if math.isfinite(tails[p]):
-                exits[sl] = -tails[p]
-        tails_list: list[int] = []
-        heads_list: list[int] = []
-        costs_list: list[float] = []
+                graph.exits[sl] = -tails[p]
+        return graph
 
-        def add_links(tail: int, p_from: int, t_from: float, track: FilteredTrack | None,
-                      first_p: int, last_p: int, key: tuple[int, int] | None) -> None:
-            """Links from item ``tail`` (state ``track`` at position ``p_from``) to the
-            detections of positions ``first_p..last_p``; two-point links are cached under
-            ``key`` (``track`` may be None when every one of them is cached)."""
-            for q in range(first_p, min(last_p, n_scans - 1) + 1):
-                # log(1 - Pd P_G) of the scans skipped between the two (p_from -1: the
-                # carried state, before the window).
-                misses = float(np.sum(log_miss[start + p_from + 1 : start + q]))
-                if not math.isfinite(misses):
-                    break
-                cache_key = None if key is None else (key[0], key[1], start + q)
-                if cache_key is not None and cache_key in two_point:
-                    inside, loglik = two_point[cache_key]
-                else:
-                    assert track is not None
-                    inside, loglik = self._gated(track, window[q])
-                    if cache_key is not None:
-                        two_point[cache_key] = (inside, loglik)
-                base = (times[q] - t_from) * self._log_survival + misses
-                tails_list.extend([tail] * inside.size)
-                heads_list.extend((first_item[q] + inside).tolist())
-                costs_list.extend((-(base + loglik)).tolist())
+    def _add_links(
+        self,
+        graph: _WindowGraph,
+        log_miss: FloatArray,
+        two_point: dict[tuple[int, int, int], tuple[NDArray[np.int64], FloatArray]],
+        link: _LinkSource,
+    ) -> None:
+        """Links from item ``link.item`` (state ``link.track`` at window position
+        ``link.position``, -1 for a carried state before the window) to the detections of
+        positions ``link.first..link.last``; two-point links are cached under
+        ``link.key`` (``link.track`` may be None when every one of them is cached)."""
+        start, times = graph.start, graph.times
+        for q in range(link.first, min(link.last, len(graph.window) - 1) + 1):
+            # log(1 - Pd P_G) of the scans skipped between the two.
+            misses = float(np.sum(log_miss[start + link.position + 1 : start + q]))
+            if not math.isfinite(misses):
+                break
+            cache_key = None if link.key is None else (link.key[0], link.key[1], start + q)
+            if cache_key is not None and cache_key in two_point:
+                inside, loglik = two_point[cache_key]
+            else:
+                assert link.track is not None
+                inside, loglik = self._gated(link.track, graph.window[q])
+                if cache_key is not None:
+                    two_point[cache_key] = (inside, loglik)
+            base = (times[q] - link.time) * self._log_survival + misses
+            graph.link_tails.extend([link.item] * inside.size)
+            graph.link_heads.extend((graph.first_item[q] + inside).tolist())
+            graph.link_costs.extend((-(base + loglik)).tolist())
 
+    def _carried_links(
+        self,
+        graph: _WindowGraph,
+        carried: list[_Track],
+        log_miss: FloatArray,
+        tails: FloatArray,
+    ) -> None:
+        """Each carried track's exit cost (from its state at the scan before the window)
+        and its links to the window's detections."""
+        start = graph.start
         for c, track in enumerate(carried):
-            # The carried state is at the scan before the window; exit = its tail then.
             t_c = track.state.time
-            dt0 = float(times[0] - t_c)
-            tail0 = max(_log_end(dt0, self._log_survival),
-                        dt0 * self._log_survival + float(log_miss[start]) + tails[0])
+            dt0 = float(graph.times[0] - t_c)
+            tail0 = max(
+                _log_end(dt0, self._log_survival),
+                dt0 * self._log_survival + float(log_miss[start]) + tails[0],
+            )
             if math.isfinite(tail0):
-                exits[c] = -tail0
-            add_links(c, -1, t_c, track.state, 0, self.max_gap - track.misses, None)
-        for p, scan in enumerate(window):
+                graph.exits[c] = -tail0
+            source = _LinkSource(c, -1, t_c, track.state, 0, self.max_gap - track.misses, None)
+            self._add_links(graph, log_miss, {}, source)
+
+    def _detection_links(
+        self,
+        graph: _WindowGraph,
+        log_miss: FloatArray,
+        two_point: dict[tuple[int, int, int], tuple[NDArray[np.int64], FloatArray]],
+        births: dict[tuple[int, int], FilteredTrack],
+    ) -> None:
+        """The two-point links of every detection's single-point start to the detections
+        of the next ``max_gap + 1`` scans (cached across windows in ``two_point``, the
+        starts in ``births``)."""
+        start, n_scans = graph.start, len(graph.window)
+        for p, scan in enumerate(graph.window):
             for a in range(scan.size):
-                item = int(first_item[p] + a)
                 key = (start + p, a)
-                if all((key[0], a, start + q) in two_point
-                       for q in range(p + 1, min(p + 1 + self.max_gap, n_scans - 1) + 1)):
+                last = min(p + 1 + self.max_gap, n_scans - 1)
+                if all((key[0], a, start + q) in two_point for q in range(p + 1, last + 1)):
                     born = None
                 else:
                     born = births.get(key)
                     if born is None:
-                        born = births[key] = start_track(config, scan, a)
-                add_links(item, p, float(times[p]), born, p + 1, p + 1 + self.max_gap, key)
-        link_tails = np.asarray(tails_list, dtype=np.int64)
-        link_heads = np.asarray(heads_list, dtype=np.int64)
-        link_costs = np.asarray(costs_list, dtype=float)
+                        born = births[key] = start_track(self.config, scan, a)
+                item = int(graph.first_item[p] + a)
+                source = _LinkSource(
+                    item, p, float(graph.times[p]), born, p + 1, p + 1 + self.max_gap, key
+                )
+                self._add_links(graph, log_miss, two_point, source)
 
-        # Exact pruning (formulations.tracking_flow.through_costs).
+    @staticmethod
+    def _kept_subgraph(
+        graph: _WindowGraph,
+    ) -> tuple[NDArray[np.int64], NDArray[np.bool_], _Links]:
+        """Exact pruning (:func:`~mapassoc.formulations.tracking_flow.through_costs`):
+        the items kept, which items are forced (the carried tracks), and the links between
+        kept items renumbered to the kept items' order."""
+        n = graph.entry.size
+        link_tails = np.asarray(graph.link_tails, dtype=np.int64)
+        link_heads = np.asarray(graph.link_heads, dtype=np.int64)
+        link_costs = np.asarray(graph.link_costs, dtype=float)
         forced = np.zeros(n, dtype=bool)
-        forced[:C] = True
+        forced[: graph.carried] = True
         through = through_costs(
-            entry_costs=entry, observation_costs=observation, exit_costs=exits,
-            link_tails=link_tails, link_heads=link_heads, link_costs=link_costs,
+            entry_costs=graph.entry,
+            observation_costs=graph.observation,
+            exit_costs=graph.exits,
+            link_tails=link_tails,
+            link_heads=link_heads,
+            link_costs=link_costs,
         )
         keep = (through <= 0.0) | reachable_items(forced, link_tails, link_heads)
         kept = np.flatnonzero(keep)
         remap = np.full(n, -1, dtype=np.int64)
         remap[kept] = np.arange(kept.size)
-        inside_links = keep[link_tails] & keep[link_heads]
-        # Independent components (no link between them) are solved apart and their
-        # convex costs combined (formulations.tracking_flow.combine_convex_costs).
-        sub_tails = remap[link_tails[inside_links]]
-        sub_heads = remap[link_heads[inside_links]]
-        sub_costs = link_costs[inside_links]
-        # No flow has more tracks than items kept (each track holds one at least), so
-        # a huge max_tracks costs no more than that.
-        kmax = max(C, min(config.estimator.max_tracks, int(kept.size)))
-        count, label = connected_components(
-            coo_array(
-                (np.ones(sub_tails.size), (sub_tails, sub_heads)),
-                shape=(kept.size, kept.size),
-            ),
-            directed=True,
-            connection="weak",
+        inside = keep[link_tails] & keep[link_heads]
+        sub = _Links(remap[link_tails[inside]], remap[link_heads[inside]], link_costs[inside])
+        return kept, forced, sub
+
+    def _solve_component(
+        self,
+        graph: _WindowGraph,
+        kept: NDArray[np.int64],
+        forced: NDArray[np.bool_],
+        sub: _Links,
+        in_component: NDArray[np.bool_],
+        kmax: int,
+    ) -> _SolvedComponent:
+        """One independent component's flow costs for every K up to its limit: up to two
+        new tracks first, twice as many while the minimum sits at the largest K solved
+        (the cost is convex in K, so a minimum below the cap is the minimum over all K)."""
+        members = np.flatnonzero(in_component)
+        local = np.full(kept.size, -1, dtype=np.int64)
+        local[members] = np.arange(members.size)
+        mine = in_component[sub.tails]
+        items = kept[members]
+        forced_here = int(np.count_nonzero(forced[items]))
+        limit = min(int(members.size), forced_here + kmax - graph.carried)
+        cap = min(limit, forced_here + _FIRST_NEW_TRACKS)
+        program = functools.partial(
+            tracking_flow_program,
+            entry_costs=graph.entry[items],
+            observation_costs=graph.observation[items],
+            exit_costs=graph.exits[items],
+            link_tails=local[sub.tails[mine]],
+            link_heads=local[sub.heads[mine]],
+            link_costs=sub.costs[mine],
+            forced=forced[items],
         )
-        flows = []
-        per_component = []
-        for comp in range(count):
-            members = np.flatnonzero(label == comp)
-            local = np.full(kept.size, -1, dtype=np.int64)
-            local[members] = np.arange(members.size)
-            mine = label[sub_tails] == comp
-            items = kept[members]
-            forced_here = int(np.count_nonzero(forced[items]))
-            limit = min(int(members.size), forced_here + kmax - C)
-            cap = min(limit, forced_here + _FIRST_NEW_TRACKS)
-
-            program = functools.partial(
-                tracking_flow_program,
-                entry_costs=entry[items],
-                observation_costs=observation[items],
-                exit_costs=exits[items],
-                link_tails=local[sub_tails[mine]],
-                link_heads=local[sub_heads[mine]],
-                link_costs=sub_costs[mine],
-                forced=forced[items],
-            )
-
-            if self.solver_name == _SSP:
-                flow = program(max_flow=limit)
-                steps = successive_shortest_paths(flow)
-                raw_costs: list[float] = []
-                edge_flows: list[NDArray[np.int64]] = []
-            while True:
-                if self.solver_name == _SSP:
-                    # The flows of K <= cap are those of a program solved up to cap only.
-                    for cost, step_flows in itertools.islice(steps, cap + 1 - len(raw_costs)):
-                        raw_costs.append(cost)
-                        edge_flows.append(step_flows)
-                    solved = np.full(cap + 1, math.inf)
-                    solved[: len(raw_costs)] = raw_costs[: cap + 1]
-                    comp_costs = flow.track_costs(solved)
-                else:
-                    flow = program(max_flow=cap)
-                    result = self.solver.solve_flow(flow.program)
-                    comp_costs = flow.track_costs(result.costs)
-                    optimal = np.array([s is SolveStatus.OPTIMAL for s in result.statuses])
-                    comp_costs[~optimal] = math.inf
-                    edge_flows = list(result.edge_flows)
-                # Convex in K: a minimum below the cap is the minimum over every K.
-                if cap >= limit or int(np.argmin(comp_costs)) < cap:
-                    break
-                cap = min(limit, forced_here + 2 * (cap - forced_here))
-            flows.append((flow, items, edge_flows))
-            per_component.append(comp_costs)
-        if per_component:
-            costs, split = combine_convex_costs(per_component, kmax)
-        else:
-            costs, split = np.r_[0.0, np.full(kmax, math.inf)], np.zeros((kmax + 1, 0), int)
-        if not np.any(np.isfinite(costs)):
-            raise RuntimeError(
-                f"flow window at scans {start}..{end - 1}: no flow of K >= {C} tracks was found"
-            )
-        chosen = int(np.argmin(costs))
-        paths: list[_Path] = []
-        for (flow, items, edge_flows), k in zip(flows, split[chosen], strict=True):
-            for path in flow.decode_paths(edge_flows[k]):
-                ids = [int(items[i]) for i in path]
-                paths.append(
-                    _Path(
-                        carried=ids[0] if ids[0] < C else None,
-                        detections=tuple(
-                            (int(det_scan[i - C]), int(det_index[i - C])) for i in ids if i >= C
-                        ),
-                    )
-                )
-        report: _WindowReportParts = {
-            "carried_tracks": C,
-            "detections": D,
-            "items_kept": int(kept.size),
-            "components": int(count),
-            "links": int(np.count_nonzero(inside_links)),
-            "track_costs": costs,
-            "chosen_tracks": chosen,
-            "at_max_flow": chosen == kmax and kmax < kept.size,
-        }
-        return paths, report, population.after_scan[commit - 1]
+        if self.solver_name == _SSP:
+            return _shortest_paths_costs(program, items, cap, limit, forced_here)
+        while True:
+            flow = program(max_flow=cap)
+            result = self.solver.solve_flow(flow.program)
+            comp_costs = flow.track_costs(result.costs)
+            optimal = np.array([s is SolveStatus.OPTIMAL for s in result.statuses])
+            comp_costs[~optimal] = math.inf
+            if cap >= limit or int(np.argmin(comp_costs)) < cap:
+                return _SolvedComponent(flow, items, list(result.edge_flows), comp_costs)
+            cap = min(limit, forced_here + 2 * (cap - forced_here))
 
     # -- commit ----------------------------------------------------------------------
     def _commit(
