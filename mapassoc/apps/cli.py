@@ -270,9 +270,16 @@ def _cmd_bench_reprocess(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from mapassoc.apps.compare import compare, format_summary, summarize
+    from mapassoc.apps.compare import (
+        compare,
+        compare_folder,
+        format_summary,
+        summarize,
+        write_comparison,
+    )
 
-    out = Path(args.out)
+    plot = not args.no_plot
+    folder = compare_folder(args.out, overwrite=args.overwrite, plot=plot)  # before running
 
     def progress(row: dict[str, object]) -> None:
         note = "" if row["status"] == "ok" else f"  ({row['status']})"
@@ -282,29 +289,26 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
 
-    table = compare(
-        args.trackers,
-        args.scenarios,
-        list(range(args.seeds)),
-        c=args.cutoff,
-        config=args.config,
-        scans=args.scans,
-        window_length=args.window_length,
-        ospa2_window=args.ospa2_window,
-        tracker_options=_tracker_options(args.option),
-        on_row=progress,
-    )
-    summary = summarize(table)
-    out.mkdir(parents=True, exist_ok=True)
-    table.to_csv(out / "compare.csv", index=False)
-    summary.to_csv(out / "compare_summary.csv", index=False)
+    try:
+        table = compare(
+            args.trackers,
+            args.scenarios,
+            list(range(args.seeds)),
+            c=args.cutoff,
+            config=args.config,
+            scans=args.scans,
+            window_length=args.window_length,
+            ospa2_window=args.ospa2_window,
+            tracker_options=_tracker_options(args.option),
+            on_row=progress,
+        )
+        summary = summarize(table)
+        settings = {key: getattr(args, key) for key in ("trackers", "scenarios", "seeds")}
+        names = write_comparison(folder, table, summary, plot=plot, settings=settings)
+    finally:
+        folder.release()
     print(format_summary(summary))
-    written = [out / "compare.csv", out / "compare_summary.csv"]
-    if not args.no_plot:
-        from mapassoc.apps.plotting import plot_comparison
-
-        written.append(plot_comparison(out / "compare.png", summary))
-    print("wrote " + ", ".join(str(p) for p in written))
+    print("wrote " + ", ".join(str(Path(args.out) / name) for name in names))
     return 0
 
 
@@ -802,6 +806,11 @@ def _add_compare_command(sub: Subcommands) -> None:
         "file sets it (such as mht.n_scan=5 or jpda.max_events=50000); repeatable",
     )
     p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace --out when it holds a previous comparison (never any other folder)",
+    )
     p.add_argument("--no-plot", action="store_true", help="skip compare.png")
     p.set_defaults(func=_cmd_compare)
 
