@@ -71,14 +71,37 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise OutputError(str(out), "is a file, not a folder; choose another --out")
-    if out.is_dir() and any(out.iterdir()) and not args.overwrite:
-        raise OutputError(
-            str(out), "is not empty; pass --overwrite to replace its scenario files"
-        )
+    if out.is_dir() and any(out.iterdir()):
+        _check_scenario_folder(out, overwrite=args.overwrite)
     paths = write_scenario(scenario, out, data_format=args.format)
     for kind, path in paths.items():
         print(f"{kind:10s} {path}")
     return 0
+
+
+def _check_scenario_folder(out: Path, *, overwrite: bool) -> None:
+    """Raise OutputError unless ``simulate`` may write into the non-empty folder ``out``:
+    with ``--overwrite``, and only when it holds nothing but scenario files (the names
+    ``simulate`` writes), so that no file of the user's is replaced."""
+    from mapassoc.data.formats import file_name
+    from mapassoc.evaluation.simulate import SCENARIO_FILES
+
+    scenario_files = {"config.toml"} | {
+        file_name(kind, data_format)
+        for kind in SCENARIO_FILES
+        if kind != "config"
+        for data_format in format_names()
+    }
+    others = sorted(entry.name for entry in out.iterdir() if entry.name not in scenario_files)
+    if others:
+        raise OutputError(
+            str(out),
+            f"is not empty and holds files simulate does not write ({', '.join(others[:3])}"
+            f"{', ...' if len(others) > 3 else ''}); mapassoc replaces only its own outputs: "
+            "choose another --out, or empty it yourself",
+        )
+    if not overwrite:
+        raise OutputError(str(out), "is not empty; pass --overwrite to replace its scenario files")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -388,7 +411,10 @@ def _add_simulate_command(sub: Subcommands) -> None:
         help="detections, truth and origins as CSV (default) or Parquet (extra 'parquet')",
     )
     p.add_argument(
-        "--overwrite", action="store_true", help="write into a non-empty --out (replacing)"
+        "--overwrite",
+        action="store_true",
+        help="replace the scenario files of a previous simulate in --out (never a folder "
+        "holding any other file)",
     )
     p.set_defaults(func=_cmd_simulate)
 

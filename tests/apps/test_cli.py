@@ -242,3 +242,27 @@ def test_estimate_parameters_write_on_a_full_disk_leaves_no_file(
     assert list(tmp_path.iterdir()) == []
     assert main(args) == 0
     assert "[motion]" in written.read_text()
+
+
+def test_simulate_overwrite_never_replaces_a_users_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`simulate … --out d --overwrite`, d a folder of the user's with a config.toml of
+    their own beside other files: refused, every file as it was."""
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / "config.toml").write_text("# mine\n")
+    (out / "notes.txt").write_text("keep")
+    args = ["simulate", "crossing", "--out", str(out), "--scans", "5"]
+    for options in ([], ["--overwrite"]):
+        assert main([*args, *options]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and str(out) in err and "notes.txt" in err
+    assert (out / "config.toml").read_text() == "# mine\n"
+    assert sorted(p.name for p in out.iterdir()) == ["config.toml", "notes.txt"]
+    # A folder simulate wrote is replaced with --overwrite only.
+    (out / "notes.txt").unlink()
+    (out / "config.toml").unlink()
+    assert main(args) == 0
+    assert main(args) == 2 and "pass --overwrite" in capsys.readouterr().err
+    assert main([*args, "--overwrite", "--seed", "1"]) == 0
