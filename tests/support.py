@@ -9,13 +9,17 @@ pytest's default ``prepend`` import mode inserts the directory of ``tests/confte
   :func:`random_window` (used by ``estimator/`` and ``formulations/`` tests);
 * brute-force enumeration of track partitions: :func:`partitions`;
 * random packing problems and their brute-force per-k tables: :func:`random_problem`,
-  :func:`brute_force_tables` (used by ``formulations/`` and ``solvers/`` tests).
+  :func:`brute_force_tables` (used by ``formulations/`` and ``solvers/`` tests);
+* a full disk, as writes see it: :func:`file_size_limit` (used by ``apps/`` tests).
 """
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
+import resource
+import signal
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -281,3 +285,20 @@ def banded_problem(rng: np.random.Generator, H: int, D: int, band: int) -> Packi
     return PackingProblem(
         rng.normal(0.0, 3.0, size=H), indptr, indices, exactly_one, rng.random(H) < 0.9
     )
+
+
+# ------------------------------------------------------------------ a full disk
+
+
+@contextlib.contextmanager
+def file_size_limit(size: int) -> Iterator[None]:
+    """Inside the block, a write past ``size`` bytes of any file fails (``EFBIG``) after
+    writing what fits, as a write to a full disk does, whatever code makes it."""
+    previous = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (size, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+        signal.signal(signal.SIGXFSZ, previous)

@@ -16,6 +16,12 @@ manifest and status); a recording that fails is reported in its row and the batc
 on.  ``OUT/batch_summary.csv`` gets one row per recording (status, scans, windows,
 tracks, seconds, scans per second, warnings, error).
 
+``OUT`` is a :class:`~mapassoc.apps.run_folders.WorkFolder`: its ``manifest.json``
+(format ``mapassoc-batch/1``, status, version, start and end) marks it as a batch folder,
+the only kind a batch writes into when it is not empty (``--resume``, ``--overwrite``),
+besides one an older version wrote (a ``batch_summary.csv`` with this version's columns
+and no manifest); and one batch at a time writes it (``.OUT.lock`` beside it).
+
 Recordings run on a local process pool (one process per core by default) or, given a
 scheduler address, on a Dask distributed cluster (``pip install 'mapassoc[dask]'``).
 Resuming a batch resumes every recording: complete ones are skipped, interrupted ones
@@ -25,6 +31,7 @@ continue from their checkpoints.
 from __future__ import annotations
 
 import csv
+import io
 import os
 import sys
 import threading
@@ -35,12 +42,20 @@ from pathlib import Path
 from typing import Any
 
 from mapassoc.apps.progress import Progress
-from mapassoc.apps.run_folders import inside, os_reason
+from mapassoc.apps.run_folders import (
+    BATCH_FORMAT,
+    WorkFolder,
+    inside,
+    now_text,
+    os_reason,
+    write_atomically,
+)
 from mapassoc.apps.runs import RunInterrupted, RunOptions, run_files
 from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
 from mapassoc.data.formats import detection_formats
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
+from mapassoc.version import __version__
 
 __all__ = [
     "Recording",
@@ -257,43 +272,69 @@ def run_recording(
 
 
 def _write_summary(path: Path, rows: Iterable[dict[str, object]]) -> None:
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=SUMMARY_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    write_atomically(path, text.getvalue().encode("utf-8"))
+
+
+def written_by_an_older_batch(folder: Path) -> bool:
+    """Whether ``folder`` is a batch folder of a version that wrote no manifest: its
+    ``batch_summary.csv`` starts with this version's header line."""
+    header = ",".join(SUMMARY_COLUMNS)
     try:
-        with open(path, "w", encoding="utf-8", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=SUMMARY_COLUMNS, lineterminator="\n")
-            writer.writeheader()
-            writer.writerows(rows)
-    except OSError as exc:
-        raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
+        with open(folder / BATCH_SUMMARY_NAME, encoding="utf-8", newline="") as handle:
+            return handle.readline(len(header) + 2).rstrip("\r\n") == header
+    except (OSError, UnicodeDecodeError):
+        return False
 
 
-def _check_out(out: Path, options: RunOptions, recordings: Sequence[Recording]) -> None:
-    """Raise OutputError where ``out`` cannot be the batch folder.
+_AGAIN = (
+    "pass --resume to finish the batch (complete recordings are skipped) or --overwrite to "
+    "run every recording again"
+)
 
-    Besides a file or a non-empty folder without ``--resume``/``--overwrite``: a batch
-    folder that is or holds a recording's detections or configuration (``batch recs --out
-    recs``) is refused whatever the options, since each recording's run folder
+
+def _claim_out(
+    out: Path,
+    options: RunOptions,
+    recordings: Sequence[Recording],
+    manifest: dict[str, object],
+) -> WorkFolder:
+    """The batch folder, checked, locked and marked, or OutputError.
+
+    Refused: a file, a folder that is not empty and holds no batch (whatever the
+    options), a batch folder without ``--resume``/``--overwrite``, a folder another batch
+    is writing, and a batch folder that is or holds a recording's detections or
+    configuration (``batch recs --out recs``), since each recording's run folder
     ``out/NAME`` would then be the recording's own folder.
     """
+    folder = WorkFolder(out, kind=BATCH_FORMAT, adopt=written_by_an_older_batch)
     for recording in recordings:
         for source in (recording.detections, recording.config):
-            if source is not None and inside(source, out):
+            if source is not None and inside(source, folder.path):
                 raise OutputError(
                     str(out),
                     f"holds the input {source} of recording {recording.name!r}; the batch "
                     "folder must be outside the recordings: choose another --out",
                 )
-    if out.exists() and not out.is_dir():
-        raise OutputError(str(out), "is a file, not a folder; choose another --out")
-    if out.is_dir() and any(out.iterdir()) and not (options.overwrite or options.resume):
-        raise OutputError(
-            str(out),
-            "is not empty; pass --resume to finish the batch (complete recordings are "
-            "skipped) or --overwrite to run every recording again",
-        )
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(str(out), f"cannot create the folder: {os_reason(exc)}") from None
+    again = options.overwrite or options.resume
+    folder.check(again=again, hint=_AGAIN)
+    folder.claim(manifest, again=again, hint=_AGAIN)
+    return folder
+
+
+def _batch_manifest(status: str, recordings: int) -> dict[str, object]:
+    """The batch folder's ``manifest.json`` as a session starts (module docstring)."""
+    return {
+        "format": BATCH_FORMAT,
+        "status": status,
+        "mapassoc_version": __version__,
+        "recordings": recordings,
+        "started": now_text(),
+        "ended": None,
+    }
 
 
 def run_batch(
@@ -358,7 +399,38 @@ def run_batch(
             f"options.segments must be 1 in a batch (it runs recordings in parallel "
             f"instead), got {options.segments}"
         )
-    _check_out(out_path, options, recordings)
+    manifest = _batch_manifest("running", len(recordings))
+    folder = _claim_out(out_path, options, recordings, manifest)
+    try:
+        ordered, stopped = _run_all(recordings, config, out_path, options, workers, scheduler,
+                           progress, on_row)  # fmt: skip
+        statuses = {str(row["status"]) for row in ordered}
+        status = (
+            "interrupted" if stopped or statuses & {"interrupted", "pending"}
+            else "failed" if "failed" in statuses
+            else "complete"
+        )  # fmt: skip
+        folder.write_manifest({**manifest, "status": status, "ended": now_text()})
+    finally:
+        folder.release()
+    if stopped or any(row["status"] in ("interrupted", "pending") for row in ordered):
+        done = sum(1 for row in ordered if row["status"] in ("complete", "skipped"))
+        raise RunInterrupted(out_path, done, len(recordings), unit="recordings") from None
+    return ordered
+
+
+def _run_all(
+    recordings: Sequence[Recording],
+    config: Path | None,
+    out_path: Path,
+    options: RunOptions,
+    workers: int,
+    scheduler: str | None,
+    progress: bool,
+    on_row: Callable[[dict[str, object]], None] | None,
+) -> tuple[list[dict[str, object]], bool]:
+    """Every recording's row, in order, and whether a signal stopped the batch;
+    ``batch_summary.csv`` is written whatever happens."""
     rows: dict[str, dict[str, object]] = {}
     ticker = Progress(sys.stderr, label="batch", unit="recordings", enabled=progress)
 
@@ -387,10 +459,7 @@ def run_batch(
                 rows.get(r.name) or _blank_row(r, out_path, status="pending") for r in recordings
             ]
             _write_summary(out_path / BATCH_SUMMARY_NAME, ordered)
-    if stop() or any(row["status"] in ("interrupted", "pending") for row in ordered):
-        done = sum(1 for row in ordered if row["status"] in ("complete", "skipped"))
-        raise RunInterrupted(out_path, done, len(recordings), unit="recordings") from None
-    return ordered
+    return ordered, stop()
 
 
 def _on_pool(

@@ -41,7 +41,6 @@ soon as each run finishes: the whole benchmark can take minutes per prior.
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -54,6 +53,7 @@ from typing import TextIO
 import numpy as np
 
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
+from mapassoc.apps.run_folders import write_json
 from mapassoc.data.config import Config
 from mapassoc.data.settings import K_PRIORS
 from mapassoc.errors import InputError
@@ -961,9 +961,7 @@ def run_benchmark(
         gating_pairs_per_second=pairs,
     )
     if json_path is not None:
-        Path(json_path).write_text(
-            json.dumps(result.to_json(), indent=2, allow_nan=False) + "\n", encoding="utf-8"
-        )
+        write_json(Path(json_path), result.to_json())
     return result
 
 

@@ -22,7 +22,6 @@ three runs' worth of time.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from collections.abc import Sequence
@@ -33,6 +32,7 @@ from typing import TYPE_CHECKING, TextIO
 import numpy as np
 
 from mapassoc.apps.bench_defaults import DEFAULT_PARAMETER_FAMILIES
+from mapassoc.apps.run_folders import write_json
 from mapassoc.errors import InputError
 
 if TYPE_CHECKING:
@@ -165,10 +165,7 @@ def run_parameter_benchmark(
             )
     _print_summary(rows, families, say)
     if json_path is not None:
-        Path(json_path).write_text(
-            json.dumps([r.__dict__ for r in rows], indent=2, allow_nan=False) + "\n",
-            encoding="utf-8",
-        )
+        write_json(Path(json_path), [r.__dict__ for r in rows])
     return rows
 
 

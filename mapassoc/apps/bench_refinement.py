@@ -31,7 +31,6 @@ the share that follow a true target (at least half their detections that target'
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import sys
 import time
@@ -43,6 +42,7 @@ from typing import TYPE_CHECKING, TextIO
 import numpy as np
 
 from mapassoc.apps.bench_defaults import DEFAULT_REFINEMENT_FAMILIES
+from mapassoc.apps.run_folders import write_json
 from mapassoc.errors import InputError
 
 if TYPE_CHECKING:  # the estimator is imported when the benchmark runs
@@ -223,9 +223,7 @@ def run_refinement_benchmark(
     _print_summary(rows, families, say)
     _print_reliability(reliability, say)
     if json_path is not None:
-        Path(json_path).write_text(
-            json.dumps([r.__dict__ for r in rows], indent=2) + "\n", encoding="utf-8"
-        )
+        write_json(Path(json_path), [r.__dict__ for r in rows], allow_nan=True)
     return rows
 
 

@@ -71,14 +71,37 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise OutputError(str(out), "is a file, not a folder; choose another --out")
-    if out.is_dir() and any(out.iterdir()) and not args.overwrite:
-        raise OutputError(
-            str(out), "is not empty; pass --overwrite to replace its scenario files"
-        )
+    if out.is_dir() and any(out.iterdir()):
+        _check_scenario_folder(out, overwrite=args.overwrite)
     paths = write_scenario(scenario, out, data_format=args.format)
     for kind, path in paths.items():
         print(f"{kind:10s} {path}")
     return 0
+
+
+def _check_scenario_folder(out: Path, *, overwrite: bool) -> None:
+    """Raise OutputError unless ``simulate`` may write into the non-empty folder ``out``:
+    with ``--overwrite``, and only when it holds nothing but scenario files (the names
+    ``simulate`` writes), so that no file of the user's is replaced."""
+    from mapassoc.data.formats import file_name
+    from mapassoc.evaluation.simulate import SCENARIO_FILES
+
+    scenario_files = {"config.toml"} | {
+        file_name(kind, data_format)
+        for kind in SCENARIO_FILES
+        if kind != "config"
+        for data_format in format_names()
+    }
+    others = sorted(entry.name for entry in out.iterdir() if entry.name not in scenario_files)
+    if others:
+        raise OutputError(
+            str(out),
+            f"is not empty and holds files simulate does not write ({', '.join(others[:3])}"
+            f"{', ...' if len(others) > 3 else ''}); mapassoc replaces only its own outputs: "
+            "choose another --out, or empty it yourself",
+        )
+    if not overwrite:
+        raise OutputError(str(out), "is not empty; pass --overwrite to replace its scenario files")
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -270,9 +293,16 @@ def _cmd_bench_reprocess(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from mapassoc.apps.compare import compare, format_summary, summarize
+    from mapassoc.apps.compare import (
+        compare,
+        compare_folder,
+        format_summary,
+        summarize,
+        write_comparison,
+    )
 
-    out = Path(args.out)
+    plot = not args.no_plot
+    folder = compare_folder(args.out, overwrite=args.overwrite, plot=plot)  # before running
 
     def progress(row: dict[str, object]) -> None:
         note = "" if row["status"] == "ok" else f"  ({row['status']})"
@@ -282,29 +312,26 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
 
-    table = compare(
-        args.trackers,
-        args.scenarios,
-        list(range(args.seeds)),
-        c=args.cutoff,
-        config=args.config,
-        scans=args.scans,
-        window_length=args.window_length,
-        ospa2_window=args.ospa2_window,
-        tracker_options=_tracker_options(args.option),
-        on_row=progress,
-    )
-    summary = summarize(table)
-    out.mkdir(parents=True, exist_ok=True)
-    table.to_csv(out / "compare.csv", index=False)
-    summary.to_csv(out / "compare_summary.csv", index=False)
+    try:
+        table = compare(
+            args.trackers,
+            args.scenarios,
+            list(range(args.seeds)),
+            c=args.cutoff,
+            config=args.config,
+            scans=args.scans,
+            window_length=args.window_length,
+            ospa2_window=args.ospa2_window,
+            tracker_options=_tracker_options(args.option),
+            on_row=progress,
+        )
+        summary = summarize(table)
+        settings = {key: getattr(args, key) for key in ("trackers", "scenarios", "seeds")}
+        names = write_comparison(folder, table, summary, plot=plot, settings=settings)
+    finally:
+        folder.release()
     print(format_summary(summary))
-    written = [out / "compare.csv", out / "compare_summary.csv"]
-    if not args.no_plot:
-        from mapassoc.apps.plotting import plot_comparison
-
-        written.append(plot_comparison(out / "compare.png", summary))
-    print("wrote " + ", ".join(str(p) for p in written))
+    print("wrote " + ", ".join(str(Path(args.out) / name) for name in names))
     return 0
 
 
@@ -384,7 +411,10 @@ def _add_simulate_command(sub: Subcommands) -> None:
         help="detections, truth and origins as CSV (default) or Parquet (extra 'parquet')",
     )
     p.add_argument(
-        "--overwrite", action="store_true", help="write into a non-empty --out (replacing)"
+        "--overwrite",
+        action="store_true",
+        help="replace the scenario files of a previous simulate in --out (never a folder "
+        "holding any other file)",
     )
     p.set_defaults(func=_cmd_simulate)
 
@@ -802,6 +832,11 @@ def _add_compare_command(sub: Subcommands) -> None:
         "file sets it (such as mht.n_scan=5 or jpda.max_events=50000); repeatable",
     )
     p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace --out when it holds a previous comparison (never any other folder)",
+    )
     p.add_argument("--no-plot", action="store_true", help="skip compare.png")
     p.set_defaults(func=_cmd_compare)
 

@@ -6,19 +6,31 @@ scores its tracks against the truth (:func:`mapassoc.evaluation.scoring.score_tr
 GOSPA and its parts, OSPA, OSPA(2), CLEAR-MOT, and for methods that report p(K | Z) its
 Brier score and calibration).  The result is a pandas DataFrame with one row per
 (scenario, seed, tracker); :func:`summarize` averages it over seeds.  ``mapassoc compare``
-prints that summary and writes both tables as CSV and a figure.
+prints that summary and writes both tables as CSV and a figure into a compare folder
+(:func:`compare_folder`, :func:`write_comparison`): a run folder of its own kind
+(:mod:`mapassoc.apps.run_folders`, ``mapassoc-compare/1``), so it never writes into a
+folder of the user's and replaces a previous comparison only with ``--overwrite``.
 """
 
 from __future__ import annotations
 
+import importlib.util
+import os
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
+from pathlib import Path
 from typing import TypedDict
 
 import numpy as np
 import pandas as pd
 
+from mapassoc.apps.run_folders import (
+    COMPARE_FORMAT,
+    RunFolder,
+    now_text,
+    write_atomically,
+)
 from mapassoc.data.config import Config, TrackerOption
 from mapassoc.errors import InputError, MapassocError
 from mapassoc.evaluation.clear_mot import motmetrics_available
@@ -32,13 +44,26 @@ from mapassoc.evaluation.scoring import score_tracks
 from mapassoc.evaluation.simulate import Scenario
 from mapassoc.trackers.registry import DEFAULT_TRACKERS, TRACKERS, build_tracker
 from mapassoc.validation import check_positive
+from mapassoc.version import __version__
 
-__all__ = ["COMPARE_COLUMNS", "compare", "format_summary", "summarize"]
+__all__ = [
+    "COMPARE_COLUMNS",
+    "COMPARE_FILES",
+    "compare",
+    "compare_folder",
+    "format_summary",
+    "summarize",
+    "write_comparison",
+]
 
 COMPARE_COLUMNS = ("scenario", "seed", "tracker", "status", "seconds", "scans_per_second")
 """The columns of every row, before the scores (``TrackingScores.as_row()`` without its
 ``seconds``: the row's ``seconds`` is the wall time of ``tracker.track`` measured here, the
 same for every method, and ``scans_per_second`` is the number of scans over it)."""
+
+COMPARE_FILES = ("compare.csv", "compare_summary.csv", "compare.png")
+"""What a compare folder holds besides its ``manifest.json`` (the figure only when
+plotted)."""
 
 _SUMMARY_KEYS = ("scenario", "tracker")
 
@@ -305,3 +330,80 @@ def format_summary(summary: pd.DataFrame) -> str:
             line += " " + (fmt.format(float(value)) if ok else "-".rjust(width))
         lines.append(line)
     return "\n".join(lines)
+
+
+def _older_comparison(folder: Path) -> bool:
+    """Whether ``folder`` holds only what ``mapassoc compare`` wrote before it wrote a
+    manifest: some of :data:`COMPARE_FILES`, ``compare.csv`` with its columns."""
+    names = {entry.name for entry in folder.iterdir()}
+    if not names <= set(COMPARE_FILES) or "compare.csv" not in names:
+        return False
+    try:
+        with open(folder / "compare.csv", encoding="utf-8") as handle:
+            header = handle.readline(4096)
+    except (OSError, UnicodeDecodeError):
+        return False
+    return header.startswith(",".join(COMPARE_COLUMNS))
+
+
+def compare_folder(
+    out: str | os.PathLike[str], *, overwrite: bool = False, plot: bool = True
+) -> RunFolder:
+    """The folder ``mapassoc compare`` writes, checked and locked before anything runs.
+
+    Raises
+    ------
+    OutputError
+        ``out`` is not empty and holds no comparison (whatever ``overwrite``), holds one
+        and ``overwrite`` is False, or another comparison is writing it.
+    InputError
+        ``plot`` without matplotlib installed.
+    """
+    if plot and importlib.util.find_spec("matplotlib") is None:
+        raise InputError(
+            "the comparison's figure needs matplotlib: pip install 'mapassoc[plot]', or "
+            "pass --no-plot"
+        )
+    folder = RunFolder(out, kind=COMPARE_FORMAT, adopt=_older_comparison)
+    folder.check_writable_place()
+    if overwrite:
+        folder.check_replaceable()
+    else:
+        folder.refuse_existing()
+    folder.lock()
+    return folder
+
+
+def write_comparison(
+    folder: RunFolder,
+    table: pd.DataFrame,
+    summary: pd.DataFrame,
+    *,
+    plot: bool = True,
+    settings: Mapping[str, object] | None = None,
+) -> list[str]:
+    """Write the tables (and the figure) into ``folder``; the names of the files written.
+
+    They go to ``OUT.partial`` first, which replaces ``OUT`` once all are written, so
+    ``OUT`` holds one whole comparison (the previous one until then).
+    """
+    folder.begin(fresh=True)
+    manifest: dict[str, object] = {
+        "format": COMPARE_FORMAT,
+        "status": "running",
+        "mapassoc_version": __version__,
+        "settings": dict(settings or {}),
+        "started": now_text(),
+        "ended": None,
+    }
+    folder.write_manifest(manifest)
+    names = list(COMPARE_FILES if plot else COMPARE_FILES[:2])
+    for name, frame in zip(names, (table, summary), strict=False):
+        write_atomically(folder.partial / name, frame.to_csv(index=False).encode("utf-8"))
+    if plot:
+        from mapassoc.apps.plotting import plot_comparison
+
+        plot_comparison(folder.partial / COMPARE_FILES[2], summary)
+    folder.write_manifest({**manifest, "status": "complete", "ended": now_text()})
+    folder.complete()
+    return names

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from mapassoc.errors import InputError
@@ -116,7 +117,8 @@ def estimate_file_parameters(
         The TOML configuration ("auto" or numbers) and the detections file.
     write : path, optional
         Write the configuration with the estimates filled in (numbers) to this file;
-        it must not exist yet.
+        it must not exist yet.  Written atomically: a failure (a full disk) leaves no
+        file behind.
     stop : callable, optional
         Polled between windows (SIGINT, SIGTERM).
     progress : bool
@@ -126,9 +128,12 @@ def estimate_file_parameters(
     ------
     InputError, ConfigError, DataFileError
         Bad inputs, or ``write`` names an existing file (nothing is overwritten).
+    OutputError
+        ``write`` cannot be written (its folder is missing, the disk is full, ...).
     """
+    from mapassoc.apps.run_folders import write_atomically
     from mapassoc.apps.runs import estimate_with_progress, read_input
-    from mapassoc.data.config import load_config, write_config
+    from mapassoc.data.config import config_to_toml, load_config
     from mapassoc.data.formats import read_detections_file
 
     if write is not None and os.path.lexists(write):
@@ -150,6 +155,7 @@ def estimate_file_parameters(
         config, scans, stop=stop, progress=progress, every_sensor=True
     )
     warnings = (*disagreements(configured, estimate), *estimate.warnings)
-    if write is not None:
-        write_config(write, estimate.config)
+    if write is not None:  # whole or not at all: a failure leaves no file (write_atomically)
+        text = config_to_toml(estimate.config)
+        write_atomically(Path(write), text.encode("utf-8"), new=True)
     return ParameterReport(estimate=estimate, configured=configured, warnings=warnings)

@@ -45,11 +45,20 @@ def _figure(*, figsize: tuple[float, float], dpi: int) -> Figure:
 
 
 def _save(fig: Figure, path: str | Path) -> Path:
+    """Save ``fig`` to ``path`` in the format of its suffix (PNG without one), atomically:
+    a failure leaves the previous file whole, or none."""
+    import io
+
+    from mapassoc.apps.run_folders import write_atomically
+
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
+    image = io.BytesIO()
     # ``tight`` keeps a legend drawn outside the axes inside the image.
-    fig.savefig(out, bbox_inches="tight", pad_inches=0.15)
+    fig.savefig(image, format=out.suffix[1:].lower() or "png", bbox_inches="tight",
+                pad_inches=0.15)  # fmt: skip
+    write_atomically(out, image.getvalue())
     return out
 
 

@@ -25,7 +25,14 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from mapassoc.apps.progress import Progress
-from mapassoc.apps.run_folders import RunFolder, file_identity, new_manifest, now_text, os_reason
+from mapassoc.apps.run_folders import (
+    RunFolder,
+    file_identity,
+    new_manifest,
+    now_text,
+    os_reason,
+    write_json,
+)
 from mapassoc.data.formats import file_name, format_names
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
 from mapassoc.trackers.registry import tracker_names
@@ -314,11 +321,9 @@ def _ignore_resource_warnings() -> None:
 
 
 def json_dump(data: object, path: Path) -> None:
-    """Write ``data`` as indented JSON; an OSError becomes an OutputError naming ``path``."""
-    try:
-        path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-    except OSError as exc:
-        raise OutputError(str(path), f"cannot write: {os_reason(exc)}") from None
+    """Write ``data`` as indented JSON, atomically; an OSError becomes an OutputError
+    naming ``path``."""
+    write_json(path, data)
 
 
 def _settings_record(

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import csv
+import json
+import os
 import shutil
 import signal
 import subprocess
@@ -256,3 +258,88 @@ def test_a_batch_takes_run_options_but_not_segments(tmp_path: Path) -> None:
             [recording], tmp_path / "out", options={"timings": False}, progress=False  # type: ignore[arg-type]
         )
     assert not (tmp_path / "out").exists()  # refused before anything was written
+
+
+# ------------------------------------------------------------ the batch folder's rule
+
+
+def _one_recording(recordings: Path, tmp_path: Path) -> Path:
+    source = tmp_path / "recs"
+    shutil.copytree(recordings / "alpha", source / "alpha")
+    return source
+
+
+def _files(folder: Path) -> dict[Path, bytes]:
+    return {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+@pytest.mark.parametrize("options", [["--overwrite"], ["--resume"], []])
+def test_a_users_folder_with_a_batch_summary_is_never_written(
+    recordings: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], options: list[str]
+) -> None:
+    """`batch recs --out b --overwrite`, b a folder of the user's holding a
+    batch_summary.csv of their own: refused in one line before anything runs."""
+    source = _one_recording(recordings, tmp_path)
+    out = tmp_path / "b"
+    out.mkdir()
+    (out / BATCH_SUMMARY_NAME).write_text("name,score\nmine,1\n")
+    (out / "notes.txt").write_text("keep")
+    before = _files(out)
+    code = main(["batch", str(source), "--out", str(out), "--jobs", "1", "--no-progress",
+                 *options])  # fmt: skip
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(out) in err
+    assert "not a mapassoc batch folder" in err
+    assert _files(out) == before and sorted(p.name for p in out.iterdir()) == [
+        BATCH_SUMMARY_NAME, "notes.txt"]  # fmt: skip
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b", "recs"]
+
+
+def test_a_batch_folder_is_marked_and_an_unmarked_one_of_before_still_resumes(
+    recordings: Path, tmp_path: Path
+) -> None:
+    source = _one_recording(recordings, tmp_path)
+    out = tmp_path / "b"
+    options = RunOptions(timings=False, progress=False)
+    run_batch(find_recordings(source), out, options=options, jobs=1, progress=False)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["format"] == "mapassoc-batch/1" and manifest["status"] == "complete"
+    assert manifest["ended"] >= manifest["started"]
+    # A batch folder of the version before, which wrote no manifest: resumed as before.
+    (out / "manifest.json").unlink()
+    again = RunOptions(timings=False, progress=False, resume=True)
+    rows = run_batch(find_recordings(source), out, options=again, jobs=1, progress=False)
+    assert [row["status"] for row in rows] == ["skipped"]
+    assert json.loads((out / "manifest.json").read_text())["format"] == "mapassoc-batch/1"
+    # --overwrite runs it again, into the same folder.
+    again = RunOptions(timings=False, progress=False, overwrite=True)
+    rows = run_batch(find_recordings(source), out, options=again, jobs=1, progress=False)
+    assert [row["status"] for row in rows] == ["complete"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b", "recs"]  # no lock left
+
+
+def test_a_second_batch_into_the_same_folder_is_refused_at_once(
+    recordings: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two batches into one folder used to fail each other's recordings; the second is
+    now refused before it runs anything, naming the first one's pid."""
+    from mapassoc.apps.run_folders import take_lock
+
+    source = _one_recording(recordings, tmp_path)
+    out = tmp_path / "b"
+    args = ["batch", str(source), "--out", str(out), "--jobs", "1", "--no-progress"]
+    held = take_lock(out, out, noun="batch")  # what a batch in another process holds
+    try:
+        for options in ([], ["--resume"], ["--overwrite"]):
+            assert main([*args, *options]) == 2
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and str(out) in err
+            assert f"another mapassoc batch (pid {os.getpid()}) is writing it" in err
+        assert not out.exists()
+    finally:
+        held[1].close()  # the holder dies: its lock file stays, its flock goes
+    assert (tmp_path / ".b.lock").exists()
+    assert main(args) == 0
+    assert [row["status"] for row in _summary(out)] == ["complete"]
+    assert not (tmp_path / ".b.lock").exists()

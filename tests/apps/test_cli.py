@@ -186,3 +186,83 @@ def test_scenarios_lists_the_default(capsys: pytest.CaptureFixture[str]) -> None
     assert main(["scenarios"]) == 0
     out = capsys.readouterr().out
     assert "crossing" in out and "(default)" in out
+
+
+# ------------------------------------------------------------ single files on a full disk
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 10-scan scenario (``scenario/``) and its run (``run/``)."""
+    root = tmp_path_factory.mktemp("tiny")
+    assert main(["simulate", "crossing", "--out", str(root / "scenario"), "--scans", "10"]) == 0
+    assert main(["run", str(root / "scenario" / "config.toml"),
+                 str(root / "scenario" / "detections.csv"), "--out", str(root / "run"),
+                 "--no-progress"]) == 0  # fmt: skip
+    return root
+
+
+def test_evaluate_json_on_a_full_disk_keeps_the_old_file_or_none(
+    tiny_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A disk that fills while `evaluate --json` writes used to leave a cut file (or an
+    empty one) in place of the previous one."""
+    from support import file_size_limit
+
+    args = ["evaluate", str(tiny_run / "run" / "tracks.csv"),
+            str(tiny_run / "scenario" / "truth.csv")]  # fmt: skip
+    old = tmp_path / "old.json"
+    old.write_text('{"previous": true}\n')
+    for path in (old, tmp_path / "new.json"):
+        with file_size_limit(64):
+            code = main([*args, "--json", str(path)])
+        assert code == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{path}: cannot write: File too large" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.json"]
+    assert old.read_text() == '{"previous": true}\n'
+    assert main([*args, "--json", str(old)]) == 0
+    assert "gospa" in json.loads(old.read_text())
+
+
+def test_estimate_parameters_write_on_a_full_disk_leaves_no_file(
+    tiny_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from support import file_size_limit
+
+    written = tmp_path / "estimated.toml"
+    args = ["estimate-parameters", str(tiny_run / "scenario" / "config.toml"),
+            str(tiny_run / "scenario" / "detections.csv"), "--write", str(written),
+            "--no-progress"]  # fmt: skip
+    with file_size_limit(64):
+        code = main(args)
+    assert code == 2
+    err = capsys.readouterr().err
+    assert f"{written}: cannot write: File too large" in err
+    assert list(tmp_path.iterdir()) == []
+    assert main(args) == 0
+    assert "[motion]" in written.read_text()
+
+
+def test_simulate_overwrite_never_replaces_a_users_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`simulate … --out d --overwrite`, d a folder of the user's with a config.toml of
+    their own beside other files: refused, every file as it was."""
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / "config.toml").write_text("# mine\n")
+    (out / "notes.txt").write_text("keep")
+    args = ["simulate", "crossing", "--out", str(out), "--scans", "5"]
+    for options in ([], ["--overwrite"]):
+        assert main([*args, *options]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and str(out) in err and "notes.txt" in err
+    assert (out / "config.toml").read_text() == "# mine\n"
+    assert sorted(p.name for p in out.iterdir()) == ["config.toml", "notes.txt"]
+    # A folder simulate wrote is replaced with --overwrite only.
+    (out / "notes.txt").unlink()
+    (out / "config.toml").unlink()
+    assert main(args) == 0
+    assert main(args) == 2 and "pass --overwrite" in capsys.readouterr().err
+    assert main([*args, "--overwrite", "--seed", "1"]) == 0

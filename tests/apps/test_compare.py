@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from pathlib import Path
 
@@ -237,3 +238,67 @@ def test_cli_reports_unknown_names(tmp_path: Path, capsys: pytest.CaptureFixture
     assert status == 2
     assert "nosuch" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+# ------------------------------------------------------------ the compare folder's rule
+
+QUICK = ["compare", "--trackers", "oracle", "--scenarios", "crossing", "--scans", "5",
+         "--no-plot"]  # fmt: skip
+
+
+@pytest.mark.parametrize("options", [[], ["--overwrite"]])
+def test_cli_never_writes_into_a_users_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], options: list[str]
+) -> None:
+    """`compare --out c`, c holding a compare.csv of the user's: refused, with or without
+    --overwrite, before anything runs; the folder stays byte for byte."""
+    out = tmp_path / "c"
+    out.mkdir()
+    (out / "compare.csv").write_text("my,own\n1,2\n")
+    (out / "notes.txt").write_text("keep")
+    assert main([*QUICK, "--out", str(out), *options]) == 2
+    captured = capsys.readouterr()
+    assert captured.err.count("\n") == 1 and str(out) in captured.err
+    assert "crossing seed 0" not in captured.err  # nothing ran
+    assert (out / "compare.csv").read_text() == "my,own\n1,2\n"
+    assert sorted(p.name for p in out.iterdir()) == ["compare.csv", "notes.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c"]
+
+
+def test_cli_replaces_its_own_comparison_only_with_overwrite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "c"
+    assert main([*QUICK, "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "compare.csv", "compare_summary.csv", "manifest.json"]  # fmt: skip
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["format"] == "mapassoc-compare/1" and manifest["status"] == "complete"
+    header = (out / "compare.csv").read_text().splitlines()[0]
+    capsys.readouterr()
+    assert main([*QUICK, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds a complete comparison" in err
+    assert "--overwrite" in err and "--resume" not in err
+    (out / "compare.csv").write_bytes(b"changed by hand")
+    assert main([*QUICK, "--out", str(out), "--overwrite"]) == 0
+    assert (out / "compare.csv").read_text().splitlines()[0] == header
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c"]  # no .partial, no lock
+
+
+def test_cli_overwrites_a_comparison_written_before_folders_had_a_manifest(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "c"
+    assert main([*QUICK, "--out", str(out)]) == 0
+    (out / "manifest.json").unlink()  # what the version before wrote
+    assert main([*QUICK, "--out", str(out)]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert main([*QUICK, "--out", str(out), "--overwrite"]) == 0
+    assert (out / "manifest.json").exists()
+
+
+def test_cli_documents_overwrite(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["compare", "--help"])
+    assert "--overwrite" in capsys.readouterr().out

@@ -448,3 +448,104 @@ def test_an_abort_mid_run_keeps_the_last_checkpoint(
     assert manifest["scans_committed"] == 20  # the checkpoint after window 19
     _run(scenario, out, resume=True)
     _same_results(out, reference)
+
+
+# ------------------------------------------------------------ one rule for every output
+
+
+def test_write_atomically_keeps_the_old_file_or_none_on_a_full_disk(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A write that fails (the disk fills up at the flush) leaves the previous file whole,
+    or no file, and no temporary file; a user's ``NAME.tmp`` is never touched."""
+    from mapassoc.apps.run_folders import write_atomically
+
+    old = tmp_path / "old.json"
+    old.write_bytes(b"previous\n")
+    (tmp_path / "old.json.tmp").write_bytes(b"the user's own")
+
+    def full(descriptor: int) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr("os.fsync", full)
+    for path in (old, tmp_path / "new.json"):
+        with pytest.raises(OutputError, match=f"{path.name}: cannot write: No space left"):
+            write_atomically(path, b"x" * 100)
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.json", "old.json.tmp"]
+    assert old.read_bytes() == b"previous\n"
+    assert (tmp_path / "old.json.tmp").read_bytes() == b"the user's own"
+    write_atomically(old, b"new\n")
+    assert old.read_bytes() == b"new\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.json", "old.json.tmp"]
+
+
+def test_write_atomically_removes_its_temporary_on_a_signal(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from mapassoc.apps.run_folders import write_atomically
+
+    def interrupted(source: object, target: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("os.replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_atomically(tmp_path / "a.json", b"{}\n")
+    monkeypatch.undo()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_write_atomically_refuses_an_existing_file_when_new(tmp_path: Path) -> None:
+    from mapassoc.apps.run_folders import write_atomically
+
+    (tmp_path / "a.toml").write_text("mine")
+    with pytest.raises(OutputError, match="exists already"):
+        write_atomically(tmp_path / "a.toml", b"theirs", new=True)
+    assert [p.name for p in tmp_path.iterdir()] == ["a.toml"]
+    assert (tmp_path / "a.toml").read_text() == "mine"
+
+
+def test_an_out_that_is_a_link_is_followed_and_kept(
+    scenario: Path, reference: Path, tmp_path: Path
+) -> None:
+    """`run --out lnk --overwrite`, lnk a link to a complete run folder: the folder it
+    points to is replaced, the link stays a link to it, and nothing else appears."""
+    target = tmp_path / "disk" / "run"
+    _run(scenario, target)
+    (target / "note.txt").write_text("goes with the replaced run")
+    link = tmp_path / "lnk"
+    link.symlink_to(target, target_is_directory=True)
+    outcome = _run(scenario, link, overwrite=True)
+    assert outcome.status == "complete"
+    assert link.is_symlink() and link.resolve() == target.resolve()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["disk", "lnk"]
+    assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["run"]
+    assert not (target / "note.txt").exists()
+    _same_results(link, reference)
+    # Without --overwrite the link's folder is refused like the folder itself.
+    with pytest.raises(OutputError, match="holds a complete run"):
+        _run(scenario, link)
+    # And --resume through the link finds the target's run complete.
+    assert _run(scenario, link, resume=True).status == "skipped"
+
+
+def test_a_partial_sibling_that_is_a_link_is_refused(scenario: Path, tmp_path: Path) -> None:
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "keep.txt").write_text("mine")
+    (tmp_path / "out.partial").symlink_to(elsewhere, target_is_directory=True)
+    for options in ({}, {"overwrite": True}, {"resume": True}):
+        with pytest.raises(OutputError, match="out.partial: is a symbolic link"):
+            _run(scenario, tmp_path / "out", **options)
+    assert [p.name for p in elsewhere.iterdir()] == ["keep.txt"]
+
+
+def test_a_lock_left_by_a_dead_process_blocks_nothing(
+    scenario: Path, reference: Path, tmp_path: Path
+) -> None:
+    """The lock is an flock: a lock file whose process died (kill -9) is no lock."""
+    out = tmp_path / "out"
+    (tmp_path / ".out.lock").write_text("999999999\n")
+    assert _run(scenario, out).status == "complete"
+    _same_results(out, reference)
+    assert not (tmp_path / ".out.lock").exists()
