@@ -49,7 +49,7 @@ from collections import Counter
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
@@ -57,7 +57,7 @@ from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
 from mapassoc.data.config import Config
 from mapassoc.data.settings import K_PRIORS
 from mapassoc.errors import InputError
-from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.estimator.pipeline import EstimateResult, WindowEstimator, WindowReport
 from mapassoc.evaluation.calibration import count_scores, window_target_counts
 from mapassoc.evaluation.metrics import GospaSeries
 from mapassoc.evaluation.oracle import oracle_tracks
@@ -70,6 +70,10 @@ from mapassoc.evaluation.scenarios import (
 from mapassoc.evaluation.tables import evaluate_tables
 from mapassoc.filtering.kalman import pairwise_gate_and_loglik
 from mapassoc.validation import check_integer
+
+if TYPE_CHECKING:
+    from mapassoc.data.io import TrackTable
+    from mapassoc.evaluation.simulate import Scenario
 
 __all__ = [
     "DEFAULT_FAMILIES",
@@ -545,6 +549,43 @@ def bench_scenario(
     InputError
         An unknown scenario or a bad argument (checked before anything runs).
     """
+    setup = _bench_setup(name, seed, window_length, time_limit, config, scans, k_prior)
+    timed = _timed_run(setup)
+    return _run_result(name, seed, setup, timed)
+
+
+@dataclass(frozen=True)
+class _BenchSetup:
+    """One benchmark run, checked and ready: the (truncated) scenario and its configuration.
+
+    Attributes
+    ----------
+    scenario : Scenario
+    config : Config
+        With the run's window length, time limit and prior on K.
+    choice : {"generic", "scenario"}
+    prior : str
+    limit : float
+        The time limit in seconds.
+    """
+
+    scenario: Scenario
+    config: Config
+    choice: str
+    prior: str
+    limit: float
+
+
+def _bench_setup(
+    name: str,
+    seed: int,
+    window_length: int | None,
+    time_limit: float,
+    config: str,
+    scans: int | None,
+    k_prior: str,
+) -> _BenchSetup:
+    """Check the arguments of :func:`bench_scenario`, build the scenario and its config."""
     prior = _check_k_prior("k_prior", k_prior)
     choice = _check_config_choice(config)
     limit = _check_time_limit(time_limit)
@@ -558,75 +599,145 @@ def bench_scenario(
     else:
         run_config = _bench_config(scenario.config, window_length, limit)
     run_config = replace(run_config, estimator=replace(run_config.estimator, k_prior=prior))
+    return _BenchSetup(scenario, run_config, choice, prior, limit)
 
-    estimator = WindowEstimator(config=run_config)
+
+@dataclass(frozen=True)
+class _TimedRun:
+    """The estimator's result with its wall time, whole and up to the last window's commit."""
+
+    result: EstimateResult
+    seconds: float
+    forward_seconds: float
+
+
+def _timed_run(setup: _BenchSetup) -> _TimedRun:
+    """Run the window estimator on the scenario, timing the run and its forward pass."""
+    estimator = WindowEstimator(config=setup.config)
     committed = [0.0]  # when the last window was committed: the forward pass's end
 
     def on_window(report: object) -> None:
         committed[0] = time.perf_counter()
 
     start = time.perf_counter()
-    result = estimator.run(scenario.scans, on_window=on_window)
+    result = estimator.run(setup.scenario.scans, on_window=on_window)
     seconds = time.perf_counter() - start
-    forward_seconds = committed[0] - start
+    return _TimedRun(result, seconds, committed[0] - start)
 
-    windows = result.windows
+
+@dataclass(frozen=True)
+class _WindowStats:
+    """What a run's window reports add up to (see :class:`RunResult`)."""
+
+    p50_ms: float
+    p95_ms: float
+    max_ms: float
+    windows: int
+    over_limit: int
+    hypotheses_mean: float
+    hypotheses_max: int
+    largest_cluster: int
+    status_counts: tuple[tuple[str, int], ...]
+    min_captured_mass: float
+
+
+def _window_stats(windows: Sequence[WindowReport], limit: float) -> _WindowStats:
+    """Window time percentiles, windows over ``limit``, hypotheses, clusters and statuses."""
     window_seconds = np.array([w.generate_seconds + w.solve_seconds for w in windows])
     statuses = Counter(str(w.status) for w in windows)
-    estimate_evaluation = evaluate_tables(
-        scenario.truth, result.tracks, c=GOSPA_CUTOFF, switch_cost=GOSPA_CUTOFF
+    return _WindowStats(
+        p50_ms=float(np.percentile(window_seconds, 50) * 1e3),
+        p95_ms=float(np.percentile(window_seconds, 95) * 1e3),
+        max_ms=float(window_seconds.max() * 1e3),
+        windows=len(windows),
+        over_limit=int(np.sum(window_seconds > limit)),
+        hypotheses_mean=float(np.mean([w.hypotheses_kept for w in windows])),
+        hypotheses_max=int(max(w.hypotheses_kept for w in windows)),
+        largest_cluster=int(max(w.largest_cluster for w in windows)),
+        status_counts=_ordered(statuses),
+        min_captured_mass=float(min(w.captured_mass for w in windows)),
     )
-    oracle_evaluation = evaluate_tables(
+
+
+@dataclass(frozen=True)
+class _Accuracy:
+    """GOSPA and T-GOSPA of the estimate and of the oracle, and the estimate's fragments."""
+
+    gospa: GospaParts
+    oracle_gospa: GospaParts
+    tgospa: float | None
+    oracle_tgospa: float | None
+    fragments_per_target: float | None
+    id_switches: int | None
+
+
+def _accuracy(scenario: Scenario, tracks: TrackTable) -> _Accuracy:
+    """The estimate's ``tracks`` and the oracle's scored against the scenario's truth."""
+    estimate = evaluate_tables(scenario.truth, tracks, c=GOSPA_CUTOFF, switch_cost=GOSPA_CUTOFF)
+    oracle = evaluate_tables(
         scenario.truth,
         oracle_tracks(scenario.scans, scenario.origins, scenario.config),
         c=GOSPA_CUTOFF,
         switch_cost=GOSPA_CUTOFF,
     )
-    estimate = GospaParts.from_series(estimate_evaluation.gospa)
-    oracle = GospaParts.from_series(oracle_evaluation.gospa)
-    trajectory = estimate_evaluation.tgospa
-    oracle_trajectory = oracle_evaluation.tgospa
-    fragmentation = estimate_evaluation.fragmentation
+    trajectory, oracle_trajectory = estimate.tgospa, oracle.tgospa
+    fragmentation = estimate.fragmentation
+    return _Accuracy(
+        gospa=GospaParts.from_series(estimate.gospa),
+        oracle_gospa=GospaParts.from_series(oracle.gospa),
+        tgospa=None if trajectory is None else trajectory.total,
+        oracle_tgospa=None if oracle_trajectory is None else oracle_trajectory.total,
+        fragments_per_target=None if fragmentation is None else fragmentation.fragments_per_target,
+        id_switches=None if fragmentation is None else fragmentation.num_id_switches,
+    )
+
+
+def _run_result(name: str, seed: int, setup: _BenchSetup, timed: _TimedRun) -> RunResult:
+    """The :class:`RunResult` of one timed run: speed, windows, accuracy and p(K | Z)."""
+    scenario, windows = setup.scenario, timed.result.windows
+    seconds, forward = timed.seconds, timed.forward_seconds
+    stats = _window_stats(windows, setup.limit)
+    accuracy = _accuracy(scenario, timed.result.tracks)
     counts = count_scores(windows, window_target_counts(scenario.truth, windows))
     sizes = [scan.size for scan in scenario.scans]
     n_scans = len(scenario.scans)
     return RunResult(
         family=name,
         seed=int(seed),
-        config=choice,
-        k_prior=prior,
+        config=setup.choice,
+        k_prior=setup.prior,
         targets=len(np.unique(scenario.truth.target_ids)),
         scans=n_scans,
         detections_per_scan=float(np.mean(sizes)),
         max_detections=int(max(sizes)),
-        window_length=run_config.estimator.window_length,
-        time_limit=limit,
-        max_tracks=run_config.estimator.max_tracks,
+        window_length=setup.config.estimator.window_length,
+        time_limit=setup.limit,
+        max_tracks=setup.config.estimator.max_tracks,
         seconds=seconds,
         scans_per_second=n_scans / seconds if seconds > 0 else math.inf,
         seconds_per_scan=seconds / n_scans,
-        window_p50_ms=float(np.percentile(window_seconds, 50) * 1e3),
-        window_p95_ms=float(np.percentile(window_seconds, 95) * 1e3),
-        window_max_ms=float(window_seconds.max() * 1e3),
-        windows=len(windows),
-        windows_over_limit=int(np.sum(window_seconds > limit)),
-        hypotheses_mean=float(np.mean([w.hypotheses_kept for w in windows])),
-        hypotheses_max=int(max(w.hypotheses_kept for w in windows)),
-        largest_cluster=int(max(w.largest_cluster for w in windows)),
-        status_counts=_ordered(statuses),
-        min_captured_mass=float(min(w.captured_mass for w in windows)),
-        tracks=len(result.track_rows),
-        gospa=estimate,
-        oracle_gospa=oracle,
-        gospa_ratio=_ratio(estimate.total, oracle.total),
+        window_p50_ms=stats.p50_ms,
+        window_p95_ms=stats.p95_ms,
+        window_max_ms=stats.max_ms,
+        windows=stats.windows,
+        windows_over_limit=stats.over_limit,
+        hypotheses_mean=stats.hypotheses_mean,
+        hypotheses_max=stats.hypotheses_max,
+        largest_cluster=stats.largest_cluster,
+        status_counts=stats.status_counts,
+        min_captured_mass=stats.min_captured_mass,
+        tracks=len(timed.result.track_rows),
+        gospa=accuracy.gospa,
+        oracle_gospa=accuracy.oracle_gospa,
+        gospa_ratio=_ratio(accuracy.gospa.total, accuracy.oracle_gospa.total),
         k_brier=counts.brier,
         k_hit_rate=counts.hit_rate,
         k_mean_p_true=counts.mean_p_true,
-        tgospa=None if trajectory is None else trajectory.total,
-        oracle_tgospa=None if oracle_trajectory is None else oracle_trajectory.total,
-        fragments_per_target=None if fragmentation is None else fragmentation.fragments_per_target,
-        tgospa_id_switches=None if fragmentation is None else fragmentation.num_id_switches,
-        forward_scans_per_second=n_scans / forward_seconds if forward_seconds > 0 else math.inf,
+        tgospa=accuracy.tgospa,
+        oracle_tgospa=accuracy.oracle_tgospa,
+        fragments_per_target=accuracy.fragments_per_target,
+        tgospa_id_switches=accuracy.id_switches,
+        forward_scans_per_second=n_scans / forward if forward > 0 else math.inf,
     )
 
 
