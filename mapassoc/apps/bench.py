@@ -46,7 +46,7 @@ import math
 import sys
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
@@ -1000,72 +1000,20 @@ def run_benchmark(
     InputError
         An unknown family or a bad argument (checked before anything runs).
     """
-    names = _check_families(families)
-    priors = _check_k_priors(k_priors)
-    n_seeds = check_integer("seeds", seeds, minimum=1)
-    if window_length is not None:
-        check_integer("window_length", window_length, minimum=1)
-    limit = _check_time_limit(time_limit)
-    choice = _check_config_choice(config)
-    if scans is not None:
-        check_integer("scans", scans, minimum=1)
+    settings = _check_benchmark_arguments(
+        families, k_priors, seeds, window_length, time_limit, config, scans
+    )
     stream = sys.stdout if out is None else out
 
     def say(text: str) -> None:
         print(text, file=stream, flush=True)
 
-    settings: dict[str, object] = {
-        "families": names,
-        "seeds": list(range(n_seeds)),
-        "window_length": window_length,
-        "time_limit": limit,
-        "config": choice,
-        "k_priors": priors,
-        "scans": scans,
-        "gospa_cutoff": GOSPA_CUTOFF,
-    }
-    say(
-        f"window length {window_length if window_length is not None else 'of the config'}, "
-        f"time limit {limit:g} s, {choice} configuration, k_priors {','.join(priors)}, "
-        f"seeds 0..{n_seeds - 1}"
-        + (f", first {scans} scans" if scans is not None else "")
-        + f", GOSPA cut-off {GOSPA_CUTOFF:g}"
-    )
+    say(settings.heading())
     say(_HEADER)
-    runs: list[RunResult] = []
-    summaries: list[FamilySummary] = []
-    for name in names:
-        for prior in priors:
-            family_runs = []
-            for seed in range(n_seeds):
-                run = bench_scenario(
-                    name,
-                    seed,
-                    window_length,
-                    time_limit=limit,
-                    config=choice,
-                    scans=scans,
-                    k_prior=prior,
-                )
-                family_runs.append(run)
-                say(_run_line(run))
-            summary = summarize_family(family_runs)
-            summaries.append(summary)
-            runs.extend(family_runs)
-            say(_family_line(summary, limit))
-
-    first = [summary for summary in summaries if summary.k_prior == priors[0]]
-    growth = scale_growth(first)
-    if growth is not None:
-        say(_growth_line(growth))
-    pairs = bench_gating() if gating else math.nan
-    if gating:
-        say(f"batched gating + likelihood: {pairs / 1e6:.1f} million (track, detection) pairs/s")
-    say(_goals_text(first, growth))
-    say(_comparison_text(summaries, priors))
-
+    runs, summaries = _run_families(settings, say)
+    growth, pairs = _print_totals(summaries, settings.priors, gating, say)
     result = BenchmarkResult(
-        settings=settings,
+        settings=settings.as_dict(),
         runs=tuple(runs),
         families=tuple(summaries),
         growth=growth,
@@ -1076,6 +1024,127 @@ def run_benchmark(
             json.dumps(result.to_json(), indent=2, allow_nan=False) + "\n", encoding="utf-8"
         )
     return result
+
+
+@dataclass(frozen=True)
+class _BenchSettings:
+    """The checked arguments of :func:`run_benchmark`.
+
+    Attributes
+    ----------
+    families, priors : list of str
+        Scenario names and priors on K, distinct.
+    seeds : int
+        Seeds ``0..seeds-1``.
+    window_length : int or None
+    limit : float
+        The time limit in seconds.
+    choice : {"generic", "scenario"}
+    scans : int or None
+    """
+
+    families: list[str]
+    priors: list[str]
+    seeds: int
+    window_length: int | None
+    limit: float
+    choice: str
+    scans: int | None
+
+    def as_dict(self) -> dict[str, object]:
+        """The settings as :attr:`BenchmarkResult.settings` holds them."""
+        return {
+            "families": self.families,
+            "seeds": list(range(self.seeds)),
+            "window_length": self.window_length,
+            "time_limit": self.limit,
+            "config": self.choice,
+            "k_priors": self.priors,
+            "scans": self.scans,
+            "gospa_cutoff": GOSPA_CUTOFF,
+        }
+
+    def heading(self) -> str:
+        """The benchmark's first printed line: what every run uses."""
+        window = self.window_length if self.window_length is not None else "of the config"
+        return (
+            f"window length {window}, "
+            f"time limit {self.limit:g} s, {self.choice} configuration, "
+            f"k_priors {','.join(self.priors)}, seeds 0..{self.seeds - 1}"
+            + (f", first {self.scans} scans" if self.scans is not None else "")
+            + f", GOSPA cut-off {GOSPA_CUTOFF:g}"
+        )
+
+
+def _check_benchmark_arguments(
+    families: Sequence[str],
+    k_priors: Sequence[str],
+    seeds: int,
+    window_length: int | None,
+    time_limit: float,
+    config: str,
+    scans: int | None,
+) -> _BenchSettings:
+    """The arguments of :func:`run_benchmark`, checked before anything runs."""
+    names = _check_families(families)
+    priors = _check_k_priors(k_priors)
+    n_seeds = check_integer("seeds", seeds, minimum=1)
+    if window_length is not None:
+        check_integer("window_length", window_length, minimum=1)
+    limit = _check_time_limit(time_limit)
+    choice = _check_config_choice(config)
+    if scans is not None:
+        check_integer("scans", scans, minimum=1)
+    return _BenchSettings(names, priors, n_seeds, window_length, limit, choice, scans)
+
+
+def _run_families(
+    settings: _BenchSettings, say: Callable[[str], None]
+) -> tuple[list[RunResult], list[FamilySummary]]:
+    """Every family with every prior and seed, each run's line and each family's summary
+    printed as it finishes."""
+    runs: list[RunResult] = []
+    summaries: list[FamilySummary] = []
+    for name in settings.families:
+        for prior in settings.priors:
+            family_runs = []
+            for seed in range(settings.seeds):
+                run = bench_scenario(
+                    name,
+                    seed,
+                    settings.window_length,
+                    time_limit=settings.limit,
+                    config=settings.choice,
+                    scans=settings.scans,
+                    k_prior=prior,
+                )
+                family_runs.append(run)
+                say(_run_line(run))
+            summary = summarize_family(family_runs)
+            summaries.append(summary)
+            runs.extend(family_runs)
+            say(_family_line(summary, settings.limit))
+    return runs, summaries
+
+
+def _print_totals(
+    summaries: Sequence[FamilySummary],
+    priors: Sequence[str],
+    gating: bool,
+    say: Callable[[str], None],
+) -> tuple[ScaleGrowth | None, float]:
+    """Print the scale growth, the gating throughput, the goals and the comparison of the
+    priors; return the growth and the gating pairs per second (``nan`` without gating)."""
+    first = [summary for summary in summaries if summary.k_prior == priors[0]]
+    growth = scale_growth(first)
+    if growth is not None:
+        say(_growth_line(growth))
+    pairs = bench_gating() if gating else math.nan
+    if gating:
+        say(f"batched gating + likelihood: {pairs / 1e6:.1f} million (track, detection) pairs/s")
+    say(_goals_text(first, growth))
+    say(_comparison_text(summaries, priors))
+    return growth, pairs
 
 
 def _goals_text(summaries: Sequence[FamilySummary], growth: ScaleGrowth | None) -> str:
