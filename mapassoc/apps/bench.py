@@ -45,10 +45,10 @@ import math
 import sys
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
@@ -57,7 +57,7 @@ from mapassoc.apps.run_folders import write_json
 from mapassoc.data.config import Config
 from mapassoc.data.settings import K_PRIORS
 from mapassoc.errors import InputError
-from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.estimator.pipeline import EstimateResult, WindowEstimator, WindowReport
 from mapassoc.evaluation.calibration import count_scores, window_target_counts
 from mapassoc.evaluation.metrics import GospaSeries
 from mapassoc.evaluation.oracle import oracle_tracks
@@ -70,6 +70,10 @@ from mapassoc.evaluation.scenarios import (
 from mapassoc.evaluation.tables import evaluate_tables
 from mapassoc.filtering.kalman import pairwise_gate_and_loglik
 from mapassoc.validation import check_integer
+
+if TYPE_CHECKING:
+    from mapassoc.data.io import TrackTable
+    from mapassoc.evaluation.simulate import Scenario
 
 __all__ = [
     "DEFAULT_FAMILIES",
@@ -545,6 +549,43 @@ def bench_scenario(
     InputError
         An unknown scenario or a bad argument (checked before anything runs).
     """
+    setup = _bench_setup(name, seed, window_length, time_limit, config, scans, k_prior)
+    timed = _timed_run(setup)
+    return _run_result(name, seed, setup, timed)
+
+
+@dataclass(frozen=True)
+class _BenchSetup:
+    """One benchmark run, checked and ready: the (truncated) scenario and its configuration.
+
+    Attributes
+    ----------
+    scenario : Scenario
+    config : Config
+        With the run's window length, time limit and prior on K.
+    choice : {"generic", "scenario"}
+    prior : str
+    limit : float
+        The time limit in seconds.
+    """
+
+    scenario: Scenario
+    config: Config
+    choice: str
+    prior: str
+    limit: float
+
+
+def _bench_setup(
+    name: str,
+    seed: int,
+    window_length: int | None,
+    time_limit: float,
+    config: str,
+    scans: int | None,
+    k_prior: str,
+) -> _BenchSetup:
+    """Check the arguments of :func:`bench_scenario`, build the scenario and its config."""
     prior = _check_k_prior("k_prior", k_prior)
     choice = _check_config_choice(config)
     limit = _check_time_limit(time_limit)
@@ -558,75 +599,145 @@ def bench_scenario(
     else:
         run_config = _bench_config(scenario.config, window_length, limit)
     run_config = replace(run_config, estimator=replace(run_config.estimator, k_prior=prior))
+    return _BenchSetup(scenario, run_config, choice, prior, limit)
 
-    estimator = WindowEstimator(config=run_config)
+
+@dataclass(frozen=True)
+class _TimedRun:
+    """The estimator's result with its wall time, whole and up to the last window's commit."""
+
+    result: EstimateResult
+    seconds: float
+    forward_seconds: float
+
+
+def _timed_run(setup: _BenchSetup) -> _TimedRun:
+    """Run the window estimator on the scenario, timing the run and its forward pass."""
+    estimator = WindowEstimator(config=setup.config)
     committed = [0.0]  # when the last window was committed: the forward pass's end
 
     def on_window(report: object) -> None:
         committed[0] = time.perf_counter()
 
     start = time.perf_counter()
-    result = estimator.run(scenario.scans, on_window=on_window)
+    result = estimator.run(setup.scenario.scans, on_window=on_window)
     seconds = time.perf_counter() - start
-    forward_seconds = committed[0] - start
+    return _TimedRun(result, seconds, committed[0] - start)
 
-    windows = result.windows
+
+@dataclass(frozen=True)
+class _WindowStats:
+    """What a run's window reports add up to (see :class:`RunResult`)."""
+
+    p50_ms: float
+    p95_ms: float
+    max_ms: float
+    windows: int
+    over_limit: int
+    hypotheses_mean: float
+    hypotheses_max: int
+    largest_cluster: int
+    status_counts: tuple[tuple[str, int], ...]
+    min_captured_mass: float
+
+
+def _window_stats(windows: Sequence[WindowReport], limit: float) -> _WindowStats:
+    """Window time percentiles, windows over ``limit``, hypotheses, clusters and statuses."""
     window_seconds = np.array([w.generate_seconds + w.solve_seconds for w in windows])
     statuses = Counter(str(w.status) for w in windows)
-    estimate_evaluation = evaluate_tables(
-        scenario.truth, result.tracks, c=GOSPA_CUTOFF, switch_cost=GOSPA_CUTOFF
+    return _WindowStats(
+        p50_ms=float(np.percentile(window_seconds, 50) * 1e3),
+        p95_ms=float(np.percentile(window_seconds, 95) * 1e3),
+        max_ms=float(window_seconds.max() * 1e3),
+        windows=len(windows),
+        over_limit=int(np.sum(window_seconds > limit)),
+        hypotheses_mean=float(np.mean([w.hypotheses_kept for w in windows])),
+        hypotheses_max=int(max(w.hypotheses_kept for w in windows)),
+        largest_cluster=int(max(w.largest_cluster for w in windows)),
+        status_counts=_ordered(statuses),
+        min_captured_mass=float(min(w.captured_mass for w in windows)),
     )
-    oracle_evaluation = evaluate_tables(
+
+
+@dataclass(frozen=True)
+class _Accuracy:
+    """GOSPA and T-GOSPA of the estimate and of the oracle, and the estimate's fragments."""
+
+    gospa: GospaParts
+    oracle_gospa: GospaParts
+    tgospa: float | None
+    oracle_tgospa: float | None
+    fragments_per_target: float | None
+    id_switches: int | None
+
+
+def _accuracy(scenario: Scenario, tracks: TrackTable) -> _Accuracy:
+    """The estimate's ``tracks`` and the oracle's scored against the scenario's truth."""
+    estimate = evaluate_tables(scenario.truth, tracks, c=GOSPA_CUTOFF, switch_cost=GOSPA_CUTOFF)
+    oracle = evaluate_tables(
         scenario.truth,
         oracle_tracks(scenario.scans, scenario.origins, scenario.config),
         c=GOSPA_CUTOFF,
         switch_cost=GOSPA_CUTOFF,
     )
-    estimate = GospaParts.from_series(estimate_evaluation.gospa)
-    oracle = GospaParts.from_series(oracle_evaluation.gospa)
-    trajectory = estimate_evaluation.tgospa
-    oracle_trajectory = oracle_evaluation.tgospa
-    fragmentation = estimate_evaluation.fragmentation
+    trajectory, oracle_trajectory = estimate.tgospa, oracle.tgospa
+    fragmentation = estimate.fragmentation
+    return _Accuracy(
+        gospa=GospaParts.from_series(estimate.gospa),
+        oracle_gospa=GospaParts.from_series(oracle.gospa),
+        tgospa=None if trajectory is None else trajectory.total,
+        oracle_tgospa=None if oracle_trajectory is None else oracle_trajectory.total,
+        fragments_per_target=None if fragmentation is None else fragmentation.fragments_per_target,
+        id_switches=None if fragmentation is None else fragmentation.num_id_switches,
+    )
+
+
+def _run_result(name: str, seed: int, setup: _BenchSetup, timed: _TimedRun) -> RunResult:
+    """The :class:`RunResult` of one timed run: speed, windows, accuracy and p(K | Z)."""
+    scenario, windows = setup.scenario, timed.result.windows
+    seconds, forward = timed.seconds, timed.forward_seconds
+    stats = _window_stats(windows, setup.limit)
+    accuracy = _accuracy(scenario, timed.result.tracks)
     counts = count_scores(windows, window_target_counts(scenario.truth, windows))
     sizes = [scan.size for scan in scenario.scans]
     n_scans = len(scenario.scans)
     return RunResult(
         family=name,
         seed=int(seed),
-        config=choice,
-        k_prior=prior,
+        config=setup.choice,
+        k_prior=setup.prior,
         targets=len(np.unique(scenario.truth.target_ids)),
         scans=n_scans,
         detections_per_scan=float(np.mean(sizes)),
         max_detections=int(max(sizes)),
-        window_length=run_config.estimator.window_length,
-        time_limit=limit,
-        max_tracks=run_config.estimator.max_tracks,
+        window_length=setup.config.estimator.window_length,
+        time_limit=setup.limit,
+        max_tracks=setup.config.estimator.max_tracks,
         seconds=seconds,
         scans_per_second=n_scans / seconds if seconds > 0 else math.inf,
         seconds_per_scan=seconds / n_scans,
-        window_p50_ms=float(np.percentile(window_seconds, 50) * 1e3),
-        window_p95_ms=float(np.percentile(window_seconds, 95) * 1e3),
-        window_max_ms=float(window_seconds.max() * 1e3),
-        windows=len(windows),
-        windows_over_limit=int(np.sum(window_seconds > limit)),
-        hypotheses_mean=float(np.mean([w.hypotheses_kept for w in windows])),
-        hypotheses_max=int(max(w.hypotheses_kept for w in windows)),
-        largest_cluster=int(max(w.largest_cluster for w in windows)),
-        status_counts=_ordered(statuses),
-        min_captured_mass=float(min(w.captured_mass for w in windows)),
-        tracks=len(result.track_rows),
-        gospa=estimate,
-        oracle_gospa=oracle,
-        gospa_ratio=_ratio(estimate.total, oracle.total),
+        window_p50_ms=stats.p50_ms,
+        window_p95_ms=stats.p95_ms,
+        window_max_ms=stats.max_ms,
+        windows=stats.windows,
+        windows_over_limit=stats.over_limit,
+        hypotheses_mean=stats.hypotheses_mean,
+        hypotheses_max=stats.hypotheses_max,
+        largest_cluster=stats.largest_cluster,
+        status_counts=stats.status_counts,
+        min_captured_mass=stats.min_captured_mass,
+        tracks=len(timed.result.track_rows),
+        gospa=accuracy.gospa,
+        oracle_gospa=accuracy.oracle_gospa,
+        gospa_ratio=_ratio(accuracy.gospa.total, accuracy.oracle_gospa.total),
         k_brier=counts.brier,
         k_hit_rate=counts.hit_rate,
         k_mean_p_true=counts.mean_p_true,
-        tgospa=None if trajectory is None else trajectory.total,
-        oracle_tgospa=None if oracle_trajectory is None else oracle_trajectory.total,
-        fragments_per_target=None if fragmentation is None else fragmentation.fragments_per_target,
-        tgospa_id_switches=None if fragmentation is None else fragmentation.num_id_switches,
-        forward_scans_per_second=n_scans / forward_seconds if forward_seconds > 0 else math.inf,
+        tgospa=accuracy.tgospa,
+        oracle_tgospa=accuracy.oracle_tgospa,
+        fragments_per_target=accuracy.fragments_per_target,
+        tgospa_id_switches=accuracy.id_switches,
+        forward_scans_per_second=n_scans / forward if forward > 0 else math.inf,
     )
 
 
@@ -889,6 +1000,90 @@ def run_benchmark(
     InputError
         An unknown family or a bad argument (checked before anything runs).
     """
+    settings = _check_benchmark_arguments(
+        families, k_priors, seeds, window_length, time_limit, config, scans
+    )
+    stream = sys.stdout if out is None else out
+
+    def say(text: str) -> None:
+        print(text, file=stream, flush=True)
+
+    say(settings.heading())
+    say(_HEADER)
+    runs, summaries = _run_families(settings, say)
+    growth, pairs = _print_totals(summaries, settings.priors, gating, say)
+    result = BenchmarkResult(
+        settings=settings.as_dict(),
+        runs=tuple(runs),
+        families=tuple(summaries),
+        growth=growth,
+        gating_pairs_per_second=pairs,
+    )
+    if json_path is not None:
+        write_json(Path(json_path), result.to_json())
+    return result
+
+
+@dataclass(frozen=True)
+class _BenchSettings:
+    """The checked arguments of :func:`run_benchmark`.
+
+    Attributes
+    ----------
+    families, priors : list of str
+        Scenario names and priors on K, distinct.
+    seeds : int
+        Seeds ``0..seeds-1``.
+    window_length : int or None
+    limit : float
+        The time limit in seconds.
+    choice : {"generic", "scenario"}
+    scans : int or None
+    """
+
+    families: list[str]
+    priors: list[str]
+    seeds: int
+    window_length: int | None
+    limit: float
+    choice: str
+    scans: int | None
+
+    def as_dict(self) -> dict[str, object]:
+        """The settings as :attr:`BenchmarkResult.settings` holds them."""
+        return {
+            "families": self.families,
+            "seeds": list(range(self.seeds)),
+            "window_length": self.window_length,
+            "time_limit": self.limit,
+            "config": self.choice,
+            "k_priors": self.priors,
+            "scans": self.scans,
+            "gospa_cutoff": GOSPA_CUTOFF,
+        }
+
+    def heading(self) -> str:
+        """The benchmark's first printed line: what every run uses."""
+        window = self.window_length if self.window_length is not None else "of the config"
+        return (
+            f"window length {window}, "
+            f"time limit {self.limit:g} s, {self.choice} configuration, "
+            f"k_priors {','.join(self.priors)}, seeds 0..{self.seeds - 1}"
+            + (f", first {self.scans} scans" if self.scans is not None else "")
+            + f", GOSPA cut-off {GOSPA_CUTOFF:g}"
+        )
+
+
+def _check_benchmark_arguments(
+    families: Sequence[str],
+    k_priors: Sequence[str],
+    seeds: int,
+    window_length: int | None,
+    time_limit: float,
+    config: str,
+    scans: int | None,
+) -> _BenchSettings:
+    """The arguments of :func:`run_benchmark`, checked before anything runs."""
     names = _check_families(families)
     priors = _check_k_priors(k_priors)
     n_seeds = check_integer("seeds", seeds, minimum=1)
@@ -898,42 +1093,27 @@ def run_benchmark(
     choice = _check_config_choice(config)
     if scans is not None:
         check_integer("scans", scans, minimum=1)
-    stream = sys.stdout if out is None else out
+    return _BenchSettings(names, priors, n_seeds, window_length, limit, choice, scans)
 
-    def say(text: str) -> None:
-        print(text, file=stream, flush=True)
 
-    settings: dict[str, object] = {
-        "families": names,
-        "seeds": list(range(n_seeds)),
-        "window_length": window_length,
-        "time_limit": limit,
-        "config": choice,
-        "k_priors": priors,
-        "scans": scans,
-        "gospa_cutoff": GOSPA_CUTOFF,
-    }
-    say(
-        f"window length {window_length if window_length is not None else 'of the config'}, "
-        f"time limit {limit:g} s, {choice} configuration, k_priors {','.join(priors)}, "
-        f"seeds 0..{n_seeds - 1}"
-        + (f", first {scans} scans" if scans is not None else "")
-        + f", GOSPA cut-off {GOSPA_CUTOFF:g}"
-    )
-    say(_HEADER)
+def _run_families(
+    settings: _BenchSettings, say: Callable[[str], None]
+) -> tuple[list[RunResult], list[FamilySummary]]:
+    """Every family with every prior and seed, each run's line and each family's summary
+    printed as it finishes."""
     runs: list[RunResult] = []
     summaries: list[FamilySummary] = []
-    for name in names:
-        for prior in priors:
+    for name in settings.families:
+        for prior in settings.priors:
             family_runs = []
-            for seed in range(n_seeds):
+            for seed in range(settings.seeds):
                 run = bench_scenario(
                     name,
                     seed,
-                    window_length,
-                    time_limit=limit,
-                    config=choice,
-                    scans=scans,
+                    settings.window_length,
+                    time_limit=settings.limit,
+                    config=settings.choice,
+                    scans=settings.scans,
                     k_prior=prior,
                 )
                 family_runs.append(run)
@@ -941,8 +1121,18 @@ def run_benchmark(
             summary = summarize_family(family_runs)
             summaries.append(summary)
             runs.extend(family_runs)
-            say(_family_line(summary, limit))
+            say(_family_line(summary, settings.limit))
+    return runs, summaries
 
+
+def _print_totals(
+    summaries: Sequence[FamilySummary],
+    priors: Sequence[str],
+    gating: bool,
+    say: Callable[[str], None],
+) -> tuple[ScaleGrowth | None, float]:
+    """Print the scale growth, the gating throughput, the goals and the comparison of the
+    priors; return the growth and the gating pairs per second (``nan`` without gating)."""
     first = [summary for summary in summaries if summary.k_prior == priors[0]]
     growth = scale_growth(first)
     if growth is not None:
@@ -952,17 +1142,7 @@ def run_benchmark(
         say(f"batched gating + likelihood: {pairs / 1e6:.1f} million (track, detection) pairs/s")
     say(_goals_text(first, growth))
     say(_comparison_text(summaries, priors))
-
-    result = BenchmarkResult(
-        settings=settings,
-        runs=tuple(runs),
-        families=tuple(summaries),
-        growth=growth,
-        gating_pairs_per_second=pairs,
-    )
-    if json_path is not None:
-        write_json(Path(json_path), result.to_json())
-    return result
+    return growth, pairs
 
 
 def _goals_text(summaries: Sequence[FamilySummary], growth: ScaleGrowth | None) -> str:

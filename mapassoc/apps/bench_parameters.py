@@ -36,6 +36,7 @@ from mapassoc.apps.run_folders import write_json
 from mapassoc.errors import InputError
 
 if TYPE_CHECKING:
+    from mapassoc.data.config import Config
     from mapassoc.data.io import TrackTable
     from mapassoc.evaluation.simulate import Scenario
 
@@ -99,16 +100,10 @@ def run_parameter_benchmark(
     InputError
         An unknown family, a scenario with more than one sensor, ``seeds < 1``.
     """
-    from mapassoc.estimator.parameters import estimate_parameters, with_sensor_parameters
-    from mapassoc.estimator.pipeline import WindowEstimator
-    from mapassoc.evaluation.scenarios import build_scenario, generic_config, scenario_names
+    from mapassoc.evaluation.scenarios import build_scenario, generic_config
 
     stream = out if out is not None else sys.stdout
-    unknown = [name for name in families if name not in scenario_names()]
-    if unknown:
-        raise InputError(f"unknown families {unknown}; known: {', '.join(scenario_names())}")
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-        raise InputError(f"seeds must be an integer >= 1, got {seeds!r}")
+    _check_families_and_seeds(families, seeds)
     rows: list[ParameterRun] = []
 
     def say(text: str) -> None:
@@ -119,54 +114,110 @@ def run_parameter_benchmark(
         for seed in range(seeds):
             scenario = build_scenario(family, seed, scans=scans)
             config = generic_config(scenario, time_limit=time_limit)
-            if len(config.sensors) != 1:
-                raise InputError(f"family {family!r} has {len(config.sensors)} sensors; "
-                                 "bench-parameters takes one-sensor families")  # fmt: skip
-            name, sensor = next(iter(config.sensors.items()))
-            true = (sensor.false_alarms_per_scan, sensor.detection_probability)
-            settings = [("true", true)]
-            settings += [(f"rate x{f:g}", (true[0] * f, true[1])) for f in rate_factors]
-            settings += [
-                (f"Pd {o:+g}", (true[0], float(np.clip(true[1] + o, 0.05, 0.99))))
-                for o in pd_offsets
-            ]
-            for label, (rate, pd) in settings:
-                started = time.perf_counter()
-                result = WindowEstimator(
-                    config=with_sensor_parameters(config, {name: (rate, pd)})
-                ).run(scenario.scans)
-                seconds = time.perf_counter() - started
-                gospa = _gospa(scenario, result.tracks)
-                rows.append(ParameterRun(family, seed, label, gospa, seconds, rate, pd, *true))
-            started = time.perf_counter()
-            estimate = estimate_parameters(
-                config, scenario.scans, false_alarms=[name],
-                detection_probability={name: None},
-            )  # fmt: skip
-            final = estimate.result
-            if final is None:  # the passes ran on a sample
-                final = WindowEstimator(config=estimate.config).run(scenario.scans)
-            found = estimate.sensors[name]
-            rows.append(ParameterRun(
-                family, seed, "auto", _gospa(scenario, final.tracks),
-                time.perf_counter() - started, found.false_alarms_per_scan,
-                found.detection_probability, *true,
-            ))  # fmt: skip
-            by_label = {r.label: r for r in rows if r.family == family and r.seed == seed}
-            base = by_label["true"]
-            parts = [f"{lab} {r.gospa / base.gospa:.2f}" for lab, r in by_label.items()
-                     if lab != "true"]  # fmt: skip
-            auto = by_label["auto"]
-            say(
-                f"  {family} seed {seed}: true GOSPA {base.gospa:.3f}; ratios "
-                + ", ".join(parts)
-                + f"; auto rate {auto.rate:.3g} (true {true[0]:g}), Pd {auto.pd:.3f} "
-                f"(true {true[1]:g}), {auto.seconds / base.seconds:.2f} true runs' time"
-            )
+            name, true = _the_sensor(family, config)
+            settings = _settings(true, rate_factors, pd_offsets)
+            runs = _runs_with(scenario, config, name, settings)
+            rows += [ParameterRun(family, seed, label, *run, *true) for label, run in runs]
+            auto = _auto_run(scenario, config, name)
+            rows.append(ParameterRun(family, seed, "auto", *auto, *true))
+            say(_seed_line(rows, family, seed, true))
     _print_summary(rows, families, say)
     if json_path is not None:
         write_json(Path(json_path), [r.__dict__ for r in rows])
     return rows
+
+
+def _check_families_and_seeds(families: Sequence[str], seeds: object) -> None:
+    """Raise unless every family is a built-in scenario and ``seeds`` an integer >= 1."""
+    from mapassoc.evaluation.scenarios import scenario_names
+
+    unknown = [name for name in families if name not in scenario_names()]
+    if unknown:
+        raise InputError(f"unknown families {unknown}; known: {', '.join(scenario_names())}")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise InputError(f"seeds must be an integer >= 1, got {seeds!r}")
+
+
+def _the_sensor(family: str, config: Config) -> tuple[str, tuple[float, float]]:
+    """The name of the configuration's one sensor and its true (false-alarm rate, Pd)."""
+    if len(config.sensors) != 1:
+        raise InputError(f"family {family!r} has {len(config.sensors)} sensors; "
+                         "bench-parameters takes one-sensor families")  # fmt: skip
+    name, sensor = next(iter(config.sensors.items()))
+    return name, (sensor.false_alarms_per_scan, sensor.detection_probability)
+
+
+def _settings(
+    true: tuple[float, float], rate_factors: Sequence[float], pd_offsets: Sequence[float]
+) -> list[tuple[str, tuple[float, float]]]:
+    """The labelled (rate, Pd) of every run but "auto": the truth, then each misstatement."""
+    settings = [("true", true)]
+    settings += [(f"rate x{f:g}", (true[0] * f, true[1])) for f in rate_factors]
+    settings += [
+        (f"Pd {o:+g}", (true[0], float(np.clip(true[1] + o, 0.05, 0.99)))) for o in pd_offsets
+    ]
+    return settings
+
+
+_Measured = tuple[float, float, float, float]
+"""(GOSPA, seconds, rate, Pd) of one run: the fields of a :class:`ParameterRun` it sets."""
+
+
+def _runs_with(
+    scenario: Scenario,
+    config: Config,
+    name: str,
+    settings: Sequence[tuple[str, tuple[float, float]]],
+) -> list[tuple[str, _Measured]]:
+    """The window estimator with each labelled (rate, Pd) of sensor ``name``, timed."""
+    from mapassoc.estimator.parameters import with_sensor_parameters
+    from mapassoc.estimator.pipeline import WindowEstimator
+
+    runs: list[tuple[str, _Measured]] = []
+    for label, (rate, pd) in settings:
+        started = time.perf_counter()
+        misstated = with_sensor_parameters(config, {name: (rate, pd)})
+        result = WindowEstimator(config=misstated).run(scenario.scans)
+        seconds = time.perf_counter() - started
+        runs.append((label, (_gospa(scenario, result.tracks), seconds, rate, pd)))
+    return runs
+
+
+def _auto_run(scenario: Scenario, config: Config, name: str) -> _Measured:
+    """Both parameters of sensor ``name`` estimated ("auto"), then the tracks of the last
+    pass (or of a run with the estimates, when the passes ran on a sample), timed."""
+    from mapassoc.estimator.parameters import estimate_parameters
+    from mapassoc.estimator.pipeline import WindowEstimator
+
+    started = time.perf_counter()
+    estimate = estimate_parameters(
+        config, scenario.scans, false_alarms=[name],
+        detection_probability={name: None},
+    )  # fmt: skip
+    final = estimate.result
+    if final is None:  # the passes ran on a sample
+        final = WindowEstimator(config=estimate.config).run(scenario.scans)
+    found = estimate.sensors[name]
+    gospa = _gospa(scenario, final.tracks)
+    seconds = time.perf_counter() - started
+    return gospa, seconds, found.false_alarms_per_scan, found.detection_probability
+
+
+def _seed_line(
+    rows: Sequence[ParameterRun], family: str, seed: int, true: tuple[float, float]
+) -> str:
+    """One family and seed: GOSPA of each run over the true run's, and what "auto" found."""
+    by_label = {r.label: r for r in rows if r.family == family and r.seed == seed}
+    base = by_label["true"]
+    parts = [f"{lab} {r.gospa / base.gospa:.2f}" for lab, r in by_label.items()
+             if lab != "true"]  # fmt: skip
+    auto = by_label["auto"]
+    return (
+        f"  {family} seed {seed}: true GOSPA {base.gospa:.3f}; ratios "
+        + ", ".join(parts)
+        + f"; auto rate {auto.rate:.3g} (true {true[0]:g}), Pd {auto.pd:.3f} "
+        f"(true {true[1]:g}), {auto.seconds / base.seconds:.2f} true runs' time"
+    )
 
 
 def _print_summary(rows: list[ParameterRun], families: Sequence[str], say: object) -> None:

@@ -46,9 +46,13 @@ from mapassoc.apps.run_folders import write_json
 from mapassoc.errors import InputError
 
 if TYPE_CHECKING:  # the estimator is imported when the benchmark runs
-    from mapassoc.data.config import TrackerOption
-    from mapassoc.data.io import TrackTable
+    from mapassoc.data.config import Config, TrackerOption
+    from mapassoc.data.io import Origins, TrackTable
+    from mapassoc.data.outputs import TrackerOutput
     from mapassoc.estimator.objective import RecordingObjective
+    from mapassoc.estimator.pipeline import EstimateResult
+    from mapassoc.estimator.refinement import RefinedTracks
+    from mapassoc.evaluation.simulate import Scenario
 
 __all__ = [
     "REFINEMENT_FAMILIES",
@@ -125,25 +129,8 @@ def run_refinement_benchmark(
     InputError
         An unknown family, ``seeds < 1``, an option MHT does not take or refuses.
     """
-    from mapassoc.estimator.objective import RecordingObjective  # noqa: F811
-    from mapassoc.estimator.pipeline import WindowEstimator
-    from mapassoc.estimator.refinement import refine_track_rows
-    from mapassoc.evaluation.oracle import oracle_tracks
-    from mapassoc.evaluation.scenarios import build_scenario, generic_config, scenario_names
-    from mapassoc.filtering.smoothing import smooth_tracks
-    from mapassoc.trackers.registry import build_tracker
-
     stream = out if out is not None else sys.stdout
-    unknown = [name for name in families if name not in scenario_names()]
-    if unknown:
-        raise InputError(f"unknown families {unknown}; known: {', '.join(scenario_names())}")
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-        raise InputError(f"seeds must be an integer >= 1, got {seeds!r}")
-    tables = {} if mht_options is None else {"mht": dict(mht_options)}
-    if tables:  # built once on the first family, so that a bad option stops it here
-        first = build_scenario(families[0], 0, scans=scans)
-        checked = dataclasses.replace(generic_config(first), trackers=tables)
-        build_tracker("mht", config=checked)
+    tables = _checked_tables(families, seeds, scans, mht_options)
     rows: list[RefinementRun] = []
     reliability: list[tuple[float, bool]] = []  # (existence, matches a true target) per track
 
@@ -156,75 +143,178 @@ def run_refinement_benchmark(
     )
     for family in families:
         for seed in range(seeds):
-            scenario = build_scenario(family, seed, scans=scans)
-            config = dataclasses.replace(
-                generic_config(scenario, time_limit=time_limit), trackers=tables
-            )
-            forward_config = dataclasses.replace(
-                config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
-            )
-            objective = RecordingObjective(config=config, scans=scenario.scans)
-            where = {
-                int(row): (k, j)
-                for k, scan in enumerate(scenario.scans)
-                for j, row in enumerate(scan.rows)
-            }
-
-            started = time.perf_counter()
-            forward = WindowEstimator(config=forward_config).run(scenario.scans)
-            forward_seconds = time.perf_counter() - started
-            started = time.perf_counter()
-            refined = refine_track_rows(config, scenario.scans, forward.track_rows)
-            refined_rows, report = refined.track_rows, refined.report
-            refined_tracks = smooth_tracks(
-                scenario.scans,
-                {tid: dict(where[r] for r in rows) for tid, rows in refined_rows.items()},
-                config,
-            )
-            refine_seconds = time.perf_counter() - started
-            started = time.perf_counter()
-            mht = build_tracker("mht", config=config).track(scenario.scans)
-            mht_seconds = time.perf_counter() - started
-            mht_rows = {
-                tid: tuple(int(scenario.scans[k].rows[j]) for k, j in sorted(a.items()))
-                for tid, a in (mht.associations or {}).items()
-                if a
-            }
-            truth_rows: dict[int, list[int]] = {}  # the true associations
-            for row, origin in zip(
-                scenario.origins.rows.tolist(), scenario.origins.target_ids.tolist(), strict=True
-            ):
-                if origin >= 0:
-                    truth_rows.setdefault(int(origin), []).append(int(row))
-            oracle = oracle_tracks(scenario.scans, scenario.origins, config)
-            targets = len(np.unique(scenario.truth.target_ids))
-            existence = refined.confidence.existence if refined.confidence else {}
-            sure_ids = [t for t in refined_rows if existence.get(t, 1.0) >= MIN_EXISTENCE]
-            sure_rows = {t: refined_rows[t] for t in sure_ids}
-            sure_tracks = _only(refined_tracks, sure_ids)
-            origins = scenario.origins
-            origin = dict(zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True))
-            for tid, used in refined_rows.items():
-                owners = [origin.get(r, -1) for r in used]
-                top = max(set(owners), key=owners.count)
-                matches = top >= 0 and 2 * owners.count(top) >= len(used)
-                reliability.append((existence.get(tid, math.nan), matches))
-            runs = (
-                ("forward", forward.tracks, forward_seconds, _value(objective, forward.track_rows)),
-                ("refined", refined_tracks, refine_seconds, report.objective),
-                (METHODS[2], sure_tracks, refine_seconds, _value(objective, sure_rows)),
-                ("mht", mht.tracks, mht_seconds, _value(objective, mht_rows)),
-                ("oracle", oracle, 0.0, _value(objective, truth_rows)),
-            )
-            for method, tracks, seconds, objective_value in runs:
-                rows.append(_score(family, seed, method, scenario, tracks, targets, seconds,
-                                   objective_value))  # fmt: skip
-            say(_run_line(family, seed, rows[-len(runs):]))
+            runs, matches = _one_seed(family, seed, scans, time_limit, tables)
+            rows += runs
+            reliability += matches
+            say(_run_line(family, seed, runs))
     _print_summary(rows, families, say)
     _print_reliability(reliability, say)
     if json_path is not None:
         write_json(Path(json_path), [r.__dict__ for r in rows], allow_nan=True)
     return rows
+
+
+def _checked_tables(
+    families: Sequence[str],
+    seeds: object,
+    scans: int | None,
+    mht_options: Mapping[str, TrackerOption] | None,
+) -> dict[str, dict[str, TrackerOption]]:
+    """The ``trackers`` tables of every run's configuration (MHT's options, if any), after
+    checking the families, the seeds and, on the first family, MHT's options."""
+    from mapassoc.evaluation.scenarios import build_scenario, generic_config, scenario_names
+    from mapassoc.trackers.registry import build_tracker
+
+    unknown = [name for name in families if name not in scenario_names()]
+    if unknown:
+        raise InputError(f"unknown families {unknown}; known: {', '.join(scenario_names())}")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise InputError(f"seeds must be an integer >= 1, got {seeds!r}")
+    tables = {} if mht_options is None else {"mht": dict(mht_options)}
+    if tables:  # built once on the first family, so that a bad option stops it here
+        first = build_scenario(families[0], 0, scans=scans)
+        checked = dataclasses.replace(generic_config(first), trackers=tables)
+        build_tracker("mht", config=checked)
+    return tables
+
+
+def _one_seed(
+    family: str,
+    seed: int,
+    scans: int | None,
+    time_limit: float,
+    tables: Mapping[str, Mapping[str, TrackerOption]],
+) -> tuple[list[RefinementRun], list[tuple[float, bool]]]:
+    """Every method on one family and seed, scored; and each refined track's (existence,
+    whether it follows a true target)."""
+    from mapassoc.estimator.objective import RecordingObjective  # noqa: F811
+    from mapassoc.evaluation.scenarios import build_scenario, generic_config
+
+    scenario = build_scenario(family, seed, scans=scans)
+    config = dataclasses.replace(generic_config(scenario, time_limit=time_limit), trackers=tables)
+    objective = RecordingObjective(config=config, scans=scenario.scans)
+    outputs = _run_methods(scenario, config)
+    confidence = outputs.refined.confidence
+    existence = confidence.existence if confidence else {}
+    reliability = _reliability(outputs.refined.track_rows, existence, scenario.origins)
+    targets = len(np.unique(scenario.truth.target_ids))
+    runs = [
+        _score(family, seed, run.method, scenario, run.tracks, targets, run.seconds,
+               run.objective)
+        for run in _method_runs(scenario, config, objective, outputs, existence)
+    ]  # fmt: skip
+    return runs, reliability
+
+
+@dataclass(frozen=True, eq=False)
+class _Outputs:
+    """The forward pass, its refinement (smoothed) and MHT on one recording, timed."""
+
+    forward: EstimateResult
+    forward_seconds: float
+    refined: RefinedTracks
+    refined_tracks: TrackTable
+    refine_seconds: float
+    mht: TrackerOutput
+    mht_seconds: float
+
+
+def _run_methods(scenario: Scenario, config: Config) -> _Outputs:
+    """Run the forward pass (``refine_passes = 0``), refine and smooth its tracks, run MHT."""
+    from mapassoc.estimator.pipeline import WindowEstimator
+    from mapassoc.estimator.refinement import refine_track_rows
+    from mapassoc.filtering.smoothing import smooth_tracks
+    from mapassoc.trackers.registry import build_tracker
+
+    forward_config = dataclasses.replace(
+        config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
+    )
+    where = {
+        int(row): (k, j) for k, scan in enumerate(scenario.scans) for j, row in enumerate(scan.rows)
+    }
+    started = time.perf_counter()
+    forward = WindowEstimator(config=forward_config).run(scenario.scans)
+    forward_seconds = time.perf_counter() - started
+    started = time.perf_counter()
+    refined = refine_track_rows(config, scenario.scans, forward.track_rows)
+    refined_tracks = smooth_tracks(
+        scenario.scans,
+        {tid: dict(where[r] for r in rows) for tid, rows in refined.track_rows.items()},
+        config,
+    )
+    refine_seconds = time.perf_counter() - started
+    started = time.perf_counter()
+    mht = build_tracker("mht", config=config).track(scenario.scans)
+    mht_seconds = time.perf_counter() - started
+    return _Outputs(
+        forward, forward_seconds, refined, refined_tracks, refine_seconds, mht, mht_seconds
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _MethodRun:
+    """One method's track set with its seconds and its J."""
+
+    method: str
+    tracks: TrackTable
+    seconds: float
+    objective: float
+
+
+def _method_runs(
+    scenario: Scenario,
+    config: Config,
+    objective: RecordingObjective,
+    outputs: _Outputs,
+    existence: Mapping[int, float],
+) -> list[_MethodRun]:
+    """The methods of :data:`METHODS`, in that order."""
+    from mapassoc.evaluation.oracle import oracle_tracks
+
+    refined_rows = outputs.refined.track_rows
+    sure_ids = [t for t in refined_rows if existence.get(t, 1.0) >= MIN_EXISTENCE]
+    sure_rows = {t: refined_rows[t] for t in sure_ids}
+    mht_rows = {
+        tid: tuple(int(scenario.scans[k].rows[j]) for k, j in sorted(a.items()))
+        for tid, a in (outputs.mht.associations or {}).items()
+        if a
+    }
+    oracle = oracle_tracks(scenario.scans, scenario.origins, config)
+    forward, refine_seconds = outputs.forward, outputs.refine_seconds
+    return [
+        _MethodRun("forward", forward.tracks, outputs.forward_seconds,
+                   _value(objective, forward.track_rows)),
+        _MethodRun("refined", outputs.refined_tracks, refine_seconds,
+                   outputs.refined.report.objective),
+        _MethodRun(METHODS[2], _only(outputs.refined_tracks, sure_ids), refine_seconds,
+                   _value(objective, sure_rows)),
+        _MethodRun("mht", outputs.mht.tracks, outputs.mht_seconds, _value(objective, mht_rows)),
+        _MethodRun("oracle", oracle, 0.0, _value(objective, _truth_rows(scenario.origins))),
+    ]  # fmt: skip
+
+
+def _truth_rows(origins: Origins) -> dict[int, list[int]]:
+    """The true associations: each target's detection ids."""
+    truth_rows: dict[int, list[int]] = {}
+    for row, origin in zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True):
+        if origin >= 0:
+            truth_rows.setdefault(int(origin), []).append(int(row))
+    return truth_rows
+
+
+def _reliability(
+    track_rows: Mapping[int, Sequence[int]], existence: Mapping[int, float], origins: Origins
+) -> list[tuple[float, bool]]:
+    """Each track's existence probability (``nan`` if unknown) and whether at least half
+    its detections are one true target's."""
+    origin = dict(zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True))
+    out: list[tuple[float, bool]] = []
+    for tid, used in track_rows.items():
+        owners = [origin.get(r, -1) for r in used]
+        top = max(set(owners), key=owners.count)
+        matches = top >= 0 and 2 * owners.count(top) >= len(used)
+        out.append((existence.get(tid, math.nan), matches))
+    return out
 
 
 def _only(tracks: TrackTable, ids: Sequence[int]) -> TrackTable:

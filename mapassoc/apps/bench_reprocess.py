@@ -117,88 +117,139 @@ def run_reprocess_benchmark(
     out: str | os.PathLike[str] | None = None,
 ) -> dict[str, object]:
     """Run the three measurements (module docstring), print them, return the numbers."""
-    for name, value in (
-        ("recordings", recordings), ("scans", scans), ("long_scans", long_scans),
-        ("segment_scans", segment_scans),
-    ):  # fmt: skip
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise InputError(f"{name} must be an integer >= 0, got {value!r}")
+    _check_sizes(
+        recordings=recordings, scans=scans, long_scans=long_scans, segment_scans=segment_scans
+    )
     workers = check_jobs(jobs)
     results: dict[str, object] = {"jobs": workers, "startup": startup_times()}
     with tempfile.TemporaryDirectory(prefix="mapassoc-bench-") as scratch:
         root = Path(out) if out is not None else Path(scratch)
         root.mkdir(parents=True, exist_ok=True)
         if recordings:
-            source = root / "recordings"
-            names = []
-            for i in range(recordings):
-                family = BATCH_FAMILIES[i % len(BATCH_FAMILIES)]
-                name = f"{family}-{i // len(BATCH_FAMILIES)}"
-                run_child(["simulate", family, "--scans", str(scans), "--seed",
-                           str(i // len(BATCH_FAMILIES)), "--out", str(source / name),
-                           "--overwrite"])  # fmt: skip
-                names.append(name)
-            total = recordings * scans
-            timing = {}
-            for label, n in (("sequential", 1), ("pool", workers)):
-                folder = root / f"batch-{label}"
-                timing[label] = run_child(["batch", str(source), "--out", str(folder),
-                                           "--jobs", str(n), "--no-timings", "--no-progress",
-                                           "--overwrite"])  # fmt: skip
-            same = _same_folders(root / "batch-sequential", root / "batch-pool", names)
-            speedup = timing["sequential"].seconds / timing["pool"].seconds
-            print(f"batch: {recordings} recordings x {scans} scans ({', '.join(BATCH_FAMILIES)})")
-            for label in ("sequential", "pool"):
-                t = timing[label].seconds
-                print(f"  {label:10s} {t:7.1f} s  {total / t:7.1f} scans/s")
-            print(f"  pool of {workers}: x{speedup:.2f}; same files: {same}")
-            results["batch"] = {
-                "recordings": recordings, "scans_each": scans, "same_files": same,
-                "speedup": speedup,
-                **{f"{k}_seconds": v.seconds for k, v in timing.items()},
-            }  # fmt: skip
+            results["batch"] = _measure_batch(root, recordings, scans, workers)
         if long_scans:
-            scen = root / "long"
-            run_child(["simulate", long_family, "--scans", str(long_scans), "--seed", "0",
-                       "--out", str(scen), "--overwrite"])  # fmt: skip
-            child = run_child(["run", str(scen / "config.toml"), str(scen / "detections.csv"),
-                               "--out", str(root / "long-run"), "--no-progress",
-                               "--overwrite"])  # fmt: skip
-            detections = sum(1 for _ in open(scen / "detections.csv")) - 1
-            print(f"long recording: {long_family}, {long_scans} scans, {detections} lines")
-            print(f"  {child.seconds:7.1f} s  {long_scans / child.seconds:7.1f} scans/s  "
-                  f"peak memory {child.max_rss_mb:.0f} MB")
-            results["long"] = {"family": long_family, "scans": long_scans,
-                               "seconds": child.seconds, "max_rss_mb": child.max_rss_mb}
-        segments_out = {}
+            results["long"] = _measure_long_recording(root, long_family, long_scans)
         if segment_scans and segment_families:
-            print(f"segments: {segment_scans} scans, sequential vs --segments {workers} "
-                  f"--jobs {workers}")
-        for family in segment_families if segment_scans else ():
-            scen = root / f"seg-{family}"
-            run_child(["simulate", family, "--scans", str(segment_scans), "--seed", "0",
-                       "--out", str(scen), "--overwrite"])  # fmt: skip
-            runs = {}
-            for label, extra in (("sequential", []),
-                                 ("segments", ["--segments", str(max(2, workers)),
-                                               "--jobs", str(workers)])):
-                folder = root / f"seg-{family}-{label}"
-                runs[label] = run_child(["run", str(scen / "config.toml"),
-                                         str(scen / "detections.csv"), "--out", str(folder),
-                                         "--no-progress", "--overwrite", *extra])
-            # fmt: skip
-            sets = {label: _track_sets(root / f"seg-{family}-{label}" / "tracks.csv")
-                    for label in runs}
-            gospa = {label: _gospa(root / f"seg-{family}-{label}" / "tracks.csv",
-                                   scen / "truth.csv") for label in runs}
-            speedup = runs["sequential"].seconds / runs["segments"].seconds
-            same_tracks = len(sets["sequential"] & sets["segments"])
-            print(f"  {family:10s} x{speedup:.2f}  GOSPA {gospa['segments']:.3f} vs "
-                  f"{gospa['sequential']:.3f}  same tracks {same_tracks} of "
-                  f"{len(sets['sequential'])} ({len(sets['segments'])} stitched)")
-            segments_out[family] = {"speedup": speedup, "gospa": gospa,
-                                    "same_tracks": same_tracks,
-                                    "tracks": {k: len(v) for k, v in sets.items()}}
+            print(
+                f"segments: {segment_scans} scans, sequential vs --segments {workers} "
+                f"--jobs {workers}"
+            )
+        segments_out = {
+            family: _measure_segments(root, family, segment_scans, workers)
+            for family in (segment_families if segment_scans else ())
+        }
         if segments_out:
             results["segments"] = segments_out
     return results
+
+
+def _check_sizes(**sizes: object) -> None:
+    """Raise unless every size is an integer >= 0 (the message names it)."""
+    for name, value in sizes.items():
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise InputError(f"{name} must be an integer >= 0, got {value!r}")
+
+
+def _simulate_recordings(source: Path, recordings: int, scans: int) -> list[str]:
+    """Simulate ``recordings`` recordings of ``scans`` scans into ``source``, cycling
+    through :data:`BATCH_FAMILIES` with a new seed each round; their folder names."""
+    names = []
+    for i in range(recordings):
+        family = BATCH_FAMILIES[i % len(BATCH_FAMILIES)]
+        seed = str(i // len(BATCH_FAMILIES))
+        name = f"{family}-{seed}"
+        run_child(
+            ["simulate", family, "--scans", str(scans), "--seed", seed,
+             "--out", str(source / name), "--overwrite"]
+        )  # fmt: skip
+        names.append(name)
+    return names
+
+
+def _measure_batch(root: Path, recordings: int, scans: int, workers: int) -> dict[str, object]:
+    """Measurement 1: ``batch --jobs 1`` against ``batch --jobs N`` on simulated recordings."""
+    source = root / "recordings"
+    names = _simulate_recordings(source, recordings, scans)
+    total = recordings * scans
+    timing = {}
+    for label, n in (("sequential", 1), ("pool", workers)):
+        folder = root / f"batch-{label}"
+        timing[label] = run_child(
+            ["batch", str(source), "--out", str(folder), "--jobs", str(n), "--no-timings",
+             "--no-progress", "--overwrite"]
+        )  # fmt: skip
+    same = _same_folders(root / "batch-sequential", root / "batch-pool", names)
+    speedup = timing["sequential"].seconds / timing["pool"].seconds
+    print(f"batch: {recordings} recordings x {scans} scans ({', '.join(BATCH_FAMILIES)})")
+    for label in ("sequential", "pool"):
+        t = timing[label].seconds
+        print(f"  {label:10s} {t:7.1f} s  {total / t:7.1f} scans/s")
+    print(f"  pool of {workers}: x{speedup:.2f}; same files: {same}")
+    return {
+        "recordings": recordings,
+        "scans_each": scans,
+        "same_files": same,
+        "speedup": speedup,
+        **{f"{k}_seconds": v.seconds for k, v in timing.items()},
+    }
+
+
+def _measure_long_recording(root: Path, family: str, scans: int) -> dict[str, object]:
+    """Measurement 2: ``run`` on one long recording: wall time and peak memory."""
+    scen = root / "long"
+    run_child(
+        ["simulate", family, "--scans", str(scans), "--seed", "0", "--out", str(scen),
+         "--overwrite"]
+    )  # fmt: skip
+    child = run_child(
+        ["run", str(scen / "config.toml"), str(scen / "detections.csv"),
+         "--out", str(root / "long-run"), "--no-progress", "--overwrite"]
+    )  # fmt: skip
+    with open(scen / "detections.csv") as lines:
+        detections = sum(1 for _ in lines) - 1
+    print(f"long recording: {family}, {scans} scans, {detections} lines")
+    print(
+        f"  {child.seconds:7.1f} s  {scans / child.seconds:7.1f} scans/s  "
+        f"peak memory {child.max_rss_mb:.0f} MB"
+    )
+    return {
+        "family": family,
+        "scans": scans,
+        "seconds": child.seconds,
+        "max_rss_mb": child.max_rss_mb,
+    }
+
+
+def _measure_segments(root: Path, family: str, scans: int, workers: int) -> dict[str, object]:
+    """Measurement 3 for one family: ``run`` against ``run --segments N --jobs N``."""
+    scen = root / f"seg-{family}"
+    run_child(
+        ["simulate", family, "--scans", str(scans), "--seed", "0", "--out", str(scen),
+         "--overwrite"]
+    )  # fmt: skip
+    runs = {}
+    for label, extra in (
+        ("sequential", []),
+        ("segments", ["--segments", str(max(2, workers)), "--jobs", str(workers)]),
+    ):
+        folder = root / f"seg-{family}-{label}"
+        runs[label] = run_child(
+            ["run", str(scen / "config.toml"), str(scen / "detections.csv"),
+             "--out", str(folder), "--no-progress", "--overwrite", *extra]
+        )  # fmt: skip
+    tracks = {label: root / f"seg-{family}-{label}" / "tracks.csv" for label in runs}
+    sets = {label: _track_sets(path) for label, path in tracks.items()}
+    gospa = {label: _gospa(path, scen / "truth.csv") for label, path in tracks.items()}
+    speedup = runs["sequential"].seconds / runs["segments"].seconds
+    same_tracks = len(sets["sequential"] & sets["segments"])
+    print(
+        f"  {family:10s} x{speedup:.2f}  GOSPA {gospa['segments']:.3f} vs "
+        f"{gospa['sequential']:.3f}  same tracks {same_tracks} of "
+        f"{len(sets['sequential'])} ({len(sets['segments'])} stitched)"
+    )
+    return {
+        "speedup": speedup,
+        "gospa": gospa,
+        "same_tracks": same_tracks,
+        "tracks": {k: len(v) for k, v in sets.items()},
+    }

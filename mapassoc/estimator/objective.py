@@ -54,7 +54,7 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.array_types import FloatArray, IntArray
+from mapassoc.array_types import BoolArray, FloatArray, IntArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -752,7 +752,9 @@ class RecordingObjective:
         What each step reads of a track's reference (its detection, scan, sensor, the
         reference's state and value there) is gathered once per request into arrays
         indexed by (request, step), so a step is array indexing whatever the number of
-        tracks.
+        tracks.  The tracks of every request are stacked into flat arrays, continued in
+        the compiled kernel or, without it, by :meth:`_converge_numpy`, and the flat
+        result is cut back into one array per request.
         """
         for i in chosen:  # a path must be after its start
             start, reference, first = requests[i]
@@ -762,75 +764,97 @@ class RecordingObjective:
                     f"track's state at scan {start.scan}"
                 )
         table = _ReferenceSteps.gather(self, [requests[i] for i in chosen], max_detections)
-        sizes = np.array([len(requests[i][0]) for i in chosen], dtype=np.int64)
+        starts = [requests[i][0] for i in chosen]
+        sizes = np.array([len(start) for start in starts], dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes)])
         request = np.repeat(np.arange(len(chosen)), sizes)
-        x = np.concatenate([requests[i][0].means for i in chosen])
-        P = np.concatenate([requests[i][0].covariances for i in chosen])
-        value = np.concatenate([requests[i][0].value for i in chosen])
-        scan = np.repeat(np.array([requests[i][0].scan for i in chosen], dtype=np.int64), sizes)
+        x = np.concatenate([start.means for start in starts])
+        P = np.concatenate([start.covariances for start in starts])
+        value = np.concatenate([start.value for start in starts])
+        scan = np.repeat(np.array([start.scan for start in starts], dtype=np.int64), sizes)
         kernels = kalman_kernels()
         if kernels is not None:
             flat = self._converge_compiled(kernels, table, x, P, value, scan, request)
-            for c, i in enumerate(chosen):
-                out[i] = flat[offsets[c] : offsets[c + 1]]
-            return
-        track = np.arange(int(offsets[-1]))  # position in the flat output
-        flat = np.full(int(offsets[-1]), -math.inf)
+        else:
+            flat = self._converge_numpy(table, x, P, value, scan, request)
+        for c, i in enumerate(chosen):
+            out[i] = flat[offsets[c] : offsets[c + 1]]
+
+    def _converge_numpy(
+        self,
+        table: _ReferenceSteps,
+        x: FloatArray,
+        P: FloatArray,
+        value: FloatArray,
+        scan: IntArray,
+        request: IntArray,
+    ) -> FloatArray:
+        """The batched continuation's loop in numpy, one reference detection per round
+        for every track still going (the same steps as :meth:`_converge_compiled`).
+
+        Each round predicts every track to its reference's next detection
+        (:meth:`_predict_batch`), updates it by that detection (:meth:`_update_batch`),
+        adds the survival and detection terms, and lets the tracks that leave
+        (:meth:`_ReferenceSteps.leaving`) take their final value.  The arguments are
+        changed in place.
+        """
+        track = np.arange(value.size)  # position in the flat output
+        flat = np.full(value.size, -math.inf)
         step = np.zeros(track.size, dtype=np.int64)  # detections of the reference taken
         while track.size:
             target = table.scan[request, step]
-            # Predict scan by scan (as the trees do), every track from its own scan.
-            while True:
-                moving = np.flatnonzero(scan < target)
-                if moving.size == 0:
-                    break
-                nxt = scan[moving] + 1
-                dts = self.times[nxt] - self.times[nxt - 1]
-                for dt in np.unique(dts[dts > 0]).tolist():
-                    rows = moving[dts == dt]
-                    F, Q = self._linear_motion(self.motion, float(dt))  # type: ignore[misc]
-                    x[rows] = x[rows] @ F.T
-                    P[rows] = predicted_covariance(F, P[rows], Q)
-                missed = nxt < target[moving]
-                value[moving[missed]] += (
-                    self.survival_terms[nxt[missed]] + self.miss_terms[nxt[missed]]
-                )
-                scan[moving] = nxt
-            # Update each track by its reference's detection, one sensor at a time.
-            d2 = np.empty(track.size)
-            loglik = np.empty(track.size)
-            sensor_of = table.sensor[request, step]
-            for sensor in np.unique(sensor_of).tolist():
-                rows = np.flatnonzero(sensor_of == sensor)
-                measurement = self._sensors[int(target[rows[0]])].measurement
-                H, R = measurement.H, measurement.noise_covariance  # type: ignore[attr-defined]
-                z = table.detection[request[rows], step[rows], : H.shape[0]]
-                d2[rows], loglik[rows], x[rows], P[rows] = self._linear_step(
-                    x[rows], P[rows], z, H, R
-                )
+            self._predict_batch(x, P, value, scan, target)
+            d2, loglik = self._update_batch(table, x, P, request, step, target)
             value += self.survival_terms[target] + self._detection_term(target, d2, loglik)
-            # Tracks out of gate, converged, cut short or at their reference's end leave.
-            done = ~np.isfinite(value)
-            ended = step == table.steps[request] - 1
-            result = np.where(
-                done, -math.inf, value + table.rest[request, step] + table.tail[request]
-            )
-            same = np.zeros(track.size, dtype=bool)
-            check = np.flatnonzero(~done & ~ended)
-            if check.size:
-                mean = table.mean[request[check], step[check]]
-                cov = table.covariance[request[check], step[check]]
-                same[check] = np.all(
-                    np.abs(x[check] - mean) <= CONVERGED * (1.0 + np.abs(mean)), axis=1
-                ) & np.all(np.abs(P[check] - cov) <= CONVERGED * (1.0 + np.abs(cov)), axis=(1, 2))
-            leave = done | ended | same
+            leave, result = table.leaving(x, P, value, request, step)
             flat[track[leave]] = result[leave]
             keep = np.flatnonzero(~leave)
             track, request, x, P, value = track[keep], request[keep], x[keep], P[keep], value[keep]
             scan, step = scan[keep], step[keep] + 1
-        for c, i in enumerate(chosen):
-            out[i] = flat[offsets[c] : offsets[c + 1]]
+        return flat
+
+    def _predict_batch(
+        self, x: FloatArray, P: FloatArray, value: FloatArray, scan: IntArray, target: IntArray
+    ) -> None:
+        """Predict each track scan by scan (as the trees do), from its own ``scan`` to its
+        ``target`` scan, adding the survival and miss terms of the scans it passes; in
+        place."""
+        while True:
+            moving = np.flatnonzero(scan < target)
+            if moving.size == 0:
+                break
+            nxt = scan[moving] + 1
+            dts = self.times[nxt] - self.times[nxt - 1]
+            for dt in np.unique(dts[dts > 0]).tolist():
+                rows = moving[dts == dt]
+                F, Q = self._linear_motion(self.motion, float(dt))  # type: ignore[misc]
+                x[rows] = x[rows] @ F.T
+                P[rows] = predicted_covariance(F, P[rows], Q)
+            missed = nxt < target[moving]
+            value[moving[missed]] += self.survival_terms[nxt[missed]] + self.miss_terms[nxt[missed]]
+            scan[moving] = nxt
+
+    def _update_batch(
+        self,
+        table: _ReferenceSteps,
+        x: FloatArray,
+        P: FloatArray,
+        request: IntArray,
+        step: IntArray,
+        target: IntArray,
+    ) -> tuple[FloatArray, FloatArray]:
+        """Update each track by its reference's detection at ``step``, one sensor at a
+        time, in place; the squared Mahalanobis distances and log-likelihoods."""
+        d2 = np.empty(request.size)
+        loglik = np.empty(request.size)
+        sensor_of = table.sensor[request, step]
+        for sensor in np.unique(sensor_of).tolist():
+            rows = np.flatnonzero(sensor_of == sensor)
+            measurement = self._sensors[int(target[rows[0]])].measurement
+            H, R = measurement.H, measurement.noise_covariance  # type: ignore[attr-defined]
+            z = table.detection[request[rows], step[rows], : H.shape[0]]
+            d2[rows], loglik[rows], x[rows], P[rows] = self._linear_step(x[rows], P[rows], z, H, R)
+        return d2, loglik
 
     def _converge_compiled(
         self,
@@ -843,8 +867,8 @@ class RecordingObjective:
         request: IntArray,
     ) -> FloatArray:
         """The batched continuation's loop in the compiled kernel
-        (``continue_along_references``), track by track; the same steps as the numpy
-        loop of :meth:`_converge_batch`."""
+        (``continue_along_references``), track by track; the same steps as
+        :meth:`_converge_numpy`."""
         flat, positive = kernels.continue_along_references(
             np.ascontiguousarray(x, dtype=np.float64),
             np.ascontiguousarray(P, dtype=np.float64),
@@ -994,6 +1018,30 @@ class _ReferenceSteps:
                 mean[c, s] = reference.means[first + s]
                 covariance[c, s] = reference.covariances[first + s]
         return cls(steps, scan, sensor, detection, rest, mean, covariance, tail)
+
+    def leaving(
+        self,
+        x: FloatArray,
+        P: FloatArray,
+        value: FloatArray,
+        request: IntArray,
+        step: IntArray,
+    ) -> tuple[BoolArray, FloatArray]:
+        """Which tracks leave after ``step`` (out of gate, at their reference's end or cut
+        short, or converged to the reference's state) and the value each leaves with (its
+        value plus the reference's rest and tail; ``-inf`` out of gate)."""
+        done = ~np.isfinite(value)
+        ended = step == self.steps[request] - 1
+        result = np.where(done, -math.inf, value + self.rest[request, step] + self.tail[request])
+        same = np.zeros(value.size, dtype=bool)
+        check = np.flatnonzero(~done & ~ended)
+        if check.size:
+            mean = self.mean[request[check], step[check]]
+            cov = self.covariance[request[check], step[check]]
+            same[check] = np.all(
+                np.abs(x[check] - mean) <= CONVERGED * (1.0 + np.abs(mean)), axis=1
+            ) & np.all(np.abs(P[check] - cov) <= CONVERGED * (1.0 + np.abs(cov)), axis=(1, 2))
+        return done | ended | same, result
 
 
 def _squared_distances(

@@ -21,18 +21,24 @@ import numpy as np
 from mapassoc.data.io import TruthTable
 from mapassoc.data.outputs import TrackerOutput
 from mapassoc.errors import InputError
-from mapassoc.evaluation.calibration import DEFAULT_BINS, count_series_scores
-from mapassoc.evaluation.clear_mot import clear_mot
-from mapassoc.evaluation.metrics import gospa_over_time
+from mapassoc.evaluation.calibration import DEFAULT_BINS, CountScores, count_series_scores
+from mapassoc.evaluation.clear_mot import ClearMotResult, clear_mot
+from mapassoc.evaluation.metrics import GospaSeries, gospa_over_time
 from mapassoc.evaluation.ospa import ospa2, ospa2_over_time, ospa_over_time
-from mapassoc.evaluation.points import check_order
+from mapassoc.evaluation.points import TimedPoints, check_order
 from mapassoc.evaluation.tables import (
     disjoint_times_message,
     position_names,
     track_points,
     truth_points,
 )
-from mapassoc.evaluation.tgospa import _check_method, fragmentation_of, tgospa
+from mapassoc.evaluation.tgospa import (
+    TgospaResult,
+    TrackFragmentation,
+    _check_method,
+    fragmentation_of,
+    tgospa,
+)
 from mapassoc.validation import check_positive
 
 __all__ = ["TrackingScores", "score_tracks"]
@@ -169,71 +175,167 @@ def score_tracks(
     Warns (``UserWarning``) when the tracks and the truth share no time
     (:func:`~mapassoc.evaluation.tables.disjoint_times_message`).
     """
+    _check_tables(truth, output)
+    settings = _ScoringSettings.checked(
+        c=c,
+        p=p,
+        motp_threshold=motp_threshold,
+        clear_mot_scores=clear_mot_scores,
+        ospa2_window=ospa2_window,
+        switch_cost=switch_cost,
+        tgospa_method=tgospa_method,
+    )
+    names = position_names(truth, output.tracks)
+    message = disjoint_times_message(truth, output.tracks)
+    if message is not None:
+        warnings.warn(message, UserWarning, stacklevel=2)
+    metrics = _measure(truth_points(truth, names), track_points(output.tracks, names), settings)
+    counts = (
+        None
+        if output.counts is None
+        else count_series_scores(truth, output.counts, num_bins=num_bins)
+    )
+    return _tracking_scores(settings, metrics, counts, output)
+
+
+def _check_tables(truth: object, output: object) -> None:
+    """Raise unless ``truth`` is a TruthTable with a record and ``output`` a TrackerOutput."""
     if not isinstance(truth, TruthTable):
         raise InputError(f"truth must be a TruthTable, got {type(truth).__name__}")
     if not isinstance(output, TrackerOutput):
         raise InputError(f"output must be a TrackerOutput, got {type(output).__name__}")
     if truth.times.shape[0] == 0:
         raise InputError("truth has no records: there is nothing to score against")
-    cutoff = check_positive("c", c)
-    order = check_order(p)
-    threshold = cutoff if motp_threshold is None else check_positive(
-        "motp_threshold", motp_threshold
-    )
-    gamma = cutoff if switch_cost is None else check_positive("switch_cost", switch_cost)
-    method = _check_method(tgospa_method)
-    if not isinstance(clear_mot_scores, bool):
-        raise InputError(f"clear_mot_scores must be True or False, got {clear_mot_scores!r}")
-    names = position_names(truth, output.tracks)
-    message = disjoint_times_message(truth, output.tracks)
-    if message is not None:
-        warnings.warn(message, UserWarning, stacklevel=2)
-    truth_run = truth_points(truth, names)
-    track_run = track_points(output.tracks, names)
 
+
+@dataclass(frozen=True)
+class _ScoringSettings:
+    """The checked arguments of :func:`score_tracks` that the metrics read.
+
+    Attributes
+    ----------
+    cutoff, order : float
+        ``c`` and ``p``.
+    threshold : float
+        The CLEAR-MOT correspondence threshold (``c`` unless given).
+    gamma : float
+        The T-GOSPA switching cost (``c`` unless given).
+    method : str
+        ``"milp"`` or ``"lp"``.
+    clear_mot_scores : bool
+    ospa2_window : int or None
+    """
+
+    cutoff: float
+    order: float
+    threshold: float
+    gamma: float
+    method: str
+    clear_mot_scores: bool
+    ospa2_window: int | None
+
+    @classmethod
+    def checked(
+        cls,
+        *,
+        c: float,
+        p: float,
+        motp_threshold: float | None,
+        clear_mot_scores: bool,
+        ospa2_window: int | None,
+        switch_cost: float | None,
+        tgospa_method: str,
+    ) -> _ScoringSettings:
+        """The settings after checking each argument (messages name the argument)."""
+        cutoff = check_positive("c", c)
+        order = check_order(p)
+        threshold = (
+            cutoff if motp_threshold is None else check_positive("motp_threshold", motp_threshold)
+        )
+        gamma = cutoff if switch_cost is None else check_positive("switch_cost", switch_cost)
+        method = _check_method(tgospa_method)
+        if not isinstance(clear_mot_scores, bool):
+            raise InputError(f"clear_mot_scores must be True or False, got {clear_mot_scores!r}")
+        return cls(cutoff, order, threshold, gamma, method, clear_mot_scores, ospa2_window)
+
+
+@dataclass(frozen=True)
+class _Metrics:
+    """The metrics of one run, before they are flattened into :class:`TrackingScores`."""
+
+    gospa: GospaSeries
+    ospa: float
+    ospa2: float
+    trajectory: TgospaResult
+    fragmentation: TrackFragmentation
+    mot: ClearMotResult | None
+
+
+def _measure(
+    truth_run: TimedPoints, track_run: TimedPoints, settings: _ScoringSettings
+) -> _Metrics:
+    """GOSPA, OSPA, OSPA(2), T-GOSPA with its fragmentation, and CLEAR-MOT if asked for."""
+    cutoff, order = settings.cutoff, settings.order
     gospa_series = gospa_over_time(truth_run, track_run, c=cutoff, p=order)
     ospa_series = ospa_over_time(truth_run, track_run, c=cutoff, p=order)
-    if ospa2_window is None:
+    if settings.ospa2_window is None:
         ospa2_value = ospa2(truth_run, track_run, c=cutoff, p=order).total
     else:
         ospa2_value = ospa2_over_time(
-            truth_run, track_run, c=cutoff, p=order, window_length=ospa2_window
+            truth_run, track_run, c=cutoff, p=order, window_length=settings.ospa2_window
         ).mean_total
-
-    trajectory = tgospa(truth_run, track_run, c=cutoff, gamma=gamma, p=order, method=method)
-    fragmentation = fragmentation_of(trajectory)
-    mot = clear_mot(truth_run, track_run, threshold=threshold) if clear_mot_scores else None
-    counts = (
-        None
-        if output.counts is None
-        else count_series_scores(truth, output.counts, num_bins=num_bins)
+    trajectory = tgospa(
+        truth_run, track_run, c=cutoff, gamma=settings.gamma, p=order, method=settings.method
     )
-    return TrackingScores(
-        c=cutoff,
-        p=order,
-        gospa=gospa_series.mean_total,
-        gospa_localisation=gospa_series.mean_localisation,
-        gospa_missed=gospa_series.mean_missed,
-        gospa_false=gospa_series.mean_false,
+    fragmentation = fragmentation_of(trajectory)
+    mot = (
+        clear_mot(truth_run, track_run, threshold=settings.threshold)
+        if settings.clear_mot_scores
+        else None
+    )
+    return _Metrics(
+        gospa=gospa_series,
         ospa=ospa_series.mean_total,
         ospa2=float(ospa2_value),
-        ospa2_window=None if ospa2_window is None else int(ospa2_window),
+        trajectory=trajectory,
+        fragmentation=fragmentation,
+        mot=mot,
+    )
+
+
+def _tracking_scores(
+    settings: _ScoringSettings,
+    metrics: _Metrics,
+    counts: CountScores | None,
+    output: TrackerOutput,
+) -> TrackingScores:
+    """The metrics as one flat :class:`TrackingScores` (``None`` for what was not computed)."""
+    gospa, mot, window = metrics.gospa, metrics.mot, settings.ospa2_window
+    return TrackingScores(
+        c=settings.cutoff,
+        p=settings.order,
+        gospa=gospa.mean_total,
+        gospa_localisation=gospa.mean_localisation,
+        gospa_missed=gospa.mean_missed,
+        gospa_false=gospa.mean_false,
+        ospa=metrics.ospa,
+        ospa2=metrics.ospa2,
+        ospa2_window=None if window is None else int(window),
         mota=None if mot is None else mot.mota,
         motp=None if mot is None else mot.motp,
         id_switches=None if mot is None else mot.num_switches,
         fragmentations=None if mot is None else mot.num_fragmentations,
         mostly_tracked=None if mot is None else mot.mostly_tracked,
         mostly_lost=None if mot is None else mot.mostly_lost,
-        motp_threshold=None if mot is None else threshold,
+        motp_threshold=None if mot is None else settings.threshold,
         k_brier=None if counts is None else counts.brier,
         k_ece=None if counts is None else counts.ece,
         k_hit_rate=None if counts is None else counts.hit_rate,
         num_tracks=int(np.unique(output.tracks.track_ids).size),
         seconds=float(output.seconds),
-        tgospa=trajectory.total,
-        tgospa_switching=trajectory.switching,
-        tgospa_gamma=gamma,
-        fragments_per_target=fragmentation.fragments_per_target,
-        tgospa_id_switches=fragmentation.num_id_switches,
+        tgospa=metrics.trajectory.total,
+        tgospa_switching=metrics.trajectory.switching,
+        tgospa_gamma=settings.gamma,
+        fragments_per_target=metrics.fragmentation.fragments_per_target,
+        tgospa_id_switches=metrics.fragmentation.num_id_switches,
     )
-

@@ -602,6 +602,34 @@ def scans_from_stonesoup(
         Stone Soup is not installed.
     """
     ss = _Types.load()
+    sensors, expected = _check_import_arguments(
+        ss, detection_sets, sensor_of, epoch, empty_scans, row_key, config
+    )
+    grouped = _group_detections(ss, detection_sets, sensor_of, sensors, config, expected)
+    ordered_times = _sorted_times(grouped.times)
+    origin = ordered_times[0] if epoch is None else epoch
+    scans, rows_to_detections = _build_scans(
+        grouped,
+        ordered_times,
+        origin,
+        sensors,
+        every_sensor=isinstance(sensor_of, str) or empty_scans,
+        row_key=row_key,
+    )
+    return StoneSoupScans(scans=scans, epoch=origin, detections=rows_to_detections)
+
+
+def _check_import_arguments(
+    ss: _Types,
+    detection_sets: object,
+    sensor_of: object,
+    epoch: object,
+    empty_scans: object,
+    row_key: object,
+    config: Config | None,
+) -> tuple[tuple[str, ...], dict[str, Any]]:
+    """The sensor names of ``sensor_of`` and, with ``config``, each sensor's Stone Soup
+    model, after checking the arguments of :func:`scans_from_stonesoup`."""
     sensors = _check_sensor_of(sensor_of)
     if epoch is not None:
         _check_epoch(epoch)
@@ -620,34 +648,52 @@ def scans_from_stonesoup(
             )
     if isinstance(detection_sets, str | bytes) or not isinstance(detection_sets, Iterable):
         raise InputError(f"detection_sets must be an iterable, got {detection_sets!r}")
+    return sensors, expected
 
+
+@dataclass(frozen=True, eq=False)
+class _Grouped:
+    """The detections of :func:`scans_from_stonesoup` grouped by (time, sensor).
+
+    Attributes
+    ----------
+    groups : dict of (datetime, str) to list of _Entry
+        The detections of each time and sensor, in input order.
+    times : set of datetime
+        Every time of the detection sets, empty sets included.
+    dims : dict of str to int
+        The measurement dimension of each sensor (from ``config`` or its first detection).
+    """
+
+    groups: dict[tuple[datetime, str], list[_Entry]]
+    times: set[datetime]
+    dims: dict[str, int]
+
+
+def _group_detections(
+    ss: _Types,
+    detection_sets: Iterable[Any],
+    sensor_of: str | Mapping[Any, str],
+    sensors: tuple[str, ...],
+    config: Config | None,
+    expected: dict[str, Any],
+) -> _Grouped:
+    """Every detection checked and converted to our components, grouped by time and sensor."""
     groups: dict[tuple[datetime, str], list[_Entry]] = {}
     times: set[datetime] = set()
-    seen: set[int] = set()
-    checked_models: set[int] = set()
     dims: dict[str, int] = {}
     if config is not None:
         dims = {n: config.sensors[n].measurement.measurement_dim for n in sensors}
+    seen: set[int] = set()
+    checked_models: set[int] = set()
     for index, item in enumerate(detection_sets):
         when, detections = _split_item(ss, item, index)
         times.add(when)
         for detection in detections:
             where = _describe_detection(detection, f"detection_sets[{index}]")
-            if id(detection) in seen:
-                raise InputError(f"{where} appears more than once")
-            seen.add(id(detection))
-            if detection.timestamp is not None and detection.timestamp != when:
-                raise InputError(f"{where} has timestamp {detection.timestamp}, its set {when}")
+            _check_once_and_on_time(detection, when, where, seen)
             model = detection.measurement_model
-            if isinstance(sensor_of, str):
-                sensor = sensor_of
-            elif model in sensor_of:
-                sensor = sensor_of[model]
-            else:
-                raise InputError(
-                    f"{where}: sensor_of has no sensor for its measurement model "
-                    f"{_describe_model(model)} (models are looked up by identity)"
-                )
+            sensor = _sensor_for(sensor_of, model, where)
             vector = _components_from_stonesoup(ss, detection, where)
             if config is not None and id(model) not in checked_models:
                 _check_model_fits(ss, model, expected[sensor], sensor, where)
@@ -660,52 +706,105 @@ def scans_from_stonesoup(
             groups.setdefault((when, sensor), []).append(_Entry(vector, detection))
     if not times:
         raise InputError("detection_sets is empty: there is no detection set to convert")
+    return _Grouped(groups, times, dims)
 
+
+def _check_once_and_on_time(detection: Any, when: datetime, where: str, seen: set[int]) -> None:
+    """Raise if ``detection`` was seen before or its own timestamp is not its set's time;
+    add it to ``seen``."""
+    if id(detection) in seen:
+        raise InputError(f"{where} appears more than once")
+    seen.add(id(detection))
+    if detection.timestamp is not None and detection.timestamp != when:
+        raise InputError(f"{where} has timestamp {detection.timestamp}, its set {when}")
+
+
+def _sensor_for(sensor_of: str | Mapping[Any, str], model: object, where: str) -> str:
+    """Our sensor name of a detection of measurement model ``model``."""
+    if isinstance(sensor_of, str):
+        return sensor_of
+    if model in sensor_of:
+        return sensor_of[model]
+    raise InputError(
+        f"{where}: sensor_of has no sensor for its measurement model "
+        f"{_describe_model(model)} (models are looked up by identity)"
+    )
+
+
+def _sorted_times(times: set[datetime]) -> list[datetime]:
+    """``times`` in increasing order; an error where naive and aware datetimes are mixed."""
     try:
-        ordered_times = sorted(times)
+        return sorted(times)
     except TypeError:
         raise InputError("detection_sets mixes naive and timezone-aware datetimes") from None
-    origin = ordered_times[0] if epoch is None else epoch
 
+
+def _build_scans(
+    grouped: _Grouped,
+    ordered_times: list[datetime],
+    origin: datetime,
+    sensors: tuple[str, ...],
+    *,
+    every_sensor: bool,
+    row_key: str | None,
+) -> tuple[list[Scan], dict[int, Any]]:
+    """The scans, time by time and sensor by sensor, with the detection of every row.
+
+    ``every_sensor``: every sensor has a scan at every time (empty if need be); otherwise
+    only where it has a detection.
+    """
     scans: list[Scan] = []
     rows_to_detections: dict[int, Any] = {}
     next_row = FIRST_DATA_LINE
     for when in ordered_times:
         t = _seconds(when, origin, "detection set time")
-        if isinstance(sensor_of, str) or empty_scans:
-            names = sensors
-        else:
-            names = tuple(n for n in sensors if (when, n) in groups)
+        names = (
+            sensors if every_sensor else tuple(n for n in sensors if (when, n) in grouped.groups)
+        )
         for name in names:
-            entries = groups.get((when, name), [])
-            if name not in dims:
+            entries = grouped.groups.get((when, name), [])
+            if name not in grouped.dims:
                 raise InputError(
                     f"sensor {name!r} has no detection, so the measurement dimension of its "
                     "empty scans is unknown; pass config"
                 )
             if row_key is None:
-                entries.sort(key=lambda e: tuple(e.vector.tolist()))
-                rows = list(range(next_row, next_row + len(entries)))
+                entries, rows = _numbered_in_order(entries, next_row)
                 next_row += len(entries)
             else:
-                keyed = [
-                    (_row_of(e.detection, row_key, _describe_detection(e.detection, "input")), e)
-                    for e in entries
-                ]
-                keyed.sort(key=lambda pair: pair[0])
-                rows = [row for row, _ in keyed]
-                entries = [e for _, e in keyed]
-            for row, entry in zip(rows, entries, strict=True):
-                if row in rows_to_detections:
-                    raise InputError(
-                        f"metadata[{row_key!r}] = {row} appears on more than one detection"
-                    )
-                rows_to_detections[row] = entry.detection
+                entries, rows = _numbered_by_key(entries, row_key)
+            _record_rows(rows, entries, rows_to_detections, row_key)
             scan_detections = np.array([e.vector for e in entries], dtype=float).reshape(
-                len(entries), dims[name]
+                len(entries), grouped.dims[name]
             )
             scans.append(Scan(t, name, scan_detections, np.array(rows, dtype=np.int64)))
-    return StoneSoupScans(scans=scans, epoch=origin, detections=rows_to_detections)
+    return scans, rows_to_detections
+
+
+def _numbered_in_order(entries: list[_Entry], first: int) -> tuple[list[_Entry], list[int]]:
+    """The entries in lexicographic order of their vectors, numbered from ``first``"""
+    ordered = sorted(entries, key=lambda e: tuple(e.vector.tolist()))
+    return ordered, list(range(first, first + len(ordered)))
+
+
+def _numbered_by_key(entries: list[_Entry], row_key: str) -> tuple[list[_Entry], list[int]]:
+    """The entries in order of their ``metadata[row_key]``, with those rows."""
+    keyed = [
+        (_row_of(e.detection, row_key, _describe_detection(e.detection, "input")), e)
+        for e in entries
+    ]
+    keyed.sort(key=lambda pair: pair[0])
+    return [e for _, e in keyed], [row for row, _ in keyed]
+
+
+def _record_rows(
+    rows: list[int], entries: list[_Entry], rows_to_detections: dict[int, Any], row_key: str | None
+) -> None:
+    """Add each row's detection to ``rows_to_detections``; an error for a row seen before."""
+    for row, entry in zip(rows, entries, strict=True):
+        if row in rows_to_detections:
+            raise InputError(f"metadata[{row_key!r}] = {row} appears on more than one detection")
+        rows_to_detections[row] = entry.detection
 
 
 def scans_to_stonesoup(
