@@ -12,7 +12,6 @@ stopped.
 from __future__ import annotations
 
 import concurrent.futures
-import dataclasses
 import json
 import os
 import sys
@@ -324,13 +323,16 @@ def json_dump(data: object, path: Path) -> None:
 def _settings_record(
     config: Any, timings: bool, segments: int, tracks_format: str
 ) -> dict[str, object]:
-    """The settings a resumed run must share with its first session."""
+    """The settings a resumed run must share with its first session, as JSON holds them
+    (``prune_log_ratio = inf`` as ``"inf"``: compared on resume in this form)."""
+    from mapassoc.data.settings import settings_to_json
+
     return {
         "timings": timings,
         "segments": segments,
         "tracks_format": tracks_format,
-        "estimator": dataclasses.asdict(config.estimator),
-        "birth": dataclasses.asdict(config.birth),
+        "estimator": settings_to_json(config.estimator),
+        "birth": settings_to_json(config.birth),
     }
 
 

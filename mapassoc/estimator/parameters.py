@@ -74,6 +74,7 @@ from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError, MapassocError
+from mapassoc.log_space import json_number
 from mapassoc.models.sensor import Sensor
 from mapassoc.validation import check_positive, check_probability
 
@@ -278,7 +279,7 @@ class EstimationPass:
                      for k, (a, b) in self.used.items()},
             "updated": {k: {"false_alarms_per_scan": a, "detection_probability": b}
                         for k, (a, b) in self.updated.items()},
-            "objective": self.objective,
+            "objective": json_number(self.objective),  # -inf: "-inf" (a kept Pd of 1)
             "tracks": self.tracks,
             "scans": self.scans,
         }  # fmt: skip
