@@ -107,6 +107,7 @@ def estimate_file_parameters(
     write: str | os.PathLike[str] | None = None,
     stop: Any = None,
     progress: bool = True,
+    detections_format: str | None = None,
 ) -> ParameterReport:
     """Estimate every sensor's rate and ``Pd`` from a recording; optionally write them.
 
@@ -121,6 +122,8 @@ def estimate_file_parameters(
         Polled between windows (SIGINT, SIGTERM).
     progress : bool
         A line per pass on stderr.
+    detections_format : {"csv", "parquet"}, optional
+        The detections file's format (``--format``); None: by its suffix, else its bytes.
 
     Raises
     ------
@@ -136,7 +139,9 @@ def estimate_file_parameters(
     config_bytes, _ = read_input(config_path, stop=stop)
     config = load_config(config_path, tracker_names=tracker_names(), content=config_bytes)
     detections_bytes, _ = read_input(detections_path, stop=stop)
-    scans = read_detections_file(detections_path, config.sensors, content=detections_bytes)
+    scans = read_detections_file(
+        detections_path, config.sensors, content=detections_bytes, format_name=detections_format
+    )
     auto_rates = set(config.auto.false_alarms)
     auto_pds = config.auto.pd_starts()
     configured = {

@@ -124,12 +124,15 @@ class RunOptions:
         Worker processes for ``segments > 1`` (default: the usable cores).
     tracks_format : {"csv", "parquet"}
         ``tracks.csv`` or ``tracks.parquet`` (extra ``parquet``).
+    detections_format : {"csv", "parquet"}, optional
+        The detections file's format (``--format``); None (default): by its suffix, and
+        by its bytes when it has none (``/dev/stdin``, a process substitution).
 
     Raises
     ------
     InputError
         ``overwrite`` with ``resume``, a negative ``checkpoint_seconds``, an unknown
-        ``tracks_format``, ``segments < 1``.
+        ``tracks_format`` or ``detections_format``, ``segments < 1``.
     """
 
     timings: bool = True
@@ -141,6 +144,7 @@ class RunOptions:
     segments: int = 1
     jobs: int | None = None
     tracks_format: str = "csv"
+    detections_format: str | None = None
 
     def __post_init__(self) -> None:
         if self.overwrite and self.resume:
@@ -153,6 +157,11 @@ class RunOptions:
             raise InputError(
                 f"tracks_format must be one of {sorted(format_names())}, got "
                 f"{self.tracks_format!r}"
+            )
+        if self.detections_format is not None and self.detections_format not in format_names():
+            raise InputError(
+                f"detections_format must be one of {sorted(format_names())} or None, got "
+                f"{self.detections_format!r}"
             )
         # Stored as an int: the run's settings record is written to JSON.
         object.__setattr__(self, "segments", check_integer("segments", self.segments, minimum=1))
@@ -404,7 +413,8 @@ def run_files(
     Parameters
     ----------
     config_path, detections_path : path
-        The TOML configuration and the detections file (CSV, or Parquet by suffix).
+        The TOML configuration and the detections file (CSV or Parquet: by
+        ``options.detections_format``, else its suffix, else its bytes).
     out_dir : path
         The run folder ``OUT`` (see :mod:`mapassoc.apps.run_folders`).
     options : RunOptions, optional
@@ -486,7 +496,8 @@ def run_files(
                 str(folder.path), "is not empty and holds no mapassoc run; choose another --out"
             )
 
-    scans = read_detections_file(detections_path, config.sensors, content=detections_bytes)
+    scans = read_detections_file(detections_path, config.sensors, content=detections_bytes,
+                                 format_name=options.detections_format)  # fmt: skip
     del detections_bytes  # parsed: the scans are what the run needs from here on
     parameters: dict[str, Any] | None = None
     precomputed = None
