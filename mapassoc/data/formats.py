@@ -202,8 +202,9 @@ def read_detections_file(
 
     ``content``: the file's bytes when the caller has read them already (``path`` then
     only names the file); a file without a suffix, or with ``format_name``, is otherwise
-    read once here, then sniffed and parsed from those bytes.  See :func:`mapassoc.data.io.read_detections`
-    and :func:`mapassoc.data.parquet.read_detections_parquet`.
+    read once here, then sniffed and parsed from those bytes.  See
+    :func:`mapassoc.data.io.read_detections` and
+    :func:`mapassoc.data.parquet.read_detections_parquet`.
 
     Raises
     ------
