@@ -333,6 +333,11 @@ def _tracker_options(
             value = tomllib.loads(f"value = {raw.strip()}")["value"]
         except tomllib.TOMLDecodeError:
             value = raw.strip()
+        except RecursionError:  # tomllib reads nested arrays recursively
+            raise InputError(
+                f"--option {target.strip()}: the value's arrays or tables are nested too "
+                "deeply to read"
+            ) from None
         options.setdefault(tracker, {})[option.strip()] = value
     return options
 

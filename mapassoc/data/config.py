@@ -812,8 +812,9 @@ def load_config(
     Raises
     ------
     ConfigError
-        Unreadable file or TOML syntax error (key ``"<file>"``), or any schema error; with
-        ``solver_names``, an unknown ``estimator.solver``.
+        Unreadable file or TOML syntax error, arrays or tables nested too deeply to read
+        (key ``"<file>"``), or any schema error; with ``solver_names``, an unknown
+        ``estimator.solver``.
     """
     source = os.fspath(path)
     try:
@@ -829,6 +830,13 @@ def load_config(
         raise ConfigError(_DOCUMENT_KEY, f"invalid TOML: {exc}", source=source) from None
     except UnicodeDecodeError as exc:
         raise ConfigError(_DOCUMENT_KEY, f"not UTF-8 text ({exc.reason})", source=source) from None
+    except RecursionError:  # tomllib reads nested arrays and inline tables recursively
+        raise ConfigError(
+            _DOCUMENT_KEY,
+            "invalid TOML: arrays or inline tables nested too deeply to read (the schema "
+            "nests arrays two deep at most: region = [[low, high], ...])",
+            source=source,
+        ) from None
     config = parse_config(
         data, source=source, solver_names=solver_names, tracker_names=tracker_names
     )

@@ -185,3 +185,54 @@ def test_simulate_parquet_runs_to_the_csv_tracks(tmp_path: Path) -> None:
     np.testing.assert_array_equal(a.states, b.states)
     assert main(["evaluate", str(tmp_path / "run-p" / "tracks.csv"),
                  str(tmp_path / "p" / "truth.parquet")]) == 0
+
+
+def _tiny_tracks_and_truth(folder: Path) -> tuple[Path, Path]:
+    tracks, truth = folder / "tracks.csv", folder / "truth.csv"
+    tracks.write_text(
+        "track_id,time,sensor,x,y,var_x,var_y,detection_row\n"
+        "1,0.0,pos,0.5,0.0,1.0,1.0,2\n1,1.0,pos,1.5,0.0,1.0,1.0,3\n"
+    )
+    truth.write_text("target_id,time,x,y\n1,0.0,0.0,0.0\n1,1.0,1.0,0.0\n")
+    return tracks, truth
+
+
+@pytest.mark.parametrize(
+    ("options", "fragment"),
+    [
+        (["--cutoff", "1e300"], "c^p = 1e+300^2.0 overflows"),
+        (["--order", "1e300"], "c^p = 10.0^1e+300 overflows"),
+        (["--order", "2000"], "c^p = 10.0^2000.0 overflows"),
+        (["--cutoff", "1e-300"], "c^p = 1e-300^2.0 underflows"),
+        (["--switch-cost", "1e300"], "switch_cost^p = 1e+300^2.0 overflows"),
+    ],
+)
+def test_evaluate_refuses_costs_a_double_cannot_hold(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], options: list[str], fragment: str
+) -> None:
+    """c^p beyond a double was an OverflowError traceback; now one line and status 2."""
+    tracks, truth = _tiny_tracks_and_truth(tmp_path)
+    assert main(["evaluate", str(tracks), str(truth), *options]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"mapassoc: error: {fragment}") and err.count("\n") == 1
+    assert main(["evaluate", str(tracks), str(truth), "--cutoff", "20", "--order", "3"]) == 0
+
+
+def test_a_config_nested_too_deeply_is_one_line(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A TOML value nested 500 deep was a RecursionError traceback from the TOML reader."""
+    deep = tmp_path / "deep.toml"
+    deep.write_text(
+        (scenario / "config.toml").read_text() + "\n[trackers.mht]\nx = " + "[" * 500
+        + "]" * 500 + "\n"
+    )  # fmt: skip
+    assert _run(deep, scenario / "detections.csv", tmp_path / "out") == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"mapassoc: error: {deep}: config key '<file>': invalid TOML: ")
+    assert "nested too deeply" in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+    option = "mht.x=" + "[" * 1000 + "]" * 1000
+    assert main(["compare", "--option", option, "--out", str(tmp_path / "cmp")]) == 2
+    assert "nested too deeply" in capsys.readouterr().err
+    assert not (tmp_path / "cmp").exists()
