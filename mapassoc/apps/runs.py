@@ -248,7 +248,8 @@ def estimate_with_progress(
     """The configuration's "auto" sensor parameters from the recording, a line per pass.
 
     ``every_sensor``: estimate every sensor's rate and ``Pd``, not only the "auto" ones
-    (the configuration's ``detection_probability_start`` still serves as a start).
+    (an "auto" ``Pd`` starts at its ``detection_probability_start``, a configured one at
+    its number, which is also what it keeps when the recording cannot estimate it).
 
     Raises
     ------
@@ -274,7 +275,9 @@ def estimate_with_progress(
 
     rates, pds = config.auto.false_alarms, config.auto.pd_starts()
     if every_sensor:
-        rates, pds = tuple(config.sensors), {name: pds.get(name) for name in config.sensors}
+        rates = tuple(config.sensors)
+        pds = {name: pds[name] if name in pds else sensor.detection_probability
+               for name, sensor in config.sensors.items()}  # fmt: skip
     try:
         return estimate_parameters(
             config, scans, false_alarms=rates, detection_probability=pds, on_pass=report,

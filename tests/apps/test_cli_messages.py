@@ -236,3 +236,72 @@ def test_a_config_nested_too_deeply_is_one_line(
     assert main(["compare", "--option", option, "--out", str(tmp_path / "cmp")]) == 2
     assert "nested too deeply" in capsys.readouterr().err
     assert not (tmp_path / "cmp").exists()
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("tiny") / "crossing"
+    assert main(["simulate", "crossing", "--out", str(out), "--seed", "1", "--scans", "8"]) == 0
+    return out
+
+
+def _edited_detections(source: Path, target: Path, column: int, change: float,
+                       scale: float = 1.0) -> Path:  # fmt: skip
+    """``source`` with ``column`` of every line times ``scale`` plus ``change``."""
+    lines = source.read_text().splitlines()
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[column] = repr(float(cells[column]) * scale + change)
+        out.append(",".join(cells))
+    target.write_text("\n".join(out) + "\n")
+    return target
+
+
+def _warning_lines(err: str) -> list[str]:
+    lines = err.strip().splitlines()
+    assert all(line.startswith("mapassoc: warning: ") for line in lines), err
+    return lines
+
+
+def test_estimate_parameters_prints_its_warnings_as_run_does(
+    tiny: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A missing [birth] and times in milliseconds were raw UserWarning / RuntimeWarning
+    lines (with the source line under them); now `mapassoc: warning: ...`, once each."""
+    text = (tiny / "config.toml").read_text()
+    config = tmp_path / "nobirth.toml"
+    config.write_text(text[: text.index("[birth]")] + text[text.index("[estimator]") :])
+    ms = _edited_detections(tiny / "detections.csv", tmp_path / "ms.csv", 0, 0.0, 1000.0)
+    capsys.readouterr()
+    assert main(["estimate-parameters", str(config), str(ms), "--no-progress"]) == 0
+    lines = _warning_lines(capsys.readouterr().err)
+    assert sum("has no [birth] section" in line for line in lines) == 1
+    assert sum("not milliseconds or nanoseconds" in line for line in lines) == 1
+
+
+def test_estimate_parameters_warns_when_detections_are_outside(
+    tiny: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`run` warned that every detection is outside the region; estimate-parameters
+    said nothing.  Both now use the same check."""
+    outside = _edited_detections(tiny / "detections.csv", tmp_path / "out.csv", 2, 5000.0)
+    capsys.readouterr()
+    assert main(["estimate-parameters", str(tiny / "config.toml"), str(outside),
+                 "--no-progress"]) == 0  # fmt: skip
+    lines = _warning_lines(capsys.readouterr().err)
+    assert any("detections lie outside its region" in line for line in lines)
+
+
+def test_estimate_parameters_writes_the_pd_it_says_it_kept(
+    tiny: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Too few track scans to estimate Pd: it keeps the configured 0.9, and --write once
+    wrote 0.95 (the estimation's start) while the table said "(kept)"."""
+    written = tmp_path / "estimated.toml"
+    assert main(["estimate-parameters", str(tiny / "config.toml"), str(tiny / "detections.csv"),
+                 "--no-progress", "--write", str(written)]) == 0  # fmt: skip
+    out, err = capsys.readouterr()
+    assert "0.900 0.900 (kept)" in out
+    assert "detection_probability not estimable" in err and "kept 0.9\n" in err
+    assert "detection_probability = 0.9\n" in written.read_text()
