@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.special import logsumexp
 
-from mapassoc.log_space import log_sum_exp
+from mapassoc.log_space import json_number, log_sum_exp, number_from_json
 
 
 @pytest.mark.parametrize("seed", range(10))
@@ -42,3 +42,17 @@ def test_edge_cases() -> None:
     assert rows.shape == (3,) and np.all(rows == -math.inf)
     mixed = log_sum_exp(np.array([[-math.inf, -math.inf], [0.0, 0.0]]), axis=1)
     assert mixed[0] == -math.inf and mixed[1] == pytest.approx(math.log(2.0), rel=1e-15)
+
+
+@pytest.mark.parametrize("value", [math.inf, -math.inf, 0.0, -2.5, 1e308, 5e-324])
+def test_json_number_round_trips_through_strict_json(value: float) -> None:
+    import json
+
+    text = json.dumps(json_number(value), allow_nan=False)
+    assert number_from_json(json.loads(text)) == value
+
+
+def test_number_from_json_refuses_other_strings() -> None:
+    assert json_number(math.inf) == "inf" and json_number(-math.inf) == "-inf"
+    with pytest.raises(ValueError, match="'nan'"):
+        number_from_json("nan")

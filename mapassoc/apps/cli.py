@@ -115,6 +115,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             segments=args.segments,
             jobs=args.jobs,
             tracks_format=args.tracks_format,
+            detections_format=args.format,
         )
         outcome = run_files(args.config, args.detections, args.out, options, stop=stop)
     summary = outcome.summary
@@ -140,7 +141,7 @@ def _cmd_estimate_parameters(args: argparse.Namespace) -> int:
     with stop_on_signals(StopFlag()) as stop:
         report = estimate_file_parameters(
             args.config, args.detections, write=args.write, stop=stop,
-            progress=not args.no_progress,
+            progress=not args.no_progress, detections_format=args.format,
         )  # fmt: skip
     print(report.table())
     estimate = report.estimate
@@ -359,6 +360,11 @@ def _tracker_options(
             value = tomllib.loads(f"value = {raw.strip()}")["value"]
         except tomllib.TOMLDecodeError:
             value = raw.strip()
+        except RecursionError:  # tomllib reads nested arrays recursively
+            raise InputError(
+                f"--option {target.strip()}: the value's arrays or tables are nested too "
+                "deeply to read"
+            ) from None
         options.setdefault(tracker, {})[option.strip()] = value
     return options
 
@@ -369,6 +375,22 @@ def _comma_separated(text: str) -> list[str]:
 
 
 Subcommands = argparse._SubParsersAction  # the type of ``parser.add_subparsers()``
+
+_DETECTIONS_HELP = (
+    "detections file, CSV or Parquet by its suffix; a stream without one (/dev/stdin, "
+    "<(zcat detections.csv.gz)) by its content, or by --format"
+)
+
+
+def _add_detections_format(p: argparse.ArgumentParser) -> None:
+    """``--format`` of a command that reads a detections file."""
+    p.add_argument(
+        "--format",
+        choices=format_names(),
+        default=None,
+        help="the detections file's format (default: by its suffix; a file without one, "
+        "such as a pipe, by its first bytes: Parquet's magic PAR1, else CSV)",
+    )
 
 
 def _add_scenarios_command(sub: Subcommands) -> None:
@@ -431,7 +453,8 @@ def _add_run_command(sub: Subcommands) -> None:
         "hypothesis counts) and summary.json.",
     )
     p.add_argument("config", help="TOML configuration (motion, sensors, birth, estimator)")
-    p.add_argument("detections", help="detections file, CSV or Parquet by its suffix")
+    p.add_argument("detections", help=_DETECTIONS_HELP)
+    _add_detections_format(p)
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument(
         "--no-timings",
@@ -499,7 +522,8 @@ def _add_estimate_parameters_command(sub: Subcommands) -> None:
         allow_abbrev=False,
     )
     p.add_argument("config", help="TOML configuration (numbers or \"auto\")")
-    p.add_argument("detections", help="detections file, CSV or Parquet by its suffix")
+    p.add_argument("detections", help=_DETECTIONS_HELP)
+    _add_detections_format(p)
     p.add_argument("--write", metavar="TOML", help="write the estimated configuration here "
                    "(a new file)")  # fmt: skip
     p.add_argument("--no-progress", action="store_true", help="no line per pass on stderr")

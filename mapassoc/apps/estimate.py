@@ -10,6 +10,7 @@ difference), and writes a configuration with the estimates filled in.
 from __future__ import annotations
 
 import os
+import warnings as _warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -108,6 +109,7 @@ def estimate_file_parameters(
     write: str | os.PathLike[str] | None = None,
     stop: Any = None,
     progress: bool = True,
+    detections_format: str | None = None,
 ) -> ParameterReport:
     """Estimate every sensor's rate and ``Pd`` from a recording; optionally write them.
 
@@ -123,6 +125,8 @@ def estimate_file_parameters(
         Polled between windows (SIGINT, SIGTERM).
     progress : bool
         A line per pass on stderr.
+    detections_format : {"csv", "parquet"}, optional
+        The detections file's format (``--format``); None: by its suffix, else its bytes.
 
     Raises
     ------
@@ -132,16 +136,43 @@ def estimate_file_parameters(
         ``write`` cannot be written (its folder is missing, the disk is full, ...).
     """
     from mapassoc.apps.run_folders import write_atomically
-    from mapassoc.apps.runs import estimate_with_progress, read_input
+    from mapassoc.apps.runs import read_input
+    from mapassoc.data.checks import detections_outside_region
     from mapassoc.data.config import config_to_toml, load_config
     from mapassoc.data.formats import read_detections_file
 
     if write is not None and os.path.lexists(write):
         raise InputError(f"{os.fspath(write)} exists already; name a new file to write")
-    config_bytes, _ = read_input(config_path, stop=stop)
-    config = load_config(config_path, tracker_names=tracker_names(), content=config_bytes)
-    detections_bytes, _ = read_input(detections_path, stop=stop)
-    scans = read_detections_file(detections_path, config.sensors, content=detections_bytes)
+    # Warnings are kept for the report, as `run` keeps them for summary.json (a missing
+    # [birth], times that look like milliseconds: once per message).
+    with _warnings.catch_warnings(record=True) as caught:
+        _warnings.simplefilter("always")
+        _warnings.filterwarnings("ignore", category=ResourceWarning)  # not the inputs'
+        config_bytes, _ = read_input(config_path, stop=stop)
+        config = load_config(config_path, tracker_names=tracker_names(), content=config_bytes)
+        detections_bytes, _ = read_input(detections_path, stop=stop)
+        scans = read_detections_file(detections_path, config.sensors, content=detections_bytes,
+                                     format_name=detections_format)  # fmt: skip
+        outside = detections_outside_region(scans, config.sensors)
+        estimate, configured = _estimate(config, scans, stop=stop, progress=progress)
+    warnings = (
+        *(str(w.message) for w in caught), *outside, *disagreements(configured, estimate),
+        *estimate.warnings,
+    )  # fmt: skip
+    if write is not None:  # whole or not at all: a failure leaves no file (write_atomically)
+        text = config_to_toml(estimate.config)
+        write_atomically(Path(write), text.encode("utf-8"), new=True)
+    return ParameterReport(
+        estimate=estimate, configured=configured, warnings=tuple(dict.fromkeys(warnings))
+    )
+
+
+def _estimate(
+    config: Any, scans: list[Any], *, stop: Any, progress: bool
+) -> tuple[Any, dict[str, tuple[float | None, float | None]]]:
+    """Every sensor's estimates, and its configured values (None: "auto")."""
+    from mapassoc.apps.runs import estimate_with_progress
+
     auto_rates = set(config.auto.false_alarms)
     auto_pds = config.auto.pd_starts()
     configured = {
@@ -154,8 +185,4 @@ def estimate_file_parameters(
     estimate = estimate_with_progress(
         config, scans, stop=stop, progress=progress, every_sensor=True
     )
-    warnings = (*disagreements(configured, estimate), *estimate.warnings)
-    if write is not None:  # whole or not at all: a failure leaves no file (write_atomically)
-        text = config_to_toml(estimate.config)
-        write_atomically(Path(write), text.encode("utf-8"), new=True)
-    return ParameterReport(estimate=estimate, configured=configured, warnings=warnings)
+    return estimate, configured

@@ -12,7 +12,6 @@ stopped.
 from __future__ import annotations
 
 import concurrent.futures
-import dataclasses
 import json
 import os
 import sys
@@ -132,12 +131,15 @@ class RunOptions:
         Worker processes for ``segments > 1`` (default: the usable cores).
     tracks_format : {"csv", "parquet"}
         ``tracks.csv`` or ``tracks.parquet`` (extra ``parquet``).
+    detections_format : {"csv", "parquet"}, optional
+        The detections file's format (``--format``); None (default): by its suffix, and
+        by its bytes when it has none (``/dev/stdin``, a process substitution).
 
     Raises
     ------
     InputError
         ``overwrite`` with ``resume``, a negative ``checkpoint_seconds``, an unknown
-        ``tracks_format``, ``segments < 1``.
+        ``tracks_format`` or ``detections_format``, ``segments < 1``.
     """
 
     timings: bool = True
@@ -149,6 +151,7 @@ class RunOptions:
     segments: int = 1
     jobs: int | None = None
     tracks_format: str = "csv"
+    detections_format: str | None = None
 
     def __post_init__(self) -> None:
         if self.overwrite and self.resume:
@@ -161,6 +164,11 @@ class RunOptions:
             raise InputError(
                 f"tracks_format must be one of {sorted(format_names())}, got "
                 f"{self.tracks_format!r}"
+            )
+        if self.detections_format is not None and self.detections_format not in format_names():
+            raise InputError(
+                f"detections_format must be one of {sorted(format_names())} or None, got "
+                f"{self.detections_format!r}"
             )
         # Stored as an int: the run's settings record is written to JSON.
         object.__setattr__(self, "segments", check_integer("segments", self.segments, minimum=1))
@@ -247,7 +255,8 @@ def estimate_with_progress(
     """The configuration's "auto" sensor parameters from the recording, a line per pass.
 
     ``every_sensor``: estimate every sensor's rate and ``Pd``, not only the "auto" ones
-    (the configuration's ``detection_probability_start`` still serves as a start).
+    (an "auto" ``Pd`` starts at its ``detection_probability_start``, a configured one at
+    its number, which is also what it keeps when the recording cannot estimate it).
 
     Raises
     ------
@@ -273,7 +282,9 @@ def estimate_with_progress(
 
     rates, pds = config.auto.false_alarms, config.auto.pd_starts()
     if every_sensor:
-        rates, pds = tuple(config.sensors), {name: pds.get(name) for name in config.sensors}
+        rates = tuple(config.sensors)
+        pds = {name: pds[name] if name in pds else sensor.detection_probability
+               for name, sensor in config.sensors.items()}  # fmt: skip
     try:
         return estimate_parameters(
             config, scans, false_alarms=rates, detection_probability=pds, on_pass=report,
@@ -329,13 +340,16 @@ def json_dump(data: object, path: Path) -> None:
 def _settings_record(
     config: Any, timings: bool, segments: int, tracks_format: str
 ) -> dict[str, object]:
-    """The settings a resumed run must share with its first session."""
+    """The settings a resumed run must share with its first session, as JSON holds them
+    (``prune_log_ratio = inf`` as ``"inf"``: compared on resume in this form)."""
+    from mapassoc.data.settings import settings_to_json
+
     return {
         "timings": timings,
         "segments": segments,
         "tracks_format": tracks_format,
-        "estimator": dataclasses.asdict(config.estimator),
-        "birth": dataclasses.asdict(config.birth),
+        "estimator": settings_to_json(config.estimator),
+        "birth": settings_to_json(config.birth),
     }
 
 
@@ -407,7 +421,8 @@ def run_files(
     Parameters
     ----------
     config_path, detections_path : path
-        The TOML configuration and the detections file (CSV, or Parquet by suffix).
+        The TOML configuration and the detections file (CSV or Parquet: by
+        ``options.detections_format``, else its suffix, else its bytes).
     out_dir : path
         The run folder ``OUT`` (see :mod:`mapassoc.apps.run_folders`).
     options : RunOptions, optional
@@ -489,7 +504,8 @@ def run_files(
                 str(folder.path), "is not empty and holds no mapassoc run; choose another --out"
             )
 
-    scans = read_detections_file(detections_path, config.sensors, content=detections_bytes)
+    scans = read_detections_file(detections_path, config.sensors, content=detections_bytes,
+                                 format_name=options.detections_format)  # fmt: skip
     del detections_bytes  # parsed: the scans are what the run needs from here on
     parameters: dict[str, Any] | None = None
     precomputed = None

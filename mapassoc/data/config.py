@@ -20,7 +20,8 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     # needs a motion model with a 2-D position (ndim = 2, or coordinated_turn)
     detection_probability = 0.9   # Pd in (0, 1], or "auto" (estimated from the recording)
     # detection_probability_start = 0.95  # with "auto" only: the first pass's Pd
-    false_alarms_per_scan = 10.0  # expected false alarms per scan, >= 0, or "auto"
+    false_alarms_per_scan = 10.0  # expected false alarms per scan, > 0 (1e-6 for almost
+                                  # no clutter), or "auto"
     region = [[-100.0, 100.0], [-100.0, 100.0]]   # one [low, high] per measured component
 
     [birth]        # optional; keys and defaults: the fields of mapassoc.data.settings.BirthModel
@@ -566,9 +567,7 @@ def _parse_sensor(
         1.0 if auto_pd else parser.probability(pd_value, f"{prefix}.detection_probability")
     )
     auto_rate = rate_value == AUTO
-    false_alarms = (
-        0.0 if auto_rate else parser.nonnegative(rate_value, f"{prefix}.false_alarms_per_scan")
-    )
+    false_alarms = 0.0 if auto_rate else _false_alarm_rate(parser, rate_value, prefix)
     region = _parse_region(
         parser,
         parser.required(table, prefix, "region"),
@@ -586,6 +585,20 @@ def _parse_sensor(
     except InputError as exc:
         raise parser.fail(_subkey(prefix, exc), str(exc)) from None
     return sensor, auto_rate, ((name, start),) if auto_pd else ()
+
+
+def _false_alarm_rate(parser: _Parser, value: object, prefix: str) -> float:
+    """A sensor's ``false_alarms_per_scan``: a number > 0 (module docstring)."""
+    key = f"{prefix}.false_alarms_per_scan"
+    rate = parser.nonnegative(value, key)
+    if rate == 0:
+        raise parser.fail(
+            key,
+            f"must be > 0, got {value!r}: the estimator and the trackers weigh each "
+            "detection against the false-alarm density, and with none a detection has no "
+            'score; for data with (almost) no clutter give a small rate such as 1e-6, or "auto"',
+        )
+    return rate
 
 
 def _parse_sensors(
@@ -799,8 +812,9 @@ def load_config(
     Raises
     ------
     ConfigError
-        Unreadable file or TOML syntax error (key ``"<file>"``), or any schema error; with
-        ``solver_names``, an unknown ``estimator.solver``.
+        Unreadable file or TOML syntax error, arrays or tables nested too deeply to read
+        (key ``"<file>"``), or any schema error; with ``solver_names``, an unknown
+        ``estimator.solver``.
     """
     source = os.fspath(path)
     try:
@@ -816,6 +830,13 @@ def load_config(
         raise ConfigError(_DOCUMENT_KEY, f"invalid TOML: {exc}", source=source) from None
     except UnicodeDecodeError as exc:
         raise ConfigError(_DOCUMENT_KEY, f"not UTF-8 text ({exc.reason})", source=source) from None
+    except RecursionError:  # tomllib reads nested arrays and inline tables recursively
+        raise ConfigError(
+            _DOCUMENT_KEY,
+            "invalid TOML: arrays or inline tables nested too deeply to read (the schema "
+            "nests arrays two deep at most: region = [[low, high], ...])",
+            source=source,
+        ) from None
     config = parse_config(
         data, source=source, solver_names=solver_names, tracker_names=tracker_names
     )

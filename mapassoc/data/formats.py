@@ -23,6 +23,11 @@ gives (CSV: line numbers, from 2; Parquet: the ``detection_id`` column, else the
 row index) and in the row order they accept (CSV: times never decrease down the file;
 Parquet: any order).  An unknown suffix raises :class:`~mapassoc.errors.DataFileError`
 naming the file and the known suffixes.
+
+A detections file may also be a stream without a suffix (``/dev/stdin``, a process
+substitution ``<(zcat detections.csv.gz)``, a named pipe): :func:`read_detections_file`
+takes its format from ``format_name`` (``--format``) or, without one, from its bytes
+(:func:`sniff_format`: Parquet's magic ``PAR1``, else CSV), read once.
 """
 
 from __future__ import annotations
@@ -48,6 +53,7 @@ __all__ = [
     "detection_formats",
     "file_format",
     "file_name",
+    "sniff_format",
     "read_detections_file",
     "write_detections_file",
     "read_tracks_file",
@@ -125,7 +131,7 @@ def detection_formats() -> tuple[str, ...]:
     return tuple(suffix for row in FILE_FORMATS.values() for suffix in row.suffixes)
 
 
-def _format_of_path(path: PathLike) -> FileFormat:
+def _format_of_path(path: PathLike, *, hint: str = "") -> FileFormat:
     text = os.fspath(path)
     suffix = PurePath(text).suffix.lower()
     for row in FILE_FORMATS.values():
@@ -133,7 +139,28 @@ def _format_of_path(path: PathLike) -> FileFormat:
             return row
     what = f"unknown file suffix {suffix!r}" if suffix else "no file suffix"
     kinds = " or ".join(row.description for row in FILE_FORMATS.values())
-    raise DataFileError(text, f"{what}; expected one of {', '.join(detection_formats())} ({kinds})")
+    raise DataFileError(
+        text, f"{what}; expected one of {', '.join(detection_formats())} ({kinds}){hint}"
+    )
+
+
+PARQUET_MAGIC = b"PAR1"
+"""The four bytes every Parquet file starts (and ends) with."""
+
+
+def sniff_format(content: bytes) -> str:
+    """The format of a file's bytes: ``"parquet"`` when they start with Parquet's magic
+    ``PAR1``, else ``"csv"`` (the CSV reader then names whatever is wrong)."""
+    return "parquet" if content[: len(PARQUET_MAGIC)] == PARQUET_MAGIC else "csv"
+
+
+def _named_format(format_name: str) -> FileFormat:
+    row = FILE_FORMATS.get(format_name) if isinstance(format_name, str) else None
+    if row is None:
+        raise InputError(
+            f"unknown file format {format_name!r}; known formats: {', '.join(FILE_FORMATS)}"
+        )
+    return row
 
 
 def file_format(path: PathLike) -> str:
@@ -156,12 +183,7 @@ def file_name(stem: str, format_name: str) -> str:
     InputError
         ``format_name`` is not in :data:`FILE_FORMATS`.
     """
-    row = FILE_FORMATS.get(format_name)
-    if row is None:
-        raise InputError(
-            f"unknown file format {format_name!r}; known formats: {', '.join(FILE_FORMATS)}"
-        )
-    return stem + row.suffixes[0]
+    return stem + _named_format(format_name).suffixes[0]
 
 
 def _function(path: PathLike, verb: str, kind: str) -> Callable[..., Any]:
@@ -169,16 +191,47 @@ def _function(path: PathLike, verb: str, kind: str) -> Callable[..., Any]:
 
 
 def read_detections_file(
-    path: PathLike, sensors: Mapping[str, Sensor], *, content: bytes | None = None
+    path: PathLike,
+    sensors: Mapping[str, Sensor],
+    *,
+    content: bytes | None = None,
+    format_name: str | None = None,
 ) -> list[Scan]:
-    """Read a detections file in the format of its suffix.
+    """Read a detections file in the format ``format_name``, else that of its suffix, else
+    (no suffix: a stream such as ``/dev/stdin``) that of its bytes (:func:`sniff_format`).
 
     ``content``: the file's bytes when the caller has read them already (``path`` then
-    only names the file and its format).  See :func:`mapassoc.data.io.read_detections`
-    and :func:`mapassoc.data.parquet.read_detections_parquet`.
+    only names the file); a file without a suffix, or with ``format_name``, is otherwise
+    read once here, then sniffed and parsed from those bytes.  See
+    :func:`mapassoc.data.io.read_detections` and
+    :func:`mapassoc.data.parquet.read_detections_parquet`.
+
+    Raises
+    ------
+    InputError
+        ``format_name`` is not in :data:`FILE_FORMATS`.
+    DataFileError
+        An unknown suffix without ``format_name``, an unreadable file, a malformed one.
     """
-    scans: list[Scan] = _function(path, "read", "detections")(path, sensors, content=content)
+    named = None if format_name is None else _named_format(format_name)
+    if named is None and PurePath(os.fspath(path)).suffix:
+        row = _format_of_path(path, hint="; or name its format: --format csv|parquet")
+    else:  # perhaps a stream, which can be read only once and not sought in
+        if content is None:
+            content = _read_bytes(path)
+        row = named or FILE_FORMATS[sniff_format(content)]
+    scans: list[Scan] = row.function("read", "detections")(path, sensors, content=content)
     return scans
+
+
+def _read_bytes(path: PathLike) -> bytes:
+    try:
+        with open(path, "rb") as handle:
+            return handle.read()
+    except OSError as exc:
+        raise DataFileError(
+            os.fspath(path), f"cannot read the file: {exc.strerror or exc}"
+        ) from None
 
 
 def write_detections_file(

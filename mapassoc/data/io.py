@@ -145,6 +145,8 @@ FIRST_DATA_LINE = 2
 
 _FLOAT_PATTERN = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _INT_PATTERN = re.compile(r"[+-]?\d+")
+_INT64_MAX = int(np.iinfo(np.int64).max)
+"""The largest id a file may hold: ids are kept as int64 (2^63 - 1)."""
 _NON_FINITE_WORDS = ("nan", "inf", "infinity")
 
 
@@ -193,11 +195,21 @@ def _int_cell(path: str, line: int, column: str, cell: str, *, minimum: int) -> 
             row=line,
             column=column,
         )
-    value = int(cell)
+    digits = cell.lstrip("+-").lstrip("0")
+    # int() refuses more than 4300 digits: a longer cell is out of range either way.
+    value = int(cell) if len(digits) <= 20 else (-1 if cell[0] == "-" else _INT64_MAX + 1)
     if value < minimum:
         raise DataFileError(
             path,
             f"value {cell!r} is below the minimum; expected an integer >= {minimum}",
+            row=line,
+            column=column,
+        )
+    if value > _INT64_MAX:
+        raise DataFileError(
+            path,
+            f"value {cell!r} is too large; expected an integer from {minimum} to 2^63 - 1 "
+            f"= {_INT64_MAX} (ids are 64-bit)",
             row=line,
             column=column,
         )

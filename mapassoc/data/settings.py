@@ -3,14 +3,19 @@
 Plain frozen dataclasses, validated on construction; every field error names the
 field, the value and what was expected, and carries the field name in
 ``InputError.key``.  :mod:`mapassoc.data.config` builds them from a
-TOML file (section and key names equal the field names).
+TOML file (section and key names equal the field names); :func:`settings_to_json` writes
+them as JSON (run folders' manifests) and :func:`settings_from_json` reads that back.
 """
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 from mapassoc.errors import InputError
+from mapassoc.log_space import json_number, number_from_json
 from mapassoc.models.population import BirthModel
 from mapassoc.models.target_count import (
     COUNT_PRIORS,
@@ -24,7 +29,14 @@ from mapassoc.validation import (
     check_probability,
 )
 
-__all__ = ["BirthModel", "EstimatorSettings", "K_PRIORS", "K_ESTIMATES"]
+__all__ = [
+    "BirthModel",
+    "EstimatorSettings",
+    "K_PRIORS",
+    "K_ESTIMATES",
+    "settings_to_json",
+    "settings_from_json",
+]
 
 K_PRIORS = COUNT_PRIORS
 K_ESTIMATES = tuple(K_ESTIMATORS)
@@ -208,3 +220,51 @@ class EstimatorSettings:
             mean=self.k_prior_mean,
             weights=tuple(self.k_prior_weights),
         )
+
+
+_Settings = TypeVar("_Settings", BirthModel, EstimatorSettings)
+
+
+def _to_json(value: object) -> object:
+    return json_number(value) if isinstance(value, float) else value
+
+
+def settings_to_json(settings: BirthModel | EstimatorSettings) -> dict[str, object]:
+    """``{field: value}`` of a settings object, every value valid JSON.
+
+    Tuples become lists and an infinite float (``prune_log_ratio = inf``) the string
+    ``"inf"`` (:func:`mapassoc.log_space.json_number`), so that ``json.dumps(...,
+    allow_nan=False)`` writes it and :func:`settings_from_json` reads back an equal
+    object.
+    """
+    out: dict[str, object] = {}
+    for name, value in dataclasses.asdict(settings).items():
+        out[name] = [_to_json(v) for v in value] if isinstance(value, tuple) else _to_json(value)
+    return out
+
+
+def settings_from_json(cls: type[_Settings], record: Mapping[str, Any]) -> _Settings:
+    """The settings object :func:`settings_to_json` wrote (``"inf"`` read as a float).
+
+    Raises
+    ------
+    InputError
+        A field the class does not have, a string where a number belongs, or a value
+        the class's checks refuse.
+    """
+    kinds = {f.name: f.type for f in dataclasses.fields(cls)}
+    unknown = sorted(set(record) - set(kinds))
+    if unknown:
+        raise InputError(f"{cls.__name__} has no fields {unknown}; got {dict(record)!r:.200}")
+    values: dict[str, Any] = {}
+    for name, value in record.items():
+        try:
+            if isinstance(value, list):
+                values[name] = tuple(number_from_json(item) for item in value)
+            elif isinstance(value, str) and kinds[name] not in ("str", str):
+                values[name] = number_from_json(value)
+            else:
+                values[name] = value
+        except ValueError as exc:
+            raise InputError(f"{cls.__name__}.{name}: {exc}", key=name) from None
+    return cls(**values)

@@ -74,6 +74,7 @@ from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError, MapassocError
+from mapassoc.log_space import json_number
 from mapassoc.models.sensor import Sensor
 from mapassoc.validation import check_positive, check_probability
 
@@ -89,6 +90,7 @@ __all__ = [
     "DEFAULT_PD_START",
     "MIN_SCANS",
     "MIN_INTERIOR_SCANS",
+    "UNSEEN_FALSE_ALARMS",
     "AssociationCounts",
     "SensorEstimate",
     "EstimationPass",
@@ -108,6 +110,12 @@ while from below the estimator's own preference for the assumed ``Pd`` slows it 
 creep (0.65, 0.66, 0.67, 0.69, 0.72, 0.74 in six passes on the same recording)."""
 MIN_SCANS = 5
 """Fewest scans of a sensor for its false-alarm rate to be estimated."""
+UNSEEN_FALSE_ALARMS = 0.5
+"""The unexplained detections the rate update counts when a pass leaves none (every
+detection in a track, as in clutter-free data): the estimator needs a rate > 0 (each
+detection is scored against the false-alarm density), and half a false alarm over the
+sampled scans is fewer than the recording could show (it is the posterior mean of a
+Poisson rate under Jeffreys' prior after a count of 0)."""
 MIN_INTERIOR_SCANS = 20
 """Fewest interior track-scans of a sensor for its ``Pd`` to be estimated (with 20 the
 standard error of the ratio is at most 0.11; the bench recordings give hundreds)."""
@@ -278,7 +286,7 @@ class EstimationPass:
                      for k, (a, b) in self.used.items()},
             "updated": {k: {"false_alarms_per_scan": a, "detection_probability": b}
                         for k, (a, b) in self.updated.items()},
-            "objective": self.objective,
+            "objective": json_number(self.objective),  # -inf: "-inf" (a kept Pd of 1)
             "tracks": self.tracks,
             "scans": self.scans,
         }  # fmt: skip
@@ -511,7 +519,7 @@ def estimate_parameters(
         rate = sensor.false_alarms_per_scan
         if name in rates and len(of_sensor) < MIN_SCANS:
             if name in config.auto.false_alarms:  # no configured number to keep
-                rate = sum(scan.size for scan in of_sensor) / max(len(of_sensor), 1)
+                rate = _clutter_rate(sum(scan.size for scan in of_sensor), len(of_sensor))
                 kept = f"used the mean detections per scan, {rate!r}"
             else:
                 kept = f"kept {rate!r}"
@@ -521,7 +529,7 @@ def estimate_parameters(
             )
             rates.remove(name)
         elif name in rates:  # every detection clutter: an upper bound on the rate
-            rate = upper[name] = sum(scan.size for scan in of_sensor) / len(of_sensor)
+            rate = upper[name] = _clutter_rate(sum(s.size for s in of_sensor), len(of_sensor))
         start = pds.get(name)
         pd = sensor.detection_probability if name not in pds else start or DEFAULT_PD_START
         current[name] = (rate, pd)
@@ -538,6 +546,8 @@ def estimate_parameters(
     retried = False
     last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None = None
     pd_estimable = dict.fromkeys(pds, False)
+    no_clutter = dict.fromkeys(rates, 0)  # scans of a sensor whose last pass left no
+    # detection unexplained (else 0)
     while len(passes) < max_passes + retried:  # the probe at a quarter is not counted
         started = time.perf_counter()
         trial = with_sensor_parameters(config, current)
@@ -556,7 +566,8 @@ def estimate_parameters(
             merged = _merge([counts[name] for counts in counts_by_piece])
             rate, pd = current[name]
             if name in rates:
-                rate = merged.unexplained / merged.scans
+                no_clutter[name] = merged.scans if merged.unexplained == 0 else 0
+                rate = _clutter_rate(merged.unexplained, merged.scans)
             if name in pds:
                 pd_estimable[name] = (
                     merged.interior_scans >= MIN_INTERIOR_SCANS and merged.interior_detections > 0
@@ -606,6 +617,12 @@ def estimate_parameters(
                 f"fewer than {MIN_INTERIOR_SCANS} scans between a first and a last "
                 f"detection (a recording without targets gives none); kept {pd!r}"
             )
+        if no_clutter.get(name, 0):
+            notes[name].append(
+                f"sensor '{name}': every detection is in a track, so the recording shows no "
+                f"false alarms; false_alarms_per_scan = {rate:.4g} ({UNSEEN_FALSE_ALARMS:g} "
+                f"false alarm over its {no_clutter[name]} scans: the estimator needs a rate > 0)"
+            )
         messages.extend(notes[name])
         estimates[name] = SensorEstimate(
             sensor=name,
@@ -635,6 +652,12 @@ def estimate_parameters(
         result=last_result,
         warnings=tuple(messages),
     )
+
+
+def _clutter_rate(count: int, scans: int) -> float:
+    """False alarms per scan from ``count`` over ``scans`` scans, never 0: a count of 0 is
+    taken as :data:`UNSEEN_FALSE_ALARMS` (the estimator needs a rate > 0)."""
+    return max(count, UNSEEN_FALSE_ALARMS) / max(scans, 1)
 
 
 def _forward_run(

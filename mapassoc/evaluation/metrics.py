@@ -37,6 +37,7 @@ from scipy.optimize import linear_sum_assignment
 from mapassoc.errors import InputError
 from mapassoc.evaluation.points import (
     TimedPoints,
+    check_cost_powers,
     check_order,
     check_runs,
     float_array,
@@ -317,6 +318,7 @@ def gospa(
     _check_alpha(alpha)
     cutoff = check_positive("c", c)
     order = check_order(p)
+    check_cost_powers(order, c=cutoff)
     truth_arr = _check_point_set("truth", truth)
     estimates_arr = _check_point_set("estimates", estimates)
     if truth_arr.ndim == 1 and estimates_arr.ndim == 1:
@@ -411,6 +413,7 @@ def gospa_over_time(
     """
     cutoff = check_positive("c", c)
     order = check_order(p)
+    check_cost_powers(order, c=cutoff)
     check_runs(truth, estimates)
     times, results = _per_time_gospa(truth, estimates, cutoff, order)
     return _series(times, results, cutoff, order)
@@ -448,6 +451,7 @@ def position_rmse(truth: TimedPoints, estimates: TimedPoints, *, c: float, p: fl
     """
     cutoff = check_positive("c", c)
     order = check_order(p)
+    check_cost_powers(order, c=cutoff)
     check_runs(truth, estimates)
     _, results = _per_time_gospa(truth, estimates, cutoff, order)
     return _rmse(results)[0]
@@ -575,6 +579,7 @@ def evaluate(
     cutoff = check_positive("c", c)
     order = check_order(p)
     gamma = None if switch_cost is None else check_positive("switch_cost", switch_cost)
+    check_cost_powers(order, c=cutoff, **({} if gamma is None else {"switch_cost": gamma}))
     method = _check_method(tgospa_method)
     check_runs(truth, estimates)
     times, results = _per_time_gospa(truth, estimates, cutoff, order)

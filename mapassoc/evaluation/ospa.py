@@ -51,7 +51,13 @@ from scipy.optimize import linear_sum_assignment
 
 from mapassoc.errors import InputError
 from mapassoc.evaluation.metrics import _check_point_set
-from mapassoc.evaluation.points import TimedPoints, check_order, check_runs, readonly
+from mapassoc.evaluation.points import (
+    TimedPoints,
+    check_cost_powers,
+    check_order,
+    check_runs,
+    readonly,
+)
 from mapassoc.validation import check_positive
 
 __all__ = [
@@ -222,6 +228,7 @@ def ospa(truth: ArrayLike, estimates: ArrayLike, *, c: float, p: float = 2.0) ->
     """
     cutoff = check_positive("c", c)
     order = check_order(p)
+    check_cost_powers(order, c=cutoff)
     truth_arr = _check_point_set("truth", truth)
     estimates_arr = _check_point_set("estimates", estimates)
     if truth_arr.ndim == 1 and estimates_arr.ndim == 1:
@@ -260,6 +267,7 @@ def ospa_over_time(
     """
     cutoff = check_positive("c", c)
     order = check_order(p)
+    check_cost_powers(order, c=cutoff)
     check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)
     results = [
@@ -419,6 +427,7 @@ def ospa2(truth: TimedPoints, estimates: TimedPoints, *, c: float, p: float = 2.
     """
     cutoff = check_positive("c", c)
     order = check_order(p)
+    check_cost_powers(order, c=cutoff)
     check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)
     sums = _pair_sums(truth, estimates, times, cutoff)
@@ -454,6 +463,7 @@ def ospa2_over_time(
     """
     cutoff = check_positive("c", c)
     order = check_order(p)
+    check_cost_powers(order, c=cutoff)
     if isinstance(window_length, bool) or not isinstance(window_length, int | np.integer) or (
         window_length < 1
     ):

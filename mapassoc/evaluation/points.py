@@ -7,6 +7,7 @@ the scoring of tracker outputs all take their runs as :class:`TimedPoints`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,7 +16,16 @@ from numpy.typing import ArrayLike, NDArray
 from mapassoc.errors import InputError
 from mapassoc.validation import check_positive
 
-__all__ = ["TimedPoints", "check_order", "check_runs", "float_array", "int_array", "readonly"]
+__all__ = [
+    "COST_POWER_RANGE",
+    "TimedPoints",
+    "check_cost_powers",
+    "check_order",
+    "check_runs",
+    "float_array",
+    "int_array",
+    "readonly",
+]
 
 
 def readonly(array: NDArray) -> NDArray:
@@ -163,6 +173,37 @@ def check_order(p: object) -> float:
     if order < 1.0:
         raise InputError(f"p must be >= 1 (GOSPA is a metric only for p >= 1), got {p!r}")
     return order
+
+
+COST_POWER_RANGE = (1e-200, 1e200)
+"""The range a cut-off or switching cost raised to the order, ``c^p``, must lie in: the
+metrics add such costs over every target, track and time (up to 1e108 terms then stay
+finite) and divide by them, so a ``c^p`` that overflows (``c = 1e300``, or ``p = 2000``
+with ``c = 10``) or underflows would give inf, NaN or a division by zero."""
+
+
+def check_cost_powers(p: float, **costs: float) -> None:
+    """Each ``cost ** p`` within :data:`COST_POWER_RANGE` (``p`` and the costs checked
+    already: ``p >= 1``, costs > 0); ``costs`` by argument name (``c=10.0``).
+
+    Raises
+    ------
+    InputError
+        Naming the argument, its value, ``p`` and what to do.
+    """
+    low, high = COST_POWER_RANGE
+    for name, cost in costs.items():
+        try:
+            power = cost**p
+        except OverflowError:
+            power = math.inf
+        if not low <= power <= high:
+            what = "overflows" if power > high else "underflows"
+            raise InputError(
+                f"{name}^p = {cost!r}^{p!r} {what}: the metrics add and divide such costs and "
+                f"need them between {low:g} and {high:g}; choose a {name} or an order p "
+                "nearer 1"
+            )
 
 
 def check_runs(truth: TimedPoints, estimates: TimedPoints) -> None:

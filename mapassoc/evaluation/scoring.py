@@ -25,7 +25,7 @@ from mapassoc.evaluation.calibration import DEFAULT_BINS, CountScores, count_ser
 from mapassoc.evaluation.clear_mot import ClearMotResult, clear_mot
 from mapassoc.evaluation.metrics import GospaSeries, gospa_over_time
 from mapassoc.evaluation.ospa import ospa2, ospa2_over_time, ospa_over_time
-from mapassoc.evaluation.points import TimedPoints, check_order
+from mapassoc.evaluation.points import TimedPoints, check_cost_powers, check_order
 from mapassoc.evaluation.tables import (
     disjoint_times_message,
     position_names,
@@ -253,6 +253,7 @@ class _ScoringSettings:
             cutoff if motp_threshold is None else check_positive("motp_threshold", motp_threshold)
         )
         gamma = cutoff if switch_cost is None else check_positive("switch_cost", switch_cost)
+        check_cost_powers(order, c=cutoff, switch_cost=gamma)
         method = _check_method(tgospa_method)
         if not isinstance(clear_mot_scores, bool):
             raise InputError(f"clear_mot_scores must be True or False, got {clear_mot_scores!r}")

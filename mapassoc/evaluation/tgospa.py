@@ -85,7 +85,13 @@ from scipy.optimize import Bounds, LinearConstraint, linprog, milp
 from scipy.sparse.csgraph import connected_components
 
 from mapassoc.errors import InputError
-from mapassoc.evaluation.points import TimedPoints, check_order, check_runs, readonly
+from mapassoc.evaluation.points import (
+    TimedPoints,
+    check_cost_powers,
+    check_order,
+    check_runs,
+    readonly,
+)
 from mapassoc.validation import check_positive
 
 __all__ = [
@@ -552,6 +558,7 @@ def tgospa(
     cutoff = check_positive("c", c)
     switch = check_positive("gamma", gamma)
     order = check_order(p)
+    check_cost_powers(order, c=cutoff, gamma=switch)
     solver = _check_method(method)
     check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)

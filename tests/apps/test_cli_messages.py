@@ -185,3 +185,123 @@ def test_simulate_parquet_runs_to_the_csv_tracks(tmp_path: Path) -> None:
     np.testing.assert_array_equal(a.states, b.states)
     assert main(["evaluate", str(tmp_path / "run-p" / "tracks.csv"),
                  str(tmp_path / "p" / "truth.parquet")]) == 0
+
+
+def _tiny_tracks_and_truth(folder: Path) -> tuple[Path, Path]:
+    tracks, truth = folder / "tracks.csv", folder / "truth.csv"
+    tracks.write_text(
+        "track_id,time,sensor,x,y,var_x,var_y,detection_row\n"
+        "1,0.0,pos,0.5,0.0,1.0,1.0,2\n1,1.0,pos,1.5,0.0,1.0,1.0,3\n"
+    )
+    truth.write_text("target_id,time,x,y\n1,0.0,0.0,0.0\n1,1.0,1.0,0.0\n")
+    return tracks, truth
+
+
+@pytest.mark.parametrize(
+    ("options", "fragment"),
+    [
+        (["--cutoff", "1e300"], "c^p = 1e+300^2.0 overflows"),
+        (["--order", "1e300"], "c^p = 10.0^1e+300 overflows"),
+        (["--order", "2000"], "c^p = 10.0^2000.0 overflows"),
+        (["--cutoff", "1e-300"], "c^p = 1e-300^2.0 underflows"),
+        (["--switch-cost", "1e300"], "switch_cost^p = 1e+300^2.0 overflows"),
+    ],
+)
+def test_evaluate_refuses_costs_a_double_cannot_hold(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], options: list[str], fragment: str
+) -> None:
+    """c^p beyond a double was an OverflowError traceback; now one line and status 2."""
+    tracks, truth = _tiny_tracks_and_truth(tmp_path)
+    assert main(["evaluate", str(tracks), str(truth), *options]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"mapassoc: error: {fragment}") and err.count("\n") == 1
+    assert main(["evaluate", str(tracks), str(truth), "--cutoff", "20", "--order", "3"]) == 0
+
+
+def test_a_config_nested_too_deeply_is_one_line(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A TOML value nested 500 deep was a RecursionError traceback from the TOML reader."""
+    deep = tmp_path / "deep.toml"
+    deep.write_text(
+        (scenario / "config.toml").read_text() + "\n[trackers.mht]\nx = " + "[" * 500
+        + "]" * 500 + "\n"
+    )  # fmt: skip
+    assert _run(deep, scenario / "detections.csv", tmp_path / "out") == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"mapassoc: error: {deep}: config key '<file>': invalid TOML: ")
+    assert "nested too deeply" in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+    option = "mht.x=" + "[" * 1000 + "]" * 1000
+    assert main(["compare", "--option", option, "--out", str(tmp_path / "cmp")]) == 2
+    assert "nested too deeply" in capsys.readouterr().err
+    assert not (tmp_path / "cmp").exists()
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("tiny") / "crossing"
+    assert main(["simulate", "crossing", "--out", str(out), "--seed", "1", "--scans", "8"]) == 0
+    return out
+
+
+def _edited_detections(source: Path, target: Path, column: int, change: float,
+                       scale: float = 1.0) -> Path:  # fmt: skip
+    """``source`` with ``column`` of every line times ``scale`` plus ``change``."""
+    lines = source.read_text().splitlines()
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[column] = repr(float(cells[column]) * scale + change)
+        out.append(",".join(cells))
+    target.write_text("\n".join(out) + "\n")
+    return target
+
+
+def _warning_lines(err: str) -> list[str]:
+    lines = err.strip().splitlines()
+    assert all(line.startswith("mapassoc: warning: ") for line in lines), err
+    return lines
+
+
+def test_estimate_parameters_prints_its_warnings_as_run_does(
+    tiny: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A missing [birth] and times in milliseconds were raw UserWarning / RuntimeWarning
+    lines (with the source line under them); now `mapassoc: warning: ...`, once each."""
+    text = (tiny / "config.toml").read_text()
+    config = tmp_path / "nobirth.toml"
+    config.write_text(text[: text.index("[birth]")] + text[text.index("[estimator]") :])
+    ms = _edited_detections(tiny / "detections.csv", tmp_path / "ms.csv", 0, 0.0, 1000.0)
+    capsys.readouterr()
+    assert main(["estimate-parameters", str(config), str(ms), "--no-progress"]) == 0
+    lines = _warning_lines(capsys.readouterr().err)
+    assert sum("has no [birth] section" in line for line in lines) == 1
+    assert sum("not milliseconds or nanoseconds" in line for line in lines) == 1
+
+
+def test_estimate_parameters_warns_when_detections_are_outside(
+    tiny: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`run` warned that every detection is outside the region; estimate-parameters
+    said nothing.  Both now use the same check."""
+    outside = _edited_detections(tiny / "detections.csv", tmp_path / "out.csv", 2, 5000.0)
+    capsys.readouterr()
+    assert main(["estimate-parameters", str(tiny / "config.toml"), str(outside),
+                 "--no-progress"]) == 0  # fmt: skip
+    lines = _warning_lines(capsys.readouterr().err)
+    assert any("detections lie outside its region" in line for line in lines)
+
+
+def test_estimate_parameters_writes_the_pd_it_says_it_kept(
+    tiny: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Too few track scans to estimate Pd: it keeps the configured 0.9, and --write once
+    wrote 0.95 (the estimation's start) while the table said "(kept)"."""
+    written = tmp_path / "estimated.toml"
+    assert main(["estimate-parameters", str(tiny / "config.toml"), str(tiny / "detections.csv"),
+                 "--no-progress", "--write", str(written)]) == 0  # fmt: skip
+    out, err = capsys.readouterr()
+    assert "0.900 0.900 (kept)" in out
+    assert "detection_probability not estimable" in err and "kept 0.9\n" in err
+    assert "detection_probability = 0.9\n" in written.read_text()

@@ -155,3 +155,71 @@ def test_a_run_with_stderr_closed_completes(scenario: Path, tmp_path: Path) -> N
     import json
 
     assert json.loads((out / "manifest.json").read_text())["status"] == "complete"
+
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Six scans, and a run of them (``tiny/ref``)."""
+    out = tmp_path_factory.mktemp("tiny") / "crossing"
+    assert main(["simulate", "crossing", "--out", str(out), "--seed", "3", "--scans", "6"]) == 0
+    run_files(out / "config.toml", out / "detections.csv", out / "ref",
+              RunOptions(timings=False, progress=False))  # fmt: skip
+    return out
+
+
+def _same_run(out: Path, reference: Path) -> None:
+    for name in ("tracks.csv", "windows.jsonl"):
+        assert (out / name).read_bytes() == (reference / name).read_bytes(), name
+
+
+@pytest.mark.slow  # a child process: its start-up and imports
+def test_stdin_without_a_suffix_is_read_as_the_file(tiny: Path, tmp_path: Path) -> None:
+    """`run CONFIG /dev/stdin` fed by a pipe (as `zcat d.csv.gz | mapassoc run c.toml
+    /dev/stdin` is) was refused for having "no file suffix"; its content says CSV."""
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-m", "mapassoc.apps.cli", "run", str(tiny / "config.toml"),
+         "/dev/stdin", "--out", str(out), "--no-progress", "--no-timings"],
+        input=(tiny / "detections.csv").read_bytes(), capture_output=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    _same_run(out, tiny / "ref")
+
+
+def test_a_pipe_without_a_suffix_is_run_like_the_file(tiny: Path, tmp_path: Path) -> None:
+    """A named pipe called `detections`, as <(zcat detections.csv.gz) is /dev/fd/63."""
+    pipe = tmp_path / "detections"
+    os.mkfifo(pipe)
+    feeder = _feed(pipe, (tiny / "detections.csv").read_bytes())
+    run_files(tiny / "config.toml", pipe, tmp_path / "out",
+              RunOptions(timings=False, progress=False))  # fmt: skip
+    feeder.join(5)
+    _same_run(tmp_path / "out", tiny / "ref")
+
+
+@pytest.mark.parametrize("data_format", ["csv", "parquet"])
+@pytest.mark.parametrize("named", [False, True])
+def test_a_pipe_is_read_in_its_sniffed_or_named_format(
+    tiny: Path, tmp_path: Path, data_format: str, named: bool
+) -> None:
+    """Without a suffix the format is the one named (--format), else that of the bytes
+    (Parquet's PAR1, else CSV); the pipe is read once."""
+    if data_format == "parquet":
+        pytest.importorskip("pyarrow")
+    from mapassoc.data.config import load_config
+    from mapassoc.data.formats import read_detections_file, write_detections_file
+
+    sensors = load_config(tiny / "config.toml").sensors
+    scans = read_detections_file(tiny / "detections.csv", sensors)
+    source = tmp_path / f"detections.{data_format}"
+    write_detections_file(source, scans, sensors)
+    pipe = tmp_path / "detections"
+    os.mkfifo(pipe)
+    feeder = _feed(pipe, source.read_bytes(), delay=0.05)
+    got = read_detections_file(pipe, sensors, format_name=data_format if named else None)
+    feeder.join(5)
+    assert [s.time for s in got] == [s.time for s in scans]
+    for mine, theirs in zip(got, scans, strict=True):
+        assert mine.detections.tolist() == theirs.detections.tolist()
+        assert mine.rows.tolist() == theirs.rows.tolist()

@@ -34,7 +34,7 @@ position = [0, -50.0]
 range_std = 2.0
 bearing_std = 0.01
 detection_probability = 0.8
-false_alarms_per_scan = 0
+false_alarms_per_scan = 1e-6
 region = [[0.0, 300.0], [-3.0, 3.0]]
 
 [birth]
@@ -75,7 +75,7 @@ def test_full_config_parses_to_the_right_objects() -> None:
     assert esm.measurement.sensor_position.tolist() == [0.0, -50.0]
     assert esm.measurement.R.tolist() == [[4.0, 0.0], [0.0, 0.01**2]]
     assert esm.region.to_bounds() == [[0.0, 300.0], [-3.0, 3.0]]
-    assert esm.clutter_density == 0.0
+    assert esm.clutter_density == 1e-6 / (300.0 * 6.0)
 
     assert config.birth == BirthModel(rate=0.2)
     assert config.estimator == EstimatorSettings(
@@ -331,6 +331,11 @@ BAD_CONFIGS = [
         _set(("sensors", 0, "false_alarms_per_scan"), -1.0),
         "sensors[0].false_alarms_per_scan",
         "got -1.0",
+    ),
+    (
+        _set(("sensors", 0, "false_alarms_per_scan"), 0),
+        "sensors[0].false_alarms_per_scan",
+        "must be > 0, got 0: the estimator and the trackers weigh each detection",
     ),
     (_set(("sensors", 0, "noise_std"), 0.0), "sensors[0].noise_std", "got 0.0"),
     (_set(("sensors", 0, "noise_std"), [1.0, -2.0]), "sensors[0].noise_std[1]", "got -2.0"),

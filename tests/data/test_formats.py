@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from mapassoc.data.formats import (
     read_origins_file,
     read_tracks_file,
     read_truth_file,
+    sniff_format,
     write_detections_file,
     write_tracks_file,
     write_truth_file,
@@ -65,7 +67,6 @@ def test_unknown_suffix_names_the_file_and_the_known_suffixes(
 ) -> None:
     path = tmp_path / name
     calls = [
-        lambda: read_detections_file(path, {}),
         lambda: write_detections_file(path, [], {}),
         lambda: read_tracks_file(path),
         lambda: write_tracks_file(path, None),  # type: ignore[arg-type]
@@ -81,6 +82,43 @@ def test_unknown_suffix_names_the_file_and_the_known_suffixes(
             == f"{path}: {what}; expected one of .csv, .parquet, .pq (CSV or Parquet)"
         )
     assert not path.exists()
+
+
+def test_an_unknown_detections_suffix_says_how_to_name_the_format(tmp_path: Path) -> None:
+    path = tmp_path / "data.csv.gz"
+    with pytest.raises(DataFileError) as info:
+        read_detections_file(path, {})
+    assert str(info.value) == (
+        f"{path}: unknown file suffix '.gz'; expected one of .csv, .parquet, .pq (CSV or "
+        "Parquet); or name its format: --format csv|parquet"
+    )
+    with pytest.raises(InputError, match="unknown file format 'tsv'; known formats: csv"):
+        read_detections_file(path, {}, format_name="tsv")
+    with pytest.raises(InputError, match="detections_format must be one of"):
+        RunOptions(detections_format="tsv")
+
+
+def test_detections_without_a_suffix_are_sniffed(tmp_path: Path) -> None:
+    """No suffix (a stream: /dev/stdin, <(zcat ...)): Parquet's magic PAR1, else CSV; a
+    named format wins over the suffix."""
+    assert sniff_format(b"PAR1\x15\x04") == "parquet"
+    assert sniff_format(b"time,sensor,x\n") == sniff_format(b"") == "csv"
+    scenario = build_scenario("two_sensors", 1)
+    sensors = scenario.config.sensors
+    scans = number_rows(scenario.scans[:4])
+    write_detections_file(tmp_path / "d.csv", scans, sensors)
+    (tmp_path / "d").write_bytes((tmp_path / "d.csv").read_bytes())
+    (tmp_path / "d.txt").write_bytes((tmp_path / "d.csv").read_bytes())
+    _same(read_detections_file(tmp_path / "d", sensors), scans)
+    _same(read_detections_file(tmp_path / "d.txt", sensors, format_name="csv"), scans)
+    with pytest.raises(DataFileError, match="cannot read the file"):
+        read_detections_file(tmp_path / "missing", sensors)
+    if importlib.util.find_spec("pyarrow") is not None:
+        write_detections_file(tmp_path / "d.parquet", scans, sensors)
+        (tmp_path / "p").write_bytes((tmp_path / "d.parquet").read_bytes())
+        _same(read_detections_file(tmp_path / "p", sensors), scans)
+        with pytest.raises(DataFileError, match="not a readable Parquet file"):
+            read_detections_file(tmp_path / "d.csv", sensors, format_name="parquet")
 
 
 def _same(got: list[Scan], want: list[Scan]) -> None:

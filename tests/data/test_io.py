@@ -263,6 +263,11 @@ BAD_DETECTIONS = [
     (f"{HEADER},detection_id\n0,radar,,,,,,4\n", 2, "detection_id", "without measurements"),
     (f"{HEADER},detection_id\n0,radar,,,1,2,,-4\n", 2, "detection_id", "below the minimum"),
     (f"{HEADER},detection_id\n0,radar,,,1,2,,x\n", 2, "detection_id", "not an integer"),
+    # ids are int64: 2^63 and 2^70 once ended in an OverflowError traceback
+    (f"{HEADER},detection_id\n0,radar,,,1,2,,{2**63}\n", 2, "detection_id", "too large"),
+    (f"{HEADER},detection_id\n0,radar,,,1,2,,{2**70}\n", 2, "detection_id", "to 2^63 - 1"),
+    (f"{HEADER},detection_id\n0,radar,,,1,2,,{'9' * 5000}\n", 2, "detection_id", "too large"),
+    (f"{HEADER},detection_id\n0,radar,,,1,2,,-{'9' * 5000}\n", 2, "detection_id", "below"),
     (
         f"{HEADER},detection_id\n0,radar,,,1,2,,7\n1,radar,,,1,2,,7\n",
         3,
@@ -271,6 +276,13 @@ BAD_DETECTIONS = [
     ),
     (f'{HEADER}\n0,"radar,,,1,2,\n', 2, None, "malformed CSV"),
 ]
+
+
+def test_the_largest_id_is_read(tmp_path: Path) -> None:
+    """2^63 - 1 (int64's largest), leading zeros and all, is an id like any other."""
+    text = f"{HEADER},detection_id\n0,radar,,,1,2,,{'0' * 30}{2**63 - 1}\n"
+    (scan,) = read_detections(_write_text(tmp_path, text), SENSORS)
+    assert scan.rows.tolist() == [2**63 - 1]
 
 
 @pytest.mark.parametrize(("text", "line", "column", "fragment"), BAD_DETECTIONS)

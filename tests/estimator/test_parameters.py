@@ -219,3 +219,34 @@ def test_too_few_scans_for_an_auto_rate_use_the_mean_detections() -> None:
     found = estimate.sensors["pos"]
     assert found.false_alarms_per_scan == sum(s.size for s in built.scans) / 3 > 0
     assert any("used the mean detections per scan" in w for w in estimate.warnings)
+
+
+def _clutter_free_lanes(scans: int) -> list[Scan]:
+    """Two targets crossing the region on straight lanes, detected every scan, no clutter."""
+    rng = np.random.default_rng(0)
+    out = []
+    for t in range(scans):
+        z = np.array([[-40.0 + 2 * t, 0.0], [40.0 - 2 * t, 50.0]]) + rng.normal(size=(2, 2))
+        out.append(Scan(float(t), "pos", z, np.array([2 * t, 2 * t + 1], dtype=np.int64)))
+    return out
+
+
+def test_a_clutter_free_recording_gets_a_small_positive_rate() -> None:
+    """Every detection in a track: the update would say 0 false alarms, which the
+    estimator cannot score against ("auto" once failed with "needs a positive rate");
+    it is half a false alarm over the scans instead, with a note, and the two lanes are
+    the two tracks."""
+    from mapassoc.estimator.parameters import UNSEEN_FALSE_ALARMS
+
+    built = build_scenario("crossing", 0, scans=3)
+    config = generic_config(built, time_limit=600.0)
+    scans = _clutter_free_lanes(20)
+    estimate = estimate_parameters(config, scans, false_alarms=["pos"])
+    found = estimate.sensors["pos"]
+    assert found.rate_estimated
+    assert found.false_alarms_per_scan == UNSEEN_FALSE_ALARMS / 20
+    assert any("shows no false alarms" in w and "20 scans" in w for w in estimate.warnings)
+    assert estimate.result is not None
+    rows = sorted(sorted(r) for r in estimate.result.track_rows.values())  # type: ignore[attr-defined]
+    assert rows == [list(range(0, 40, 2)), list(range(1, 40, 2))]
+

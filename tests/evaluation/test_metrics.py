@@ -263,6 +263,9 @@ def test_total_is_at_most_cardinality_bound() -> None:
         ({"c": float("nan")}, r"c must be finite"),
         ({"c": 5.0, "p": 0.5}, r"p must be >= 1.*got 0\.5"),
         ({"c": 5.0, "p": float("inf")}, r"p must be finite"),
+        ({"c": 1e300}, r"c\^p = 1e\+300\^2\.0 overflows"),
+        ({"c": 10.0, "p": 2000.0}, r"c\^p = 10\.0\^2000\.0 overflows"),
+        ({"c": 1e-150}, r"c\^p = 1e-150\^2\.0 underflows"),
     ],
 )
 def test_bad_parameters(kwargs: dict, message: str) -> None:

@@ -189,6 +189,7 @@ def test_empty_sets() -> None:
         ({"c": -1.0}, "c"),
         ({"c": 1.0, "p": 0.5}, "p must be >= 1"),
         ({"c": 1.0, "p": math.inf}, "p"),
+        ({"c": 1e300}, r"c\^p .* overflows"),
     ],
 )
 def test_bad_parameters(kwargs: dict, message: str) -> None:

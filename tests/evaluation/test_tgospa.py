@@ -310,6 +310,8 @@ def test_fragmentation_of_an_untracked_run_is_nan_per_target() -> None:
         ({"c": 1.0, "gamma": -2.0}, "gamma"),
         ({"c": 1.0, "gamma": 1.0, "p": 0.5}, "p"),
         ({"c": 1.0, "gamma": 1.0, "method": "exact"}, "method"),
+        ({"c": 1e300, "gamma": 1.0}, r"c\^p"),
+        ({"c": 1.0, "gamma": 1e300}, r"gamma\^p"),
     ],
 )
 def test_bad_arguments_name_the_argument(arguments: dict, name: str) -> None:
