@@ -3,10 +3,14 @@
 :func:`run_files` reads a configuration and a detections file and writes one run folder
 (:mod:`mapassoc.apps.run_folders`): ``windows.jsonl`` line by line while the run goes
 on, then ``tracks.csv``, ``summary.json`` and ``manifest.json``.  It checkpoints the
-estimator's state every ``checkpoint_seconds`` and whenever it is asked to stop (at a
-window boundary), and ``resume=True`` continues from the last checkpoint, so that the
-final files are byte-identical (with ``timings=False``) to those of a run that never
-stopped.
+estimator's state every ``checkpoint_seconds``, when the forward pass is done, and
+whenever it is asked to stop (``stop`` is polled between the units of every phase: a
+window, a move of the refinement, a window of the confidence pass; a stop after the
+forward pass keeps its checkpoint), and ``resume=True`` continues from the last
+checkpoint, so that the final files are byte-identical (with ``timings=False``) to
+those of a run that never stopped.  A resumed folder is checked first: the checkpoint
+records the SHA-256 of ``windows.jsonl`` so far, and the manifest of a complete run the
+size and SHA-256 of every output.
 """
 
 from __future__ import annotations
@@ -254,6 +258,9 @@ def estimate_with_progress(
     every_sensor: bool = False,
 ) -> Any:
     """The configuration's "auto" sensor parameters from the recording, a line per pass.
+
+    The last pass is left unfinished (``last_run``, not ``result``): a run refines it
+    itself, after checkpointing it.
 
     ``every_sensor``: estimate every sensor's rate and ``Pd``, not only the "auto" ones
     (the configuration's ``detection_probability_start`` still serves as a start).
