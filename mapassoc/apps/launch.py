@@ -13,6 +13,7 @@ second) is beyond its reach.
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Sequence
 
@@ -23,6 +24,8 @@ __all__ = ["main"]
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``mapassoc`` command (:func:`mapassoc.apps.cli.main`); its exit status."""
+    if sys.stderr is None:  # started with stderr closed (2>&-): messages go nowhere
+        sys.stderr = open(os.devnull, "w", encoding="utf-8")  # noqa: SIM115
     try:
         with sigterm_interrupts():
             early = StopFlag()

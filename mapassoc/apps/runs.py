@@ -431,18 +431,22 @@ def run_files(
     options : RunOptions, optional
         How to run and write (default ``RunOptions()``).
     stop : callable, optional
-        Polled at every window boundary; when it returns True the run checkpoints and
-        raises :class:`RunInterrupted`.
+        Polled between the units of every phase (a window of the forward pass or of the
+        parameter estimation, a re-solve or linking round of the refinement, a window of
+        the confidence pass); when it returns True the run checkpoints and raises
+        :class:`RunInterrupted`.
 
     Raises
     ------
     InputError, DataFileError, ConfigError
-        Bad inputs (nothing is created then).
+        Bad inputs (nothing is created then); with ``resume``, a ``windows.jsonl`` that
+        does not hold what the checkpoint recorded.
     OutputError
         ``OUT`` is unusable or a write failed (the manifest says ``failed`` where it can
-        be written; the last checkpoint stays, so ``resume`` continues after the fix).
+        be written; the last checkpoint stays, so ``resume`` continues after the fix);
+        with ``resume``, an ``OUT`` that says complete but is not whole.
     RunInterrupted
-        ``stop`` returned True.
+        ``stop`` returned True (its ``phase`` says in which phase).
     """
     if options is None:
         options = RunOptions()
@@ -483,7 +487,9 @@ def run_files(
     point = _ResumePoint()
     if resume:
         point = _resume_point(folder, inputs, settings)
-        if point.outcome is not None:
+        if point.outcome is not None and point.outcome.status == "skipped":
+            return point.outcome
+        if point.outcome is not None:  # finished now: moved into place
             return dataclasses.replace(point.outcome, seconds=time.perf_counter() - t_session)
     checkpoint, manifest = point.checkpoint, point.manifest
 
