@@ -1,14 +1,14 @@
-"""The ``mapassoc`` script: a stop request is answered in one line from the first instant.
+"""The ``mapassoc`` script: a stop request is answered in one line from its first line of code.
 
 The command line imports numpy and the run machinery (a few tenths of a second, seconds
 on a loaded machine) before a run installs its handlers
-(:func:`mapassoc.apps.stopping.stop_on_signals`); a Ctrl-C in that time used to print a
-``KeyboardInterrupt`` traceback, and a SIGTERM ended the process without a word.
+(:func:`mapassoc.apps.stopping.stop_on_signals`); a Ctrl-C in that time would print a
+``KeyboardInterrupt`` traceback, and a SIGTERM would end the process without a word.
 :func:`main` imports nothing heavy itself: it catches both signals while the command
 line is imported (a signal then ends the command at once: one line, status 130, nothing
 written), and makes SIGTERM act as a Ctrl-C for the rest of the command.  What comes
-before any of mapassoc's code (the interpreter's own start, a few hundredths of a
-second) is beyond its reach.
+before any of mapassoc's code (the interpreter's own start, with its ``site`` imports)
+is beyond its reach.
 """
 
 from __future__ import annotations
