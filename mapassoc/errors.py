@@ -7,6 +7,8 @@ key, the offending value and what was expected.  Solver failures live in
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 __all__ = [
     "MapassocError",
     "InputError",
@@ -14,6 +16,8 @@ __all__ = [
     "DataFileError",
     "NotPositiveDefiniteError",
     "OutputError",
+    "StopRequested",
+    "check_stop",
 ]
 
 
@@ -107,3 +111,30 @@ class OutputError(MapassocError):
     def __init__(self, path: str, message: str) -> None:
         self.path = path
         super().__init__(f"{path}: {message}")
+
+
+class StopRequested(MapassocError):
+    """A stop request ended a computation between two units of its work.
+
+    Every long phase (the forward pass, the parameter estimation, the whole recording's
+    refinement, the confidence pass) polls the same ``stop`` callable between its units
+    (a window, a re-solve or a link, an estimation window, a confidence window) and raises
+    this when it returns True; the caller (``mapassoc run``) checkpoints what it had.
+
+    Parameters
+    ----------
+    phase : str
+        What was stopped, as a phrase ("the refinement of the whole recording").
+    message : str, optional
+        The whole message (default: ``"stopped during <phase>"``).
+    """
+
+    def __init__(self, phase: str, message: str | None = None) -> None:
+        self.phase = phase
+        super().__init__(message or f"stopped during {phase}")
+
+
+def check_stop(stop: Callable[[], bool] | None, phase: str) -> None:
+    """Raise :class:`StopRequested` for ``phase`` when ``stop`` is given and returns True."""
+    if stop is not None and stop():
+        raise StopRequested(phase)

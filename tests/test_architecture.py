@@ -239,7 +239,7 @@ LAYERS = (
     ("evaluation", ("mapassoc.evaluation",)),
     ("trackers", ("mapassoc.trackers",)),
     ("interop", ("mapassoc.interop",)),
-    ("apps", ("mapassoc.apps",)),
+    ("apps", ("mapassoc.apps", "mapassoc.__main__")),  # python -m mapassoc: the command
     ("public API", ("mapassoc",)),
 )
 """The package's layers from the bottom up: a module imports only its own layer and the

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
 from mapassoc.apps.runs import RunInterrupted, RunOptions, json_dump, run_files
-from mapassoc.apps.stopping import StopFlag, stop_on_signals
+from mapassoc.apps.stopping import EXIT_INTERRUPTED, StopFlag, stop_on_signals
 from mapassoc.data.formats import format_names
 from mapassoc.errors import InputError, MapassocError, OutputError
 from mapassoc.version import __version__
@@ -895,10 +895,6 @@ def build_parser() -> argparse.ArgumentParser:
     for add_command in COMMANDS:
         add_command(sub)
     return parser
-
-
-EXIT_INTERRUPTED = 130
-"""Exit status of a run stopped by SIGINT or SIGTERM (128 + SIGINT, the shell's convention)."""
 
 
 def _close_stdout_quietly() -> None:

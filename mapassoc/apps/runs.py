@@ -3,15 +3,21 @@
 :func:`run_files` reads a configuration and a detections file and writes one run folder
 (:mod:`mapassoc.apps.run_folders`): ``windows.jsonl`` line by line while the run goes
 on, then ``tracks.csv``, ``summary.json`` and ``manifest.json``.  It checkpoints the
-estimator's state every ``checkpoint_seconds`` and whenever it is asked to stop (at a
-window boundary), and ``resume=True`` continues from the last checkpoint, so that the
-final files are byte-identical (with ``timings=False``) to those of a run that never
-stopped.
+estimator's state every ``checkpoint_seconds``, when the forward pass is done, and
+whenever it is asked to stop (``stop`` is polled between the units of every phase: a
+window, a move of the refinement, a window of the confidence pass; a stop after the
+forward pass keeps its checkpoint), and ``resume=True`` continues from the last
+checkpoint, so that the final files are byte-identical (with ``timings=False``) to
+those of a run that never stopped.  A resumed folder is checked first: the checkpoint
+records the SHA-256 of ``windows.jsonl`` so far, and the manifest of a complete run the
+size and SHA-256 of every output.
 """
 
 from __future__ import annotations
 
 import concurrent.futures
+import dataclasses
+import hashlib
 import json
 import os
 import sys
@@ -33,7 +39,7 @@ from mapassoc.apps.run_folders import (
     write_json,
 )
 from mapassoc.data.formats import file_name, format_names
-from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
+from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError, StopRequested
 from mapassoc.trackers.registry import tracker_names
 from mapassoc.validation import check_integer
 
@@ -55,8 +61,12 @@ ASSOCIATIONS_NAME = "associations.csv"
 """The refined tracks' association probabilities (``detection_id,track_id,probability``)."""
 
 
-class RunInterrupted(MapassocError):
-    """A run stopped on request (SIGINT, SIGTERM) at a window boundary, checkpointed.
+FORWARD_PHASE = "the forward pass"
+"""The phase of a run's windows (what a :class:`RunInterrupted` names by default)."""
+
+
+class RunInterrupted(StopRequested):
+    """A run stopped on request (SIGINT, SIGTERM) between two units of work, checkpointed.
 
     Attributes
     ----------
@@ -64,28 +74,39 @@ class RunInterrupted(MapassocError):
         The run folder holding the checkpoint (``OUT.partial``), or a batch's folder.
     scans_committed, scans_total : int
         Scans (for a batch: recordings) done and in all.
+    phase : str
+        What was stopped: :data:`FORWARD_PHASE`, or a later phase (the refinement, the
+        confidence pass) that ``--resume`` runs again from the done forward pass.
     """
 
     def __init__(
-        self, partial: Path, scans_committed: int, scans_total: int, *, unit: str = "scans"
+        self,
+        partial: Path,
+        scans_committed: int,
+        scans_total: int,
+        *,
+        unit: str = "scans",
+        phase: str = FORWARD_PHASE,
     ) -> None:
         self.partial = partial
         self.scans_committed = scans_committed
         self.scans_total = scans_total
         what = "run" if unit == "scans" else "batch"
+        during = "" if phase == FORWARD_PHASE or unit != "scans" else f", during {phase}"
         super().__init__(
-            f"interrupted after {scans_committed} of {scans_total} {unit}; the {what} so far "
-            f"is in {partial} (continue it with --resume)"
+            phase,
+            f"interrupted after {scans_committed} of {scans_total} {unit}{during}; the {what} "
+            f"so far is in {partial} (continue it with --resume)",
         )
 
 
 class StoppedBeforeRun(RunInterrupted):
     """A run stopped on request before its first window: nothing was written."""
 
-    def __init__(self, message: str) -> None:
+    def __init__(self, message: str, phase: str = FORWARD_PHASE) -> None:
         self.partial = None  # type: ignore[assignment]
         self.scans_committed = self.scans_total = 0
-        MapassocError.__init__(self, f"{message}; nothing was written")
+        StopRequested.__init__(self, phase, f"{message}; nothing was written")
 
 
 class InputWaitInterrupted(StoppedBeforeRun):
@@ -254,6 +275,9 @@ def estimate_with_progress(
 ) -> Any:
     """The configuration's "auto" sensor parameters from the recording, a line per pass.
 
+    The last pass is left unfinished (``last_run``, not ``result``): a run refines it
+    itself, after checkpointing it.
+
     ``every_sensor``: estimate every sensor's rate and ``Pd``, not only the "auto" ones
     (an "auto" ``Pd`` starts at its ``detection_probability_start``, a configured one at
     its number, which is also what it keeps when the recording cannot estimate it).
@@ -263,7 +287,7 @@ def estimate_with_progress(
     StoppedBeforeRun
         ``stop`` asked to stop (nothing is written).
     """
-    from mapassoc.estimator.parameters import EstimationStopped, estimate_parameters
+    from mapassoc.estimator.parameters import estimate_parameters
 
     def report(record: Any) -> None:
         if not progress or sys.stderr is None:
@@ -288,10 +312,10 @@ def estimate_with_progress(
     try:
         return estimate_parameters(
             config, scans, false_alarms=rates, detection_probability=pds, on_pass=report,
-            stop=stop,
+            stop=stop, finish=False,
         )  # fmt: skip
-    except EstimationStopped as exc:
-        raise StoppedBeforeRun(str(exc)) from None
+    except StopRequested as exc:
+        raise StoppedBeforeRun(str(exc), exc.phase) from None
 
 
 def _with_estimates(config: Any, parameters: dict[str, Any]) -> Any:
@@ -404,8 +428,8 @@ class _Session:
         self.folder.write_checkpoint({**content, "warnings": list(self.messages)})
         self.save("running")
 
-    def interrupted(self) -> RunInterrupted:
-        return RunInterrupted(self.folder.partial, self.scans_committed, self.total)
+    def interrupted(self, phase: str = FORWARD_PHASE) -> RunInterrupted:
+        return RunInterrupted(self.folder.partial, self.scans_committed, self.total, phase=phase)
 
 
 def run_files(
@@ -428,18 +452,22 @@ def run_files(
     options : RunOptions, optional
         How to run and write (default ``RunOptions()``).
     stop : callable, optional
-        Polled at every window boundary; when it returns True the run checkpoints and
-        raises :class:`RunInterrupted`.
+        Polled between the units of every phase (a window of the forward pass or of the
+        parameter estimation, a re-solve or linking round of the refinement, a window of
+        the confidence pass); when it returns True the run checkpoints and raises
+        :class:`RunInterrupted`.
 
     Raises
     ------
     InputError, DataFileError, ConfigError
-        Bad inputs (nothing is created then).
+        Bad inputs (nothing is created then); with ``resume``, a ``windows.jsonl`` that
+        does not hold what the checkpoint recorded.
     OutputError
         ``OUT`` is unusable or a write failed (the manifest says ``failed`` where it can
-        be written; the last checkpoint stays, so ``resume`` continues after the fix).
+        be written; the last checkpoint stays, so ``resume`` continues after the fix);
+        with ``resume``, an ``OUT`` that says complete but is not whole.
     RunInterrupted
-        ``stop`` returned True.
+        ``stop`` returned True (its ``phase`` says in which phase).
     """
     if options is None:
         options = RunOptions()
@@ -477,32 +505,14 @@ def run_files(
     inputs = {"config": config_identity, "detections": detections_identity}
     settings = _settings_record(config, timings, segments, tracks_format)
 
-    checkpoint: dict[str, Any] | None = None
-    manifest: dict[str, Any] | None = None
+    point = _ResumePoint()
     if resume:
-        partial = folder.partial_manifest()
-        final = folder.final_manifest()
-        if partial is not None:
-            _same_run(partial, inputs, settings, folder.partial)
-            if partial["status"] == "complete":  # stopped between its last two renames
-                folder.complete()
-                folder.release()
-                summary: dict[str, Any] = json.loads(
-                    (folder.path / SUMMARY_NAME).read_text(encoding="utf-8")
-                )
-                return RunOutcome(folder.path, "complete", summary, int(partial["scans_total"]),
-                                  time.perf_counter() - t_session)
-            checkpoint = folder.read_checkpoint()  # type: ignore[assignment]
-            if checkpoint is not None:
-                manifest = partial
-        elif final is not None and final["status"] == "complete":
-            _same_run(final, inputs, settings, folder.path)
-            summary = json.loads((folder.path / SUMMARY_NAME).read_text(encoding="utf-8"))
-            return RunOutcome(folder.path, "skipped", summary, int(final["scans_total"]), 0.0)
-        elif folder.path.exists() and final is None and any(folder.path.iterdir()):
-            raise OutputError(
-                str(folder.path), "is not empty and holds no mapassoc run; choose another --out"
-            )
+        point = _resume_point(folder, inputs, settings)
+        if point.outcome is not None and point.outcome.status == "skipped":
+            return point.outcome
+        if point.outcome is not None:  # finished now: moved into place
+            return dataclasses.replace(point.outcome, seconds=time.perf_counter() - t_session)
+    checkpoint, manifest = point.checkpoint, point.manifest
 
     scans = read_detections_file(detections_path, config.sensors, content=detections_bytes,
                                  format_name=options.detections_format)  # fmt: skip
@@ -518,7 +528,7 @@ def run_files(
                 _ignore_resource_warnings()
                 estimate = estimate_with_progress(config, scans, stop=stop, progress=progress)
             parameters = estimate.to_json(timings=timings)
-            precomputed = estimate.result if segments == 1 else None
+            precomputed = estimate.last_run if segments == 1 else None
             config_warnings.extend(estimation_warnings)
             config_warnings.extend(_as_warnings(estimate.warnings))
         config = _with_estimates(config, parameters)
@@ -565,7 +575,7 @@ def run_files(
                     result = _run_windows(
                         session, estimator, scans, fresh_state, checkpoint, timings=timings,
                         stop=stop, checkpoint_seconds=options.checkpoint_seconds, ticker=ticker,
-                        caught=caught, precomputed=precomputed,
+                        caught=caught, precomputed=precomputed, digest=point.digest,
                     )  # fmt: skip
                 else:
                     result = _run_segments(
@@ -595,10 +605,14 @@ def run_files(
                     write_associations(session.writing, kept)
                 session.writing = folder.partial / SUMMARY_NAME
                 json_dump(summary, session.writing)
+                manifest["outputs"] = _output_records(folder.partial, summary, tracks_format)
                 session.save("complete")
                 folder.complete()
             except RunInterrupted:
                 raise
+            except StopRequested as exc:  # after the forward pass: its checkpoint stands
+                _mark(session.save, "interrupted")
+                raise session.interrupted(exc.phase) from None
             except KeyboardInterrupt:
                 _mark(session.save, "interrupted")
                 raise session.interrupted() from None
@@ -621,6 +635,195 @@ def run_files(
     return RunOutcome(folder.path, "complete", summary, resumed_at, time.perf_counter() - t_session)
 
 
+@dataclass(frozen=True)
+class _ResumePoint:
+    """Where ``--resume`` picks a run up (all None: from the start)."""
+
+    checkpoint: dict[str, Any] | None = None
+    manifest: dict[str, Any] | None = None
+    digest: Any = None
+    """SHA-256 (a hashlib object) of ``windows.jsonl`` up to the checkpoint."""
+    outcome: RunOutcome | None = None
+    """The run is complete already: nothing to do."""
+
+
+def _resume_point(
+    folder: RunFolder, inputs: dict[str, Any], settings: dict[str, Any]
+) -> _ResumePoint:
+    """What ``--resume`` continues, after checking that the folder is what it says.
+
+    A folder is taken as complete only when it is whole (:func:`_missing_parts`); an
+    ``OUT.partial`` that says complete but is not is continued from its checkpoint (or
+    started again without one), and an ``OUT`` that says complete but is not is refused.
+
+    Raises
+    ------
+    InputError
+        Other inputs or settings, or a ``windows.jsonl`` that disagrees with the
+        checkpoint (:func:`_checked_windows`).
+    OutputError
+        ``OUT`` says complete but is not whole, or is not a run folder.
+    """
+    partial = folder.partial_manifest()
+    final = folder.final_manifest()
+    if partial is not None:
+        _same_run(partial, inputs, settings, folder.partial)
+        says_complete = partial["status"] == "complete"
+        problems = _missing_parts(folder.partial, partial) if says_complete else []
+        if says_complete and not problems:  # stopped between its last two renames
+            folder.complete()
+            folder.release()
+            summary = _read_summary(folder.path)
+            return _ResumePoint(outcome=RunOutcome(
+                folder.path, "complete", summary, int(partial["scans_total"]), 0.0
+            ))  # fmt: skip
+        checkpoint: Any = folder.read_checkpoint()
+        if problems:
+            what = "continuing from its checkpoint" if checkpoint else "starting the run again"
+            print(
+                f"mapassoc: warning: {folder.partial} says the run is complete but "
+                f"{'; '.join(problems)}; {what}",
+                file=sys.stderr,
+            )
+        if checkpoint is None:
+            return _ResumePoint()
+        digest = _checked_windows(folder.partial, checkpoint)
+        return _ResumePoint(checkpoint=checkpoint, manifest=partial, digest=digest)
+    if final is not None and final["status"] == "complete":
+        _same_run(final, inputs, settings, folder.path)
+        problems = _missing_parts(folder.path, final)
+        if problems:
+            raise OutputError(
+                str(folder.path),
+                f"says the run is complete but {'; '.join(problems)}; pass --overwrite to run "
+                "it again",
+            )
+        summary = _read_summary(folder.path)
+        return _ResumePoint(outcome=RunOutcome(
+            folder.path, "skipped", summary, int(final["scans_total"]), 0.0
+        ))  # fmt: skip
+    if folder.path.exists() and final is None and any(folder.path.iterdir()):
+        raise OutputError(
+            str(folder.path), "is not empty and holds no mapassoc run; choose another --out"
+        )
+    return _ResumePoint()
+
+
+def _read_summary(folder: Path) -> dict[str, Any]:
+    """``summary.json`` of a run folder (None-free: the caller checked it is whole)."""
+    summary: dict[str, Any] = json.loads((folder / SUMMARY_NAME).read_text(encoding="utf-8"))
+    return summary
+
+
+def _sha256_file(path: Path) -> tuple[int, str]:
+    """Size and SHA-256 of a file, read in blocks."""
+    digest = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+            size += len(block)
+    return size, digest.hexdigest()
+
+
+def _output_names(summary: dict[str, Any], tracks_format: str) -> list[str]:
+    """The files a complete run folder holds besides its manifest."""
+    names = [file_name("tracks", tracks_format), WINDOWS_NAME, SUMMARY_NAME]
+    if "confidence" in summary:
+        names.append(ASSOCIATIONS_NAME)
+    return names
+
+
+def _output_records(
+    folder: Path, summary: dict[str, Any], tracks_format: str
+) -> dict[str, dict[str, object]]:
+    """The manifest's ``outputs``: size and SHA-256 of every file the run wrote."""
+    records: dict[str, dict[str, object]] = {}
+    for name in _output_names(summary, tracks_format):
+        try:
+            size, sha256 = _sha256_file(folder / name)
+        except OSError as exc:
+            raise OutputError(str(folder / name), f"cannot read: {os_reason(exc)}") from None
+        records[name] = {"bytes": size, "sha256": sha256}
+    return records
+
+
+def _missing_parts(folder: Path, manifest: dict[str, Any]) -> list[str]:
+    """What keeps a run folder whose manifest says complete from being whole (empty: whole).
+
+    Every output must be there with the size and SHA-256 the manifest's ``outputs``
+    recorded (a manifest written before they were recorded: every expected file there),
+    and ``windows.jsonl`` must hold one whole line per window of ``summary.json``.
+    """
+    try:
+        summary = json.loads((folder / SUMMARY_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        summary = None
+    if not isinstance(summary, dict) or not isinstance(summary.get("windows"), int):
+        return [f"{SUMMARY_NAME} is missing or unreadable"]
+    tracks_format = str(manifest.get("settings", {}).get("tracks_format", "csv"))
+    problems = []
+    recorded = manifest.get("outputs") or {}
+    for name in _output_names(summary, tracks_format):
+        path = folder / name
+        if not path.is_file():
+            problems.append(f"{name} is missing")
+        elif name in recorded and _sha256_file(path) != (
+            recorded[name]["bytes"], recorded[name]["sha256"]
+        ):
+            problems.append(f"{name} is not the file the run wrote (its size or SHA-256 differs)")
+    windows = folder / WINDOWS_NAME
+    if windows.is_file():
+        data = windows.read_bytes()
+        lines = data.count(b"\n")
+        if lines != summary["windows"] or b"\0" in data or not data.endswith(b"\n") and data:
+            problems.append(
+                f"{WINDOWS_NAME} holds {lines} whole lines where {SUMMARY_NAME} says "
+                f"{summary['windows']} windows"
+            )
+    return problems
+
+
+def _checked_windows(partial: Path, checkpoint: dict[str, Any]) -> Any:
+    """The SHA-256 (hashlib object) of ``windows.jsonl`` up to the checkpoint's length,
+    after checking that the file holds what the run had written then (None for a
+    segmented run's checkpoint, which holds no windows).
+
+    Raises
+    ------
+    InputError
+        The file is shorter than the checkpoint recorded, or differs from what was
+        written (its SHA-256; a checkpoint without one: its line count or a NUL byte).
+    """
+    if "windows_bytes" not in checkpoint:
+        return None
+    keep = int(checkpoint["windows_bytes"])
+    path = partial / WINDOWS_NAME
+    try:
+        with open(path, "rb") as handle:
+            prefix = handle.read(keep)
+    except FileNotFoundError:
+        prefix = b""
+    except OSError as exc:
+        raise OutputError(str(path), f"cannot read: {os_reason(exc)}") from None
+    digest = hashlib.sha256(prefix)
+    recorded = checkpoint.get("windows_sha256")
+    windows = int(checkpoint["state"].tally.windows)
+    problem = None
+    if len(prefix) < keep:
+        problem = f"holds {len(prefix)} bytes where the checkpoint recorded {keep}"
+    elif recorded is not None and digest.hexdigest() != recorded:
+        problem = "is not what the run had written at its checkpoint (its SHA-256 differs)"
+    elif recorded is None and (prefix.count(b"\n") != windows or b"\0" in prefix):
+        problem = f"does not hold the {windows} windows the checkpoint recorded"
+    if problem is not None:
+        raise InputError(
+            f"cannot resume {partial}: {WINDOWS_NAME} {problem}, so the windows computed "
+            "before the checkpoint are lost; pass --overwrite to start the run again"
+        )
+    return digest
+
+
 def _run_windows(
     session: _Session,
     estimator: Any,
@@ -633,23 +836,23 @@ def _run_windows(
     checkpoint_seconds: float,
     ticker: Progress,
     caught: list[warnings.WarningMessage],
-    precomputed: Any = None,
+    precomputed: tuple[Any, tuple[Any, ...]] | None = None,
+    digest: Any = None,
 ) -> Any:
-    """The sequential run, window by window, writing ``windows.jsonl`` as it goes.
+    """The sequential run, window by window, writing ``windows.jsonl`` as it goes, then
+    the whole recording's refinement.
 
-    ``precomputed``: the whole run already done (the parameter estimation's last pass
-    covered every scan with the final values); its windows are written, not solved again.
+    The forward pass checkpoints every ``checkpoint_seconds`` and once more when it is
+    done, so a stop during the refinement (which polls ``stop`` between its moves and
+    raises StopRequested) resumes from the done forward pass.  ``precomputed``: the
+    forward pass already done (the parameter estimation's last pass covered every scan
+    with the final values): its done state and window reports, written, not solved
+    again.  ``digest``: the SHA-256 of ``windows.jsonl`` up to the checkpoint
+    (:func:`_checked_windows`), carried on as lines are added.
     """
-    if precomputed is not None and checkpoint is None:
-        with _open_windows(session.folder.partial / WINDOWS_NAME, 0) as stream:
-            for report in precomputed.windows:
-                stream.write(_window_line(report, timings))
-        session.scans_committed = precomputed.num_scans
-        session.windows_committed = precomputed.tally.windows
-        ticker(precomputed.num_scans, precomputed.num_scans)
-        return precomputed
     if checkpoint is None:
         state, windows_bytes = fresh_state, 0
+        digest = hashlib.sha256()
     else:
         state, windows_bytes = checkpoint["state"], int(checkpoint["windows_bytes"])
 
@@ -657,17 +860,28 @@ def _run_windows(
         stream.flush()
         os.fsync(stream.fileno())
         session.scans_committed, session.windows_committed = state.next_scan, state.tally.windows
-        session.checkpoint({"state": state, "windows_bytes": stream.tell()})
+        session.checkpoint(
+            {"state": state, "windows_bytes": stream.tell(), "windows_sha256": digest.hexdigest()}
+        )
+
+    def write(stream: BinaryIO, report: Any) -> None:
+        line = _window_line(report, timings)
+        stream.write(line)
+        digest.update(line)
 
     with _open_windows(session.folder.partial / WINDOWS_NAME, windows_bytes) as stream:
+        if precomputed is not None and checkpoint is None:
+            state, reports = precomputed
+            for report in reports:
+                write(stream, report)
+            ticker(state.next_scan, state.total_scans)
         last_checkpoint = time.monotonic()
         while not state.done:
             if stop is not None and stop():
                 save_checkpoint(stream)
                 session.save("interrupted")
                 raise session.interrupted()
-            report = estimator.step(scans, state)
-            stream.write(_window_line(report, timings))
+            write(stream, estimator.step(scans, state))
             stream.flush()
             session.messages.extend(str(w.message) for w in caught)
             del caught[:]
@@ -676,7 +890,7 @@ def _run_windows(
                 save_checkpoint(stream)
                 last_checkpoint = time.monotonic()
         save_checkpoint(stream)
-    return estimator.finish(scans, state)
+    return estimator.finish(scans, state, stop=stop)
 
 
 def _run_segments(
@@ -741,7 +955,7 @@ def _run_segments(
     if len(done) < len(plan):
         session.save("interrupted")
         raise session.interrupted()
-    stitched = stitch_segments(scans, [done[s.index] for s in plan], config)
+    stitched = stitch_segments(scans, [done[s.index] for s in plan], config, stop=stopped)
     message = stitched.tally.kmax_warning(config.estimator.max_tracks)
     if message is not None:
         session.messages.append(message)

@@ -3,8 +3,11 @@
 Workers are started with the ``spawn`` method (no inherited threads or locks), run BLAS
 on one thread each (the parallelism is the processes), and never die of a Ctrl-C: in a
 terminal SIGINT reaches every process of the group, and a worker only records it, so
-that its task stops at the next window boundary and reports back.  The parent asks all
-of them to stop through one shared event.
+that its task stops at the next window boundary and reports back.  They start with
+SIGINT and SIGTERM blocked (the parent blocks them while it starts them, and the mask is
+inherited), and unblock them once their handlers are in place: a Ctrl-C while a worker
+is still importing is recorded like any other, not a traceback.  The parent asks all of
+them to stop through one shared event.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ __all__ = ["process_pool", "run_on_pool", "worker_stop_requested", "usable_cores
 
 _STOP: StopFlag | None = None
 _EVENT: Any = None
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 
 
 def usable_cores() -> int:
@@ -55,6 +59,18 @@ def _init_worker(event: Any) -> None:
 
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)  # blocked since the start
+
+
+@contextlib.contextmanager
+def _stop_signals_blocked() -> Iterator[None]:
+    """SIGINT and SIGTERM held back in this thread (and in the processes it starts) while
+    the block runs; one that came meanwhile is handled when the block ends."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def worker_stop_requested() -> bool:
@@ -97,10 +113,11 @@ def run_on_pool(
     cancelled (never reported); the call returns when the running ones have ended.
     """
     with process_pool(workers) as (pool, event):
-        futures = {
-            pool.submit(function, *args, **kwargs): index
-            for index, (function, args, kwargs) in enumerate(tasks)
-        }
+        with _stop_signals_blocked():  # the submissions start the workers
+            futures = {
+                pool.submit(function, *args, **kwargs): index
+                for index, (function, args, kwargs) in enumerate(tasks)
+            }
         pending = set(futures)
         while pending:
             done, pending = concurrent.futures.wait(

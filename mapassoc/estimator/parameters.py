@@ -73,7 +73,7 @@ from scipy.special import gammaln
 from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scans
-from mapassoc.errors import InputError, MapassocError
+from mapassoc.errors import InputError, StopRequested
 from mapassoc.log_space import json_number
 from mapassoc.models.sensor import Sensor
 from mapassoc.validation import check_positive, check_probability
@@ -121,8 +121,16 @@ MIN_INTERIOR_SCANS = 20
 standard error of the ratio is at most 0.11; the bench recordings give hundreds)."""
 
 
-class EstimationStopped(MapassocError):
-    """``stop`` asked :func:`estimate_parameters` to stop (at a window boundary)."""
+ESTIMATION_PHASE = "the estimation of the sensor parameters"
+"""The phase an :class:`EstimationStopped` names."""
+
+
+class EstimationStopped(StopRequested):
+    """``stop`` asked :func:`estimate_parameters` to stop (at a window boundary, or between
+    two units of the last pass's refinement)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(ESTIMATION_PHASE, message)
 
 
 @dataclass(frozen=True)
@@ -319,9 +327,16 @@ class ParameterEstimate:
         recording's refinement included: the passes themselves count the forward pass's
         associations, and the refinement runs once, here), so it is the estimator's
         answer under the returned configuration and a caller need not run again; None
-        when the passes ran on a sample.
+        when the passes ran on a sample, or when :func:`estimate_parameters` was asked
+        not to ``finish`` it.
     warnings : tuple of str
         What could not be estimated, and why.
+    last_run : tuple of (RunState, tuple of WindowReport), optional
+        The last pass's done forward run and its window reports when it covered the
+        whole recording (else None): ``WindowEstimator(config=config).finish(scans,
+        state, windows=reports)`` gives ``result``.  ``mapassoc run`` writes its windows
+        and checkpoints the state before it refines, so a stop during the refinement
+        loses no pass.
     """
 
     config: Config
@@ -331,6 +346,7 @@ class ParameterEstimate:
     sample_scans: int
     result: EstimateResult | None
     warnings: tuple[str, ...]
+    last_run: tuple[RunState, tuple[WindowReport, ...]] | None = None
 
     def to_json(self, *, timings: bool = True) -> dict[str, object]:
         return {
@@ -433,6 +449,7 @@ def estimate_parameters(
     sample_blocks_count: int = 6,
     on_pass: Callable[[EstimationPass], None] | None = None,
     stop: Callable[[], bool] | None = None,
+    finish: bool = True,
 ) -> ParameterEstimate:
     """Estimate sensors' false-alarm rates and detection probabilities (module docstring).
 
@@ -466,8 +483,12 @@ def estimate_parameters(
     on_pass : callable, optional
         Called with each :class:`EstimationPass` as it ends.
     stop : callable, optional
-        Polled after every window; when it returns True the estimation raises
+        Polled after every window (and between the units of the last pass's
+        refinement); when it returns True the estimation raises
         :class:`EstimationStopped`.
+    finish : bool
+        False leaves the last pass's run unfinished (``result`` None, ``last_run`` set
+        when it covered the whole recording) for the caller to refine.
 
     Returns
     -------
@@ -477,6 +498,8 @@ def estimate_parameters(
     ------
     InputError
         An unknown sensor, a start outside (0, 1], or a bad tolerance or count.
+    EstimationStopped
+        ``stop`` returned True.
     """
     from mapassoc.estimator.pipeline import WindowEstimator
 
@@ -633,7 +656,7 @@ def estimate_parameters(
             notes=tuple(notes[name]),
         )
     last_result = None
-    if last_run is not None:
+    if last_run is not None and finish:
         # The estimator's answer under the returned values: the last pass's windows,
         # finished as a run finishes them (refined when refine_passes > 0).  The Kmax
         # warning of its windows was given when the pass itself finished.
@@ -642,7 +665,13 @@ def estimate_parameters(
             warnings.filterwarnings(
                 "ignore", message=r"p\(K = Kmax \| Z\) exceeded", category=RuntimeWarning
             )
-            last_result = estimator.finish(scans, state, windows=reports)
+            try:
+                last_result = estimator.finish(scans, state, windows=reports, stop=stop)
+            except StopRequested as exc:
+                raise EstimationStopped(
+                    f"stopped while estimating the sensor parameters ({exc.phase} of the "
+                    "last pass)"
+                ) from None
     return ParameterEstimate(
         config=with_sensor_parameters(config, passes[-1].used),
         sensors=estimates,
@@ -651,6 +680,7 @@ def estimate_parameters(
         sample_scans=len(sampled),
         result=last_result,
         warnings=tuple(messages),
+        last_run=None if last_run is None else (last_run[1], tuple(last_run[2])),
     )
 
 

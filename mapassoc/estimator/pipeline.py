@@ -868,6 +868,7 @@ class WindowEstimator:
         *,
         windows: Sequence[WindowReport] = (),
         refine: bool = True,
+        stop: Callable[[], bool] | None = None,
     ) -> EstimateResult:
         """Refine (``refine_passes > 0``) and smooth every track of a done run.
 
@@ -885,6 +886,15 @@ class WindowEstimator:
             False leaves the forward pass's tracks as they are whatever
             ``refine_passes`` says (a segment of a longer recording, refined once
             stitched: :mod:`mapassoc.estimator.segments`).
+        stop : callable, optional
+            Polled between the units of the refinement and of its confidence pass (a
+            re-solve, a linking round, a window): see :func:`refine_track_rows`.
+
+        Raises
+        ------
+        StopRequested
+            ``stop`` returned True; ``state`` is unchanged, so finishing it again gives
+            the result an uninterrupted call would have.
         """
         if not state.done:
             raise InputError(
@@ -898,7 +908,7 @@ class WindowEstimator:
         track_rows = {tid: tuple(r.rows) for tid, r in sorted(state.records.items()) if r.rows}
         refined = None
         if refine and self.settings.refine_passes > 0 and track_rows:
-            refined = refine_track_rows(self.config, scans, track_rows)
+            refined = refine_track_rows(self.config, scans, track_rows, stop=stop)
             track_rows = refined.track_rows
         tracks = self._smooth(scans, track_rows)
         if refined is not None and refined.confidence is not None:

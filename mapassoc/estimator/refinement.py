@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -70,7 +70,7 @@ from scipy.optimize import linear_sum_assignment
 from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
-from mapassoc.errors import InputError
+from mapassoc.errors import InputError, check_stop
 from mapassoc.estimator.cluster_solving import (
     WORK_PROJECTION,
     best_set_by_fixing,
@@ -102,6 +102,8 @@ __all__ = [
     "Refiner",
     "RefinedTracks",
     "refine_track_rows",
+    "REFINEMENT_PHASE",
+    "CONFIDENCE_PHASE",
 ]
 
 _IMPROVEMENT = 1e-6
@@ -158,6 +160,12 @@ def _probability(total: float) -> float:
 def _rises(old: float, new: float) -> bool:
     """Whether ``new`` beats ``old`` by more than rounding (:data:`_IMPROVEMENT`)."""
     return new > old + _IMPROVEMENT + 1e-9 * abs(old)
+
+
+REFINEMENT_PHASE = "the refinement of the whole recording"
+"""The phase a stop during :meth:`Refiner.refine` names (in its StopRequested)."""
+CONFIDENCE_PHASE = "the confidence pass"
+"""The phase a stop during :meth:`Refiner.confidence` names."""
 
 
 @dataclass(frozen=True)
@@ -454,12 +462,19 @@ class Refiner:
 
     # -- the whole refinement ------------------------------------------------------------
     def refine(
-        self, tracks: Mapping[int, TrackPath], *, next_id: int | None = None
+        self,
+        tracks: Mapping[int, TrackPath],
+        *,
+        next_id: int | None = None,
+        stop: Callable[[], bool] | None = None,
     ) -> tuple[dict[int, TrackPath], RefinementReport]:
         """Refine ``tracks`` (track id -> path) and return the new set and a report.
 
         Track ids are kept where a track keeps its first detection before a re-solved
         window; new pieces get ids from ``next_id`` on (default: one past the largest).
+        ``stop`` is polled before every re-solve and every linking round; when it returns
+        True the refinement raises :class:`~mapassoc.errors.StopRequested`
+        (:data:`REFINEMENT_PHASE`), leaving ``tracks`` as they were.
         """
         t0 = time.perf_counter()
         current = {int(tid): tuple(path) for tid, path in tracks.items() if path}
@@ -487,6 +502,7 @@ class Refiner:
             for a in order:
                 if a not in dirty[N]:
                     continue
+                check_stop(stop, REFINEMENT_PHASE)
                 dirty[N].discard(a)
                 report.windows_solved += 1
                 improved, limited = self.resolve_window(current, values, a, a + N)
@@ -499,7 +515,7 @@ class Refiner:
                         dirty[n].update(s for s in starts[n] if low <= s <= high)
                     dirty[N].discard(a)
             if self.settings.link_gap > 0:
-                links = self.link_fragments(current, values)
+                links = self.link_fragments(current, values, stop=stop)
                 report.links += links
                 changed = changed or links > 0
             # A track worth less than its detections as false alarms (v < 0, which
@@ -931,7 +947,9 @@ class Refiner:
         return pieces
 
     # -- how sure ------------------------------------------------------------------------
-    def confidence(self, tracks: Mapping[int, TrackPath]) -> TrackConfidence:
+    def confidence(
+        self, tracks: Mapping[int, TrackPath], *, stop: Callable[[], bool] | None = None
+    ) -> TrackConfidence:
         """Existence and association probabilities of a (refined) track set.
 
         One pass over the recording in windows of ``window_length`` scans: each window's
@@ -948,7 +966,8 @@ class Refiner:
         thus keeps its existence, and a track of false alarms gets the probability that
         they are something else.  A detection's association to a track is the
         probability that the track's tree (carried, or new at one of the track's
-        detections) uses it.
+        detections) uses it.  ``stop`` is polled before every window; when it returns
+        True this raises :class:`~mapassoc.errors.StopRequested` (:data:`CONFIDENCE_PHASE`).
         """
         current = {int(tid): tuple(path) for tid, path in tracks.items() if path}
         values = self._exact_values(current)
@@ -959,6 +978,7 @@ class Refiner:
         windows = 0
         M = len(self.scans)
         for a in range(0, M, self.window_length):
+            check_stop(stop, CONFIDENCE_PHASE)
             b = min(a + self.window_length, M)
             windows += 1
             hyps, carried, anchors, _ = self._window_hypotheses(
@@ -1139,15 +1159,23 @@ class Refiner:
         return _probability(-math.expm1(min(0.0, log_none)))
 
     # -- fragment linking -------------------------------------------------------------------
-    def link_fragments(self, tracks: dict[int, TrackPath], values: dict[int, float]) -> int:
+    def link_fragments(
+        self,
+        tracks: dict[int, TrackPath],
+        values: dict[int, float],
+        *,
+        stop: Callable[[], bool] | None = None,
+    ) -> int:
         """Join tracks that end to tracks that start within ``link_gap`` scans where J rises.
 
         Returns the number of joins made; ``tracks`` and ``values`` are updated in place.
+        ``stop`` is polled before every round (as in :meth:`refine`).
         """
         obj = self.objective
         gap = self.settings.link_gap
         made = 0
         while True:
+            check_stop(stop, REFINEMENT_PHASE)
             ids = sorted(tracks)
             by_first: dict[int, list[int]] = {}
             for tid in ids:
@@ -1231,6 +1259,7 @@ def refine_track_rows(
     settings: RefinementSettings | None = None,
     confidence: bool = True,
     min_existence: float | None = None,
+    stop: Callable[[], bool] | None = None,
 ) -> RefinedTracks:
     """Refine a track set given as track id -> detection ids (what the estimator keeps).
 
@@ -1250,10 +1279,19 @@ def refine_track_rows(
     min_existence : float, optional
         Leave out the tracks whose existence probability is below this (needs
         ``confidence``); default: the estimator's ``min_existence``.
+    stop : callable, optional
+        Polled between the units of the refinement and of the confidence pass
+        (:meth:`Refiner.refine`, :meth:`Refiner.confidence`).
 
     Returns
     -------
     RefinedTracks
+
+    Raises
+    ------
+    StopRequested
+        ``stop`` returned True (nothing is returned: the caller starts again from
+        ``track_rows``, which gives the same result, the refinement being deterministic).
     """
     est = config.estimator
     if settings is None:
@@ -1268,8 +1306,8 @@ def refine_track_rows(
     objective = RecordingObjective(config=config, scans=scans)
     paths = {tid: objective.path_of_rows(rows) for tid, rows in track_rows.items() if len(rows)}
     refiner = Refiner(config=config, scans=scans, settings=settings, objective=objective)
-    refined, report = refiner.refine(paths)
-    sure = refiner.confidence(refined) if confidence else None
+    refined, report = refiner.refine(paths, stop=stop)
+    sure = refiner.confidence(refined, stop=stop) if confidence else None
     dropped: tuple[int, ...] = ()
     if sure is not None and min_existence > 0:
         dropped = tuple(

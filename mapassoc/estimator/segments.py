@@ -201,7 +201,11 @@ def _match(
 
 
 def stitch_segments(
-    scans: Sequence[Scan], results: Sequence[SegmentResult], config: Config
+    scans: Sequence[Scan],
+    results: Sequence[SegmentResult],
+    config: Config,
+    *,
+    stop: Callable[[], bool] | None = None,
 ) -> EstimateResult:
     """Join segment runs into one result (module docstring).
 
@@ -212,6 +216,10 @@ def stitch_segments(
     results : sequence of SegmentResult
         One per segment of a plan over ``len(scans)`` scans, in segment order.
     config : Config
+    stop : callable, optional
+        Polled between the units of the stitched set's refinement
+        (:func:`~mapassoc.estimator.refinement.refine_track_rows`), which raises
+        StopRequested when it returns True.
 
     Returns
     -------
@@ -272,7 +280,7 @@ def stitch_segments(
     }
     refined = None
     if config.estimator.refine_passes > 0 and track_rows:
-        refined = refine_track_rows(config, scans, track_rows)
+        refined = refine_track_rows(config, scans, track_rows, stop=stop)
         track_rows = refined.track_rows
         associations = {tid: dict(where(r) for r in rows) for tid, rows in track_rows.items()}
     tracks = smooth_tracks(scans, associations, config)
