@@ -404,6 +404,195 @@ def _viterbi_component(
     return m[states]
 
 
+@dataclass(frozen=True, eq=False)
+class _ProgramLayout:
+    """Where the variables of one component's program sit.
+
+    Per time ``t`` the variables ``W(t)`` are ``[edges, row dummies, column dummies]``
+    (``per_time`` of them, at ``t * per_time``); the ``num_h`` switching variables
+    ``h_e(t)`` follow all ``num_w`` of them.
+    """
+
+    num_times: int
+    nx: int
+    ny: int
+    num_edges: int
+
+    @property
+    def per_time(self) -> int:
+        return self.num_edges + self.nx + self.ny
+
+    @property
+    def num_w(self) -> int:
+        return self.num_times * self.per_time
+
+    @property
+    def num_h(self) -> int:
+        return (self.num_times - 1) * self.num_edges
+
+
+@dataclass(frozen=True, eq=False)
+class _Program:
+    """One component's program: minimise ``cost @ v`` subject to ``a_eq v = 1``,
+    ``a_ub v <= 0``, ``0 <= W <= 1``, ``h >= 0``.
+
+    Attributes
+    ----------
+    layout : _ProgramLayout
+    cost : ndarray, shape (num_w + num_h,)
+    a_eq : scipy.sparse.csr_matrix, shape (num_times * (nx + ny), num_w + num_h)
+    a_ub : scipy.sparse.csr_matrix, shape (2 * num_h, num_w + num_h)
+    """
+
+    layout: _ProgramLayout
+    cost: NDArray[np.float64]
+    a_eq: sps.csr_matrix
+    a_ub: sps.csr_matrix
+
+    @property
+    def upper(self) -> NDArray[np.float64]:
+        """Upper bounds of the variables, shape (num_w + num_h,): 1 for W, none for h."""
+        return np.concatenate([np.ones(self.layout.num_w), np.full(self.layout.num_h, np.inf)])
+
+
+def _program_cost(
+    layout: _ProgramLayout,
+    edge_cost: NDArray[np.float64],
+    present_x: NDArray[np.bool_],
+    present_y: NDArray[np.bool_],
+    half: float,
+    switch_cost: float,
+) -> NDArray[np.float64]:
+    """Costs of ``W(t) = [edges, row dummies, column dummies]`` and of h.
+
+    Parameters
+    ----------
+    edge_cost : ndarray, shape (Tc, nE)
+    present_x, present_y : ndarray of bool, shape (Tc, nx) and (Tc, ny)
+
+    Returns
+    -------
+    ndarray, shape (num_w + num_h,)
+    """
+    return np.concatenate(
+        [
+            np.hstack([edge_cost, half * present_x, half * present_y]).ravel(),
+            np.full(layout.num_h, switch_cost / 2.0),
+        ]
+    )
+
+
+def _assignment_equalities(layout: _ProgramLayout, edges: NDArray[np.int64]) -> sps.csr_matrix:
+    """Every true (row) and every estimated (column) index assigned once per time.
+
+    Parameters
+    ----------
+    edges : ndarray of int, shape (nE, 2)
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (Tc * (nx + ny), num_w + num_h)
+    """
+    nx, ny, per_time = layout.nx, layout.ny, layout.per_time
+    t_of = np.repeat(np.arange(layout.num_times), per_time)
+    local = np.tile(np.arange(per_time), layout.num_times)
+    rows_of_local = np.concatenate([edges[:, 0], np.arange(nx), np.full(ny, -1)])
+    cols_of_local = np.concatenate([edges[:, 1], np.full(nx, -1), np.arange(ny)])
+    var = np.arange(layout.num_w)
+    r = rows_of_local[local]
+    k = cols_of_local[local]
+    has_r = r >= 0
+    has_k = k >= 0
+    eq_row = np.concatenate(
+        [t_of[has_r] * (nx + ny) + r[has_r], t_of[has_k] * (nx + ny) + nx + k[has_k]]
+    )
+    eq_col = np.concatenate([var[has_r], var[has_k]])
+    return sps.csr_matrix(
+        (np.ones(eq_row.size), (eq_row, eq_col)),
+        shape=(layout.num_times * (nx + ny), layout.num_w + layout.num_h),
+    )
+
+
+def _switch_inequalities(layout: _ProgramLayout) -> sps.csr_matrix:
+    """``+-(W_e(t+1) - W_e(t)) - h_e(t) <= 0``, shape (2 * num_h, num_w + num_h)."""
+    num_w, num_h, num_edges = layout.num_w, layout.num_h, layout.num_edges
+    step = np.repeat(np.arange(layout.num_times - 1), num_edges)
+    edge = np.tile(np.arange(num_edges), layout.num_times - 1)
+    w_now = step * layout.per_time + edge
+    w_next = w_now + layout.per_time
+    h_var = num_w + np.arange(num_h)
+    base = np.arange(num_h)
+    ub_row = np.concatenate([base, base, base, num_h + base, num_h + base, num_h + base])
+    ub_col = np.concatenate([w_next, w_now, h_var, w_now, w_next, h_var])
+    ub_val = np.concatenate([np.ones(num_h), -np.ones(num_h), -np.ones(num_h)] * 2)
+    return sps.csr_matrix((ub_val, (ub_row, ub_col)), shape=(2 * num_h, num_w + num_h))
+
+
+def _component_program(
+    present_x: NDArray[np.bool_],
+    present_y: NDArray[np.bool_],
+    edges: NDArray[np.int64],
+    edge_distance: NDArray[np.float64],
+    c: float,
+    p: float,
+    gamma: float,
+) -> _Program:
+    """The integer program of one component (arguments as :func:`_solve_component`'s)."""
+    layout = _ProgramLayout(
+        num_times=present_x.shape[0],
+        nx=present_x.shape[1],
+        ny=present_y.shape[1],
+        num_edges=edges.shape[0],
+    )
+    edge_cost = _edge_costs(present_x, present_y, edges, edge_distance, c, p)
+    return _Program(
+        layout=layout,
+        cost=_program_cost(layout, edge_cost, present_x, present_y, c**p / 2.0, gamma**p),
+        a_eq=_assignment_equalities(layout, edges),
+        a_ub=_switch_inequalities(layout),
+    )
+
+
+def _solve_integer(program: _Program) -> tuple[NDArray[np.float64], float]:
+    """The exact optimum by HiGHS: the W part of the solution, shape (num_w,), and its
+    value."""
+    num_w, num_h = program.layout.num_w, program.layout.num_h
+    integrality = np.concatenate([np.ones(num_w), np.zeros(num_h)])
+    constraints = [LinearConstraint(program.a_eq, 1.0, 1.0)]
+    if num_h:
+        constraints.append(LinearConstraint(program.a_ub, -np.inf, 0.0))
+    res = milp(
+        program.cost,
+        integrality=integrality,
+        bounds=Bounds(np.zeros(num_w + num_h), program.upper),
+        constraints=constraints,
+        options={"mip_rel_gap": 0.0},
+    )
+    if res.status != 0 or res.x is None:
+        raise InputError(f"the T-GOSPA integer program was not solved: {res.message}")
+    weights = np.round(res.x[:num_w])
+    if np.max(np.abs(weights - res.x[:num_w])) > _INTEGRAL_TOLERANCE:
+        raise InputError("the T-GOSPA integer program returned a non-integral assignment")
+    return weights, float(res.fun)
+
+
+def _solve_relaxed(program: _Program) -> tuple[NDArray[np.float64], float]:
+    """The LP relaxation's optimum by HiGHS: the W part, shape (num_w,), and its value."""
+    num_w, num_h = program.layout.num_w, program.layout.num_h
+    res = linprog(
+        program.cost,
+        A_ub=program.a_ub if num_h else None,
+        b_ub=np.zeros(2 * num_h) if num_h else None,
+        A_eq=program.a_eq,
+        b_eq=np.ones(program.a_eq.shape[0]),
+        bounds=np.stack([np.zeros(num_w + num_h), program.upper], axis=1),
+        method="highs",
+    )
+    if res.status != 0 or res.x is None:
+        raise InputError(f"the T-GOSPA linear program was not solved: {res.message}")
+    return res.x[:num_w], float(res.fun)
+
+
 def _solve_component(
     *,
     present_x: NDArray[np.bool_],  # (Tc, nx) over the component's times
@@ -416,86 +605,12 @@ def _solve_component(
     method: str,
 ) -> tuple[NDArray[np.float64], float]:
     """Return the edge weights W_e(t), shape (Tc, nE), and the objective value."""
-    num_times, nx = present_x.shape
-    ny = present_y.shape[1]
-    num_edges = edges.shape[0]
-    half = c**p / 2.0
-    per_time = num_edges + nx + ny
-    num_w = num_times * per_time
-    num_h = (num_times - 1) * num_edges
-
-    # Costs of W(t) = [edges, row dummies, column dummies] and of h.
-    edge_cost = _edge_costs(present_x, present_y, edges, edge_distance, c, p)
-    cost = np.concatenate(
-        [
-            np.hstack([edge_cost, half * present_x, half * present_y]).ravel(),
-            np.full(num_h, gamma**p / 2.0),
-        ]
-    )
-
-    # Equalities: every true (row) and every estimated (column) index assigned once per time.
-    t_of = np.repeat(np.arange(num_times), per_time)
-    local = np.tile(np.arange(per_time), num_times)
-    rows_of_local = np.concatenate([edges[:, 0], np.arange(nx), np.full(ny, -1)])
-    cols_of_local = np.concatenate([edges[:, 1], np.full(nx, -1), np.arange(ny)])
-    var = np.arange(num_w)
-    r = rows_of_local[local]
-    k = cols_of_local[local]
-    has_r = r >= 0
-    has_k = k >= 0
-    eq_row = np.concatenate(
-        [t_of[has_r] * (nx + ny) + r[has_r], t_of[has_k] * (nx + ny) + nx + k[has_k]]
-    )
-    eq_col = np.concatenate([var[has_r], var[has_k]])
-    a_eq = sps.csr_matrix(
-        (np.ones(eq_row.size), (eq_row, eq_col)), shape=(num_times * (nx + ny), num_w + num_h)
-    )
-
-    # Inequalities: +-(W_e(t+1) - W_e(t)) - h_e(t) <= 0.
-    step = np.repeat(np.arange(num_times - 1), num_edges)
-    edge = np.tile(np.arange(num_edges), num_times - 1)
-    w_now = step * per_time + edge
-    w_next = w_now + per_time
-    h_var = num_w + np.arange(num_h)
-    base = np.arange(num_h)
-    ub_row = np.concatenate([base, base, base, num_h + base, num_h + base, num_h + base])
-    ub_col = np.concatenate([w_next, w_now, h_var, w_now, w_next, h_var])
-    ub_val = np.concatenate([np.ones(num_h), -np.ones(num_h), -np.ones(num_h)] * 2)
-    a_ub = sps.csr_matrix((ub_val, (ub_row, ub_col)), shape=(2 * num_h, num_w + num_h))
-
-    upper = np.concatenate([np.ones(num_w), np.full(num_h, np.inf)])
-    if method == "milp":
-        integrality = np.concatenate([np.ones(num_w), np.zeros(num_h)])
-        constraints = [LinearConstraint(a_eq, 1.0, 1.0)]
-        if num_h:
-            constraints.append(LinearConstraint(a_ub, -np.inf, 0.0))
-        res = milp(
-            cost,
-            integrality=integrality,
-            bounds=Bounds(np.zeros(num_w + num_h), upper),
-            constraints=constraints,
-            options={"mip_rel_gap": 0.0},
-        )
-        if res.status != 0 or res.x is None:
-            raise InputError(f"the T-GOSPA integer program was not solved: {res.message}")
-        weights = np.round(res.x[:num_w])
-        if np.max(np.abs(weights - res.x[:num_w])) > _INTEGRAL_TOLERANCE:
-            raise InputError("the T-GOSPA integer program returned a non-integral assignment")
-    else:
-        res = linprog(
-            cost,
-            A_ub=a_ub if num_h else None,
-            b_ub=np.zeros(2 * num_h) if num_h else None,
-            A_eq=a_eq,
-            b_eq=np.ones(a_eq.shape[0]),
-            bounds=np.stack([np.zeros(num_w + num_h), upper], axis=1),
-            method="highs",
-        )
-        if res.status != 0 or res.x is None:
-            raise InputError(f"the T-GOSPA linear program was not solved: {res.message}")
-        weights = res.x[:num_w]
-    w = weights.reshape(num_times, per_time)[:, :num_edges]
-    return w, float(res.fun)
+    program = _component_program(present_x, present_y, edges, edge_distance, c, p, gamma)
+    solve = _solve_integer if method == "milp" else _solve_relaxed
+    weights, value = solve(program)
+    layout = program.layout
+    w = weights.reshape(layout.num_times, layout.per_time)[:, : layout.num_edges]
+    return w, value
 
 
 # ----------------------------------------------------------------------------------------------
