@@ -274,9 +274,26 @@ def _trajectories(run: TimedPoints, times: NDArray[np.float64]) -> _Trajectories
     )
 
 
+@dataclass(frozen=True, eq=False)
+class _ClosePairs:
+    """Every truth/estimate pair present together closer than c, once per such time.
+
+    Attributes
+    ----------
+    time, i, j : ndarray of int, shape (N,)
+        Time index, truth index and estimate index of each.
+    distance : ndarray, shape (N,)
+    """
+
+    time: NDArray[np.int64]
+    i: NDArray[np.int64]
+    j: NDArray[np.int64]
+    distance: NDArray[np.float64]
+
+
 def _close_pairs(
     truth: _Trajectories, estimates: _Trajectories, num_times: int, c: float
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+) -> _ClosePairs:
     """(time, i, j, distance) of every truth/estimate pair present together closer than c."""
     out_t, out_i, out_j, out_d = [], [], [], []
     truth_order = np.argsort(truth.rows_time, kind="stable")
@@ -298,8 +315,8 @@ def _close_pairs(
             out_d.append(distance[a, b])
     if not out_t:
         empty = np.zeros(0, dtype=np.int64)
-        return empty, empty, empty, np.zeros(0)
-    return (
+        return _ClosePairs(empty, empty, empty, np.zeros(0))
+    return _ClosePairs(
         np.concatenate(out_t),
         np.concatenate(out_i),
         np.concatenate(out_j),
@@ -614,6 +631,245 @@ def _solve_component(
 
 
 # ----------------------------------------------------------------------------------------------
+# The whole problem: its components, their weights, the parts they add up to
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Metric:
+    """The metric's parameters, checked: cut-off, switching cost, order and method."""
+
+    c: float
+    gamma: float
+    p: float
+    method: str
+
+
+@dataclass(frozen=True, eq=False)
+class _Components:
+    """Connected components of the bipartite graph of the close pairs.
+
+    Attributes
+    ----------
+    pairs : ndarray of int, shape (P, 2)
+        Distinct (truth index, estimate index) pairs ever closer than c, sorted.
+    label : ndarray of int, shape (nx + ny,)
+        Component of every truth index, then of every estimate index.
+    pair_label : ndarray of int, shape (P,)
+        Component of each pair.
+    count : int
+        Number of components (trajectories without a pair are components of their own).
+    largest : int
+        Trajectories in the largest component.
+    nx, ny : int
+        Number of true and of estimated trajectories.
+    """
+
+    pairs: NDArray[np.int64]
+    label: NDArray[np.int64]
+    pair_label: NDArray[np.int64]
+    count: int
+    largest: int
+    nx: int
+    ny: int
+
+
+def _components(close: _ClosePairs, nx: int, ny: int) -> _Components:
+    """Split the problem into the components of the graph of close pairs."""
+    pairs = (
+        np.unique(np.stack([close.i, close.j], axis=1), axis=0)
+        if close.i.size
+        else (np.zeros((0, 2), dtype=np.int64))
+    )
+    graph = sps.coo_matrix(
+        (np.ones(pairs.shape[0]), (pairs[:, 0], nx + pairs[:, 1])), shape=(nx + ny, nx + ny)
+    )
+    num_components, label = connected_components(graph, directed=False)
+    return _Components(
+        pairs=pairs,
+        label=label,
+        pair_label=label[pairs[:, 0]] if pairs.shape[0] else np.zeros(0, dtype=np.int64),
+        count=int(num_components),
+        largest=int(np.max(np.bincount(label))) if label.size else 0,
+        nx=nx,
+        ny=ny,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _Component:
+    """One component with at least one pair, over the Tc times where it has a trajectory.
+
+    Attributes
+    ----------
+    xs, ys : ndarray of int, shape (nx_c,) and (ny_c,)
+        Its truth and estimate indices (local index = position in these).
+    edges : ndarray of int, shape (nE, 2)
+        Its pairs as local (i, j).
+    active : ndarray of int, shape (Tc,)
+        The time indices at which one of its trajectories is present.
+    edge_distance : ndarray, shape (Tc, nE)
+        Distance of each pair, ``inf`` where it is not present together closer than c.
+    """
+
+    xs: NDArray[np.int64]
+    ys: NDArray[np.int64]
+    edges: NDArray[np.int64]
+    active: NDArray[np.int64]
+    edge_distance: NDArray[np.float64]
+
+
+def _component(
+    components: _Components, index: int, close: _ClosePairs, tx: _Trajectories, ty: _Trajectories
+) -> _Component:
+    """The pairs, times and distances of component ``index``."""
+    nx, ny, label = components.nx, components.ny, components.label
+    xs = np.flatnonzero(label[:nx] == index)
+    ys = np.flatnonzero(label[nx:] == index)
+    comp_pairs = components.pairs[components.pair_label == index]
+    local_x = np.searchsorted(xs, comp_pairs[:, 0])
+    local_y = np.searchsorted(ys, comp_pairs[:, 1])
+    edges = np.stack([local_x, local_y], axis=1)
+    active = np.flatnonzero(tx.present[:, xs].any(axis=1) | ty.present[:, ys].any(axis=1))
+    position = np.full(tx.present.shape[0], -1, dtype=np.int64)
+    position[active] = np.arange(active.size)
+    edge_distance = np.full((active.size, edges.shape[0]), np.inf)
+    in_comp = label[close.i] == index
+    # np.unique sorted the pairs, so their keys i * ny + j are sorted too.
+    comp_keys = comp_pairs[:, 0] * ny + comp_pairs[:, 1]
+    e_index = np.searchsorted(comp_keys, close.i[in_comp] * ny + close.j[in_comp])
+    edge_distance[position[close.time[in_comp]], e_index] = close.distance[in_comp]
+    return _Component(xs=xs, ys=ys, edges=edges, active=active, edge_distance=edge_distance)
+
+
+def _component_weights(
+    component: _Component, tx: _Trajectories, ty: _Trajectories, metric: _Metric
+) -> NDArray[np.float64]:
+    """The optimal edge weights ``W_e(t)`` of one component, shape (Tc, nE): by dynamic
+    programming when it has few matchings (``milp`` only), else by its program."""
+    edges = component.edges
+    incidence = _matchings(edges, _MAX_DP_STATES) if metric.method == "milp" else None
+    present_x = tx.present[component.active][:, component.xs]
+    present_y = ty.present[component.active][:, component.ys]
+    if incidence is not None:
+        return _viterbi_component(
+            present_x=present_x,
+            present_y=present_y,
+            edges=edges,
+            edge_distance=component.edge_distance,
+            incidence=incidence,
+            c=metric.c,
+            p=metric.p,
+            gamma=metric.gamma,
+        )
+    w, _ = _solve_component(
+        present_x=present_x,
+        present_y=present_y,
+        edges=edges,
+        edge_distance=component.edge_distance,
+        c=metric.c,
+        p=metric.p,
+        gamma=metric.gamma,
+        method=metric.method,
+    )
+    return w
+
+
+@dataclass(frozen=True, eq=False)
+class _Parts:
+    """Per-time parts accumulated (in place) from the weights of every component.
+
+    Attributes
+    ----------
+    localisation : ndarray, shape (T,)
+    assigned : ndarray, shape (T,)
+        Weight of the effective (present, closer than c) assignments.
+    switching : ndarray, shape (T - 1,)
+    assignment : ndarray of int, shape (T, nx)
+        As :attr:`TgospaResult.assignment`.
+    """
+
+    localisation: NDArray[np.float64]
+    assigned: NDArray[np.float64]
+    switching: NDArray[np.float64]
+    assignment: NDArray[np.int64]
+
+    @classmethod
+    def zeros(cls, num_times: int, nx: int) -> _Parts:
+        """Nothing assigned yet."""
+        return cls(
+            localisation=np.zeros(num_times),
+            assigned=np.zeros(num_times),
+            switching=np.zeros(max(num_times - 1, 0)),
+            assignment=np.full((num_times, nx), -1, dtype=np.int64),
+        )
+
+
+def _add_component(
+    parts: _Parts, component: _Component, w: NDArray[np.float64], metric: _Metric
+) -> None:
+    """Add one component's localisation, assignments and switches, given its weights
+    ``w`` of shape (Tc, nE), to ``parts``."""
+    active, edges, edge_distance = component.active, component.edges, component.edge_distance
+    effective = np.isfinite(edge_distance)  # both present and closer than c
+    close = np.where(effective, edge_distance, 0.0)
+    parts.localisation[active] += np.sum(np.where(effective, w * close**metric.p, 0.0), axis=1)
+    parts.assigned[active] += np.sum(np.where(effective, w, 0.0), axis=1)
+    if active.size > 1:
+        change = np.sum(np.abs(np.diff(w, axis=0)), axis=1) * metric.gamma**metric.p / 2.0
+        parts.switching[active[1:] - 1] += change
+    chosen_t, chosen_e = np.nonzero(effective & (w > 0.5))
+    truth_index = component.xs[edges[chosen_e, 0]]
+    parts.assignment[active[chosen_t], truth_index] = component.ys[edges[chosen_e, 1]]
+
+
+def _result(
+    parts: _Parts,
+    tx: _Trajectories,
+    ty: _Trajectories,
+    times: NDArray[np.float64],
+    metric: _Metric,
+    components: _Components,
+) -> TgospaResult:
+    """The metric and its decomposition from the accumulated per-time parts."""
+    half = metric.c**metric.p / 2.0
+    num_present_x = tx.present.sum(axis=1).astype(float)
+    num_present_y = ty.present.sum(axis=1).astype(float)
+    missed_t = half * (num_present_x - parts.assigned)
+    false_t = half * (num_present_y - parts.assigned)
+    localisation = float(np.sum(parts.localisation))
+    missed = float(np.sum(missed_t))
+    false = float(np.sum(false_t))
+    switching = float(np.sum(parts.switching))
+    total = max(localisation + missed + false + switching, 0.0) ** (1.0 / metric.p)
+    return TgospaResult(
+        total=float(total),
+        localisation=localisation,
+        missed=missed,
+        false=false,
+        switching=switching,
+        num_missed=float(np.sum(num_present_x - parts.assigned)),
+        num_false=float(np.sum(num_present_y - parts.assigned)),
+        num_switches=switching / metric.gamma**metric.p,
+        times=readonly(times.astype(float)),
+        localisation_per_time=readonly(parts.localisation),
+        missed_per_time=readonly(missed_t),
+        false_per_time=readonly(false_t),
+        switching_per_step=readonly(parts.switching),
+        truth_ids=readonly(tx.ids),
+        estimate_ids=readonly(ty.ids),
+        assignment=readonly(parts.assignment),
+        c=metric.c,
+        p=metric.p,
+        gamma=metric.gamma,
+        method=metric.method,
+        status="optimal",
+        num_components=components.count,
+        largest_component=components.largest,
+    )
+
+
+# ----------------------------------------------------------------------------------------------
 # Public functions
 # ----------------------------------------------------------------------------------------------
 
@@ -664,120 +920,24 @@ def tgospa(
         Bad ``c``, ``gamma``, ``p`` or ``method``, inputs that are not TimedPoints, different
         dimensions, no rows at all, or a solver failure.
     """
-    cutoff = check_positive("c", c)
-    switch = check_positive("gamma", gamma)
-    order = check_order(p)
-    solver = _check_method(method)
+    metric = _Metric(
+        c=check_positive("c", c),
+        gamma=check_positive("gamma", gamma),
+        p=check_order(p),
+        method=_check_method(method),
+    )
     check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)
-    num_times = times.shape[0]
     tx = _trajectories(truth, times)
     ty = _trajectories(estimates, times)
-    nx = tx.ids.shape[0]
-    ny = ty.ids.shape[0]
-    half = cutoff**order / 2.0
-    pair_t, pair_i, pair_j, pair_d = _close_pairs(tx, ty, num_times, cutoff)
-
-    # Per-time parts, accumulated from the weights of every component.
-    localisation_t = np.zeros(num_times)
-    assigned_t = np.zeros(num_times)  # weight of effective (present, < c) assignments
-    switching_s = np.zeros(max(num_times - 1, 0))
-    assignment = np.full((num_times, nx), -1, dtype=np.int64)
-
-    pairs = (
-        np.unique(np.stack([pair_i, pair_j], axis=1), axis=0)
-        if pair_i.size
-        else (np.zeros((0, 2), dtype=np.int64))
-    )
-    graph = sps.coo_matrix(
-        (np.ones(pairs.shape[0]), (pairs[:, 0], nx + pairs[:, 1])), shape=(nx + ny, nx + ny)
-    )
-    num_components, label = connected_components(graph, directed=False)
-    largest = int(np.max(np.bincount(label))) if label.size else 0
-    pair_label = label[pairs[:, 0]] if pairs.shape[0] else np.zeros(0, dtype=np.int64)
-    for component in np.unique(pair_label):
-        xs = np.flatnonzero(label[:nx] == component)
-        ys = np.flatnonzero(label[nx:] == component)
-        comp_pairs = pairs[pair_label == component]
-        local_x = np.searchsorted(xs, comp_pairs[:, 0])
-        local_y = np.searchsorted(ys, comp_pairs[:, 1])
-        edges = np.stack([local_x, local_y], axis=1)
-        active = np.flatnonzero(tx.present[:, xs].any(axis=1) | ty.present[:, ys].any(axis=1))
-        position = np.full(num_times, -1, dtype=np.int64)
-        position[active] = np.arange(active.size)
-        edge_distance = np.full((active.size, edges.shape[0]), np.inf)
-        in_comp = label[pair_i] == component
-        # np.unique sorted the pairs, so their keys i * ny + j are sorted too.
-        comp_keys = comp_pairs[:, 0] * ny + comp_pairs[:, 1]
-        e_index = np.searchsorted(comp_keys, pair_i[in_comp] * ny + pair_j[in_comp])
-        edge_distance[position[pair_t[in_comp]], e_index] = pair_d[in_comp]
-        incidence = _matchings(edges, _MAX_DP_STATES) if solver == "milp" else None
-        if incidence is not None:
-            w = _viterbi_component(
-                present_x=tx.present[active][:, xs],
-                present_y=ty.present[active][:, ys],
-                edges=edges,
-                edge_distance=edge_distance,
-                incidence=incidence,
-                c=cutoff,
-                p=order,
-                gamma=switch,
-            )
-        else:
-            w, _ = _solve_component(
-                present_x=tx.present[active][:, xs],
-                present_y=ty.present[active][:, ys],
-                edges=edges,
-                edge_distance=edge_distance,
-                c=cutoff,
-                p=order,
-                gamma=switch,
-                method=solver,
-            )
-        effective = np.isfinite(edge_distance)  # both present and closer than c
-        close = np.where(effective, edge_distance, 0.0)
-        localisation_t[active] += np.sum(np.where(effective, w * close**order, 0.0), axis=1)
-        assigned_t[active] += np.sum(np.where(effective, w, 0.0), axis=1)
-        if active.size > 1:
-            change = np.sum(np.abs(np.diff(w, axis=0)), axis=1) * switch**order / 2.0
-            switching_s[active[1:] - 1] += change
-        chosen_t, chosen_e = np.nonzero(effective & (w > 0.5))
-        assignment[active[chosen_t], xs[edges[chosen_e, 0]]] = ys[edges[chosen_e, 1]]
-
-    num_present_x = tx.present.sum(axis=1).astype(float)
-    num_present_y = ty.present.sum(axis=1).astype(float)
-    missed_t = half * (num_present_x - assigned_t)
-    false_t = half * (num_present_y - assigned_t)
-    localisation = float(np.sum(localisation_t))
-    missed = float(np.sum(missed_t))
-    false = float(np.sum(false_t))
-    switching = float(np.sum(switching_s))
-    total = max(localisation + missed + false + switching, 0.0) ** (1.0 / order)
-    return TgospaResult(
-        total=float(total),
-        localisation=localisation,
-        missed=missed,
-        false=false,
-        switching=switching,
-        num_missed=float(np.sum(num_present_x - assigned_t)),
-        num_false=float(np.sum(num_present_y - assigned_t)),
-        num_switches=switching / switch**order,
-        times=readonly(times.astype(float)),
-        localisation_per_time=readonly(localisation_t),
-        missed_per_time=readonly(missed_t),
-        false_per_time=readonly(false_t),
-        switching_per_step=readonly(switching_s),
-        truth_ids=readonly(tx.ids),
-        estimate_ids=readonly(ty.ids),
-        assignment=readonly(assignment),
-        c=cutoff,
-        p=order,
-        gamma=switch,
-        method=solver,
-        status="optimal",
-        num_components=int(num_components),
-        largest_component=largest,
-    )
+    close = _close_pairs(tx, ty, times.shape[0], metric.c)
+    components = _components(close, tx.ids.shape[0], ty.ids.shape[0])
+    parts = _Parts.zeros(times.shape[0], tx.ids.shape[0])
+    for index in np.unique(components.pair_label):
+        component = _component(components, int(index), close, tx, ty)
+        weights = _component_weights(component, tx, ty, metric)
+        _add_component(parts, component, weights, metric)
+    return _result(parts, tx, ty, times, metric, components)
 
 
 def fragmentation_of(result: TgospaResult) -> TrackFragmentation:
