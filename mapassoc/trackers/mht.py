@@ -126,7 +126,7 @@ from mapassoc.formulations.packing import (
     set_packing_program,
 )
 from mapassoc.models.population import UndetectedTargets
-from mapassoc.solvers import get_integer_solver
+from mapassoc.solvers import ProgramSolver, get_integer_solver
 from mapassoc.solvers.k_best import solve_k_best
 from mapassoc.solvers.results import SolverError, SolveStatus
 from mapassoc.trackers.base import TrackerOutput, check_scans
@@ -298,6 +298,118 @@ def _top_sums(
                     seen.add(nxt)
                     value = -neg - opts[idx[c]].value + opts[idx[c] + 1].value
                     heapq.heappush(heap, (-value, nxt))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Candidates:
+    """The leaves that enter one scan's global-hypothesis program.
+
+    Attributes
+    ----------
+    owner : ndarray of int, shape (H,)
+        Index (into the scan's tree list) of each candidate's tree.
+    leaves : list of _Leaf, length H
+    problem : PackingProblem
+        Set packing over H candidates whose resources are the trees, then the detections
+        of every scan (offset by the scan's first detection index); a candidate's value is
+        its score minus its tree's decided part, plus :data:`CONTINUE_BONUS` for a track.
+    """
+
+    owner: IntArray
+    leaves: list[_Leaf]
+    problem: PackingProblem
+
+
+def _candidates(trees: list[_Tree], offsets: IntArray, m_best: int) -> _Candidates | None:
+    """The candidate leaves and their set-packing problem; ``None`` when there are none.
+
+    With ``m_best = 1`` leaves of value <= 0 are left out (module docstring).
+    ``offsets`` (shape (S + 1,)) are the first detection index of every scan and the total.
+    """
+    owner: list[int] = []
+    candidates: list[_Leaf] = []
+    values: list[float] = []
+    indptr = [0]
+    indices: list[int] = []
+    T = len(trees)
+    for t, tree in enumerate(trees):
+        for leaf in tree.leaves:
+            value = leaf.score - tree.fixed_score
+            if tree.committed:
+                value += CONTINUE_BONUS
+            if m_best == 1 and not value > 0.0:
+                continue  # never in the best hypothesis: dropping it cannot hurt
+            owner.append(t)
+            candidates.append(leaf)
+            values.append(value)
+            indices.append(t)
+            for i, j in enumerate(leaf.path):
+                scan_index = tree.root_scan + i
+                if j >= 0 and scan_index > tree.fixed_scan:
+                    indices.append(T + int(offsets[scan_index]) + j)
+            indptr.append(len(indices))
+    if not candidates:
+        return None
+    problem = PackingProblem(
+        scores=np.asarray(values, dtype=float),
+        resource_indptr=np.asarray(indptr, dtype=np.int64),
+        resource_indices=np.asarray(indices, dtype=np.int64),
+        exactly_one=np.zeros(T + int(offsets[-1]), dtype=bool),
+        counts=np.ones(len(candidates), dtype=bool),
+    )
+    return _Candidates(np.asarray(owner, dtype=np.int64), candidates, problem)
+
+
+def _one_tree_options(
+    problem: PackingProblem, cluster: IntArray, m_best: int
+) -> list[_ClusterOption]:
+    """The ``m_best`` best options of a cluster of one tree, in closed form: nothing, or
+    any one of its leaves (candidate indices ``cluster``)."""
+    ranked = sorted(
+        [_ClusterOption(0.0, ())]
+        + [_ClusterOption(float(problem.scores[h]), (int(h),)) for h in cluster],
+        key=lambda o: -o.value,
+    )
+    return ranked[:m_best]
+
+
+def _program_options(
+    problem: PackingProblem, cluster: IntArray, m_best: int, solver: ProgramSolver
+) -> list[_ClusterOption]:
+    """The ``m_best`` best options of a cluster of several trees (candidate indices
+    ``cluster``), by the integer program and no-good cuts."""
+    program = set_packing_program(problem.subproblem(cluster), None)
+    options = []
+    for result in solve_k_best(program, m_best, solver=solver):
+        if result.status is not SolveStatus.OPTIMAL or result.solution is None:
+            raise SolverError(
+                f"{result.solver}: the MHT's global-hypothesis program ended "
+                f"with status {result.status.value}: {result.message}"
+            )
+        chosen = cluster[decode_selection(result.solution)]
+        options.append(_ClusterOption(float(result.objective), tuple(int(h) for h in chosen)))
+    return options
+
+
+def _merged_hypotheses(
+    options: list[list[_ClusterOption]],
+    candidates: _Candidates,
+    trees: list[_Tree],
+    m_best: int,
+) -> list[tuple[float, dict[int, _Leaf]]]:
+    """The ``m_best`` best global hypotheses (score, tree id -> selected leaf) from the
+    options of every cluster, best first; a score leaves out the trees' decided parts."""
+    out = []
+    for _, idx in _top_sums(options, m_best):
+        chosen_leaves: dict[int, _Leaf] = {}
+        total = []
+        for c, i in enumerate(idx):
+            for h in options[c][i].leaves:
+                tree = trees[candidates.owner[h]]
+                chosen_leaves[tree.tree_id] = candidates.leaves[h]
+                total.append(candidates.leaves[h].score - tree.fixed_score)
+        out.append((math.fsum(total), chosen_leaves))
     return out
 
 
@@ -599,70 +711,16 @@ class MhtTracker:
     ) -> tuple[list[tuple[float, dict[int, _Leaf]]], int]:
         """The M best global hypotheses (score, tree id -> selected leaf), best first, and
         the number of clusters solved by the integer-programming solver."""
-        owner: list[int] = []
-        candidates: list[_Leaf] = []
-        values: list[float] = []
-        indptr = [0]
-        indices: list[int] = []
-        T = len(trees)
-        for t, tree in enumerate(trees):
-            for leaf in tree.leaves:
-                value = leaf.score - tree.fixed_score
-                if tree.committed:
-                    value += CONTINUE_BONUS
-                if self.m_best == 1 and not value > 0.0:
-                    continue  # never in the best hypothesis: dropping it cannot hurt
-                owner.append(t)
-                candidates.append(leaf)
-                values.append(value)
-                indices.append(t)
-                for i, j in enumerate(leaf.path):
-                    scan_index = tree.root_scan + i
-                    if j >= 0 and scan_index > tree.fixed_scan:
-                        indices.append(T + int(offsets[scan_index]) + j)
-                indptr.append(len(indices))
-        if not candidates:
+        candidates = _candidates(trees, offsets, self.m_best)
+        if candidates is None:
             return [(0.0, {})], 0
-        problem = PackingProblem(
-            scores=np.asarray(values, dtype=float),
-            resource_indptr=np.asarray(indptr, dtype=np.int64),
-            resource_indices=np.asarray(indices, dtype=np.int64),
-            exactly_one=np.zeros(T + int(offsets[-1]), dtype=bool),
-            counts=np.ones(len(candidates), dtype=bool),
-        )
-        owners = np.asarray(owner, dtype=np.int64)
+        problem, owners = candidates.problem, candidates.owner
         options: list[list[_ClusterOption]] = []
         solved = 0
         for cluster in cluster_hypotheses(problem):
             if np.all(owners[cluster] == owners[cluster[0]]):
-                # One tree: nothing, or any one of its leaves.
-                ranked = sorted(
-                    [_ClusterOption(0.0, ())]
-                    + [_ClusterOption(float(problem.scores[h]), (int(h),)) for h in cluster],
-                    key=lambda o: -o.value,
-                )
-                options.append(ranked[: self.m_best])
+                options.append(_one_tree_options(problem, cluster, self.m_best))
                 continue
             solved += 1
-            program = set_packing_program(problem.subproblem(cluster), None)
-            opts = []
-            for result in solve_k_best(program, self.m_best, solver=self._solver):
-                if result.status is not SolveStatus.OPTIMAL or result.solution is None:
-                    raise SolverError(
-                        f"{result.solver}: the MHT's global-hypothesis program ended "
-                        f"with status {result.status.value}: {result.message}"
-                    )
-                chosen = cluster[decode_selection(result.solution)]
-                opts.append(_ClusterOption(float(result.objective), tuple(int(h) for h in chosen)))
-            options.append(opts)
-        out = []
-        for _, idx in _top_sums(options, self.m_best):
-            chosen_leaves: dict[int, _Leaf] = {}
-            total = []
-            for c, i in enumerate(idx):
-                for h in options[c][i].leaves:
-                    tree = trees[owner[h]]
-                    chosen_leaves[tree.tree_id] = candidates[h]
-                    total.append(candidates[h].score - tree.fixed_score)
-            out.append((math.fsum(total), chosen_leaves))
-        return out, solved
+            options.append(_program_options(problem, cluster, self.m_best, self._solver))
+        return _merged_hypotheses(options, candidates, trees, self.m_best), solved
