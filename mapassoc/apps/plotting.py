@@ -12,8 +12,9 @@ Detections of range-bearing sensors are drawn at their Cartesian position
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from mapassoc.models.sensor import Sensor
 
 if TYPE_CHECKING:
     import pandas as pd
+    from matplotlib.artist import Artist
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
@@ -130,6 +132,235 @@ def _span(times: np.ndarray, time_unit: str | None) -> str:
     return f"t {first:g}\N{EN DASH}{last:g}{unit}"
 
 
+def _check_draw_arguments(
+    scans: Sequence[Scan],
+    sensors: Mapping[str, Sensor],
+    *,
+    title: object,
+    length_unit: object,
+    time_unit: object,
+    legend: object,
+) -> tuple[str | None, str | None]:
+    """Refuse :func:`draw_tracks`'s bad arguments; returns the checked length and time
+    units."""
+    checked_length = _check_unit("length_unit", length_unit)
+    checked_time = _check_unit("time_unit", time_unit)
+    if not isinstance(title, str):
+        raise InputError(f"title must be a string, got {title!r}")
+    if not isinstance(legend, bool):
+        raise InputError(f"legend must be True or False, got {legend!r}")
+    for scan in scans:
+        if scan.sensor not in sensors:
+            raise InputError(
+                f"scan at time {scan.time:g} is from sensor {scan.sensor!r}, which is not in "
+                f"sensors (got {sorted(sensors)})"
+            )
+    return checked_length, checked_time
+
+
+_Line = tuple[int, np.ndarray, np.ndarray]
+"""(id, times of shape (m,), positions of shape (m, 2)), as :func:`_lines` gives them."""
+
+
+@dataclass(frozen=True, eq=False)
+class _Scene:
+    """What :func:`draw_tracks` draws, in plot coordinates.
+
+    Attributes
+    ----------
+    detections : ndarray, shape (n, 2)
+        Every detection's position.
+    targets, estimated : list of (int, ndarray, ndarray)
+        True targets and estimated tracks: id, times (m,) and positions (m, 2).
+    min_length : float
+        Shortest stretch of a line that shows its heading (a few thousandths of the
+        plot's extent).
+    """
+
+    detections: np.ndarray
+    targets: list[_Line]
+    estimated: list[_Line]
+    min_length: float
+
+
+def _scene(
+    scans: Sequence[Scan],
+    sensors: Mapping[str, Sensor],
+    tracks: TrackTable,
+    truth: TruthTable | None,
+) -> _Scene:
+    """The detections, truth and tracks as x-y points and lines."""
+    points = [
+        sensors[scan.sensor].measurement.position_from_measurement(z)[0][:2]
+        for scan in scans
+        for z in scan.detections
+    ]
+    detections = np.array(points, dtype=float).reshape(-1, 2)
+    targets = (
+        _lines(truth.target_ids, truth.times, _xy(truth.state_names, truth.states))
+        if truth is not None and truth.target_ids.size
+        else []
+    )
+    estimated = (
+        _lines(tracks.track_ids, tracks.times, _xy(tracks.state_names, tracks.states))
+        if tracks.track_ids.size
+        else []
+    )
+    everything = np.vstack([detections, *(line for _, _, line in targets + estimated)])
+    extent = float(np.ptp(everything, axis=0).max()) if everything.shape[0] else 1.0
+    return _Scene(
+        detections=detections,
+        targets=targets,
+        estimated=estimated,
+        min_length=0.004 * extent if extent > 0 else 0.0,
+    )
+
+
+def _arrow_head(
+    ax: Axes,
+    line: np.ndarray,
+    heading: np.ndarray,
+    min_length: float,
+    *,
+    colour: str,
+    scale: float,
+    zorder: int,
+) -> None:
+    """An arrow head of size ``scale`` at the end of ``line`` (shape (m, 2)), pointing
+    along the unit vector ``heading`` (shape (2,))."""
+    ax.annotate(
+        "", xy=line[-1], xytext=line[-1] - heading * 2 * min_length,
+        arrowprops={"arrowstyle": "-|>", "color": colour, "lw": 0,
+                    "mutation_scale": scale, "shrinkA": 0, "shrinkB": 0},
+        zorder=zorder,
+    )  # fmt: skip
+
+
+def _draw_detections(ax: Axes, detections: np.ndarray) -> list[Artist]:
+    """Detections (shape (n, 2)) as small grey points; their legend handle, if any."""
+    from matplotlib.lines import Line2D
+
+    count = detections.shape[0]
+    if not count:
+        return []
+    # Smaller points when there are many, so clutter stays a light texture.
+    size = float(np.clip(5.0 * np.sqrt(2000.0 / count), 1.5, 5.0))
+    ax.scatter(detections[:, 0], detections[:, 1], s=size, c="0.68", linewidths=0, zorder=1)
+    return [
+        Line2D([], [], ls="", marker="o", ms=3.5, mfc="0.68", mec="none",
+               label=f"detections ({count})")
+    ]  # fmt: skip
+
+
+def _draw_truth(ax: Axes, targets: list[_Line], min_length: float) -> list[Artist]:
+    """True targets as thick dashed grey lines with an arrow head; their legend handle."""
+    from matplotlib.lines import Line2D
+
+    # Line properties shared by the truth lines and their legend entry (matplotlib checks them).
+    truth_style: dict[str, Any] = {"color": "0.1", "lw": 3.2, "alpha": 0.4, "ls": (0, (4, 2))}
+    for _, _, line in targets:
+        ax.plot(*line.T, zorder=2, solid_capstyle="round", **truth_style)
+        heading = _heading(line, at_end=True, min_length=min_length)
+        if heading is not None:
+            _arrow_head(ax, line, heading, min_length, colour="0.35", scale=16, zorder=2)
+    if not targets:
+        return []
+    return [Line2D([], [], label=f"truth ({len(targets)} targets)", **truth_style)]
+
+
+def _track_marker_handles() -> list[Artist]:
+    """Legend handles of a track's start and end markers."""
+    from matplotlib.lines import Line2D
+
+    return [
+        Line2D([], [], ls="", marker="o", ms=6, mfc="white", mec="0.2", label="track start"),
+        Line2D([], [], ls="", marker=">", ms=7, color="0.2", label="track end, heading"),
+    ]
+
+
+def _draw_track_ids(
+    ax: Axes, tid: int, colour: str, ends: list[tuple[np.ndarray, np.ndarray | None]]
+) -> None:
+    """The id of a track written beyond each of ``ends`` ((position (2,), outward unit
+    vector (2,) or None)), on the side it points to (above when None)."""
+    from matplotlib import patheffects
+
+    halo = [patheffects.withStroke(linewidth=3.0, foreground="white")]
+    for where, outward in ends:
+        away = outward if outward is not None else np.array([0.0, 1.0])
+        ha, va = _alignment(away)
+        ax.annotate(
+            # The stubs ask a tuple for ``xy``; matplotlib takes the (2,) array as it is.
+            str(tid), xy=cast("tuple[float, float]", where),
+            xytext=tuple(_LABEL_OFFSET_POINTS * away), textcoords="offset points",
+            fontsize=_LABEL_FONTSIZE, fontweight="bold", color=colour, path_effects=halo,
+            zorder=5, ha=ha, va=va,
+        )  # fmt: skip
+
+
+def _draw_track(
+    ax: Axes, index: int, track: _Line, *, each: bool, min_length: float, time_unit: str | None
+) -> Artist:
+    """Track number ``index``: its coloured line (returned: its legend handle), an open
+    circle at its start, an arrow head at its end and its id (at both ends when ``each``
+    track has its own legend entry, else at the end only)."""
+    tid, times, line = track
+    colour = _TRACK_COLOURS[index % len(_TRACK_COLOURS)]
+    label = f"track {tid}  ({_span(times, time_unit)})" if each else None
+    (drawn,) = ax.plot(
+        *line.T, "-", lw=1.6, color=colour, alpha=0.9, zorder=3, label=label,
+        solid_capstyle="round",
+    )  # fmt: skip
+    ax.plot(*line[0], "o", ms=6, mfc="white", mec=colour, mew=1.6, zorder=4)
+    end_heading = _heading(line, at_end=True, min_length=min_length)
+    if end_heading is not None:
+        _arrow_head(ax, line, end_heading, min_length, colour=colour, scale=18, zorder=4)
+    start_heading = _heading(line, at_end=False, min_length=min_length)
+    # Labels sit beyond each end, on the side the track leaves it (ahead of the
+    # arrow, behind the start); a track with no direction gets one label above.
+    ends = [(line[-1], end_heading)]
+    if each and len(line) > 1:
+        ends.append((line[0], None if start_heading is None else -start_heading))
+    _draw_track_ids(ax, tid, colour, ends)
+    return drawn
+
+
+def _draw_estimated(
+    ax: Axes, estimated: list[_Line], min_length: float, time_unit: str | None
+) -> list[Artist]:
+    """Every estimated track (:func:`_draw_track`); the legend handles: markers, then one
+    per track up to :data:`TRACK_LEGEND_LIMIT` tracks, else one for them all."""
+    from matplotlib.lines import Line2D
+
+    if not estimated:
+        return []
+    handles = _track_marker_handles()
+    each = len(estimated) <= TRACK_LEGEND_LIMIT
+    for i, track in enumerate(estimated):
+        drawn = _draw_track(ax, i, track, each=each, min_length=min_length, time_unit=time_unit)
+        if each:
+            handles.append(drawn)
+    if not each:
+        label = f"tracks ({len(estimated)}), id at end"
+        handles.append(Line2D([], [], lw=1.6, color=_TRACK_COLOURS[0], label=label))
+    return handles
+
+
+def _finish_axes(
+    ax: Axes, handles: list[Artist], *, title: str, length_unit: str | None, legend: bool
+) -> None:
+    """Equal aspect, axis labels, title and (when ``legend``) the legend beside the axes."""
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel(_axis_label("x", length_unit))
+    ax.set_ylabel(_axis_label("y", length_unit))
+    ax.set_title(title or "mapassoc tracks")
+    if legend and handles:
+        ax.legend(
+            handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+            fontsize=9, frameon=False, handlelength=3.0,
+        )  # fmt: skip
+
+
 def draw_tracks(
     ax: Axes,
     *,
@@ -181,126 +412,16 @@ def draw_tracks(
         A unit that is not ``None`` or a non-empty string, a scan whose sensor is not in
         ``sensors``, or tracks or truth without ``x`` and ``y`` state columns.
     """
-    length_unit = _check_unit("length_unit", length_unit)
-    time_unit = _check_unit("time_unit", time_unit)
-    if not isinstance(title, str):
-        raise InputError(f"title must be a string, got {title!r}")
-    if not isinstance(legend, bool):
-        raise InputError(f"legend must be True or False, got {legend!r}")
-    for scan in scans:
-        if scan.sensor not in sensors:
-            raise InputError(
-                f"scan at time {scan.time:g} is from sensor {scan.sensor!r}, which is not in "
-                f"sensors (got {sorted(sensors)})"
-            )
-    from matplotlib import patheffects
-    from matplotlib.artist import Artist
-    from matplotlib.lines import Line2D
-
-    points = [
-        sensors[scan.sensor].measurement.position_from_measurement(z)[0][:2]
-        for scan in scans
-        for z in scan.detections
+    length_unit, time_unit = _check_draw_arguments(
+        scans, sensors, title=title, length_unit=length_unit, time_unit=time_unit, legend=legend
+    )
+    scene = _scene(scans, sensors, tracks, truth)
+    handles = [
+        *_draw_detections(ax, scene.detections),
+        *_draw_truth(ax, scene.targets, scene.min_length),
+        *_draw_estimated(ax, scene.estimated, scene.min_length, time_unit),
     ]
-    detections = np.array(points, dtype=float).reshape(-1, 2)
-    targets = (
-        _lines(truth.target_ids, truth.times, _xy(truth.state_names, truth.states))
-        if truth is not None and truth.target_ids.size
-        else []
-    )
-    estimated = (
-        _lines(tracks.track_ids, tracks.times, _xy(tracks.state_names, tracks.states))
-        if tracks.track_ids.size
-        else []
-    )
-    everything = np.vstack([detections, *(line for _, _, line in targets + estimated)])
-    extent = float(np.ptp(everything, axis=0).max()) if everything.shape[0] else 1.0
-    min_length = 0.004 * extent if extent > 0 else 0.0
-
-    handles: list[Artist] = []
-    count = detections.shape[0]
-    if count:
-        # Smaller points when there are many, so clutter stays a light texture.
-        size = float(np.clip(5.0 * np.sqrt(2000.0 / count), 1.5, 5.0))
-        ax.scatter(detections[:, 0], detections[:, 1], s=size, c="0.68", linewidths=0, zorder=1)
-        handles.append(
-            Line2D([], [], ls="", marker="o", ms=3.5, mfc="0.68", mec="none",
-                   label=f"detections ({count})")
-        )  # fmt: skip
-    # Line properties shared by the truth lines and their legend entry (matplotlib checks them).
-    truth_style: dict[str, Any] = {"color": "0.1", "lw": 3.2, "alpha": 0.4, "ls": (0, (4, 2))}
-    for _, _, line in targets:
-        ax.plot(*line.T, zorder=2, solid_capstyle="round", **truth_style)
-        heading = _heading(line, at_end=True, min_length=min_length)
-        if heading is not None:
-            ax.annotate(
-                "", xy=line[-1], xytext=line[-1] - heading * 2 * min_length,
-                arrowprops={"arrowstyle": "-|>", "color": "0.35", "lw": 0,
-                            "mutation_scale": 16, "shrinkA": 0, "shrinkB": 0},
-                zorder=2,
-            )  # fmt: skip
-    if targets:
-        handles.append(
-            Line2D([], [], label=f"truth ({len(targets)} targets)", **truth_style)
-        )
-    if estimated:
-        handles.append(
-            Line2D([], [], ls="", marker="o", ms=6, mfc="white", mec="0.2",
-                   label="track start")
-        )  # fmt: skip
-        handles.append(
-            Line2D([], [], ls="", marker=">", ms=7, color="0.2", label="track end, heading")
-        )
-    halo = [patheffects.withStroke(linewidth=3.0, foreground="white")]
-    each = len(estimated) <= TRACK_LEGEND_LIMIT
-    for i, (tid, times, line) in enumerate(estimated):
-        colour = _TRACK_COLOURS[i % len(_TRACK_COLOURS)]
-        label = f"track {tid}  ({_span(times, time_unit)})" if each else None
-        (drawn,) = ax.plot(
-            *line.T, "-", lw=1.6, color=colour, alpha=0.9, zorder=3, label=label,
-            solid_capstyle="round",
-        )  # fmt: skip
-        if each:
-            handles.append(drawn)
-        ax.plot(*line[0], "o", ms=6, mfc="white", mec=colour, mew=1.6, zorder=4)
-        end_heading = _heading(line, at_end=True, min_length=min_length)
-        if end_heading is not None:
-            ax.annotate(
-                "", xy=line[-1], xytext=line[-1] - end_heading * 2 * min_length,
-                arrowprops={"arrowstyle": "-|>", "color": colour, "lw": 0,
-                            "mutation_scale": 18, "shrinkA": 0, "shrinkB": 0},
-                zorder=4,
-            )  # fmt: skip
-        start_heading = _heading(line, at_end=False, min_length=min_length)
-        # Labels sit beyond each end, on the side the track leaves it (ahead of the
-        # arrow, behind the start); a track with no direction gets one label above.
-        ends = [(line[-1], end_heading)]
-        if each and len(line) > 1:
-            ends.append((line[0], None if start_heading is None else -start_heading))
-        for where, outward in ends:
-            away = outward if outward is not None else np.array([0.0, 1.0])
-            ha, va = _alignment(away)
-            ax.annotate(
-                str(tid), xy=where, xytext=tuple(_LABEL_OFFSET_POINTS * away),
-                textcoords="offset points", fontsize=_LABEL_FONTSIZE, fontweight="bold",
-                color=colour, path_effects=halo, zorder=5, ha=ha, va=va,
-            )  # fmt: skip
-    if estimated and not each:
-        handles.append(
-            Line2D(
-                [], [], lw=1.6, color=_TRACK_COLOURS[0],
-                label=f"tracks ({len(estimated)}), id at end",
-            )  # fmt: skip
-        )
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel(_axis_label("x", length_unit))
-    ax.set_ylabel(_axis_label("y", length_unit))
-    ax.set_title(title or "mapassoc tracks")
-    if legend and handles:
-        ax.legend(
-            handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
-            fontsize=9, frameon=False, handlelength=3.0,
-        )  # fmt: skip
+    _finish_axes(ax, handles, title=title, length_unit=length_unit, legend=legend)
 
 
 def plot_tracks(

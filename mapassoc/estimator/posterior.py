@@ -387,6 +387,160 @@ def _range_error(prior: CountPrior, nu: float, top: int) -> InputError:
     )
 
 
+@dataclass(frozen=True, eq=False)
+class _Tables:
+    """A window's per-T tables, cut after the last track count with a feasible track set.
+
+    Attributes
+    ----------
+    best, log_mass, best_upper, mass_upper : ndarray, shape (n_tracks,)
+        Best score, log-mass and their proven upper bounds per T = 0..n_tracks-1.
+    """
+
+    best: FloatArray
+    log_mass: FloatArray
+    best_upper: FloatArray
+    mass_upper: FloatArray
+
+    @property
+    def n_tracks(self) -> int:
+        """Track counts kept: the largest feasible T plus one."""
+        return int(self.best.shape[0])
+
+
+def _window_tables(
+    best: FloatArray,
+    log_mass: FloatArray,
+    best_upper: FloatArray | None,
+    log_mass_upper: FloatArray | None,
+    kmax: int,
+) -> _Tables:
+    """Check :func:`k_posterior`'s tables (shapes (T,), T <= kmax + 1) and cut them after
+    the last feasible T."""
+    best = np.asarray(best, dtype=float)
+    log_mass = np.asarray(log_mass, dtype=float)
+    best_upper = best if best_upper is None else np.asarray(best_upper, dtype=float)
+    mass_upper = log_mass if log_mass_upper is None else np.asarray(log_mass_upper, dtype=float)
+    if (
+        best.ndim != 1
+        or not (best.shape == log_mass.shape == best_upper.shape == mass_upper.shape)
+        or not 1 <= best.shape[0] <= kmax + 1
+    ):
+        raise InputError(
+            f"best, log_mass and their bounds must be 1-D of one length in 1..kmax + 1 = "
+            f"{kmax + 1}, got {best.shape}, {log_mass.shape}, {best_upper.shape}, "
+            f"{mass_upper.shape}"
+        )
+    reachable = np.flatnonzero(np.isfinite(mass_upper))
+    if reachable.size == 0:
+        raise InputError("the window has no feasible track set for any number of tracks")
+    n_tracks = int(reachable[-1]) + 1
+    return _Tables(
+        best=best[:n_tracks],
+        log_mass=log_mass[:n_tracks],
+        best_upper=best_upper[:n_tracks],
+        mass_upper=mass_upper[:n_tracks],
+    )
+
+
+def _first_top(prior: CountPrior, population: WindowPopulation, tables: _Tables) -> int:
+    """The first K range 0..top to compute (:func:`k_posterior`): kmax when the prior
+    bounds no step, else the largest T plus the Poisson reach of ``nu``.
+
+    Raises the range error at once when kmax is beyond :data:`MAX_K_RANGE` and the
+    posterior cannot end within it.
+    """
+    kmax = prior.kmax
+    tracks_range = np.arange(tables.n_tracks, dtype=np.int64)
+    if prior.law.tail_step(prior, population, tables.n_tracks - 1, tracks_range) is None:
+        top = kmax
+    else:
+        top = min(kmax, tables.n_tracks - 1 + _poisson_reach(population.undetected_mean))
+    no_births = population.new_target_mean <= 0
+    if kmax > MAX_K_RANGE and not no_births:
+        # Every step bound falls with K: one not below 1 at MAX_K_RANGE is not below 1
+        # anywhere before it, so the tail cannot be bounded in range (fail at once).
+        far = prior.law.tail_step(prior, population, MAX_K_RANGE, tracks_range)
+        if far is not None and np.any(far[np.isfinite(tables.mass_upper)] >= 1.0):
+            raise _range_error(prior, population.undetected_mean, MAX_K_RANGE)
+    return top
+
+
+def _sweep_to_end(
+    prior: CountPrior, population: WindowPopulation, tables: _Tables, top: int
+) -> tuple[int, _Sweep]:
+    """Sweep K = 0..top, doubling top until every K beyond is negligible or top is kmax
+    (or, without births, covers the carried tracks); returns the final top and sweep."""
+    kmax, nu = prior.kmax, population.undetected_mean
+    tracks_range = np.arange(tables.n_tracks, dtype=np.int64)
+    no_births = population.new_target_mean <= 0
+    while True:
+        ratio = prior.log_ratio(population, top)
+        sweep = _sweep(
+            top, ratio, nu, tables.log_mass, tables.mass_upper, tables.best, tables.best_upper
+        )
+        if top == kmax or (no_births and top >= population.carried_alive.size):
+            return top, sweep
+        steps = prior.law.tail_step(prior, population, top, tracks_range)
+        if _tail_is_negligible(top, ratio, nu, steps, sweep, tables.mass_upper, tables.best_upper):
+            return top, sweep
+        grown = min(kmax, 2 * top + 1)
+        if grown > MAX_K_RANGE:
+            raise _range_error(prior, nu, top)
+        top = grown
+
+
+def _padded(values: FloatArray, length: int, fill: float) -> FloatArray:
+    """``values`` followed by ``fill`` up to ``length``, shape (length,)."""
+    out = np.full(length, fill)
+    out[: values.shape[0]] = values
+    return out
+
+
+def _normalised(log_weights: FloatArray) -> FloatArray:
+    """``exp(log_weights)`` normalised to sum 1, same shape."""
+    weights = np.exp(log_weights - np.max(log_weights))
+    return weights / weights.sum()
+
+
+def _posterior(
+    tables: _Tables,
+    sweep: _Sweep,
+    top: int,
+    *,
+    prior: CountPrior,
+    population: WindowPopulation,
+    exact: bool,
+) -> KPosterior:
+    """The :class:`KPosterior` of a sweep over K = 0..top, its arrays padded to the
+    length L (module and class docstrings)."""
+    kmax, nu = prior.kmax, population.undetected_mean
+    joint = sweep.mass_lower
+    length = max(top, min(kmax, FULL_LENGTH_KMAX)) + 1
+    probabilities = _padded(_normalised(joint), length, 0.0)
+    p_lower_part, p_upper_part = _probability_bounds(joint, sweep.mass_upper)
+    marginal_k = _argmax_first(probabilities)
+    joint_map_k = _argmax_first(sweep.joint)
+    return KPosterior(
+        best_log_score=_padded(tables.best, length, -math.inf),
+        log_mass=_padded(tables.log_mass, length, -math.inf),
+        probabilities=probabilities,
+        track_probabilities=_padded(_normalised(sweep.tracks), length, 0.0),
+        joint_map_k=joint_map_k,
+        joint_map_tracks=int(sweep.joint_tracks[joint_map_k]),
+        marginal_k=marginal_k,
+        marginal_tracks=_tracks_given(tables.best, nu, marginal_k),
+        undetected_mean=nu,
+        count_prior=prior,
+        exact=exact,
+        probabilities_lower=_padded(p_lower_part, length, 0.0),
+        probabilities_upper=_padded(p_upper_part, length, 0.0),
+        max_tracks=kmax,
+        marginal_certain=_beats_others(joint, sweep.mass_upper, marginal_k),
+        joint_certain=_beats_others(sweep.joint, sweep.joint_upper, joint_map_k),
+    )
+
+
 def k_posterior(
     best: FloatArray,
     log_mass: FloatArray,
@@ -448,95 +602,12 @@ def k_posterior(
     InputError
         Shapes disagree, or no K has both a feasible track set and prior mass.
     """
-    best = np.asarray(best, dtype=float)
-    log_mass = np.asarray(log_mass, dtype=float)
-    best_upper = best if best_upper is None else np.asarray(best_upper, dtype=float)
-    mass_upper = log_mass if log_mass_upper is None else np.asarray(log_mass_upper, dtype=float)
-    kmax = prior.kmax
-    if (
-        best.ndim != 1
-        or not (best.shape == log_mass.shape == best_upper.shape == mass_upper.shape)
-        or not 1 <= best.shape[0] <= kmax + 1
-    ):
-        raise InputError(
-            f"best, log_mass and their bounds must be 1-D of one length in 1..kmax + 1 = "
-            f"{kmax + 1}, got {best.shape}, {log_mass.shape}, {best_upper.shape}, "
-            f"{mass_upper.shape}"
-        )
-    reachable = np.flatnonzero(np.isfinite(mass_upper))
-    if reachable.size == 0:
-        raise InputError("the window has no feasible track set for any number of tracks")
-    n_tracks = int(reachable[-1]) + 1
-    best, log_mass = best[:n_tracks], log_mass[:n_tracks]
-    best_upper, mass_upper = best_upper[:n_tracks], mass_upper[:n_tracks]
-    nu = population.undetected_mean
-
-    tracks_range = np.arange(n_tracks, dtype=np.int64)
-    if prior.law.tail_step(prior, population, n_tracks - 1, tracks_range) is None:
-        top = kmax
-    else:
-        top = min(kmax, n_tracks - 1 + _poisson_reach(nu))
-    no_births = population.new_target_mean <= 0
-    if kmax > MAX_K_RANGE and not no_births:
-        # Every step bound falls with K: one not below 1 at MAX_K_RANGE is not below 1
-        # anywhere before it, so the tail cannot be bounded in range (fail at once).
-        far = prior.law.tail_step(prior, population, MAX_K_RANGE, tracks_range)
-        if far is not None and np.any(far[np.isfinite(mass_upper)] >= 1.0):
-            raise _range_error(prior, nu, MAX_K_RANGE)
-    while True:
-        ratio = prior.log_ratio(population, top)
-        sweep = _sweep(top, ratio, nu, log_mass, mass_upper, best, best_upper)
-        if top == kmax or (no_births and top >= population.carried_alive.size):
-            break
-        steps = prior.law.tail_step(prior, population, top, tracks_range)
-        if _tail_is_negligible(top, ratio, nu, steps, sweep, mass_upper, best_upper):
-            break
-        grown = min(kmax, 2 * top + 1)
-        if grown > MAX_K_RANGE:
-            raise _range_error(prior, nu, top)
-        top = grown
-
-    joint = sweep.mass_lower
-    if not np.any(np.isfinite(joint)):
+    tables = _window_tables(best, log_mass, best_upper, log_mass_upper, prior.kmax)
+    top = _first_top(prior, population, tables)
+    top, sweep = _sweep_to_end(prior, population, tables, top)
+    if not np.any(np.isfinite(sweep.mass_lower)):
         raise InputError(
             "no K in 0..Kmax has a feasible track set with positive prior probability; "
             "raise max_tracks or check k_prior_weights"
         )
-    length = max(top, min(kmax, FULL_LENGTH_KMAX)) + 1
-    weights = np.exp(joint - np.max(joint))
-    probabilities = np.zeros(length)
-    probabilities[: top + 1] = weights / weights.sum()
-    p_lower_part, p_upper_part = _probability_bounds(joint, sweep.mass_upper)
-    p_lower = np.zeros(length)
-    p_upper = np.zeros(length)
-    p_lower[: top + 1] = p_lower_part
-    p_upper[: top + 1] = p_upper_part
-    track_weights = np.exp(sweep.tracks - np.max(sweep.tracks))
-    track_probabilities = np.zeros(length)
-    track_probabilities[:n_tracks] = track_weights / track_weights.sum()
-
-    marginal_k = _argmax_first(probabilities)
-    joint_map_k = _argmax_first(sweep.joint)
-    padded = np.full(length, -math.inf)
-    padded[:n_tracks] = best
-    mass_padded = np.full(length, -math.inf)
-    mass_padded[:n_tracks] = log_mass
-    return KPosterior(
-        best_log_score=padded,
-        log_mass=mass_padded,
-        probabilities=probabilities,
-        track_probabilities=track_probabilities,
-        joint_map_k=joint_map_k,
-        joint_map_tracks=int(sweep.joint_tracks[joint_map_k]),
-        marginal_k=marginal_k,
-        marginal_tracks=_tracks_given(best, nu, marginal_k),
-        undetected_mean=nu,
-        count_prior=prior,
-        exact=exact,
-        probabilities_lower=p_lower,
-        probabilities_upper=p_upper,
-        max_tracks=kmax,
-        marginal_certain=_beats_others(joint, sweep.mass_upper, marginal_k),
-        joint_certain=_beats_others(sweep.joint, sweep.joint_upper, joint_map_k),
-    )
-
+    return _posterior(tables, sweep, top, prior=prior, population=population, exact=exact)

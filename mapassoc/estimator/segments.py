@@ -200,6 +200,124 @@ def _match(
     return [(a_ids[r], b_ids[c]) for r, c in zip(rows, cols, strict=True) if shared[r, c] > 0]
 
 
+def _checked_results(
+    scans: Sequence[Scan], results: Sequence[SegmentResult]
+) -> list[SegmentResult]:
+    """``results`` in segment order, refused unless they are every segment of one plan
+    covering ``scans``."""
+    ordered = sorted(results, key=lambda r: r.segment.index)
+    if not ordered or [r.segment.index for r in ordered] != list(range(len(ordered))):
+        raise InputError("results must hold every segment of one plan, from index 0")
+    if ordered[0].segment.own_first != 0 or ordered[-1].segment.own_stop != len(scans):
+        raise InputError(f"the segments do not cover the {len(scans)} scans")
+    return ordered
+
+
+@dataclass(frozen=True)
+class _Places:
+    """Where every detection id of the recording is: (scan index, index in the scan)."""
+
+    scan_of: dict[int, tuple[int, int]]
+
+    @classmethod
+    def of(cls, scans: Sequence[Scan]) -> _Places:
+        return cls(
+            {int(row): (k, j) for k, scan in enumerate(scans) for j, row in enumerate(scan.rows)}
+        )
+
+    def where(self, row: int) -> tuple[int, int]:
+        """(scan index, index in the scan) of detection id ``row``."""
+        try:
+            return self.scan_of[row]
+        except KeyError:
+            raise InputError(f"detection id {row} of a segment is in no scan") from None
+
+
+class _Chains:
+    """Chains of (segment index, track id) pieces: a union-find keyed by the pair."""
+
+    def __init__(self, results: Sequence[SegmentResult]) -> None:
+        self._parent: dict[tuple[int, int], tuple[int, int]] = {}
+        for result in results:
+            for tid in result.track_rows:
+                self._parent[(result.segment.index, tid)] = (result.segment.index, tid)
+
+    def find(self, node: tuple[int, int]) -> tuple[int, int]:
+        """The representative of the chain holding ``node``."""
+        parent = self._parent
+        while parent[node] != node:
+            parent[node] = parent[parent[node]]
+            node = parent[node]
+        return node
+
+    def join(self, earlier: tuple[int, int], later: tuple[int, int]) -> None:
+        """Put ``later``'s chain after ``earlier``'s (one chain, represented by earlier's)."""
+        root = self.find(earlier)
+        self._parent[self.find(later)] = root
+
+
+def _link_overlaps(results: Sequence[SegmentResult], places: _Places) -> _Chains:
+    """Chain the tracks of neighbouring segments that share detections in their overlap
+    (matched one to one by :func:`_match`)."""
+    chains = _Chains(results)
+    for before, after in zip(results, results[1:], strict=False):
+        lo, hi = after.segment.first, before.segment.stop  # the overlap's scans
+
+        def in_overlap(rows: tuple[int, ...], lo: int = lo, hi: int = hi) -> set[int]:
+            return {r for r in rows if lo <= places.where(r)[0] < hi}
+
+        earlier = {t: in_overlap(rows) for t, rows in before.track_rows.items()}
+        later = {t: in_overlap(rows) for t, rows in after.track_rows.items()}
+        for a, b in _match(earlier, later):
+            chains.join((before.segment.index, a), (after.segment.index, b))
+    return chains
+
+
+def _stitched_associations(
+    results: Sequence[SegmentResult], places: _Places, chains: _Chains
+) -> dict[int, dict[int, int]]:
+    """Track id -> {scan index: index in the scan} of the stitched tracks: each chain keeps,
+    of each segment, the detections of the scans that segment owns; tracks are numbered
+    1, 2, ... in order of their first detection."""
+    pieces: dict[tuple[int, int], list[tuple[int, int]]] = {}
+    for result in results:
+        seg = result.segment
+        for tid, rows in result.track_rows.items():
+            owned = [
+                places.where(r) for r in rows if seg.own_first <= places.where(r)[0] < seg.own_stop
+            ]
+            if owned:
+                pieces.setdefault(chains.find((seg.index, tid)), []).extend(owned)
+    ordered = sorted(pieces.values(), key=lambda p: min(p))
+    return {tid: dict(sorted(p)) for tid, p in enumerate(ordered, start=1)}
+
+
+def _owned_windows(results: Sequence[SegmentResult]) -> tuple[list[WindowReport], WindowTally]:
+    """The windows each segment owns (those starting in its owned scans), renumbered and
+    moved to the recording's scan indices, and their tally (``seconds``: the sum of the
+    segments' wall times)."""
+    windows: list[WindowReport] = []
+    tally = WindowTally()
+    for result in results:
+        seg = result.segment
+        for report in result.windows:
+            first = report.first_scan + seg.first
+            if not seg.own_first <= first < seg.own_stop:
+                continue
+            owned_commit = min(report.committed_scans, seg.own_stop - first)
+            moved = dataclasses.replace(
+                report,
+                window=len(windows),
+                first_scan=first,
+                last_scan=report.last_scan + seg.first,
+                committed_scans=owned_commit,
+            )
+            windows.append(moved)
+            tally.add(moved)
+    tally.seconds = math.fsum(r.seconds for r in results)
+    return windows, tally
+
+
 def stitch_segments(
     scans: Sequence[Scan],
     results: Sequence[SegmentResult],
@@ -227,53 +345,10 @@ def stitch_segments(
         Tracks numbered 1, 2, ... in order of their first detection; the windows each
         segment owns, renumbered; ``seconds`` the sum of the segments' wall times.
     """
-    results = sorted(results, key=lambda r: r.segment.index)
-    if not results or [r.segment.index for r in results] != list(range(len(results))):
-        raise InputError("results must hold every segment of one plan, from index 0")
-    if results[0].segment.own_first != 0 or results[-1].segment.own_stop != len(scans):
-        raise InputError(f"the segments do not cover the {len(scans)} scans")
-    scan_of: dict[int, tuple[int, int]] = {
-        int(row): (k, j) for k, scan in enumerate(scans) for j, row in enumerate(scan.rows)
-    }
-
-    def where(row: int) -> tuple[int, int]:
-        try:
-            return scan_of[row]
-        except KeyError:
-            raise InputError(f"detection id {row} of a segment is in no scan") from None
-
-    # Chains of (segment, track) pieces: union-find keyed by the pair.
-    parent: dict[tuple[int, int], tuple[int, int]] = {}
-
-    def find(node: tuple[int, int]) -> tuple[int, int]:
-        while parent[node] != node:
-            parent[node] = parent[parent[node]]
-            node = parent[node]
-        return node
-
-    for result in results:
-        for tid in result.track_rows:
-            parent[(result.segment.index, tid)] = (result.segment.index, tid)
-    for before, after in zip(results, results[1:], strict=False):
-        lo, hi = after.segment.first, before.segment.stop  # the overlap's scans
-
-        def in_overlap(rows: tuple[int, ...], lo: int = lo, hi: int = hi) -> set[int]:
-            return {r for r in rows if lo <= where(r)[0] < hi}
-
-        earlier = {t: in_overlap(rows) for t, rows in before.track_rows.items()}
-        later = {t: in_overlap(rows) for t, rows in after.track_rows.items()}
-        for a, b in _match(earlier, later):
-            parent[find((after.segment.index, b))] = find((before.segment.index, a))
-
-    pieces: dict[tuple[int, int], list[tuple[int, int]]] = {}
-    for result in results:
-        seg = result.segment
-        for tid, rows in result.track_rows.items():
-            owned = [where(r) for r in rows if seg.own_first <= where(r)[0] < seg.own_stop]
-            if owned:
-                pieces.setdefault(find((seg.index, tid)), []).extend(owned)
-    ordered = sorted(pieces.values(), key=lambda p: min(p))
-    associations = {tid: dict(sorted(p)) for tid, p in enumerate(ordered, start=1)}
+    results = _checked_results(scans, results)
+    places = _Places.of(scans)
+    chains = _link_overlaps(results, places)
+    associations = _stitched_associations(results, places, chains)
     track_rows = {
         tid: tuple(int(scans[k].rows[j]) for k, j in sorted(a.items()))
         for tid, a in associations.items()
@@ -282,30 +357,13 @@ def stitch_segments(
     if config.estimator.refine_passes > 0 and track_rows:
         refined = refine_track_rows(config, scans, track_rows, stop=stop)
         track_rows = refined.track_rows
-        associations = {tid: dict(where(r) for r in rows) for tid, rows in track_rows.items()}
+        associations = {
+            tid: dict(places.where(r) for r in rows) for tid, rows in track_rows.items()
+        }
     tracks = smooth_tracks(scans, associations, config)
     if refined is not None and refined.confidence is not None:
         tracks = tracks.with_existence(refined.confidence.existence)
-
-    windows: list[WindowReport] = []
-    tally = WindowTally()
-    for result in results:
-        seg = result.segment
-        for report in result.windows:
-            first = report.first_scan + seg.first
-            if not seg.own_first <= first < seg.own_stop:
-                continue
-            owned_commit = min(report.committed_scans, seg.own_stop - first)
-            moved = dataclasses.replace(
-                report,
-                window=len(windows),
-                first_scan=first,
-                last_scan=report.last_scan + seg.first,
-                committed_scans=owned_commit,
-            )
-            windows.append(moved)
-            tally.add(moved)
-    tally.seconds = math.fsum(r.seconds for r in results)
+    windows, tally = _owned_windows(results)
     return EstimateResult(
         tracks=tracks,
         windows=tuple(windows),

@@ -45,6 +45,7 @@ from mapassoc.data.io import (
 )
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError, NotPositiveDefiniteError
+from mapassoc.models.sensor import Sensor
 from mapassoc.validation import check_finite_array, check_positive
 
 __all__ = [
@@ -282,6 +283,149 @@ def _alive_by_time(trajectories: Sequence[dict[float, FloatArray]]) -> dict[floa
     return alive
 
 
+def _check_targets(config: Config, targets: Sequence[TargetSpec]) -> None:
+    """Every target a :class:`TargetSpec` whose state fits the motion model."""
+    n = config.motion.state_dim
+    for i, target in enumerate(targets):
+        if not isinstance(target, TargetSpec):
+            raise InputError(f"targets[{i}] must be a TargetSpec, got {target!r}")
+        if target.initial_state.shape != (n,):
+            raise InputError(
+                f"targets[{i}].initial_state must have shape ({n},) for the "
+                f"{type(config.motion).__name__} state {config.motion.state_names}, got "
+                f"shape {target.initial_state.shape}"
+            )
+
+
+@dataclass(frozen=True, eq=False)
+class _SimulatedTruth:
+    """The true trajectories at the distinct scan times.
+
+    Attributes
+    ----------
+    times : ndarray, shape (N,)
+        Distinct scan times, sorted.
+    trajectories : list of dict of float to ndarray
+        State of target ``k`` at each time it is alive.
+    alive_at : dict of float to list of int
+        Indices of the targets alive at each time, ascending.
+    target_ids : ndarray of int, shape (len(targets),)
+        ``1, 2, ...``: the id of each target.
+    """
+
+    times: FloatArray
+    trajectories: list[dict[float, FloatArray]]
+    alive_at: dict[float, list[int]]
+    target_ids: NDArray[np.int64]
+
+
+def _noise_factors(config: Config) -> dict[str, FloatArray]:
+    """A square root of every sensor's measurement noise covariance R, by sensor name."""
+    return {
+        sensor_name: gaussian_factor(
+            sensor.measurement.noise_covariance, f"sensor '{sensor_name}' measurement noise R"
+        )
+        for sensor_name, sensor in config.sensors.items()
+    }
+
+
+def _observe(
+    sensor: Sensor,
+    noise_factor: FloatArray,
+    truth: _SimulatedTruth,
+    time: float,
+    rng: np.random.Generator,
+) -> tuple[FloatArray, NDArray[np.int64]]:
+    """One scan of ``sensor`` at ``time``: its shuffled detections and their origins.
+
+    Returns
+    -------
+    detections : ndarray, shape (m, dz)
+    origins : ndarray of int, shape (m,)
+        Target id of each detection, -1 for a false alarm.
+    """
+    model = sensor.measurement
+    dz = model.measurement_dim
+    alive = truth.alive_at.get(time, [])
+    # Draw order is fixed (detection flags, noise, clutter count, clutter, shuffle) so
+    # that the stream, and hence the scenario, depends only on the seed.
+    detected = rng.random(len(alive)) < sensor.detection_probability
+    noise = rng.standard_normal((len(alive), dz)) @ noise_factor.T
+    if alive:
+        states = np.stack([truth.trajectories[k][time] for k in alive])
+        values = model.predict(states) + noise
+        # The residual against zero is the identity on linear components and wraps
+        # angular ones (bearing) to (-pi, pi].
+        values = model.residual(values, np.zeros_like(values))
+    else:
+        values = np.empty((0, dz))
+    keep = detected & sensor.region.contains(values)
+    clutter_count = int(rng.poisson(sensor.false_alarms_per_scan))
+    clutter = sensor.region.sample(rng, clutter_count)
+    detections = np.concatenate([values[keep], clutter.reshape(-1, dz)])
+    origin = np.concatenate(
+        [
+            truth.target_ids[np.asarray(alive, dtype=np.int64)[keep]],
+            -np.ones(clutter_count, np.int64),
+        ]
+    )
+    order = rng.permutation(detections.shape[0])
+    m = detections.shape[0]
+    return detections[order].reshape(m, dz), origin[order].astype(np.int64)
+
+
+def _observe_plan(
+    config: Config,
+    plan: Sequence[tuple[float, str]],
+    truth: _SimulatedTruth,
+    rng: np.random.Generator,
+) -> tuple[list[Scan], Origins]:
+    """The scans of the plan, in its order, with file row numbers, and their origins."""
+    noise_factors = _noise_factors(config)
+    raw_scans: list[Scan] = []
+    scan_origins: list[NDArray[np.int64]] = []
+    next_placeholder = 0
+    for time, sensor_name in plan:
+        detections, origin = _observe(
+            config.sensors[sensor_name], noise_factors[sensor_name], truth, time, rng
+        )
+        m = detections.shape[0]
+        raw_scans.append(
+            Scan(
+                time=time,
+                sensor=sensor_name,
+                detections=detections,
+                rows=np.arange(next_placeholder, next_placeholder + m, dtype=np.int64),
+            )
+        )
+        scan_origins.append(origin)
+        next_placeholder += m
+    scans = number_rows(raw_scans)
+    rows = np.concatenate([s.rows for s in scans]) if scans else np.empty(0, np.int64)
+    origin_ids = np.concatenate(scan_origins) if scan_origins else np.empty(0, np.int64)
+    by_row = np.argsort(rows, kind="stable")
+    origins = Origins(rows=rows[by_row].astype(np.int64), target_ids=origin_ids[by_row])
+    return list(scans), origins
+
+
+def _truth_table(config: Config, truth: _SimulatedTruth) -> TruthTable:
+    """The true states at every scan time, by time, then by target."""
+    truth_ids: list[int] = []
+    truth_times: list[float] = []
+    truth_states: list[FloatArray] = []
+    for time in truth.times:
+        for k in truth.alive_at.get(float(time), []):
+            truth_ids.append(int(truth.target_ids[k]))
+            truth_times.append(float(time))
+            truth_states.append(truth.trajectories[k][float(time)])
+    return TruthTable(
+        target_ids=np.array(truth_ids, dtype=np.int64),
+        times=np.array(truth_times, dtype=float),
+        states=np.array(truth_states, dtype=float).reshape(len(truth_ids), config.motion.state_dim),
+        state_names=tuple(config.motion.state_names),
+    )
+
+
 def simulate(
     config: Config,
     targets: Sequence[TargetSpec],
@@ -322,16 +466,7 @@ def simulate(
     seed = _check_seed(seed)
     if not isinstance(name, str) or not name:
         raise InputError(f"name must be a non-empty string, got {name!r}")
-    n = config.motion.state_dim
-    for i, target in enumerate(targets):
-        if not isinstance(target, TargetSpec):
-            raise InputError(f"targets[{i}] must be a TargetSpec, got {target!r}")
-        if target.initial_state.shape != (n,):
-            raise InputError(
-                f"targets[{i}].initial_state must have shape ({n},) for the "
-                f"{type(config.motion).__name__} state {config.motion.state_names}, got "
-                f"shape {target.initial_state.shape}"
-            )
+    _check_targets(config, targets)
     plan = _check_plan(scan_plan, list(config.sensors))
 
     motion_seeds, sensing_seed = np.random.SeedSequence(seed).spawn(2)
@@ -340,76 +475,16 @@ def simulate(
 
     times = np.unique(np.array([t for t, _ in plan]))
     trajectories = _simulate_truth(config, targets, times, motion_streams)
-    alive_at = _alive_by_time(trajectories)
-    target_ids = np.arange(1, len(targets) + 1, dtype=np.int64)
-
-    noise_factors = {
-        sensor_name: gaussian_factor(
-            sensor.measurement.noise_covariance, f"sensor '{sensor_name}' measurement noise R"
-        )
-        for sensor_name, sensor in config.sensors.items()
-    }
-    raw_scans: list[Scan] = []
-    scan_origins: list[NDArray[np.int64]] = []
-    next_placeholder = 0
-    for time, sensor_name in plan:
-        sensor = config.sensors[sensor_name]
-        model = sensor.measurement
-        dz = model.measurement_dim
-        alive = alive_at.get(time, [])
-        # Draw order is fixed (detection flags, noise, clutter count, clutter, shuffle) so
-        # that the stream, and hence the scenario, depends only on the seed.
-        detected = rng.random(len(alive)) < sensor.detection_probability
-        noise = rng.standard_normal((len(alive), dz)) @ noise_factors[sensor_name].T
-        if alive:
-            states = np.stack([trajectories[k][time] for k in alive])
-            values = model.predict(states) + noise
-            # The residual against zero is the identity on linear components and wraps
-            # angular ones (bearing) to (-pi, pi].
-            values = model.residual(values, np.zeros_like(values))
-        else:
-            values = np.empty((0, dz))
-        keep = detected & sensor.region.contains(values)
-        clutter_count = int(rng.poisson(sensor.false_alarms_per_scan))
-        clutter = sensor.region.sample(rng, clutter_count)
-        detections = np.concatenate([values[keep], clutter.reshape(-1, dz)])
-        origin = np.concatenate(
-            [target_ids[np.asarray(alive, dtype=np.int64)[keep]], -np.ones(clutter_count, np.int64)]
-        )
-        order = rng.permutation(detections.shape[0])
-        m = detections.shape[0]
-        raw_scans.append(
-            Scan(
-                time=time,
-                sensor=sensor_name,
-                detections=detections[order].reshape(m, dz),
-                rows=np.arange(next_placeholder, next_placeholder + m, dtype=np.int64),
-            )
-        )
-        scan_origins.append(origin[order].astype(np.int64))
-        next_placeholder += m
-
-    scans = number_rows(raw_scans)
-    rows = np.concatenate([s.rows for s in scans]) if scans else np.empty(0, np.int64)
-    origin_ids = np.concatenate(scan_origins) if scan_origins else np.empty(0, np.int64)
-    by_row = np.argsort(rows, kind="stable")
-    origins = Origins(rows=rows[by_row].astype(np.int64), target_ids=origin_ids[by_row])
-
-    truth_ids: list[int] = []
-    truth_times: list[float] = []
-    truth_states: list[FloatArray] = []
-    for time in times:
-        for k in alive_at.get(float(time), []):
-            truth_ids.append(int(target_ids[k]))
-            truth_times.append(float(time))
-            truth_states.append(trajectories[k][float(time)])
-    truth = TruthTable(
-        target_ids=np.array(truth_ids, dtype=np.int64),
-        times=np.array(truth_times, dtype=float),
-        states=np.array(truth_states, dtype=float).reshape(len(truth_ids), n),
-        state_names=tuple(config.motion.state_names),
+    truth = _SimulatedTruth(
+        times=times,
+        trajectories=trajectories,
+        alive_at=_alive_by_time(trajectories),
+        target_ids=np.arange(1, len(targets) + 1, dtype=np.int64),
     )
-    return Scenario(name=name, config=config, scans=list(scans), truth=truth, origins=origins)
+    scans, origins = _observe_plan(config, plan, truth, rng)
+    return Scenario(
+        name=name, config=config, scans=scans, truth=_truth_table(config, truth), origins=origins
+    )
 
 
 def write_scenario(

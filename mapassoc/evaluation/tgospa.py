@@ -280,9 +280,26 @@ def _trajectories(run: TimedPoints, times: NDArray[np.float64]) -> _Trajectories
     )
 
 
+@dataclass(frozen=True, eq=False)
+class _ClosePairs:
+    """Every truth/estimate pair present together closer than c, once per such time.
+
+    Attributes
+    ----------
+    time, i, j : ndarray of int, shape (N,)
+        Time index, truth index and estimate index of each.
+    distance : ndarray, shape (N,)
+    """
+
+    time: NDArray[np.int64]
+    i: NDArray[np.int64]
+    j: NDArray[np.int64]
+    distance: NDArray[np.float64]
+
+
 def _close_pairs(
     truth: _Trajectories, estimates: _Trajectories, num_times: int, c: float
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+) -> _ClosePairs:
     """(time, i, j, distance) of every truth/estimate pair present together closer than c."""
     out_t, out_i, out_j, out_d = [], [], [], []
     truth_order = np.argsort(truth.rows_time, kind="stable")
@@ -304,8 +321,8 @@ def _close_pairs(
             out_d.append(distance[a, b])
     if not out_t:
         empty = np.zeros(0, dtype=np.int64)
-        return empty, empty, empty, np.zeros(0)
-    return (
+        return _ClosePairs(empty, empty, empty, np.zeros(0))
+    return _ClosePairs(
         np.concatenate(out_t),
         np.concatenate(out_i),
         np.concatenate(out_j),
@@ -410,6 +427,195 @@ def _viterbi_component(
     return m[states]
 
 
+@dataclass(frozen=True, eq=False)
+class _ProgramLayout:
+    """Where the variables of one component's program sit.
+
+    Per time ``t`` the variables ``W(t)`` are ``[edges, row dummies, column dummies]``
+    (``per_time`` of them, at ``t * per_time``); the ``num_h`` switching variables
+    ``h_e(t)`` follow all ``num_w`` of them.
+    """
+
+    num_times: int
+    nx: int
+    ny: int
+    num_edges: int
+
+    @property
+    def per_time(self) -> int:
+        return self.num_edges + self.nx + self.ny
+
+    @property
+    def num_w(self) -> int:
+        return self.num_times * self.per_time
+
+    @property
+    def num_h(self) -> int:
+        return (self.num_times - 1) * self.num_edges
+
+
+@dataclass(frozen=True, eq=False)
+class _Program:
+    """One component's program: minimise ``cost @ v`` subject to ``a_eq v = 1``,
+    ``a_ub v <= 0``, ``0 <= W <= 1``, ``h >= 0``.
+
+    Attributes
+    ----------
+    layout : _ProgramLayout
+    cost : ndarray, shape (num_w + num_h,)
+    a_eq : scipy.sparse.csr_matrix, shape (num_times * (nx + ny), num_w + num_h)
+    a_ub : scipy.sparse.csr_matrix, shape (2 * num_h, num_w + num_h)
+    """
+
+    layout: _ProgramLayout
+    cost: NDArray[np.float64]
+    a_eq: sps.csr_matrix
+    a_ub: sps.csr_matrix
+
+    @property
+    def upper(self) -> NDArray[np.float64]:
+        """Upper bounds of the variables, shape (num_w + num_h,): 1 for W, none for h."""
+        return np.concatenate([np.ones(self.layout.num_w), np.full(self.layout.num_h, np.inf)])
+
+
+def _program_cost(
+    layout: _ProgramLayout,
+    edge_cost: NDArray[np.float64],
+    present_x: NDArray[np.bool_],
+    present_y: NDArray[np.bool_],
+    half: float,
+    switch_cost: float,
+) -> NDArray[np.float64]:
+    """Costs of ``W(t) = [edges, row dummies, column dummies]`` and of h.
+
+    Parameters
+    ----------
+    edge_cost : ndarray, shape (Tc, nE)
+    present_x, present_y : ndarray of bool, shape (Tc, nx) and (Tc, ny)
+
+    Returns
+    -------
+    ndarray, shape (num_w + num_h,)
+    """
+    return np.concatenate(
+        [
+            np.hstack([edge_cost, half * present_x, half * present_y]).ravel(),
+            np.full(layout.num_h, switch_cost / 2.0),
+        ]
+    )
+
+
+def _assignment_equalities(layout: _ProgramLayout, edges: NDArray[np.int64]) -> sps.csr_matrix:
+    """Every true (row) and every estimated (column) index assigned once per time.
+
+    Parameters
+    ----------
+    edges : ndarray of int, shape (nE, 2)
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (Tc * (nx + ny), num_w + num_h)
+    """
+    nx, ny, per_time = layout.nx, layout.ny, layout.per_time
+    t_of = np.repeat(np.arange(layout.num_times), per_time)
+    local = np.tile(np.arange(per_time), layout.num_times)
+    rows_of_local = np.concatenate([edges[:, 0], np.arange(nx), np.full(ny, -1)])
+    cols_of_local = np.concatenate([edges[:, 1], np.full(nx, -1), np.arange(ny)])
+    var = np.arange(layout.num_w)
+    r = rows_of_local[local]
+    k = cols_of_local[local]
+    has_r = r >= 0
+    has_k = k >= 0
+    eq_row = np.concatenate(
+        [t_of[has_r] * (nx + ny) + r[has_r], t_of[has_k] * (nx + ny) + nx + k[has_k]]
+    )
+    eq_col = np.concatenate([var[has_r], var[has_k]])
+    return sps.csr_matrix(
+        (np.ones(eq_row.size), (eq_row, eq_col)),
+        shape=(layout.num_times * (nx + ny), layout.num_w + layout.num_h),
+    )
+
+
+def _switch_inequalities(layout: _ProgramLayout) -> sps.csr_matrix:
+    """``+-(W_e(t+1) - W_e(t)) - h_e(t) <= 0``, shape (2 * num_h, num_w + num_h)."""
+    num_w, num_h, num_edges = layout.num_w, layout.num_h, layout.num_edges
+    step = np.repeat(np.arange(layout.num_times - 1), num_edges)
+    edge = np.tile(np.arange(num_edges), layout.num_times - 1)
+    w_now = step * layout.per_time + edge
+    w_next = w_now + layout.per_time
+    h_var = num_w + np.arange(num_h)
+    base = np.arange(num_h)
+    ub_row = np.concatenate([base, base, base, num_h + base, num_h + base, num_h + base])
+    ub_col = np.concatenate([w_next, w_now, h_var, w_now, w_next, h_var])
+    ub_val = np.concatenate([np.ones(num_h), -np.ones(num_h), -np.ones(num_h)] * 2)
+    return sps.csr_matrix((ub_val, (ub_row, ub_col)), shape=(2 * num_h, num_w + num_h))
+
+
+def _component_program(
+    present_x: NDArray[np.bool_],
+    present_y: NDArray[np.bool_],
+    edges: NDArray[np.int64],
+    edge_distance: NDArray[np.float64],
+    c: float,
+    p: float,
+    gamma: float,
+) -> _Program:
+    """The integer program of one component (arguments as :func:`_solve_component`'s)."""
+    layout = _ProgramLayout(
+        num_times=present_x.shape[0],
+        nx=present_x.shape[1],
+        ny=present_y.shape[1],
+        num_edges=edges.shape[0],
+    )
+    edge_cost = _edge_costs(present_x, present_y, edges, edge_distance, c, p)
+    return _Program(
+        layout=layout,
+        cost=_program_cost(layout, edge_cost, present_x, present_y, c**p / 2.0, gamma**p),
+        a_eq=_assignment_equalities(layout, edges),
+        a_ub=_switch_inequalities(layout),
+    )
+
+
+def _solve_integer(program: _Program) -> tuple[NDArray[np.float64], float]:
+    """The exact optimum by HiGHS: the W part of the solution, shape (num_w,), and its
+    value."""
+    num_w, num_h = program.layout.num_w, program.layout.num_h
+    integrality = np.concatenate([np.ones(num_w), np.zeros(num_h)])
+    constraints = [LinearConstraint(program.a_eq, 1.0, 1.0)]
+    if num_h:
+        constraints.append(LinearConstraint(program.a_ub, -np.inf, 0.0))
+    res = milp(
+        program.cost,
+        integrality=integrality,
+        bounds=Bounds(np.zeros(num_w + num_h), program.upper),
+        constraints=constraints,
+        options={"mip_rel_gap": 0.0},
+    )
+    if res.status != 0 or res.x is None:
+        raise InputError(f"the T-GOSPA integer program was not solved: {res.message}")
+    weights = np.round(res.x[:num_w])
+    if np.max(np.abs(weights - res.x[:num_w])) > _INTEGRAL_TOLERANCE:
+        raise InputError("the T-GOSPA integer program returned a non-integral assignment")
+    return weights, float(res.fun)
+
+
+def _solve_relaxed(program: _Program) -> tuple[NDArray[np.float64], float]:
+    """The LP relaxation's optimum by HiGHS: the W part, shape (num_w,), and its value."""
+    num_w, num_h = program.layout.num_w, program.layout.num_h
+    res = linprog(
+        program.cost,
+        A_ub=program.a_ub if num_h else None,
+        b_ub=np.zeros(2 * num_h) if num_h else None,
+        A_eq=program.a_eq,
+        b_eq=np.ones(program.a_eq.shape[0]),
+        bounds=np.stack([np.zeros(num_w + num_h), program.upper], axis=1),
+        method="highs",
+    )
+    if res.status != 0 or res.x is None:
+        raise InputError(f"the T-GOSPA linear program was not solved: {res.message}")
+    return res.x[:num_w], float(res.fun)
+
+
 def _solve_component(
     *,
     present_x: NDArray[np.bool_],  # (Tc, nx) over the component's times
@@ -422,86 +628,251 @@ def _solve_component(
     method: str,
 ) -> tuple[NDArray[np.float64], float]:
     """Return the edge weights W_e(t), shape (Tc, nE), and the objective value."""
-    num_times, nx = present_x.shape
-    ny = present_y.shape[1]
-    num_edges = edges.shape[0]
-    half = c**p / 2.0
-    per_time = num_edges + nx + ny
-    num_w = num_times * per_time
-    num_h = (num_times - 1) * num_edges
+    program = _component_program(present_x, present_y, edges, edge_distance, c, p, gamma)
+    solve = _solve_integer if method == "milp" else _solve_relaxed
+    weights, value = solve(program)
+    layout = program.layout
+    w = weights.reshape(layout.num_times, layout.per_time)[:, : layout.num_edges]
+    return w, value
 
-    # Costs of W(t) = [edges, row dummies, column dummies] and of h.
-    edge_cost = _edge_costs(present_x, present_y, edges, edge_distance, c, p)
-    cost = np.concatenate(
-        [
-            np.hstack([edge_cost, half * present_x, half * present_y]).ravel(),
-            np.full(num_h, gamma**p / 2.0),
-        ]
+
+# ----------------------------------------------------------------------------------------------
+# The whole problem: its components, their weights, the parts they add up to
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Metric:
+    """The metric's parameters, checked: cut-off, switching cost, order and method."""
+
+    c: float
+    gamma: float
+    p: float
+    method: str
+
+
+@dataclass(frozen=True, eq=False)
+class _Components:
+    """Connected components of the bipartite graph of the close pairs.
+
+    Attributes
+    ----------
+    pairs : ndarray of int, shape (P, 2)
+        Distinct (truth index, estimate index) pairs ever closer than c, sorted.
+    label : ndarray of int, shape (nx + ny,)
+        Component of every truth index, then of every estimate index.
+    pair_label : ndarray of int, shape (P,)
+        Component of each pair.
+    count : int
+        Number of components (trajectories without a pair are components of their own).
+    largest : int
+        Trajectories in the largest component.
+    nx, ny : int
+        Number of true and of estimated trajectories.
+    """
+
+    pairs: NDArray[np.int64]
+    label: NDArray[np.int64]
+    pair_label: NDArray[np.int64]
+    count: int
+    largest: int
+    nx: int
+    ny: int
+
+
+def _components(close: _ClosePairs, nx: int, ny: int) -> _Components:
+    """Split the problem into the components of the graph of close pairs."""
+    pairs = (
+        np.unique(np.stack([close.i, close.j], axis=1), axis=0)
+        if close.i.size
+        else (np.zeros((0, 2), dtype=np.int64))
+    )
+    graph = sps.coo_matrix(
+        (np.ones(pairs.shape[0]), (pairs[:, 0], nx + pairs[:, 1])), shape=(nx + ny, nx + ny)
+    )
+    num_components, label = connected_components(graph, directed=False)
+    return _Components(
+        pairs=pairs,
+        label=label,
+        pair_label=label[pairs[:, 0]] if pairs.shape[0] else np.zeros(0, dtype=np.int64),
+        count=int(num_components),
+        largest=int(np.max(np.bincount(label))) if label.size else 0,
+        nx=nx,
+        ny=ny,
     )
 
-    # Equalities: every true (row) and every estimated (column) index assigned once per time.
-    t_of = np.repeat(np.arange(num_times), per_time)
-    local = np.tile(np.arange(per_time), num_times)
-    rows_of_local = np.concatenate([edges[:, 0], np.arange(nx), np.full(ny, -1)])
-    cols_of_local = np.concatenate([edges[:, 1], np.full(nx, -1), np.arange(ny)])
-    var = np.arange(num_w)
-    r = rows_of_local[local]
-    k = cols_of_local[local]
-    has_r = r >= 0
-    has_k = k >= 0
-    eq_row = np.concatenate(
-        [t_of[has_r] * (nx + ny) + r[has_r], t_of[has_k] * (nx + ny) + nx + k[has_k]]
-    )
-    eq_col = np.concatenate([var[has_r], var[has_k]])
-    a_eq = sps.csr_matrix(
-        (np.ones(eq_row.size), (eq_row, eq_col)), shape=(num_times * (nx + ny), num_w + num_h)
-    )
 
-    # Inequalities: +-(W_e(t+1) - W_e(t)) - h_e(t) <= 0.
-    step = np.repeat(np.arange(num_times - 1), num_edges)
-    edge = np.tile(np.arange(num_edges), num_times - 1)
-    w_now = step * per_time + edge
-    w_next = w_now + per_time
-    h_var = num_w + np.arange(num_h)
-    base = np.arange(num_h)
-    ub_row = np.concatenate([base, base, base, num_h + base, num_h + base, num_h + base])
-    ub_col = np.concatenate([w_next, w_now, h_var, w_now, w_next, h_var])
-    ub_val = np.concatenate([np.ones(num_h), -np.ones(num_h), -np.ones(num_h)] * 2)
-    a_ub = sps.csr_matrix((ub_val, (ub_row, ub_col)), shape=(2 * num_h, num_w + num_h))
+@dataclass(frozen=True, eq=False)
+class _Component:
+    """One component with at least one pair, over the Tc times where it has a trajectory.
 
-    upper = np.concatenate([np.ones(num_w), np.full(num_h, np.inf)])
-    if method == "milp":
-        integrality = np.concatenate([np.ones(num_w), np.zeros(num_h)])
-        constraints = [LinearConstraint(a_eq, 1.0, 1.0)]
-        if num_h:
-            constraints.append(LinearConstraint(a_ub, -np.inf, 0.0))
-        res = milp(
-            cost,
-            integrality=integrality,
-            bounds=Bounds(np.zeros(num_w + num_h), upper),
-            constraints=constraints,
-            options={"mip_rel_gap": 0.0},
+    Attributes
+    ----------
+    xs, ys : ndarray of int, shape (nx_c,) and (ny_c,)
+        Its truth and estimate indices (local index = position in these).
+    edges : ndarray of int, shape (nE, 2)
+        Its pairs as local (i, j).
+    active : ndarray of int, shape (Tc,)
+        The time indices at which one of its trajectories is present.
+    edge_distance : ndarray, shape (Tc, nE)
+        Distance of each pair, ``inf`` where it is not present together closer than c.
+    """
+
+    xs: NDArray[np.int64]
+    ys: NDArray[np.int64]
+    edges: NDArray[np.int64]
+    active: NDArray[np.int64]
+    edge_distance: NDArray[np.float64]
+
+
+def _component(
+    components: _Components, index: int, close: _ClosePairs, tx: _Trajectories, ty: _Trajectories
+) -> _Component:
+    """The pairs, times and distances of component ``index``."""
+    nx, ny, label = components.nx, components.ny, components.label
+    xs = np.flatnonzero(label[:nx] == index)
+    ys = np.flatnonzero(label[nx:] == index)
+    comp_pairs = components.pairs[components.pair_label == index]
+    local_x = np.searchsorted(xs, comp_pairs[:, 0])
+    local_y = np.searchsorted(ys, comp_pairs[:, 1])
+    edges = np.stack([local_x, local_y], axis=1)
+    active = np.flatnonzero(tx.present[:, xs].any(axis=1) | ty.present[:, ys].any(axis=1))
+    position = np.full(tx.present.shape[0], -1, dtype=np.int64)
+    position[active] = np.arange(active.size)
+    edge_distance = np.full((active.size, edges.shape[0]), np.inf)
+    in_comp = label[close.i] == index
+    # np.unique sorted the pairs, so their keys i * ny + j are sorted too.
+    comp_keys = comp_pairs[:, 0] * ny + comp_pairs[:, 1]
+    e_index = np.searchsorted(comp_keys, close.i[in_comp] * ny + close.j[in_comp])
+    edge_distance[position[close.time[in_comp]], e_index] = close.distance[in_comp]
+    return _Component(xs=xs, ys=ys, edges=edges, active=active, edge_distance=edge_distance)
+
+
+def _component_weights(
+    component: _Component, tx: _Trajectories, ty: _Trajectories, metric: _Metric
+) -> NDArray[np.float64]:
+    """The optimal edge weights ``W_e(t)`` of one component, shape (Tc, nE): by dynamic
+    programming when it has few matchings (``milp`` only), else by its program."""
+    edges = component.edges
+    incidence = _matchings(edges, _MAX_DP_STATES) if metric.method == "milp" else None
+    present_x = tx.present[component.active][:, component.xs]
+    present_y = ty.present[component.active][:, component.ys]
+    if incidence is not None:
+        return _viterbi_component(
+            present_x=present_x,
+            present_y=present_y,
+            edges=edges,
+            edge_distance=component.edge_distance,
+            incidence=incidence,
+            c=metric.c,
+            p=metric.p,
+            gamma=metric.gamma,
         )
-        if res.status != 0 or res.x is None:
-            raise InputError(f"the T-GOSPA integer program was not solved: {res.message}")
-        weights = np.round(res.x[:num_w])
-        if np.max(np.abs(weights - res.x[:num_w])) > _INTEGRAL_TOLERANCE:
-            raise InputError("the T-GOSPA integer program returned a non-integral assignment")
-    else:
-        res = linprog(
-            cost,
-            A_ub=a_ub if num_h else None,
-            b_ub=np.zeros(2 * num_h) if num_h else None,
-            A_eq=a_eq,
-            b_eq=np.ones(a_eq.shape[0]),
-            bounds=np.stack([np.zeros(num_w + num_h), upper], axis=1),
-            method="highs",
+    w, _ = _solve_component(
+        present_x=present_x,
+        present_y=present_y,
+        edges=edges,
+        edge_distance=component.edge_distance,
+        c=metric.c,
+        p=metric.p,
+        gamma=metric.gamma,
+        method=metric.method,
+    )
+    return w
+
+
+@dataclass(frozen=True, eq=False)
+class _Parts:
+    """Per-time parts accumulated (in place) from the weights of every component.
+
+    Attributes
+    ----------
+    localisation : ndarray, shape (T,)
+    assigned : ndarray, shape (T,)
+        Weight of the effective (present, closer than c) assignments.
+    switching : ndarray, shape (T - 1,)
+    assignment : ndarray of int, shape (T, nx)
+        As :attr:`TgospaResult.assignment`.
+    """
+
+    localisation: NDArray[np.float64]
+    assigned: NDArray[np.float64]
+    switching: NDArray[np.float64]
+    assignment: NDArray[np.int64]
+
+    @classmethod
+    def zeros(cls, num_times: int, nx: int) -> _Parts:
+        """Nothing assigned yet."""
+        return cls(
+            localisation=np.zeros(num_times),
+            assigned=np.zeros(num_times),
+            switching=np.zeros(max(num_times - 1, 0)),
+            assignment=np.full((num_times, nx), -1, dtype=np.int64),
         )
-        if res.status != 0 or res.x is None:
-            raise InputError(f"the T-GOSPA linear program was not solved: {res.message}")
-        weights = res.x[:num_w]
-    w = weights.reshape(num_times, per_time)[:, :num_edges]
-    return w, float(res.fun)
+
+
+def _add_component(
+    parts: _Parts, component: _Component, w: NDArray[np.float64], metric: _Metric
+) -> None:
+    """Add one component's localisation, assignments and switches, given its weights
+    ``w`` of shape (Tc, nE), to ``parts``."""
+    active, edges, edge_distance = component.active, component.edges, component.edge_distance
+    effective = np.isfinite(edge_distance)  # both present and closer than c
+    close = np.where(effective, edge_distance, 0.0)
+    parts.localisation[active] += np.sum(np.where(effective, w * close**metric.p, 0.0), axis=1)
+    parts.assigned[active] += np.sum(np.where(effective, w, 0.0), axis=1)
+    if active.size > 1:
+        change = np.sum(np.abs(np.diff(w, axis=0)), axis=1) * metric.gamma**metric.p / 2.0
+        parts.switching[active[1:] - 1] += change
+    chosen_t, chosen_e = np.nonzero(effective & (w > 0.5))
+    truth_index = component.xs[edges[chosen_e, 0]]
+    parts.assignment[active[chosen_t], truth_index] = component.ys[edges[chosen_e, 1]]
+
+
+def _result(
+    parts: _Parts,
+    tx: _Trajectories,
+    ty: _Trajectories,
+    times: NDArray[np.float64],
+    metric: _Metric,
+    components: _Components,
+) -> TgospaResult:
+    """The metric and its decomposition from the accumulated per-time parts."""
+    half = metric.c**metric.p / 2.0
+    num_present_x = tx.present.sum(axis=1).astype(float)
+    num_present_y = ty.present.sum(axis=1).astype(float)
+    missed_t = half * (num_present_x - parts.assigned)
+    false_t = half * (num_present_y - parts.assigned)
+    localisation = float(np.sum(parts.localisation))
+    missed = float(np.sum(missed_t))
+    false = float(np.sum(false_t))
+    switching = float(np.sum(parts.switching))
+    total = max(localisation + missed + false + switching, 0.0) ** (1.0 / metric.p)
+    return TgospaResult(
+        total=float(total),
+        localisation=localisation,
+        missed=missed,
+        false=false,
+        switching=switching,
+        num_missed=float(np.sum(num_present_x - parts.assigned)),
+        num_false=float(np.sum(num_present_y - parts.assigned)),
+        num_switches=switching / metric.gamma**metric.p,
+        times=readonly(times.astype(float)),
+        localisation_per_time=readonly(parts.localisation),
+        missed_per_time=readonly(missed_t),
+        false_per_time=readonly(false_t),
+        switching_per_step=readonly(parts.switching),
+        truth_ids=readonly(tx.ids),
+        estimate_ids=readonly(ty.ids),
+        assignment=readonly(parts.assignment),
+        c=metric.c,
+        p=metric.p,
+        gamma=metric.gamma,
+        method=metric.method,
+        status="optimal",
+        num_components=components.count,
+        largest_component=components.largest,
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -555,121 +926,25 @@ def tgospa(
         Bad ``c``, ``gamma``, ``p`` or ``method``, inputs that are not TimedPoints, different
         dimensions, no rows at all, or a solver failure.
     """
-    cutoff = check_positive("c", c)
-    switch = check_positive("gamma", gamma)
-    order = check_order(p)
-    check_cost_powers(order, c=cutoff, gamma=switch)
-    solver = _check_method(method)
+    metric = _Metric(
+        c=check_positive("c", c),
+        gamma=check_positive("gamma", gamma),
+        p=check_order(p),
+        method=_check_method(method),
+    )
+    check_cost_powers(metric.p, c=metric.c, gamma=metric.gamma)
     check_runs(truth, estimates)
     times = np.union1d(truth.distinct_times, estimates.distinct_times)
-    num_times = times.shape[0]
     tx = _trajectories(truth, times)
     ty = _trajectories(estimates, times)
-    nx = tx.ids.shape[0]
-    ny = ty.ids.shape[0]
-    half = cutoff**order / 2.0
-    pair_t, pair_i, pair_j, pair_d = _close_pairs(tx, ty, num_times, cutoff)
-
-    # Per-time parts, accumulated from the weights of every component.
-    localisation_t = np.zeros(num_times)
-    assigned_t = np.zeros(num_times)  # weight of effective (present, < c) assignments
-    switching_s = np.zeros(max(num_times - 1, 0))
-    assignment = np.full((num_times, nx), -1, dtype=np.int64)
-
-    pairs = (
-        np.unique(np.stack([pair_i, pair_j], axis=1), axis=0)
-        if pair_i.size
-        else (np.zeros((0, 2), dtype=np.int64))
-    )
-    graph = sps.coo_matrix(
-        (np.ones(pairs.shape[0]), (pairs[:, 0], nx + pairs[:, 1])), shape=(nx + ny, nx + ny)
-    )
-    num_components, label = connected_components(graph, directed=False)
-    largest = int(np.max(np.bincount(label))) if label.size else 0
-    pair_label = label[pairs[:, 0]] if pairs.shape[0] else np.zeros(0, dtype=np.int64)
-    for component in np.unique(pair_label):
-        xs = np.flatnonzero(label[:nx] == component)
-        ys = np.flatnonzero(label[nx:] == component)
-        comp_pairs = pairs[pair_label == component]
-        local_x = np.searchsorted(xs, comp_pairs[:, 0])
-        local_y = np.searchsorted(ys, comp_pairs[:, 1])
-        edges = np.stack([local_x, local_y], axis=1)
-        active = np.flatnonzero(tx.present[:, xs].any(axis=1) | ty.present[:, ys].any(axis=1))
-        position = np.full(num_times, -1, dtype=np.int64)
-        position[active] = np.arange(active.size)
-        edge_distance = np.full((active.size, edges.shape[0]), np.inf)
-        in_comp = label[pair_i] == component
-        # np.unique sorted the pairs, so their keys i * ny + j are sorted too.
-        comp_keys = comp_pairs[:, 0] * ny + comp_pairs[:, 1]
-        e_index = np.searchsorted(comp_keys, pair_i[in_comp] * ny + pair_j[in_comp])
-        edge_distance[position[pair_t[in_comp]], e_index] = pair_d[in_comp]
-        incidence = _matchings(edges, _MAX_DP_STATES) if solver == "milp" else None
-        if incidence is not None:
-            w = _viterbi_component(
-                present_x=tx.present[active][:, xs],
-                present_y=ty.present[active][:, ys],
-                edges=edges,
-                edge_distance=edge_distance,
-                incidence=incidence,
-                c=cutoff,
-                p=order,
-                gamma=switch,
-            )
-        else:
-            w, _ = _solve_component(
-                present_x=tx.present[active][:, xs],
-                present_y=ty.present[active][:, ys],
-                edges=edges,
-                edge_distance=edge_distance,
-                c=cutoff,
-                p=order,
-                gamma=switch,
-                method=solver,
-            )
-        effective = np.isfinite(edge_distance)  # both present and closer than c
-        close = np.where(effective, edge_distance, 0.0)
-        localisation_t[active] += np.sum(np.where(effective, w * close**order, 0.0), axis=1)
-        assigned_t[active] += np.sum(np.where(effective, w, 0.0), axis=1)
-        if active.size > 1:
-            change = np.sum(np.abs(np.diff(w, axis=0)), axis=1) * switch**order / 2.0
-            switching_s[active[1:] - 1] += change
-        chosen_t, chosen_e = np.nonzero(effective & (w > 0.5))
-        assignment[active[chosen_t], xs[edges[chosen_e, 0]]] = ys[edges[chosen_e, 1]]
-
-    num_present_x = tx.present.sum(axis=1).astype(float)
-    num_present_y = ty.present.sum(axis=1).astype(float)
-    missed_t = half * (num_present_x - assigned_t)
-    false_t = half * (num_present_y - assigned_t)
-    localisation = float(np.sum(localisation_t))
-    missed = float(np.sum(missed_t))
-    false = float(np.sum(false_t))
-    switching = float(np.sum(switching_s))
-    total = max(localisation + missed + false + switching, 0.0) ** (1.0 / order)
-    return TgospaResult(
-        total=float(total),
-        localisation=localisation,
-        missed=missed,
-        false=false,
-        switching=switching,
-        num_missed=float(np.sum(num_present_x - assigned_t)),
-        num_false=float(np.sum(num_present_y - assigned_t)),
-        num_switches=switching / switch**order,
-        times=readonly(times.astype(float)),
-        localisation_per_time=readonly(localisation_t),
-        missed_per_time=readonly(missed_t),
-        false_per_time=readonly(false_t),
-        switching_per_step=readonly(switching_s),
-        truth_ids=readonly(tx.ids),
-        estimate_ids=readonly(ty.ids),
-        assignment=readonly(assignment),
-        c=cutoff,
-        p=order,
-        gamma=switch,
-        method=solver,
-        status="optimal",
-        num_components=int(num_components),
-        largest_component=largest,
-    )
+    close = _close_pairs(tx, ty, times.shape[0], metric.c)
+    components = _components(close, tx.ids.shape[0], ty.ids.shape[0])
+    parts = _Parts.zeros(times.shape[0], tx.ids.shape[0])
+    for index in np.unique(components.pair_label):
+        component = _component(components, int(index), close, tx, ty)
+        weights = _component_weights(component, tx, ty, metric)
+        _add_component(parts, component, weights, metric)
+    return _result(parts, tx, ty, times, metric, components)
 
 
 def fragmentation_of(result: TgospaResult) -> TrackFragmentation:

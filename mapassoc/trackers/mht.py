@@ -103,7 +103,7 @@ import heapq
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -126,7 +126,7 @@ from mapassoc.formulations.packing import (
     set_packing_program,
 )
 from mapassoc.models.population import UndetectedTargets
-from mapassoc.solvers import get_integer_solver
+from mapassoc.solvers import ProgramSolver, get_integer_solver
 from mapassoc.solvers.k_best import solve_k_best
 from mapassoc.solvers.results import SolverError, SolveStatus
 from mapassoc.trackers.base import TrackerOutput, check_scans
@@ -301,6 +301,198 @@ def _top_sums(
     return out
 
 
+@dataclass(frozen=True, eq=False)
+class _Candidates:
+    """The leaves that enter one scan's global-hypothesis program.
+
+    Attributes
+    ----------
+    owner : ndarray of int, shape (H,)
+        Index (into the scan's tree list) of each candidate's tree.
+    leaves : list of _Leaf, length H
+    problem : PackingProblem
+        Set packing over H candidates whose resources are the trees, then the detections
+        of every scan (offset by the scan's first detection index); a candidate's value is
+        its score minus its tree's decided part, plus :data:`CONTINUE_BONUS` for a track.
+    """
+
+    owner: IntArray
+    leaves: list[_Leaf]
+    problem: PackingProblem
+
+
+def _candidates(trees: list[_Tree], offsets: IntArray, m_best: int) -> _Candidates | None:
+    """The candidate leaves and their set-packing problem; ``None`` when there are none.
+
+    With ``m_best = 1`` leaves of value <= 0 are left out (module docstring).
+    ``offsets`` (shape (S + 1,)) are the first detection index of every scan and the total.
+    """
+    owner: list[int] = []
+    candidates: list[_Leaf] = []
+    values: list[float] = []
+    indptr = [0]
+    indices: list[int] = []
+    T = len(trees)
+    for t, tree in enumerate(trees):
+        for leaf in tree.leaves:
+            value = leaf.score - tree.fixed_score
+            if tree.committed:
+                value += CONTINUE_BONUS
+            if m_best == 1 and not value > 0.0:
+                continue  # never in the best hypothesis: dropping it cannot hurt
+            owner.append(t)
+            candidates.append(leaf)
+            values.append(value)
+            indices.append(t)
+            for i, j in enumerate(leaf.path):
+                scan_index = tree.root_scan + i
+                if j >= 0 and scan_index > tree.fixed_scan:
+                    indices.append(T + int(offsets[scan_index]) + j)
+            indptr.append(len(indices))
+    if not candidates:
+        return None
+    problem = PackingProblem(
+        scores=np.asarray(values, dtype=float),
+        resource_indptr=np.asarray(indptr, dtype=np.int64),
+        resource_indices=np.asarray(indices, dtype=np.int64),
+        exactly_one=np.zeros(T + int(offsets[-1]), dtype=bool),
+        counts=np.ones(len(candidates), dtype=bool),
+    )
+    return _Candidates(np.asarray(owner, dtype=np.int64), candidates, problem)
+
+
+def _one_tree_options(
+    problem: PackingProblem, cluster: IntArray, m_best: int
+) -> list[_ClusterOption]:
+    """The ``m_best`` best options of a cluster of one tree, in closed form: nothing, or
+    any one of its leaves (candidate indices ``cluster``)."""
+    ranked = sorted(
+        [_ClusterOption(0.0, ())]
+        + [_ClusterOption(float(problem.scores[h]), (int(h),)) for h in cluster],
+        key=lambda o: -o.value,
+    )
+    return ranked[:m_best]
+
+
+def _program_options(
+    problem: PackingProblem, cluster: IntArray, m_best: int, solver: ProgramSolver
+) -> list[_ClusterOption]:
+    """The ``m_best`` best options of a cluster of several trees (candidate indices
+    ``cluster``), by the integer program and no-good cuts."""
+    program = set_packing_program(problem.subproblem(cluster), None)
+    options = []
+    for result in solve_k_best(program, m_best, solver=solver):
+        if result.status is not SolveStatus.OPTIMAL or result.solution is None:
+            raise SolverError(
+                f"{result.solver}: the MHT's global-hypothesis program ended "
+                f"with status {result.status.value}: {result.message}"
+            )
+        chosen = cluster[decode_selection(result.solution)]
+        options.append(_ClusterOption(float(result.objective), tuple(int(h) for h in chosen)))
+    return options
+
+
+def _merged_hypotheses(
+    options: list[list[_ClusterOption]],
+    candidates: _Candidates,
+    trees: list[_Tree],
+    m_best: int,
+) -> list[tuple[float, dict[int, _Leaf]]]:
+    """The ``m_best`` best global hypotheses (score, tree id -> selected leaf) from the
+    options of every cluster, best first; a score leaves out the trees' decided parts."""
+    out = []
+    for _, idx in _top_sums(options, m_best):
+        chosen_leaves: dict[int, _Leaf] = {}
+        total = []
+        for c, i in enumerate(idx):
+            for h in options[c][i].leaves:
+                tree = trees[candidates.owner[h]]
+                chosen_leaves[tree.tree_id] = candidates.leaves[h]
+                total.append(candidates.leaves[h].score - tree.fixed_score)
+        out.append((math.fsum(total), chosen_leaves))
+    return out
+
+
+@dataclass(eq=False)
+class _RunState:
+    """Where an MHT run stands between scans (mutable, internal).
+
+    Attributes
+    ----------
+    offsets : ndarray of int, shape (S + 1,)
+        Index of each scan's first detection among all, then the total.
+    trees : list of _Tree
+        The active trees.
+    closed : list of _Track
+        Tracks fully decided and ended.
+    fixed_owner : dict of (int, int) to int
+        Decided (scan, detection) -> tree id.
+    selected : dict of int to _Leaf
+        Tree id -> its leaf in the last best global hypothesis.
+    next_id : int
+        Id of the next tree rooted.
+    undetected : UndetectedTargets or None
+        The birth model's undetected targets carried from scan to scan.
+    """
+
+    offsets: IntArray
+    trees: list[_Tree] = field(default_factory=list)
+    closed: list[_Track] = field(default_factory=list)
+    fixed_owner: dict[tuple[int, int], int] = field(default_factory=dict)
+    selected: dict[int, _Leaf] = field(default_factory=dict)
+    next_id: int = 1
+    undetected: UndetectedTargets | None = None
+
+
+@dataclass(eq=False)
+class _History:
+    """The per-scan counts of a run, appended scan by scan (:class:`MhtDetails`)."""
+
+    trees: list[int] = field(default_factory=list)
+    leaves: list[int] = field(default_factory=list)
+    clusters: list[int] = field(default_factory=list)
+    best_scores: list[float] = field(default_factory=list)
+    m_scores: list[tuple[float, ...]] = field(default_factory=list)
+
+    def details(self, tracks_started: int) -> MhtDetails:
+        return MhtDetails(
+            trees=np.asarray(self.trees, dtype=np.int64),
+            leaves=np.asarray(self.leaves, dtype=np.int64),
+            clusters=np.asarray(self.clusters, dtype=np.int64),
+            best_scores=np.asarray(self.best_scores, dtype=float),
+            m_best_scores=tuple(self.m_scores),
+            tracks_started=tracks_started,
+        )
+
+
+def _keep_m_best_leaves(
+    trees: list[_Tree], hypotheses: list[tuple[float, dict[int, _Leaf]]]
+) -> None:
+    """Hypothesis-probability pruning: every tree with a leaf in one of ``hypotheses``
+    keeps only such leaves (in place)."""
+    keep: dict[int, set[int]] = {}
+    for _, chosen in hypotheses:
+        for t, leaf in chosen.items():
+            keep.setdefault(t, set()).add(id(leaf))
+    for tree in trees:
+        if tree.tree_id in keep:
+            tree.leaves = [lf for lf in tree.leaves if id(lf) in keep[tree.tree_id]]
+
+
+def _final_tracks(run: _RunState) -> list[_Track]:
+    """The tracks of the final hypothesis: the closed ones, the selected leaves, and the
+    decided parts of committed trees without one (the last best hypothesis decides every
+    branch left)."""
+    selected = run.selected
+    return run.closed + [
+        _Track(t.tree_id, t.root_scan, selected[t.tree_id].path,
+               selected[t.tree_id].score, selected[t.tree_id].max_score)
+        if t.tree_id in selected else t.decided_track()
+        for t in run.trees
+        if t.tree_id in selected or t.committed
+    ]  # fmt: skip
+
+
 class MhtTracker:
     """Track-oriented MHT (module docstring) on the library's models.
 
@@ -411,94 +603,80 @@ class MhtTracker:
         """
         scans = check_scans(scans, self.config)
         started = time.perf_counter()
-        trees: list[_Tree] = []
-        closed: list[_Track] = []
-        fixed_owner: dict[tuple[int, int], int] = {}  # decided (scan, detection) -> tree id
-        next_id = 1
-        undetected: UndetectedTargets | None = None
         offsets = np.concatenate([[0], np.cumsum([s.size for s in scans])]).astype(np.int64)
-        counts_trees: list[int] = []
-        counts_leaves: list[int] = []
-        counts_clusters: list[int] = []
-        best_scores: list[float] = []
-        m_scores: list[tuple[float, ...]] = []
-        selected: dict[int, _Leaf] = {}
-
+        run = _RunState(offsets=offsets)
+        history = _History()
         for k, scan in enumerate(scans):
-            log_new, undetected = new_target_log_ratio(self.config, scan, undetected)
-            for tree in trees:
-                tree.leaves = self._prune(self._branch(tree.leaves, scan))
-            if log_new > -math.inf:
-                for j in range(scan.size):
-                    root = _Leaf((j,), (log_new,), start_track(self.config, scan, j), log_new,
-                                 False)
-                    trees.append(_Tree(next_id, k, root))
-                    next_id += 1
-            counts_trees.append(len(trees))
-            counts_leaves.append(sum(len(t.leaves) for t in trees))
-
-            hypotheses, n_clusters = self._global_hypotheses(trees, offsets)
-            # Decided parts: closed tracks and the committed trees' fixed paths.
-            constant = math.fsum([t.score for t in closed] + [t.fixed_score for t in trees])
-            counts_clusters.append(n_clusters)
-            best_scores.append(hypotheses[0][0] + constant)
-            m_scores.append(tuple(v + constant for v, _ in hypotheses))
-            selected = hypotheses[0][1]
-
+            self._grow(run, k, scan)
+            history.trees.append(len(run.trees))
+            history.leaves.append(sum(len(t.leaves) for t in run.trees))
+            hypotheses = self._choose(run, history)
             if self.m_best_pruning:
-                keep: dict[int, set[int]] = {}
-                for _, chosen in hypotheses:
-                    for t, leaf in chosen.items():
-                        keep.setdefault(t, set()).add(id(leaf))
-                for tree in trees:
-                    if tree.tree_id in keep:
-                        tree.leaves = [lf for lf in tree.leaves if id(lf) in keep[tree.tree_id]]
-
-            decided = k - self.n_scan
-            if decided >= 0:
-                trees = self._fix_decisions(trees, selected, decided, fixed_owner, closed)
-            # Tentative trees (nothing decided, not selected) go when every leaf has
-            # terminated, or past the age limit.
-            oldest = -1 if self.tentative_scans is None else k - self.tentative_scans
-            trees = [
-                t for t in trees
-                if t.tree_id in selected
-                or (t.root_scan > oldest and not all(lf.terminated for lf in t.leaves))
-            ]
-
-        # The last best hypothesis decides every branch left.
-        final = closed + [
-            _Track(t.tree_id, t.root_scan, selected[t.tree_id].path,
-                   selected[t.tree_id].score, selected[t.tree_id].max_score)
-            if t.tree_id in selected else t.decided_track()
-            for t in trees
-            if t.tree_id in selected or t.committed
-        ]
-        threshold = self.management.confirmation_threshold
-        associations: dict[int, dict[int, int]] = {}
-        for track in sorted(final, key=lambda t: t.tree_id):
-            detections = {
-                track.root_scan + i: j for i, j in enumerate(track.path) if j >= 0
-            }
-            if track.max_score >= threshold and detections:
-                associations[track.tree_id] = detections
+                _keep_m_best_leaves(run.trees, hypotheses)
+            self._decide(run, k)
+        associations = self._confirmed(_final_tracks(run))
         tracks = smooth_tracks(scans, associations, self.config)
-        details = MhtDetails(
-            trees=np.asarray(counts_trees, dtype=np.int64),
-            leaves=np.asarray(counts_leaves, dtype=np.int64),
-            clusters=np.asarray(counts_clusters, dtype=np.int64),
-            best_scores=np.asarray(best_scores, dtype=float),
-            m_best_scores=tuple(m_scores),
-            tracks_started=next_id - 1,
-        )
         return TrackerOutput(
             tracks=tracks,
             seconds=time.perf_counter() - started,
             associations=associations,
-            details=details,
+            details=history.details(run.next_id - 1),
         )
 
     # ------------------------------------------------------------------ steps
+
+    def _grow(self, run: _RunState, k: int, scan: Scan) -> None:
+        """Branch and prune every tree on scan ``k``, then root a tree at each of its
+        detections (unless the birth model gives none there)."""
+        log_new, run.undetected = new_target_log_ratio(self.config, scan, run.undetected)
+        for tree in run.trees:
+            tree.leaves = self._prune(self._branch(tree.leaves, scan))
+        if log_new > -math.inf:
+            for j in range(scan.size):
+                root = _Leaf(
+                    (j,), (log_new,), start_track(self.config, scan, j), log_new, False
+                )
+                run.trees.append(_Tree(run.next_id, k, root))
+                run.next_id += 1
+
+    def _choose(self, run: _RunState, history: _History) -> list[tuple[float, dict[int, _Leaf]]]:
+        """The M best global hypotheses of the scan (recorded in ``history``; the best
+        becomes ``run.selected``)."""
+        hypotheses, n_clusters = self._global_hypotheses(run.trees, run.offsets)
+        # Decided parts: closed tracks and the committed trees' fixed paths.
+        constant = math.fsum([t.score for t in run.closed] + [t.fixed_score for t in run.trees])
+        history.clusters.append(n_clusters)
+        history.best_scores.append(hypotheses[0][0] + constant)
+        history.m_scores.append(tuple(v + constant for v, _ in hypotheses))
+        run.selected = hypotheses[0][1]
+        return hypotheses
+
+    def _decide(self, run: _RunState, k: int) -> None:
+        """N-scan pruning after scan ``k``, then the end of tentative trees (nothing
+        decided, not selected) whose every leaf has terminated or that are past the age
+        limit."""
+        decided = k - self.n_scan
+        if decided >= 0:
+            run.trees = self._fix_decisions(
+                run.trees, run.selected, decided, run.fixed_owner, run.closed
+            )
+        oldest = -1 if self.tentative_scans is None else k - self.tentative_scans
+        run.trees = [
+            t for t in run.trees
+            if t.tree_id in run.selected
+            or (t.root_scan > oldest and not all(lf.terminated for lf in t.leaves))
+        ]  # fmt: skip
+
+    def _confirmed(self, final: list[_Track]) -> dict[int, dict[int, int]]:
+        """Tree id -> {scan index: detection} of the tracks whose score reached the
+        confirmation threshold somewhere on their path, by tree id."""
+        threshold = self.management.confirmation_threshold
+        associations: dict[int, dict[int, int]] = {}
+        for track in sorted(final, key=lambda t: t.tree_id):
+            detections = {track.root_scan + i: j for i, j in enumerate(track.path) if j >= 0}
+            if track.max_score >= threshold and detections:
+                associations[track.tree_id] = detections
+        return associations
 
     def _branch(self, leaves: list[_Leaf], scan: Scan) -> list[_Leaf]:
         """Every live leaf's miss and gated-detection children; terminated leaves as they are."""
@@ -599,70 +777,16 @@ class MhtTracker:
     ) -> tuple[list[tuple[float, dict[int, _Leaf]]], int]:
         """The M best global hypotheses (score, tree id -> selected leaf), best first, and
         the number of clusters solved by the integer-programming solver."""
-        owner: list[int] = []
-        candidates: list[_Leaf] = []
-        values: list[float] = []
-        indptr = [0]
-        indices: list[int] = []
-        T = len(trees)
-        for t, tree in enumerate(trees):
-            for leaf in tree.leaves:
-                value = leaf.score - tree.fixed_score
-                if tree.committed:
-                    value += CONTINUE_BONUS
-                if self.m_best == 1 and not value > 0.0:
-                    continue  # never in the best hypothesis: dropping it cannot hurt
-                owner.append(t)
-                candidates.append(leaf)
-                values.append(value)
-                indices.append(t)
-                for i, j in enumerate(leaf.path):
-                    scan_index = tree.root_scan + i
-                    if j >= 0 and scan_index > tree.fixed_scan:
-                        indices.append(T + int(offsets[scan_index]) + j)
-                indptr.append(len(indices))
-        if not candidates:
+        candidates = _candidates(trees, offsets, self.m_best)
+        if candidates is None:
             return [(0.0, {})], 0
-        problem = PackingProblem(
-            scores=np.asarray(values, dtype=float),
-            resource_indptr=np.asarray(indptr, dtype=np.int64),
-            resource_indices=np.asarray(indices, dtype=np.int64),
-            exactly_one=np.zeros(T + int(offsets[-1]), dtype=bool),
-            counts=np.ones(len(candidates), dtype=bool),
-        )
-        owners = np.asarray(owner, dtype=np.int64)
+        problem, owners = candidates.problem, candidates.owner
         options: list[list[_ClusterOption]] = []
         solved = 0
         for cluster in cluster_hypotheses(problem):
             if np.all(owners[cluster] == owners[cluster[0]]):
-                # One tree: nothing, or any one of its leaves.
-                ranked = sorted(
-                    [_ClusterOption(0.0, ())]
-                    + [_ClusterOption(float(problem.scores[h]), (int(h),)) for h in cluster],
-                    key=lambda o: -o.value,
-                )
-                options.append(ranked[: self.m_best])
+                options.append(_one_tree_options(problem, cluster, self.m_best))
                 continue
             solved += 1
-            program = set_packing_program(problem.subproblem(cluster), None)
-            opts = []
-            for result in solve_k_best(program, self.m_best, solver=self._solver):
-                if result.status is not SolveStatus.OPTIMAL or result.solution is None:
-                    raise SolverError(
-                        f"{result.solver}: the MHT's global-hypothesis program ended "
-                        f"with status {result.status.value}: {result.message}"
-                    )
-                chosen = cluster[decode_selection(result.solution)]
-                opts.append(_ClusterOption(float(result.objective), tuple(int(h) for h in chosen)))
-            options.append(opts)
-        out = []
-        for _, idx in _top_sums(options, self.m_best):
-            chosen_leaves: dict[int, _Leaf] = {}
-            total = []
-            for c, i in enumerate(idx):
-                for h in options[c][i].leaves:
-                    tree = trees[owner[h]]
-                    chosen_leaves[tree.tree_id] = candidates[h]
-                    total.append(candidates[h].score - tree.fixed_score)
-            out.append((math.fsum(total), chosen_leaves))
-        return out, solved
+            options.append(_program_options(problem, cluster, self.m_best, self._solver))
+        return _merged_hypotheses(options, candidates, trees, self.m_best), solved
