@@ -86,3 +86,24 @@ def test_a_huge_max_tracks_costs_nothing_per_window() -> None:
         np.testing.assert_allclose(a.p_k, b.p_k[:n], atol=1e-12)
         assert np.all(b.p_k[n:] < 1e-300)
         assert a.marginal_k == b.marginal_k and a.chosen_k == b.chosen_k
+
+
+@pytest.mark.slow
+def test_a_huge_exact_work_limit_runs_as_the_default_does() -> None:
+    """exact_work_limit = 2**62 (the compiled search counts work in int64) once made the
+    windows with a carried track "infeasible" (no K in 0..Kmax had a feasible track
+    set); it gives the default's result where the default suffices."""
+    from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
+
+    scenario = truncate_scenario(build_scenario("crossing", 0), 12)
+
+    def run(limit: int):  # type: ignore[no-untyped-def]
+        estimator = replace(scenario.config.estimator, exact_work_limit=limit, refine_passes=0)
+        config = replace(scenario.config, estimator=estimator)
+        return WindowEstimator(config=config).run(scenario.scans)
+
+    default, huge = run(scenario.config.estimator.exact_work_limit), run(2**62)
+    assert huge.track_rows == default.track_rows
+    assert default.track_rows
+    for a, b in zip(huge.windows, default.windows, strict=True):
+        assert a.to_json(timings=False) == b.to_json(timings=False)
