@@ -33,6 +33,10 @@ from mapassoc.array_types import FloatArray, IntArray
 FOUND, PAST_WORK_LIMIT, PAST_PROJECTION, INFEASIBLE = 0, 1, 2, 3
 """Statuses of :func:`exact_search` and :func:`forward_backward`."""
 
+_INT64_MAX = 2**63 - 1
+"""The largest work the kernels count (their integers are int64): callers clamp work
+limits to it (:func:`mapassoc.formulations.frontier.kernel_work_limit`)."""
+
 
 @njit(cache=True)
 def _log_add(a: float, b: float) -> float:
@@ -124,7 +128,11 @@ def _step_pairs(
             n_keep += 1
     most = -1
     if work_limit >= 0:
-        most = (work_limit - work) * entries_per_transition // span_now - n_keep
+        left = work_limit - work
+        if left > _INT64_MAX // entries_per_transition:
+            most = _INT64_MAX  # more pairs than any step can hold (and no int64 overflow)
+        else:
+            most = left * entries_per_transition // span_now - n_keep
     pair_row = np.empty(16, dtype=np.int64)
     pair_h = np.empty(16, dtype=np.int64)
     n_pairs = 0

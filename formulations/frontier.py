@@ -69,6 +69,7 @@ __all__ = [
     "resource_order",
     "tie_precedes",
     "independent_sums",
+    "kernel_work_limit",
 ]
 
 _NEG_INF = -math.inf
@@ -203,6 +204,17 @@ def _check_limits(work: int, work_limit: int | None, deadline: float | None) -> 
         raise SearchLimitExceeded(
             "frontier search ran past its deadline", reason="deadline", work=work
         )
+
+
+KERNEL_WORK_MAX = 2**63 - 1
+"""Most work the compiled kernels count (int64): a larger limit is never reached."""
+
+
+def kernel_work_limit(work_limit: int | None) -> int:
+    """``work_limit`` as the compiled kernels take it: ``-1`` for none, and clamped to
+    :data:`KERNEL_WORK_MAX` (a search that counts no further cannot pass a larger limit,
+    and numba cannot pass a larger int)."""
+    return -1 if work_limit is None else min(int(work_limit), KERNEL_WORK_MAX)
 
 
 def projected_work_limit(work_projection: float | None, work_limit: int | None) -> float | None:
@@ -878,7 +890,7 @@ def _compiled_search(
         np.ascontiguousarray(problem.scores, dtype=np.float64),
         np.ascontiguousarray(problem.weights, dtype=np.float64),
         int(kmax),
-        -1 if work_limit is None else int(work_limit),
+        kernel_work_limit(work_limit),
         math.inf if projected_limit is None else float(projected_limit),
         _VECTOR_ENTRIES_PER_TRANSITION,
         PAIR_BLOCK_ENTRIES,

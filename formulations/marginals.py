@@ -56,6 +56,7 @@ from mapassoc.formulations.frontier import (
     fits_counted_work,
     frontier_words,
     hypothesis_spans,
+    kernel_work_limit,
     open_pairs,
     pair_budget,
     projected_work_limit,
@@ -297,7 +298,7 @@ def _compiled_forward_backward(
             np.ascontiguousarray(seeds, dtype=np.float64),
             -1 if max_frontiers is None else int(max_frontiers),
             math.inf if entry_margin is None else float(entry_margin),
-            -1 if work_limit is None else int(work_limit),
+            kernel_work_limit(work_limit),
             math.inf if projected_limit is None else float(projected_limit),
             _ENTRIES_PER_TRANSITION,
             frontier_module.PAIR_BLOCK_ENTRIES,  # read at the call, as open_pairs does

@@ -225,12 +225,12 @@ class PackingProblem:
         entry = np.repeat(starts - indptr[:-1], lengths) + np.arange(indptr[-1])
         resources = self.resource_indices[entry]
         used = np.unique(resources)
-        remap = np.full(self.num_resources, -1, dtype=np.int64)
-        remap[used] = np.arange(len(used))
+        # Renumbered by rank among the used ones (no array over every resource: a
+        # window's many small clusters would each cost the whole window's resources).
         return PackingProblem.derived(
             scores=self.scores[hyp],
             resource_indptr=indptr,
-            resource_indices=remap[resources],
+            resource_indices=np.searchsorted(used, resources).astype(np.int64),
             exactly_one=self.exactly_one[used],
             counts=self.counts[hyp],
             log_weights=self.weights[hyp],

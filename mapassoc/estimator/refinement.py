@@ -393,6 +393,112 @@ class _Anchor:
     """Index of the piece's first detection in ``reference.path``."""
 
 
+@dataclass(frozen=True, eq=False)
+class _Uses:
+    """Which window detections the program's hypotheses use, as index arrays both ways
+    (one entry per detection of each hypothesis, never a hypotheses x detections array:
+    a scan of many thousand detections costs what the window keeps).
+
+    ``detections[ptr[i]:ptr[i + 1]]`` are program hypothesis i's detections and
+    ``users[user_ptr[d]:user_ptr[d + 1]]`` the program hypotheses using detection d, in
+    increasing order.
+    """
+
+    ptr: NDArray[np.int64]
+    detections: NDArray[np.int64]
+    user_ptr: NDArray[np.int64]
+    users: NDArray[np.int64]
+
+    @classmethod
+    def of(cls, hyps: WindowHypotheses, base: NDArray[np.int64]) -> _Uses:
+        """The uses of program hypotheses ``base`` (window hypothesis of each)."""
+        ptr, detections = gather_rows(hyps.detection_indptr, hyps.detection_indices, base)
+        holder = np.repeat(np.arange(base.size, dtype=np.int64), np.diff(ptr))
+        order = np.argsort(detections, kind="stable")
+        per_detection = np.bincount(detections, minlength=hyps.detections.count)
+        user_ptr = np.concatenate([[0], np.cumsum(per_detection)]).astype(np.int64)
+        return cls(ptr, detections, user_ptr, holder[order])
+
+    def holders(self) -> NDArray[np.int64]:
+        """The program hypothesis of each entry of ``detections``."""
+        return np.repeat(np.arange(self.ptr.size - 1, dtype=np.int64), np.diff(self.ptr))
+
+    def using(self, detections: NDArray[np.int64]) -> NDArray[np.int64]:
+        """The program hypotheses that use at least one of ``detections``, sorted."""
+        _, found = gather_rows(self.user_ptr, self.users, detections)
+        return np.unique(found)
+
+    def largest_use(self, detections: NDArray[np.int64], probabilities: FloatArray) -> float:
+        """The largest, over ``detections``, probability that a hypothesis uses it.
+
+        Each sum runs over a column of every hypothesis' probability of using the
+        detection (zeros included: linear in what the window keeps), as numpy sums a
+        column, so the float is the same however the uses are stored.
+        """
+        sums = np.zeros(detections.size)
+        column = np.zeros(probabilities.shape[0])
+        for k, d in enumerate(detections.tolist()):
+            users = self.users[self.user_ptr[d] : self.user_ptr[d + 1]]
+            column[users] = probabilities[users]
+            sums[k] = column.sum()
+            column[users] = 0.0
+        return float(np.max(sums, initial=0.0))
+
+
+@dataclass(frozen=True, eq=False)
+class _Clusters:
+    """A window's clusters for :meth:`Refiner._any_of`: the problem with no hypothesis
+    counted, each cluster's members and log-mass, and the cluster of every hypothesis."""
+
+    uncounted: PackingProblem
+    clusters: Sequence[tuple[NDArray[np.int64], float]]
+    cluster_of: NDArray[np.int64]
+
+    @classmethod
+    def of(
+        cls, problem: PackingProblem, clusters: Sequence[tuple[NDArray[np.int64], float]]
+    ) -> _Clusters:
+        cluster_of = np.full(problem.num_hypotheses, -1, dtype=np.int64)
+        for c, (members, _) in enumerate(clusters):
+            cluster_of[members] = c
+        return cls(_uncounted(problem), clusters, cluster_of)
+
+
+def _add_associations(
+    associations: dict[int, dict[int, float]],
+    uses: _Uses,
+    hyps: WindowHypotheses,
+    base: NDArray[np.int64],
+    owner: Mapping[int, int],
+    probabilities: FloatArray,
+) -> None:
+    """Add each program hypothesis' probability to the association of its tree's track
+    (``owner``: tree -> track id) with every detection it uses (by detection id).
+
+    Each (track, detection) sum runs over the hypotheses in program order, so it is the
+    same float as adding them one by one.
+    """
+    if not owner or base.size == 0:
+        return
+    trees = np.asarray(hyps.tree, dtype=np.int64)
+    has_owner = np.zeros(int(trees.max()) + 1, dtype=bool)
+    track = np.zeros(has_owner.size, dtype=np.int64)
+    for tree, tid in owner.items():
+        has_owner[tree] = True
+        track[tree] = tid
+    program_trees = trees[base]
+    holders = uses.holders()
+    keep = has_owner[program_trees[holders]] & ~(probabilities[holders] <= 0.0)
+    held = holders[keep]
+    tids = track[program_trees[held]]
+    rows = np.asarray(hyps.detections.rows, dtype=np.int64)[uses.detections[keep]]
+    pairs, inverse = np.unique(np.stack([tids, rows]), axis=1, return_inverse=True)
+    sums = np.bincount(inverse.reshape(-1), weights=probabilities[held], minlength=pairs.shape[1])
+    for (tid, row), total in zip(pairs.T.tolist(), sums.tolist(), strict=True):
+        into = associations[tid]
+        into[row] = into.get(row, 0.0) + total
+
+
 class Refiner:
     """Climbs J(omega) of a whole recording from a given track set (module docstring).
 
@@ -998,38 +1104,25 @@ class Refiner:
             exact = exact and window_exact
             base = np.r_[np.arange(hyps.count), np.array([h for h, _ in joins], dtype=np.int64)]
             owner = self._tree_owners(hyps, carried, track_of, a)
+            uses = _Uses.of(hyps, base)
+            _add_associations(associations, uses, hyps, base, owner, probabilities)
             det = hyps.detections
-            for k, h in enumerate(base.tolist()):
-                tid = owner.get(int(hyps.tree[h]))
-                p = float(probabilities[k])
-                if tid is None or p <= 0.0:
-                    continue
-                for d in hyps.detections_of(h).tolist():
-                    row = int(det.rows[d])
-                    into = associations[tid]
-                    into[row] = into.get(row, 0.0) + p
-            # Window detection of every (scan, index), and the program's hypotheses per
-            # window detection.
             window_index = {
                 (a + int(det.scan_position[d]), int(det.index_in_scan[d])): d
                 for d in range(det.count)
             }
-            uses = np.zeros((problem.num_hypotheses, det.count), dtype=bool)
-            use_ptr, use_detections = gather_rows(
-                hyps.detection_indptr, hyps.detection_indices, base
-            )
-            uses[np.repeat(np.arange(base.size), np.diff(use_ptr)), use_detections] = True
+            weighed = _Clusters.of(problem, clusters)
             for tid in sorted(current):
                 if not a <= current[tid][0][0] < b:
                     continue
-                mine = [window_index[p] for p in current[tid] if p in window_index]
-                touching = np.flatnonzero(uses[:, mine].any(axis=1))
-                value = self._any_of(problem, clusters, touching)
+                mine = np.array(
+                    [window_index[p] for p in current[tid] if p in window_index], dtype=np.int64
+                )
+                value = self._any_of(weighed, uses.using(mine))
                 if math.isnan(value):
                     # A cluster had only the beam's marginals: the largest probability
                     # that one of the detections is used, a lower bound of the union.
-                    used = probabilities[:, None] * uses[:, mine]
-                    value = _probability(float(np.max(used.sum(axis=0), initial=0.0)))
+                    value = _probability(uses.largest_use(mine, probabilities))
                 existence[tid] = value
         for tid in current:
             existence.setdefault(tid, math.nan)  # its first detection's tree was pruned
@@ -1127,30 +1220,22 @@ class Refiner:
             clusters.append((members, float(found.log_total[0]) if found.exact else math.nan))
         return out, exact, clusters
 
-    def _any_of(
-        self,
-        problem: PackingProblem,
-        clusters: Sequence[tuple[NDArray[np.int64], float]],
-        chosen: NDArray[np.int64],
-    ) -> float:
+    def _any_of(self, weighed: _Clusters, chosen: NDArray[np.int64]) -> float:
         """P(at least one of the hypotheses ``chosen`` is in the set): one minus the mass
-        of the sets without any of them over the total, cluster by cluster."""
+        of the sets without any of them over the total, cluster by cluster (only the
+        clusters holding one of them)."""
         if chosen.size == 0:
             return 0.0
         log_none = 0.0
-        drop = np.zeros(problem.num_hypotheses, dtype=bool)
-        drop[chosen] = True
-        uncounted = _uncounted(problem)
-        for members, log_total in clusters:
-            if not np.any(drop[members]):
-                continue
+        for c in np.unique(weighed.cluster_of[chosen]).tolist():
+            members, log_total = weighed.clusters[c]
             if math.isnan(log_total):
                 return math.nan  # the beam's part of the mass: no ratio to take
-            rest = members[~drop[members]]
+            rest = members[~np.isin(members, chosen)]
             if rest.size == 0:
                 log_none += -log_total  # only the empty set is left: weight 1
                 continue
-            sub = uncounted.subproblem(rest)
+            sub = weighed.uncounted.subproblem(rest)
             try:
                 found = frontier_search(sub, 0, work_limit=_MARGINALS_WORK)
             except SearchLimitExceeded:

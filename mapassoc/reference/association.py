@@ -2,7 +2,10 @@
 
 These functions enumerate *every* association and are the exact reference against
 which the approximate (pruned, windowed, optimised) estimators are checked.  Their
-cost grows combinatorially; use them on small problems only.
+cost grows combinatorially; use them on small problems only.  Each counts, exactly,
+what it would enumerate before it starts (:func:`association_count`,
+:func:`sequence_count`) and refuses more than ``limit`` terms
+(:data:`ENUMERATION_LIMIT` unless raised), rather than allocating until memory runs out.
 
 * :func:`enumerate_associations` and :func:`association_table`: the data association
   vectors theta of Afzal's survey, section 5.2 (eq. 18-20), and the object/clutter split of
@@ -56,6 +59,9 @@ from mapassoc.validation import (
 
 __all__ = [
     "AssociationRow",
+    "ENUMERATION_LIMIT",
+    "association_count",
+    "sequence_count",
     "enumerate_associations",
     "association_table",
     "GaussianMixture",
@@ -78,12 +84,55 @@ def _frozen(array: ArrayLike, dtype: type = float) -> NDArray:
     return out
 
 
+ENUMERATION_LIMIT = 1_000_000
+"""Most associations or sequences the exact references enumerate unless given a larger
+``limit``: each holds a Python tuple and a mean and covariance per object, so a million
+already take hundreds of megabytes."""
+
+
+def association_count(num_objects: int, num_measurements: int) -> int:
+    """The number of association vectors theta of n objects and m measurements:
+    ``sum_k C(n, k) m! / (m - k)!`` over the number k of detected objects, exactly (a
+    Python integer, however large)."""
+    n = _check_count("num_objects", num_objects)
+    m = _check_count("num_measurements", num_measurements)
+    return sum(math.comb(n, k) * math.perm(m, k) for k in range(min(n, m) + 1))
+
+
+def sequence_count(measurements_per_scan: Sequence[int]) -> int:
+    """The number of association sequences of one object over scans of ``m_k``
+    measurements: ``prod_k (m_k + 1)``, exactly (a Python integer)."""
+    counts = [
+        _check_count(f"measurements_per_scan[{k}]", m) for k, m in enumerate(measurements_per_scan)
+    ]
+    return math.prod(m + 1 for m in counts)
+
+
+def _sizes_text(sizes: Sequence[int]) -> str:
+    """``"5"`` when every scan has 5 measurements, else ``"3, 0, 7"``."""
+    if len(set(sizes)) == 1:
+        return str(sizes[0])
+    return ", ".join(str(m) for m in sizes)
+
+
+def _check_enumeration(what: str, count: int, limit: object) -> None:
+    """Refuse to enumerate ``count`` terms past ``limit`` (checked, an integer >= 1)."""
+    most = check_integer("limit", limit, minimum=1)
+    if count > most:
+        raise InputError(
+            f"{what} would enumerate {count:,} terms, more than limit={most:,}; pass a "
+            "larger limit to enumerate them anyway (memory grows with the count)"
+        )
+
+
 # --------------------------------------------------------------------------------------
 # Association vectors (Afzal's survey, section 5.2)
 # --------------------------------------------------------------------------------------
 
 
-def enumerate_associations(num_objects: int, num_measurements: int) -> list[tuple[int, ...]]:
+def enumerate_associations(
+    num_objects: int, num_measurements: int, *, limit: int = ENUMERATION_LIMIT
+) -> list[tuple[int, ...]]:
     """Every data association vector theta, in lexicographic order (Afzal's survey, eq. 18-20).
 
     ``theta[i]`` is 0 when object i is missed and ``j`` in ``1..m`` when it is
@@ -97,11 +146,18 @@ def enumerate_associations(num_objects: int, num_measurements: int) -> list[tupl
         Number of objects n >= 0.
     num_measurements : int
         Number of measurements m >= 0.
+    limit : int
+        Most vectors to list (:data:`ENUMERATION_LIMIT` by default).
 
     Returns
     -------
     list of tuple of int
         Each tuple has length n.  ``n = 0`` gives ``[()]``.
+
+    Raises
+    ------
+    InputError
+        Bad counts, or more than ``limit`` vectors (:func:`association_count`).
 
     Examples
     --------
@@ -110,6 +166,11 @@ def enumerate_associations(num_objects: int, num_measurements: int) -> list[tupl
     """
     n = _check_count("num_objects", num_objects)
     m = _check_count("num_measurements", num_measurements)
+    _check_enumeration(
+        f"enumerate_associations(num_objects={n}, num_measurements={m})",
+        association_count(n, m),
+        limit,
+    )
     out: list[tuple[int, ...]] = []
     prefix: list[int] = []
     used = [False] * (m + 1)
@@ -456,6 +517,8 @@ def n_object_posterior(
     measurement_model: MeasurementModel,
     detection_probability: float,
     clutter_intensity: float,
+    *,
+    limit: int = ENUMERATION_LIMIT,
 ) -> NObjectPosterior:
     """Exact n-object posterior after one scan, enumerating every association.
 
@@ -485,6 +548,9 @@ def n_object_posterior(
         Pd in (0, 1].
     clutter_intensity : float
         lambda > 0, false alarms per unit measurement volume.
+    limit : int
+        Most associations to enumerate (:data:`ENUMERATION_LIMIT` by default): past it
+        the call refuses at once, naming the count (:func:`association_count`).
 
     Returns
     -------
@@ -493,8 +559,9 @@ def n_object_posterior(
     Raises
     ------
     InputError
-        Bad shapes, Pd outside (0, 1], lambda <= 0, or Pd == 1 with more objects than
-        measurements (every association then has a miss of probability 0).
+        Bad shapes, Pd outside (0, 1], lambda <= 0, Pd == 1 with more objects than
+        measurements (every association then has a miss of probability 0), or more
+        than ``limit`` associations.
     NotPositiveDefiniteError
         A prior covariance that is not symmetric positive-definite.
     """
@@ -508,6 +575,8 @@ def n_object_posterior(
     dz = _check_model_dims(measurement_model, means)
     z = check_finite_array("measurements", measurements, shape=(None, dz))
     m = z.shape[0]
+    count = association_count(n, m)
+    _check_enumeration(f"n_object_posterior with {n} objects and {m} measurements", count, limit)
 
     log_likelihood, post_means, post_covs = _all_updates(measurement_model, means, covs, z)
 
@@ -518,7 +587,7 @@ def n_object_posterior(
     cand_means = np.concatenate([means[:, None, :], post_means], axis=1)  # (n, m+1, dx)
     cand_covs = np.concatenate([covs[:, None], post_covs], axis=1)  # (n, m+1, dx, dx)
 
-    associations = enumerate_associations(n, m)
+    associations = enumerate_associations(n, m, limit=max(count, 1))
     theta = np.array(associations, dtype=np.int64).reshape(len(associations), n)
     objects = np.arange(n)[None, :]
     log_w = scores[objects, theta].sum(axis=1)
@@ -589,6 +658,8 @@ def single_object_sequences(
     detection_probability: float,
     clutter_intensity: float,
     dt: float = 1.0,
+    *,
+    limit: int = ENUMERATION_LIMIT,
 ) -> SequencePosterior:
     """Exact single-object tracking in clutter: every association sequence.
 
@@ -621,6 +692,9 @@ def single_object_sequences(
         lambda > 0, false alarms per unit measurement volume.
     dt : float
         Interval between consecutive scans, > 0.
+    limit : int
+        Most sequences to enumerate (:data:`ENUMERATION_LIMIT` by default): past it the
+        call refuses at once, naming the count (:func:`sequence_count`).
 
     Returns
     -------
@@ -629,8 +703,9 @@ def single_object_sequences(
     Raises
     ------
     InputError
-        Bad shapes, no scan, Pd outside (0, 1], lambda <= 0, dt <= 0, or Pd == 1 with an
-        empty scan (every sequence then has probability 0).
+        Bad shapes, no scan, Pd outside (0, 1], lambda <= 0, dt <= 0, Pd == 1 with an
+        empty scan (every sequence then has probability 0), or more than ``limit``
+        sequences.
     NotPositiveDefiniteError
         A prior covariance that is not symmetric positive-definite.
     """
@@ -654,6 +729,12 @@ def single_object_sequences(
     ]
     if not scan_arrays:
         raise InputError("scans must contain at least one (m_k, dz) array, got none")
+    sizes = [z.shape[0] for z in scan_arrays]
+    _check_enumeration(
+        f"single_object_sequences over {len(sizes)} scans of {_sizes_text(sizes)} measurements",
+        sequence_count(sizes),
+        limit,
+    )
 
     log_miss = _log_miss(pd)
     log_detect = math.log(pd) - math.log(lam)

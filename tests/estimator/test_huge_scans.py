@@ -86,3 +86,77 @@ def test_a_huge_max_tracks_costs_nothing_per_window() -> None:
         np.testing.assert_allclose(a.p_k, b.p_k[:n], atol=1e-12)
         assert np.all(b.p_k[n:] < 1e-300)
         assert a.marginal_k == b.marginal_k and a.chosen_k == b.chosen_k
+
+
+@pytest.mark.slow
+def test_a_huge_exact_work_limit_runs_as_the_default_does() -> None:
+    """exact_work_limit = 2**62 (the compiled search counts work in int64) once made the
+    windows with a carried track "infeasible" (no K in 0..Kmax had a feasible track
+    set); it gives the default's result where the default suffices."""
+    from mapassoc.evaluation.scenarios import build_scenario, truncate_scenario
+
+    scenario = truncate_scenario(build_scenario("crossing", 0), 12)
+
+    def run(limit: int):  # type: ignore[no-untyped-def]
+        estimator = replace(scenario.config.estimator, exact_work_limit=limit, refine_passes=0)
+        config = replace(scenario.config, estimator=estimator)
+        return WindowEstimator(config=config).run(scenario.scans)
+
+    default, huge = run(scenario.config.estimator.exact_work_limit), run(2**62)
+    assert huge.track_rows == default.track_rows
+    assert default.track_rows
+    for a, b in zip(huge.windows, default.windows, strict=True):
+        assert a.to_json(timings=False) == b.to_json(timings=False)
+
+
+@pytest.mark.slow
+def test_the_confidence_pass_memory_grows_with_the_kept_hypotheses() -> None:
+    """The confidence step once held a hypotheses x detections array (a 147,677 x 40,020
+    one, 5.5 GiB, on a scan of 40,000 detections): its peak memory must grow with
+    what the window keeps, under 2 KiB per kept hypothesis here (the dense array
+    alone would be 4 KiB per hypothesis at 4,000 detections, and more with more)."""
+    import tracemalloc
+
+    from mapassoc.estimator.refinement import RefinementSettings, Refiner
+
+    def refiner_of(n: int) -> Refiner:
+        side = int(np.ceil(np.sqrt(n)))
+        rng = np.random.default_rng(0)
+        grid = np.stack(np.meshgrid(np.arange(side), np.arange(side)), axis=-1).reshape(-1, 2)
+        first = grid[:n] * 100.0 + rng.normal(0.0, 1.0, size=(n, 2))
+        second = first + rng.normal(0.0, 1.0, size=first.shape) + np.array([1.0, 0.0])
+        config = make_config(
+            motion=ConstantVelocity(ndim=2, noise_intensity=0.01),
+            noise_std=1.0,
+            detection_probability=0.9,
+            false_alarms_per_scan=100.0,
+            region=[[-100.0, side * 100.0], [-100.0, side * 100.0]],
+            rate=0.5,
+            window_length=2,
+            gate_probability=0.999,
+            prune_log_ratio=9.0,
+            max_hypotheses_per_tree=64,
+        )
+        scans = [
+            Scan(0.0, SENSOR, first, np.arange(n)),
+            Scan(1.0, SENSOR, second, np.arange(n, 2 * n)),
+        ]
+        return Refiner(config=config, scans=scans, settings=RefinementSettings())
+
+    refiner_of(20).confidence({0: ((0, 0), (1, 0))})  # imports and compiled kernels loaded
+    n = 2_000
+    refiner = refiner_of(n)
+    tracks = {t: ((0, t), (1, t)) for t in range(0, n, 100)}
+    values = refiner._exact_values(tracks)
+    hyps = refiner._window_hypotheses(tracks, values, 0, 2, refiner.generator)[0]
+    assert hyps.detections.count == 2 * n and hyps.count >= 2 * n
+    tracemalloc.start()
+    try:
+        sure = refiner.confidence(tracks)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert 2048 * hyps.count < hyps.count * hyps.detections.count  # the dense array, bytes
+    assert peak < 2048 * hyps.count
+    assert sure.exact and set(sure.existence) == set(tracks)
+    assert all(0.5 < p <= 1.0 for p in sure.existence.values())

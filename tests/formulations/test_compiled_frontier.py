@@ -183,3 +183,25 @@ def test_the_marginals_kernel_is_the_numpy_forward_backward(
             assert np.array_equal(np.isneginf(a), np.isneginf(b))
             finite = np.isfinite(a)
             np.testing.assert_allclose(a[finite], b[finite], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("work_limit", [2**62, 2**63 - 1, 2**64])
+def test_a_huge_work_limit_is_no_limit(monkeypatch: pytest.MonkeyPatch, work_limit: int) -> None:
+    """A work limit near or past int64's range (the kernels count in int64) searches as
+    no limit does: (limit - work) x entries per transition once overflowed into a
+    negative pair budget, so no pair was opened and the window came out infeasible."""
+    problem = banded_problem(np.random.default_rng(3), 120, 40, 5)
+    monkeypatch.setenv(COMPILED_SWITCH, "1")
+    order = resource_order(problem)
+    unlimited = _vectorised_search(problem, 6, order, None, None, None, None, None)
+    huge = _vectorised_search(problem, 6, order, work_limit, None, None, None, None)
+    assert unlimited is not None and huge is not None
+    assert np.isfinite(unlimited.log_mass).any()
+    np.testing.assert_array_equal(huge.best, unlimited.best)
+    np.testing.assert_array_equal(huge.log_mass, unlimited.log_mass)
+    assert huge.best_sets == unlimited.best_sets and huge.work == unlimited.work
+    seeds = np.zeros(7)
+    free = frontier_marginals(problem, seeds)
+    limited = frontier_marginals(problem, seeds, work_limit=work_limit)
+    np.testing.assert_array_equal(limited.log_containing, free.log_containing)
+    np.testing.assert_array_equal(limited.log_total, free.log_total)
