@@ -87,7 +87,12 @@ from mapassoc.models.measurement import (
 from mapassoc.models.motion import MOTION_REGISTRY, MotionModel, motion_spec
 from mapassoc.models.population import BirthModel
 from mapassoc.models.sensor import Region, Sensor
-from mapassoc.validation import check_nonnegative, check_positive, check_probability
+from mapassoc.validation import (
+    check_nonnegative,
+    check_path,
+    check_positive,
+    check_probability,
+)
 
 __all__ = [
     "AUTO",
@@ -802,7 +807,7 @@ def load_config(
         Unreadable file or TOML syntax error (key ``"<file>"``), or any schema error; with
         ``solver_names``, an unknown ``estimator.solver``.
     """
-    source = os.fspath(path)
+    source = check_path("load_config: path", path)
     try:
         if content is None:
             with open(source, "rb") as handle:
@@ -993,7 +998,7 @@ def write_config(path: PathLike, config: Config) -> None:
         The model is outside the schema, or the file cannot be written (key ``"<file>"``).
     """
     text = config_to_toml(config)
-    target = os.fspath(path)
+    target = check_path("write_config: path", path)
     try:
         with open(target, "w", encoding="utf-8", newline="\n") as handle:
             handle.write(text)

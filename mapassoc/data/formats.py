@@ -35,6 +35,7 @@ from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 
 from mapassoc.errors import DataFileError, InputError
+from mapassoc.validation import check_path
 
 if TYPE_CHECKING:  # the table is read by the command line's parser: keep it light
     from mapassoc.data.io import Origins, TrackTable, TruthTable
@@ -125,8 +126,8 @@ def detection_formats() -> tuple[str, ...]:
     return tuple(suffix for row in FILE_FORMATS.values() for suffix in row.suffixes)
 
 
-def _format_of_path(path: PathLike) -> FileFormat:
-    text = os.fspath(path)
+def _format_of_path(path: PathLike, function: str = "file_format") -> FileFormat:
+    text = check_path(f"{function}: path", path)
     suffix = PurePath(text).suffix.lower()
     for row in FILE_FORMATS.values():
         if suffix in row.suffixes:
@@ -165,7 +166,7 @@ def file_name(stem: str, format_name: str) -> str:
 
 
 def _function(path: PathLike, verb: str, kind: str) -> Callable[..., Any]:
-    return _format_of_path(path).function(verb, kind)
+    return _format_of_path(path, f"{verb}_{kind}_file").function(verb, kind)
 
 
 def read_detections_file(

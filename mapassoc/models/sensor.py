@@ -16,7 +16,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.errors import InputError
 from mapassoc.models.measurement import MeasurementModel
-from mapassoc.validation import check_finite_array, check_nonnegative, check_probability
+from mapassoc.validation import (
+    check_finite_array,
+    check_instance,
+    check_nonnegative,
+    check_probability,
+)
 
 __all__ = ["Region", "Sensor"]
 
@@ -137,6 +142,14 @@ class Sensor:
                 f"spaces, got {name!r}"
             )
         self.name = name
+        check_instance(
+            f"sensor '{name}' measurement",
+            measurement,
+            MeasurementModel,
+            expected="a measurement model (mapassoc.LinearMeasurement, mapassoc.RangeBearing)",
+            hint="for a position sensor: mapassoc.LinearMeasurement.position(motion, "
+            "noise_std=...)",
+        )
         self.measurement = measurement
         self.detection_probability = check_probability(
             f"sensor '{name}' detection_probability", detection_probability, allow_zero=False
@@ -144,8 +157,12 @@ class Sensor:
         self.false_alarms_per_scan = check_nonnegative(
             f"sensor '{name}' false_alarms_per_scan", false_alarms_per_scan
         )
-        if not isinstance(region, Region):
-            raise InputError(f"sensor '{name}' region must be a Region, got {region!r}")
+        check_instance(
+            f"sensor '{name}' region",
+            region,
+            Region,
+            hint="build one with mapassoc.Region.from_bounds([[low, high], ...])",
+        )
         density = self.false_alarms_per_scan / region.volume
         if self.false_alarms_per_scan > 0 and not (density > 0.0 and math.isfinite(density)):
             raise InputError(
