@@ -41,6 +41,7 @@ from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
 from mapassoc.data.formats import detection_formats
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
+from mapassoc.validation import check_instance, check_path, check_text, shown
 
 __all__ = [
     "Recording",
@@ -170,7 +171,7 @@ def find_recordings(source: str | os.PathLike[str]) -> list[Recording]:
     InputError, DataFileError
         No recordings, repeated names, a missing detections file.
     """
-    path = Path(source)
+    path = Path(check_path("find_recordings: source", source))
     if path.is_dir():
         recordings = _from_folder(path)
     elif path.is_file():
@@ -296,6 +297,31 @@ def _check_out(out: Path, options: RunOptions, recordings: Sequence[Recording]) 
         raise OutputError(str(out), f"cannot create the folder: {os_reason(exc)}") from None
 
 
+def _check_recordings(recordings: object) -> list[Recording]:
+    """``recordings`` as a non-empty list of :class:`Recording`, or an InputError."""
+    hint = "list the recordings of a folder or a list file with mapassoc.find_recordings(path)"
+    if isinstance(recordings, (str, bytes, os.PathLike)) or not isinstance(recordings, Iterable):
+        raise InputError(
+            f"run_batch: recordings must be a sequence of Recording, got {shown(recordings)}; "
+            f"{hint}"
+        )
+    listed = list(recordings)
+    if not listed:
+        raise InputError("recordings is empty: there is nothing to run")
+    for i, recording in enumerate(listed):
+        check_instance(f"run_batch: recordings[{i}]", recording, Recording, hint=hint)
+    return listed
+
+
+def _check_batch_arguments(scheduler: object, progress: object, on_row: object) -> None:
+    """The checks of :func:`run_batch`'s keyword arguments not checked elsewhere."""
+    if scheduler is not None:
+        check_text("run_batch: scheduler", scheduler)
+    check_instance("run_batch: progress", progress, bool, expected="True or False")
+    if on_row is not None and not callable(on_row):
+        raise InputError(f"run_batch: on_row must be a callable or None, got {shown(on_row)}")
+
+
 def run_batch(
     recordings: Sequence[Recording],
     out: str | os.PathLike[str],
@@ -344,11 +370,12 @@ def run_batch(
         SIGINT or SIGTERM: the running recordings stopped at a window boundary with a
         checkpoint; the summary written says which are ``interrupted`` or ``pending``.
     """
-    recordings = list(recordings)
-    if not recordings:
-        raise InputError("recordings is empty: there is nothing to run")
-    out_path = Path(out)
-    config = None if shared_config is None else Path(shared_config)
+    recordings = _check_recordings(recordings)
+    out_path = Path(check_path("run_batch: out", out, hint="the batch folder to write"))
+    config = None
+    if shared_config is not None:
+        config = Path(check_path("run_batch: shared_config", shared_config))
+    _check_batch_arguments(scheduler, progress, on_row)
     workers = check_jobs(jobs)
     options = RunOptions() if options is None else options
     if not isinstance(options, RunOptions):

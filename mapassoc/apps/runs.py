@@ -29,7 +29,7 @@ from mapassoc.apps.run_folders import RunFolder, file_identity, new_manifest, no
 from mapassoc.data.formats import file_name, format_names
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
 from mapassoc.trackers.registry import tracker_names
-from mapassoc.validation import check_integer
+from mapassoc.validation import check_integer, check_path, shown
 
 __all__ = [
     "RunOptions",
@@ -389,6 +389,27 @@ class _Session:
         return RunInterrupted(self.folder.partial, self.scans_committed, self.total)
 
 
+def _check_run_files(
+    config_path: object, detections_path: object, out_dir: object, stop: object
+) -> None:
+    """The argument checks of :func:`run_files`, before anything is read or created."""
+    check_path(
+        "run_files: config_path",
+        config_path,
+        hint="run_files reads a TOML file; an in-memory Config runs with "
+        "mapassoc.WindowEstimator(config=config).run(scans)",
+    )
+    check_path(
+        "run_files: detections_path",
+        detections_path,
+        hint="run_files reads a detections file; in-memory scans run with "
+        "mapassoc.WindowEstimator(config=config).run(scans)",
+    )
+    check_path("run_files: out_dir", out_dir, hint="the run folder to write")
+    if stop is not None and not callable(stop):
+        raise InputError(f"run_files: stop must be a callable or None, got {shown(stop)}")
+
+
 def run_files(
     config_path: str | os.PathLike[str],
     detections_path: str | os.PathLike[str],
@@ -421,6 +442,7 @@ def run_files(
     RunInterrupted
         ``stop`` returned True.
     """
+    _check_run_files(config_path, detections_path, out_dir, stop)
     if options is None:
         options = RunOptions()
     elif not isinstance(options, RunOptions):
