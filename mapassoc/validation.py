@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import numbers
 import os
+from collections.abc import Collection
 from typing import NoReturn
 
 import numpy as np
@@ -22,6 +23,8 @@ __all__ = [
     "check_instance",
     "check_path",
     "check_text",
+    "check_names",
+    "check_callback",
     "check_number",
     "check_numeric_array",
     "check_standard_deviation",
@@ -57,7 +60,7 @@ def _refuse(
 def check_instance(
     name: str,
     value: object,
-    cls: type,
+    cls: type | tuple[type, ...],
     *,
     expected: str | None = None,
     hint: str | None = None,
@@ -65,9 +68,11 @@ def check_instance(
 ) -> None:
     """Raise unless ``value`` is an instance of ``cls`` (a runtime-checkable protocol
     too): an InputError naming ``name``, the value (:func:`shown`) and ``expected``
-    (default ``"a <cls name>"``), then ``hint`` (what to pass instead) when given."""
+    (default ``"a <cls name>"``, the first of a tuple), then ``hint`` (what to pass
+    instead) when given."""
     if not isinstance(value, cls):
-        _refuse(name, value, expected or f"a {cls.__name__}", hint, key)
+        first = cls[0] if isinstance(cls, tuple) else cls
+        _refuse(name, value, expected or f"a {first.__name__}", hint, key)
 
 
 def check_path(name: str, value: object, *, hint: str | None = None) -> str:
@@ -90,6 +95,22 @@ def check_text(name: str, value: object, *, key: str | None = None) -> str:
     if not isinstance(value, str) or not value:
         _refuse(name, value, "a non-empty string", None, key)
     return value
+
+
+def check_callback(name: str, value: object) -> None:
+    """Raise unless ``value`` is ``None`` or callable (a function to call back)."""
+    if value is not None and not callable(value):
+        _refuse(name, value, "a callable (a function) or None", None, None)
+
+
+def check_names(name: str, value: object) -> None:
+    """Raise unless ``value`` is a collection of strings (a list, tuple or set; one
+    string is refused: it is a collection of its characters)."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Collection):
+        _refuse(name, value, "a collection of names", "a list, tuple or set of strings", None)
+    for item in value:
+        if not isinstance(item, str):
+            _refuse(f"every entry of {name}", item, "a string", None, None)
 
 
 def check_number(name: str, value: object, *, key: str | None = None) -> float:

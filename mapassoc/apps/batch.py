@@ -41,7 +41,7 @@ from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
 from mapassoc.data.formats import detection_formats
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
-from mapassoc.validation import check_instance, check_path, check_text, shown
+from mapassoc.validation import check_callback, check_instance, check_path, check_text, shown
 
 __all__ = [
     "Recording",
@@ -318,8 +318,7 @@ def _check_batch_arguments(scheduler: object, progress: object, on_row: object) 
     if scheduler is not None:
         check_text("run_batch: scheduler", scheduler)
     check_instance("run_batch: progress", progress, bool, expected="True or False")
-    if on_row is not None and not callable(on_row):
-        raise InputError(f"run_batch: on_row must be a callable or None, got {shown(on_row)}")
+    check_callback("run_batch: on_row", on_row)
 
 
 def run_batch(
@@ -501,7 +500,7 @@ def _on_dask(
 
     try:
         client = Client(scheduler, timeout=30)
-    except (OSError, TimeoutError) as exc:
+    except (OSError, TimeoutError, ValueError) as exc:  # ValueError: a malformed address
         raise InputError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from None
     event_name = f"mapassoc-stop-{uuid.uuid4().hex}"
     with client:

@@ -29,7 +29,7 @@ from mapassoc.apps.run_folders import RunFolder, file_identity, new_manifest, no
 from mapassoc.data.formats import file_name, format_names
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
 from mapassoc.trackers.registry import tracker_names
-from mapassoc.validation import check_integer, check_path, shown
+from mapassoc.validation import check_callback, check_integer, check_path
 
 __all__ = [
     "RunOptions",
@@ -406,8 +406,7 @@ def _check_run_files(
         "mapassoc.WindowEstimator(config=config).run(scans)",
     )
     check_path("run_files: out_dir", out_dir, hint="the run folder to write")
-    if stop is not None and not callable(stop):
-        raise InputError(f"run_files: stop must be a callable or None, got {shown(stop)}")
+    check_callback("run_files: stop", stop)
 
 
 def run_files(

@@ -88,6 +88,8 @@ from mapassoc.models.motion import MOTION_REGISTRY, MotionModel, motion_spec
 from mapassoc.models.population import BirthModel
 from mapassoc.models.sensor import Region, Sensor
 from mapassoc.validation import (
+    check_instance,
+    check_names,
     check_nonnegative,
     check_path,
     check_positive,
@@ -714,6 +716,9 @@ def parse_config(
         ``solver_names``, an ``estimator.solver`` (given or default) outside it; with
         ``tracker_names``, a ``[trackers.<name>]`` table of another name.
     """
+    for argument, names in (("solver_names", solver_names), ("tracker_names", tracker_names)):
+        if names is not None:
+            check_names(argument, names)
     parser = _Parser(source=source)
     document = parser.table(data, _DOCUMENT_KEY)
     parser.only_keys(document, "", _SECTIONS, "at the top level")
@@ -808,6 +813,8 @@ def load_config(
         ``solver_names``, an unknown ``estimator.solver``.
     """
     source = check_path("load_config: path", path)
+    if content is not None:
+        check_instance("load_config: content", content, bytes, expected="bytes (the file's)")
     try:
         if content is None:
             with open(source, "rb") as handle:

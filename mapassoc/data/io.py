@@ -117,7 +117,7 @@ from mapassoc.data.records import (
 from mapassoc.data.scans import Scan
 from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
-from mapassoc.validation import check_path
+from mapassoc.validation import check_instance, check_path
 
 __all__ = [
     "FIRST_DATA_LINE",
@@ -373,6 +373,8 @@ def read_detections(
         ``sensors`` is empty or inconsistent.
     """
     path = check_path("read_detections: path", path)
+    if content is not None:
+        check_instance("read_detections: content", content, bytes, expected="bytes (the file's)")
     sensor_list = check_sensors(sensors)
     union = measurement_columns(sensor_list)
     canonical = "time,sensor," + ",".join(union)

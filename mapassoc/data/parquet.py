@@ -66,7 +66,7 @@ from mapassoc.data.records import (
 from mapassoc.data.scans import Scan
 from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
-from mapassoc.validation import check_path
+from mapassoc.validation import check_instance, check_path
 
 __all__ = [
     "read_detections_parquet",
@@ -275,6 +275,10 @@ def read_detections_parquet(
         negative or repeated, or the file has no row.
     """
     path = check_path("read_detections_parquet: path", path)
+    if content is not None:
+        check_instance(
+            "read_detections_parquet: content", content, bytes, expected="bytes (the file's)"
+        )
     _pyarrow("reading")
     sensor_list = check_sensors(sensors)
     reader = _Reader(path, content)

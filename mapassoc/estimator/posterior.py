@@ -70,6 +70,7 @@ from mapassoc.models.target_count import (
     UniformLaw,
     WeightsLaw,
 )
+from mapassoc.validation import check_instance, check_numeric_array
 
 __all__ = [
     "COUNT_LAWS",
@@ -448,10 +449,15 @@ def k_posterior(
     InputError
         Shapes disagree, or no K has both a feasible track set and prior mass.
     """
-    best = np.asarray(best, dtype=float)
-    log_mass = np.asarray(log_mass, dtype=float)
-    best_upper = best if best_upper is None else np.asarray(best_upper, dtype=float)
-    mass_upper = log_mass if log_mass_upper is None else np.asarray(log_mass_upper, dtype=float)
+    check_instance("k_posterior: prior", prior, CountPrior)
+    check_instance("k_posterior: population", population, WindowPopulation)
+    check_instance("k_posterior: exact", exact, (bool, np.bool_), expected="True or False")
+    best = check_numeric_array("best", best)
+    log_mass = check_numeric_array("log_mass", log_mass)
+    best_upper = best if best_upper is None else check_numeric_array("best_upper", best_upper)
+    mass_upper = log_mass
+    if log_mass_upper is not None:
+        mass_upper = check_numeric_array("log_mass_upper", log_mass_upper)
     kmax = prior.kmax
     if (
         best.ndim != 1

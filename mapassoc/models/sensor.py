@@ -20,6 +20,7 @@ from mapassoc.validation import (
     check_finite_array,
     check_instance,
     check_nonnegative,
+    check_numeric_array,
     check_probability,
 )
 
@@ -70,7 +71,7 @@ class Region:
     @classmethod
     def from_bounds(cls, bounds: ArrayLike) -> Region:
         """Build from ``[[lo_1, hi_1], ..., [lo_dz, hi_dz]]``."""
-        b = np.asarray(bounds, dtype=float)
+        b = check_numeric_array("region bounds", bounds)
         if b.ndim != 2 or b.shape[1] != 2:
             raise InputError(f"region bounds must be a list of [low, high] pairs, got {bounds!r}")
         return cls(lower=b[:, 0], upper=b[:, 1])
