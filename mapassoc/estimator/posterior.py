@@ -465,9 +465,9 @@ def k_posterior(
         or not 1 <= best.shape[0] <= kmax + 1
     ):
         raise InputError(
-            f"best, log_mass and their bounds must be 1-D of one length in 1..kmax + 1 = "
-            f"{kmax + 1}, got {best.shape}, {log_mass.shape}, {best_upper.shape}, "
-            f"{mass_upper.shape}"
+            f"best, log_mass and their bounds best_upper, log_mass_upper must be 1-D of one "
+            f"length in 1..kmax + 1 = {kmax + 1}, got shapes {best.shape}, {log_mass.shape}, "
+            f"{best_upper.shape}, {mass_upper.shape}"
         )
     reachable = np.flatnonzero(np.isfinite(mass_upper))
     if reachable.size == 0:

@@ -575,7 +575,7 @@ def evaluate(
     cutoff = check_positive("c", c)
     order = check_order(p)
     gamma = None if switch_cost is None else check_positive("switch_cost", switch_cost)
-    method = _check_method(tgospa_method)
+    method = _check_method(tgospa_method, "tgospa_method")
     check_runs(truth, estimates)
     times, results = _per_time_gospa(truth, estimates, cutoff, order)
     series = _series(times, results, cutoff, order)

@@ -181,7 +181,7 @@ def score_tracks(
         "motp_threshold", motp_threshold
     )
     gamma = cutoff if switch_cost is None else check_positive("switch_cost", switch_cost)
-    method = _check_method(tgospa_method)
+    method = _check_method(tgospa_method, "tgospa_method")
     if not isinstance(clear_mot_scores, bool):
         raise InputError(f"clear_mot_scores must be True or False, got {clear_mot_scores!r}")
     names = position_names(truth, output.tracks)
