@@ -49,7 +49,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
@@ -388,6 +388,24 @@ def _range_error(prior: CountPrior, nu: float, top: int) -> InputError:
     )
 
 
+def _score_arrays(
+    best: ArrayLike,
+    log_mass: ArrayLike,
+    best_upper: ArrayLike | None,
+    log_mass_upper: ArrayLike | None,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`k_posterior`'s four arrays as floats (a bound left None: the value itself)."""
+    lower = check_numeric_array("best", best), check_numeric_array("log_mass", log_mass)
+    upper = [
+        low if value is None else check_numeric_array(name, value)
+        for name, value, low in (
+            ("best_upper", best_upper, lower[0]),
+            ("log_mass_upper", log_mass_upper, lower[1]),
+        )
+    ]
+    return lower[0], lower[1], upper[0], upper[1]
+
+
 def k_posterior(
     best: FloatArray,
     log_mass: FloatArray,
@@ -452,12 +470,9 @@ def k_posterior(
     check_instance("k_posterior: prior", prior, CountPrior)
     check_instance("k_posterior: population", population, WindowPopulation)
     check_instance("k_posterior: exact", exact, (bool, np.bool_), expected="True or False")
-    best = check_numeric_array("best", best)
-    log_mass = check_numeric_array("log_mass", log_mass)
-    best_upper = best if best_upper is None else check_numeric_array("best_upper", best_upper)
-    mass_upper = log_mass
-    if log_mass_upper is not None:
-        mass_upper = check_numeric_array("log_mass_upper", log_mass_upper)
+    best, log_mass, best_upper, mass_upper = _score_arrays(
+        best, log_mass, best_upper, log_mass_upper
+    )
     kmax = prior.kmax
     if (
         best.ndim != 1
