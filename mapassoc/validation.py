@@ -8,6 +8,10 @@ argument, the value received and what was expected.  Nothing is clamped.
 from __future__ import annotations
 
 import math
+import numbers
+import os
+from collections.abc import Collection
+from typing import NoReturn
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -15,6 +19,14 @@ from numpy.typing import ArrayLike, NDArray
 from mapassoc.errors import InputError, NotPositiveDefiniteError
 
 __all__ = [
+    "shown",
+    "check_instance",
+    "check_path",
+    "check_text",
+    "check_names",
+    "check_callback",
+    "check_number",
+    "check_numeric_array",
     "check_standard_deviation",
     "check_integer",
     "check_probability",
@@ -25,13 +37,98 @@ __all__ = [
 ]
 
 
+SHOWN_WIDTH = 60
+"""Characters of a value's ``repr`` an error message shows before cutting it short."""
+
+
+def shown(value: object) -> str:
+    """How a message shows a value: its ``repr`` (cut to :data:`SHOWN_WIDTH` characters,
+    ending ``...`` when cut) and its type, as in ``'12:00' (str)``."""
+    text = repr(value)
+    if len(text) > SHOWN_WIDTH:
+        text = text[: SHOWN_WIDTH - 3] + "..."
+    return f"{text} ({type(value).__name__})"
+
+
+def _refuse(
+    name: str, value: object, expected: str, hint: str | None, key: str | None
+) -> NoReturn:
+    tail = f"; {hint}" if hint else ""
+    raise InputError(f"{name} must be {expected}, got {shown(value)}{tail}", key=key)
+
+
+def check_instance(
+    name: str,
+    value: object,
+    cls: type | tuple[type, ...],
+    *,
+    expected: str | None = None,
+    hint: str | None = None,
+    key: str | None = None,
+) -> None:
+    """Raise unless ``value`` is an instance of ``cls`` (a runtime-checkable protocol
+    too): an InputError naming ``name``, the value (:func:`shown`) and ``expected``
+    (default ``"a <cls name>"``, the first of a tuple), then ``hint`` (what to pass
+    instead) when given."""
+    if not isinstance(value, cls):
+        first = cls[0] if isinstance(cls, tuple) else cls
+        _refuse(name, value, expected or f"a {first.__name__}", hint, key)
+
+
+def check_path(name: str, value: object, *, hint: str | None = None) -> str:
+    """``value`` as a path string: a ``str`` or an ``os.PathLike`` giving one.
+
+    Bytes paths are refused (every path the package writes into a manifest or a message
+    is text).  An empty string is left to the file system to refuse, naming the file.
+    """
+    if isinstance(value, str):
+        return value
+    if isinstance(value, os.PathLike):
+        text = os.fspath(value)
+        if isinstance(text, str):
+            return text
+    _refuse(name, value, "a file path (str or os.PathLike)", hint, None)
+
+
+def check_text(name: str, value: object, *, key: str | None = None) -> str:
+    """``value`` if it is a non-empty ``str``, else an InputError naming it."""
+    if not isinstance(value, str) or not value:
+        _refuse(name, value, "a non-empty string", None, key)
+    return value
+
+
+def check_callback(name: str, value: object) -> None:
+    """Raise unless ``value`` is ``None`` or callable (a function to call back)."""
+    if value is not None and not callable(value):
+        _refuse(name, value, "a callable (a function) or None", None, None)
+
+
+def check_names(name: str, value: object) -> None:
+    """Raise unless ``value`` is a collection of strings (a list, tuple or set; one
+    string is refused: it is a collection of its characters)."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Collection):
+        _refuse(name, value, "a collection of names", "a list, tuple or set of strings", None)
+    for item in value:
+        if not isinstance(item, str):
+            _refuse(f"every entry of {name}", item, "a string", None, None)
+
+
+def check_number(name: str, value: object, *, key: str | None = None) -> float:
+    """``value`` as a float after checking it is a finite real number: not a boolean, not
+    a string (no parsing: ``"0.1"`` is refused, so a number read as text is found where it
+    was read, not converted here)."""
+    return _as_float(name, value, key)
+
+
 def _as_float(name: str, value: object, key: str | None = None) -> float:
     if isinstance(value, bool):
         raise InputError(f"{name} must be a number, got the boolean {value!r}", key=key)
+    if isinstance(value, (str, bytes)):
+        raise InputError(f"{name} must be a number, got {shown(value)}", key=key)
     try:
         out = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}", key=key) from None
+        raise InputError(f"{name} must be a number, got {shown(value)}", key=key) from None
     if not math.isfinite(out):
         raise InputError(f"{name} must be finite, got {value!r}", key=key)
     return out
@@ -123,7 +220,7 @@ def check_integer(
     else:
         expected = "an integer"
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name} must be {expected}, got {value!r}", key=key)
+        raise InputError(f"{name} must be {expected}, got {shown(value)}", key=key)
     out = int(value)
     if (minimum is not None and out < minimum) or (maximum is not None and out > maximum):
         raise InputError(f"{name} must be {expected}, got {value!r}", key=key)
@@ -149,6 +246,30 @@ def check_standard_deviation(name: str, value: object, *, key: str | None = None
     return std
 
 
+def _numeric(raw: NDArray[object]) -> bool:  # type: ignore[type-var]
+    """Whether an array holds numbers only: numpy would parse ``"1.5"``, take ``True`` as
+    1 and ``None`` as nan, and each of these is a mistake to report, not to convert."""
+    if raw.dtype.kind in "iuf":
+        return True
+    if raw.dtype.kind != "O":
+        return False
+    return all(
+        isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) for v in raw.flat
+    )
+
+
+def check_numeric_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    """``value`` as a float array, after checking that it holds numbers only (no text,
+    no booleans, no ``None``, not ragged); finiteness and shape are the caller's."""
+    try:
+        raw = np.asarray(value)
+        if not _numeric(raw):
+            raise TypeError
+        return np.asarray(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a numeric array, got {shown(value)}") from None
+
+
 def check_finite_array(
     name: str, value: ArrayLike, *, shape: tuple[int | None, ...] | None = None
 ) -> NDArray[np.float64]:
@@ -163,10 +284,7 @@ def check_finite_array(
     shape : tuple of int or None, optional
         Expected shape; ``None`` entries accept any length on that axis.
     """
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a numeric array, got {value!r}") from None
+    arr = check_numeric_array(name, value)
     if shape is not None:
         ok = arr.ndim == len(shape) and all(
             want is None or have == want for have, want in zip(arr.shape, shape, strict=True)

@@ -55,6 +55,7 @@ from mapassoc.apps.stopping import StopFlag, stop_on_signals
 from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
 from mapassoc.data.formats import detection_formats
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError
+from mapassoc.validation import check_callback, check_instance, check_path, check_text, shown
 from mapassoc.version import __version__
 
 __all__ = [
@@ -185,7 +186,7 @@ def find_recordings(source: str | os.PathLike[str]) -> list[Recording]:
     InputError, DataFileError
         No recordings, repeated names, a missing detections file.
     """
-    path = Path(source)
+    path = Path(check_path("find_recordings: source", source))
     if path.is_dir():
         recordings = _from_folder(path)
     elif path.is_file():
@@ -337,6 +338,30 @@ def _batch_manifest(status: str, recordings: int) -> dict[str, object]:
     }
 
 
+def _check_recordings(recordings: object) -> list[Recording]:
+    """``recordings`` as a non-empty list of :class:`Recording`, or an InputError."""
+    hint = "list the recordings of a folder or a list file with mapassoc.find_recordings(path)"
+    if isinstance(recordings, (str, bytes, os.PathLike)) or not isinstance(recordings, Iterable):
+        raise InputError(
+            f"run_batch: recordings must be a sequence of Recording, got {shown(recordings)}; "
+            f"{hint}"
+        )
+    listed = list(recordings)
+    if not listed:
+        raise InputError("recordings is empty: there is nothing to run")
+    for i, recording in enumerate(listed):
+        check_instance(f"run_batch: recordings[{i}]", recording, Recording, hint=hint)
+    return listed
+
+
+def _check_batch_arguments(scheduler: object, progress: object, on_row: object) -> None:
+    """The checks of :func:`run_batch`'s keyword arguments not checked elsewhere."""
+    if scheduler is not None:
+        check_text("run_batch: scheduler", scheduler)
+    check_instance("run_batch: progress", progress, bool, expected="True or False")
+    check_callback("run_batch: on_row", on_row)
+
+
 def run_batch(
     recordings: Sequence[Recording],
     out: str | os.PathLike[str],
@@ -385,11 +410,12 @@ def run_batch(
         SIGINT or SIGTERM: the running recordings stopped at a window boundary with a
         checkpoint; the summary written says which are ``interrupted`` or ``pending``.
     """
-    recordings = list(recordings)
-    if not recordings:
-        raise InputError("recordings is empty: there is nothing to run")
-    out_path = Path(out)
-    config = None if shared_config is None else Path(shared_config)
+    recordings = _check_recordings(recordings)
+    out_path = Path(check_path("run_batch: out", out, hint="the batch folder to write"))
+    config = None
+    if shared_config is not None:
+        config = Path(check_path("run_batch: shared_config", shared_config))
+    _check_batch_arguments(scheduler, progress, on_row)
     workers = check_jobs(jobs)
     options = RunOptions() if options is None else options
     if not isinstance(options, RunOptions):
@@ -543,7 +569,7 @@ def _on_dask(
 
     try:
         client = Client(scheduler, timeout=30)
-    except (OSError, TimeoutError) as exc:
+    except (OSError, TimeoutError, ValueError) as exc:  # ValueError: a malformed address
         raise InputError(f"cannot reach the Dask scheduler {scheduler!r}: {exc}") from None
     event_name = f"mapassoc-stop-{uuid.uuid4().hex}"
     with client:

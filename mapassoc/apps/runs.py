@@ -41,7 +41,7 @@ from mapassoc.apps.run_folders import (
 from mapassoc.data.formats import file_name, format_names
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError, StopRequested
 from mapassoc.trackers.registry import tracker_names
-from mapassoc.validation import check_integer
+from mapassoc.validation import check_callback, check_integer, check_path
 
 __all__ = [
     "RunOptions",
@@ -432,6 +432,26 @@ class _Session:
         return RunInterrupted(self.folder.partial, self.scans_committed, self.total, phase=phase)
 
 
+def _check_run_files(
+    config_path: object, detections_path: object, out_dir: object, stop: object
+) -> None:
+    """The argument checks of :func:`run_files`, before anything is read or created."""
+    check_path(
+        "run_files: config_path",
+        config_path,
+        hint="run_files reads a TOML file; an in-memory Config runs with "
+        "mapassoc.WindowEstimator(config=config).run(scans)",
+    )
+    check_path(
+        "run_files: detections_path",
+        detections_path,
+        hint="run_files reads a detections file; in-memory scans run with "
+        "mapassoc.WindowEstimator(config=config).run(scans)",
+    )
+    check_path("run_files: out_dir", out_dir, hint="the run folder to write")
+    check_callback("run_files: stop", stop)
+
+
 def run_files(
     config_path: str | os.PathLike[str],
     detections_path: str | os.PathLike[str],
@@ -469,6 +489,7 @@ def run_files(
     RunInterrupted
         ``stop`` returned True (its ``phase`` says in which phase).
     """
+    _check_run_files(config_path, detections_path, out_dir, stop)
     if options is None:
         options = RunOptions()
     elif not isinstance(options, RunOptions):

@@ -88,7 +88,14 @@ from mapassoc.models.measurement import (
 from mapassoc.models.motion import MOTION_REGISTRY, MotionModel, motion_spec
 from mapassoc.models.population import BirthModel
 from mapassoc.models.sensor import Region, Sensor
-from mapassoc.validation import check_nonnegative, check_positive, check_probability
+from mapassoc.validation import (
+    check_instance,
+    check_names,
+    check_nonnegative,
+    check_path,
+    check_positive,
+    check_probability,
+)
 
 __all__ = [
     "AUTO",
@@ -722,6 +729,9 @@ def parse_config(
         ``solver_names``, an ``estimator.solver`` (given or default) outside it; with
         ``tracker_names``, a ``[trackers.<name>]`` table of another name.
     """
+    for argument, names in (("solver_names", solver_names), ("tracker_names", tracker_names)):
+        if names is not None:
+            check_names(argument, names)
     parser = _Parser(source=source)
     document = parser.table(data, _DOCUMENT_KEY)
     parser.only_keys(document, "", _SECTIONS, "at the top level")
@@ -816,7 +826,9 @@ def load_config(
         (key ``"<file>"``), or any schema error; with ``solver_names``, an unknown
         ``estimator.solver``.
     """
-    source = os.fspath(path)
+    source = check_path("load_config: path", path)
+    if content is not None:
+        check_instance("load_config: content", content, bytes, expected="bytes (the file's)")
     try:
         if content is None:
             with open(source, "rb") as handle:
@@ -1014,7 +1026,7 @@ def write_config(path: PathLike, config: Config) -> None:
         The model is outside the schema, or the file cannot be written (key ``"<file>"``).
     """
     text = config_to_toml(config)
-    target = os.fspath(path)
+    target = check_path("write_config: path", path)
     try:
         with open(target, "w", encoding="utf-8", newline="\n") as handle:
             handle.write(text)

@@ -40,6 +40,7 @@ from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 
 from mapassoc.errors import DataFileError, InputError
+from mapassoc.validation import check_path
 
 if TYPE_CHECKING:  # the table is read by the command line's parser: keep it light
     from mapassoc.data.io import Origins, TrackTable, TruthTable
@@ -131,8 +132,10 @@ def detection_formats() -> tuple[str, ...]:
     return tuple(suffix for row in FILE_FORMATS.values() for suffix in row.suffixes)
 
 
-def _format_of_path(path: PathLike, *, hint: str = "") -> FileFormat:
-    text = os.fspath(path)
+def _format_of_path(
+    path: PathLike, function: str = "file_format", *, hint: str = ""
+) -> FileFormat:
+    text = check_path(f"{function}: path", path)
     suffix = PurePath(text).suffix.lower()
     for row in FILE_FORMATS.values():
         if suffix in row.suffixes:
@@ -158,7 +161,7 @@ def _named_format(format_name: str) -> FileFormat:
     row = FILE_FORMATS.get(format_name) if isinstance(format_name, str) else None
     if row is None:
         raise InputError(
-            f"unknown file format {format_name!r}; known formats: {', '.join(FILE_FORMATS)}"
+            f"format_name must be one of {', '.join(FILE_FORMATS)}, got {format_name!r}"
         )
     return row
 
@@ -187,7 +190,7 @@ def file_name(stem: str, format_name: str) -> str:
 
 
 def _function(path: PathLike, verb: str, kind: str) -> Callable[..., Any]:
-    return _format_of_path(path).function(verb, kind)
+    return _format_of_path(path, f"{verb}_{kind}_file").function(verb, kind)
 
 
 def read_detections_file(
@@ -213,9 +216,12 @@ def read_detections_file(
     DataFileError
         An unknown suffix without ``format_name``, an unreadable file, a malformed one.
     """
+    text = check_path("read_detections_file: path", path)
     named = None if format_name is None else _named_format(format_name)
-    if named is None and PurePath(os.fspath(path)).suffix:
-        row = _format_of_path(path, hint="; or name its format: --format csv|parquet")
+    if named is None and PurePath(text).suffix:
+        row = _format_of_path(
+            path, "read_detections_file", hint="; or name its format: --format csv|parquet"
+        )
     else:  # perhaps a stream, which can be read only once and not sought in
         if content is None:
             content = _read_bytes(path)

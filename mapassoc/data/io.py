@@ -117,6 +117,7 @@ from mapassoc.data.records import (
 from mapassoc.data.scans import Scan
 from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
+from mapassoc.validation import check_instance, check_path
 
 __all__ = [
     "FIRST_DATA_LINE",
@@ -383,7 +384,9 @@ def read_detections(
     InputError
         ``sensors`` is empty or inconsistent.
     """
-    path = os.fspath(path)
+    path = check_path("read_detections: path", path)
+    if content is not None:
+        check_instance("read_detections: content", content, bytes, expected="bytes (the file's)")
     sensor_list = check_sensors(sensors)
     union = measurement_columns(sensor_list)
     canonical = "time,sensor," + ",".join(union)
@@ -489,7 +492,7 @@ def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str
     DataFileError
         The file cannot be written.
     """
-    path = os.fspath(path)
+    path = check_path("write_detections: path", path)
     sensor_list = check_sensors(sensors)
     union = measurement_columns(sensor_list)
     check_scans_for_writing(scans, sensors)
@@ -566,7 +569,7 @@ def write_truth(path: PathLike, table: TruthTable) -> None:
         The file (overwritten).
     table : TruthTable
     """
-    path = os.fspath(path)
+    path = check_path("write_truth: path", path)
     if not isinstance(table, TruthTable):
         raise InputError(f"table must be a TruthTable, got {table!r}")
 
@@ -596,7 +599,7 @@ def read_truth(path: PathLike) -> TruthTable:
     DataFileError
         Malformed header, line or cell, or a repeated (target_id, time).
     """
-    path = os.fspath(path)
+    path = check_path("read_truth: path", path)
     lines = _lines(path)
     header = _read_header(path, lines, TRUTH_HEADER)
     names = truth_state_names(path, header, row=1)
@@ -646,7 +649,7 @@ def write_origins(path: PathLike, origins: Origins) -> None:
         The file (overwritten).
     origins : Origins
     """
-    path = os.fspath(path)
+    path = check_path("write_origins: path", path)
     if not isinstance(origins, Origins):
         raise InputError(f"origins must be an Origins, got {origins!r}")
 
@@ -674,7 +677,7 @@ def read_origins(path: PathLike) -> Origins:
     DataFileError
         Malformed header, line or cell, or a repeated row.
     """
-    path = os.fspath(path)
+    path = check_path("read_origins: path", path)
     expected = ",".join(ORIGINS_COLUMNS)
     lines = _lines(path)
     header = _read_header(path, lines, expected)
@@ -730,7 +733,7 @@ def write_tracks(path: PathLike, table: TrackTable) -> None:
         The file (overwritten).
     table : TrackTable
     """
-    path = os.fspath(path)
+    path = check_path("write_tracks: path", path)
     if not isinstance(table, TrackTable):
         raise InputError(f"table must be a TrackTable, got {table!r}")
 
@@ -771,7 +774,7 @@ def write_associations(path: PathLike, by_track: Mapping[int, Mapping[int, float
         (:attr:`mapassoc.estimator.refinement.TrackConfidence.associations`).  Lines are
         sorted by detection id, then track id.
     """
-    path = os.fspath(path)
+    path = check_path("write_associations: path", path)
     pairs = sorted(
         (int(row), int(track), float(p))
         for track, rows in by_track.items()
@@ -805,7 +808,7 @@ def read_tracks(path: PathLike) -> TrackTable:
         Malformed header (the ``var_`` columns must follow the state columns in the same
         order), line or cell, negative variance, or a repeated (track_id, time, sensor).
     """
-    path = os.fspath(path)
+    path = check_path("read_tracks: path", path)
     lines = _lines(path)
     header = _read_header(path, lines, TRACKS_HEADER)
     names, var_names = track_state_names(path, header, row=1)

@@ -66,6 +66,7 @@ from mapassoc.data.records import (
 from mapassoc.data.scans import Scan
 from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
+from mapassoc.validation import check_instance, check_path
 
 __all__ = [
     "read_detections_parquet",
@@ -273,7 +274,11 @@ def read_detections_parquet(
         filled, in another sensor's column or not finite (NaN included), an id missing,
         negative or repeated, or the file has no row.
     """
-    path = os.fspath(path)
+    path = check_path("read_detections_parquet: path", path)
+    if content is not None:
+        check_instance(
+            "read_detections_parquet: content", content, bytes, expected="bytes (the file's)"
+        )
     _pyarrow("reading")
     sensor_list = check_sensors(sensors)
     reader = _Reader(path, content)
@@ -317,7 +322,7 @@ def read_tracks_parquet(path: PathLike) -> TrackTable:
         value, a negative track id, variance or detection id, an empty sensor, or a repeated
         (track_id, time, sensor).
     """
-    path = os.fspath(path)
+    path = check_path("read_tracks_parquet: path", path)
     reader = _Reader(path)
     names, var_names = track_state_names(path, list(reader.names), row=None)
     existence = None
@@ -380,7 +385,7 @@ def read_truth_parquet(path: PathLike) -> TruthTable:
         The file cannot be read; columns missing or of the wrong type; an empty or
         non-finite value, a negative target id, or a repeated (target_id, time).
     """
-    path = os.fspath(path)
+    path = check_path("read_truth_parquet: path", path)
     reader = _Reader(path)
     names = truth_state_names(path, list(reader.names), row=None)
     reader.check_distinct(",".join(reader.names))
@@ -413,7 +418,7 @@ def read_origins_parquet(path: PathLike) -> Origins:
         The file cannot be read; other columns than ``row,target_id``; a null or negative
         ``row``, a negative ``target_id``, or a repeated ``row``.
     """
-    path = os.fspath(path)
+    path = check_path("read_origins_parquet: path", path)
     reader = _Reader(path)
     if sorted(reader.names) != sorted(_ORIGINS_COLUMNS):
         raise DataFileError(
@@ -469,7 +474,7 @@ def write_detections_parquet(
     DataFileError
         The file cannot be written.
     """
-    path = os.fspath(path)
+    path = check_path("write_detections_parquet: path", path)
     pa, _, pq = _pyarrow("writing")
     sensor_list = check_sensors(sensors)
     union = measurement_columns(sensor_list)
@@ -519,7 +524,7 @@ def write_tracks_parquet(path: PathLike, table: TrackTable) -> None:
     DataFileError
         The file cannot be written.
     """
-    path = os.fspath(path)
+    path = check_path("write_tracks_parquet: path", path)
     pa, _, pq = _pyarrow("writing")
     if not isinstance(table, TrackTable):
         raise InputError(f"table must be a TrackTable, got {table!r}")
@@ -558,7 +563,7 @@ def write_truth_parquet(path: PathLike, table: TruthTable) -> None:
     DataFileError
         The file cannot be written.
     """
-    path = os.fspath(path)
+    path = check_path("write_truth_parquet: path", path)
     pa, _, pq = _pyarrow("writing")
     if not isinstance(table, TruthTable):
         raise InputError(f"table must be a TruthTable, got {table!r}")
@@ -580,7 +585,7 @@ def write_origins_parquet(path: PathLike, origins: Origins) -> None:
     DataFileError
         The file cannot be written.
     """
-    path = os.fspath(path)
+    path = check_path("write_origins_parquet: path", path)
     pa, _, pq = _pyarrow("writing")
     if not isinstance(origins, Origins):
         raise InputError(f"origins must be an Origins, got {origins!r}")

@@ -21,6 +21,7 @@ from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.scans import Scan
 from mapassoc.errors import DataFileError, InputError
 from mapassoc.models.sensor import Sensor
+from mapassoc.validation import check_numeric_array
 
 __all__ = [
     "TruthTable",
@@ -376,7 +377,7 @@ class TrackTable(_StateRecords):
         object.__setattr__(self, "variances", variances)
         object.__setattr__(self, "detection_rows", rows)
         if self.existence is not None:
-            existence = np.asarray(self.existence, dtype=float)
+            existence = check_numeric_array("existence", self.existence)
             if existence.shape != (count,):
                 raise InputError(
                     f"existence must have shape ({count},), got {existence.shape}"

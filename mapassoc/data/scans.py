@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.errors import InputError
+from mapassoc.validation import check_number, check_numeric_array, check_text
 
 __all__ = ["Scan", "check_scan_order", "check_scans"]
 
@@ -52,8 +53,10 @@ class Scan:
     Raises
     ------
     InputError
-        A non-finite time, detections not a finite ``(m, dz)`` array, ``rows`` not of shape
-        ``(m,)``, not integers, negative or repeated within the scan.
+        A time that is not a finite number (text such as ``"12:00"`` included), a sensor
+        that is not a non-empty string, detections not a finite ``(m, dz)`` array of
+        numbers, ``rows`` not of shape ``(m,)``, not integers, negative or repeated within
+        the scan.
     """
 
     time: float
@@ -62,10 +65,9 @@ class Scan:
     rows: NDArray[np.int64]
 
     def __post_init__(self) -> None:
-        t = float(self.time)
-        if not np.isfinite(t):
-            raise InputError(f"scan time must be finite, got {self.time!r}")
-        det = np.asarray(self.detections, dtype=float)
+        t = check_number("scan time", self.time)
+        check_text("scan sensor", self.sensor)
+        det = check_numeric_array("scan detections", self.detections)
         if det.ndim != 2:
             raise InputError(
                 f"scan detections must be a (m, dz) array, got shape {det.shape} "

@@ -22,6 +22,7 @@ from mapassoc.models.target_count import (
     K_ESTIMATORS,
     CountPrior,
     KEstimator,
+    check_weights,
 )
 from mapassoc.validation import (
     check_integer,
@@ -186,6 +187,7 @@ class EstimatorSettings:
                 raise InputError(
                     f"{name} must be a number >= 0 (inf disables), got {value!r}", key=name
                 )
+        object.__setattr__(self, "k_prior_weights", check_weights(self.k_prior_weights))
         self.count_prior()  # validates k_prior, k_prior_mean and k_prior_weights
         if self.k_estimate not in K_ESTIMATES:
             raise InputError(

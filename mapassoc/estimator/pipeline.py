@@ -60,6 +60,7 @@ from mapassoc.formulations.cardinality import CombinedTable
 from mapassoc.formulations.packing import PackingProblem, gather_rows
 from mapassoc.models.population import UndetectedTargets, WindowPopulation
 from mapassoc.solvers import get_integer_solver
+from mapassoc.validation import check_callback, check_instance, check_integer, shown
 
 __all__ = [
     "WindowStatus",
@@ -415,6 +416,13 @@ class RunState:
     records: dict[int, _TrackRecord] = field(default_factory=dict)
     tally: WindowTally = field(default_factory=WindowTally)
 
+    def __post_init__(self) -> None:
+        for name in ("total_scans", "next_scan", "next_track_id"):
+            setattr(self, name, check_integer(f"RunState {name}", getattr(self, name), minimum=0))
+        _check_carried(self.carried, self.undetected)
+        check_instance("RunState records", self.records, dict)
+        check_instance("RunState tally", self.tally, WindowTally)
+
     @property
     def done(self) -> bool:
         """Whether every scan is committed."""
@@ -562,6 +570,26 @@ def time_scale_warning(config: Config, scans: Sequence[Scan]) -> str | None:
     )
 
 
+def _check_carried(carried: object, undetected: object) -> list[CarriedTrack]:
+    """``carried`` (of ``solve_window`` or a RunState) as a list of CarriedTrack, after
+    checking it and ``undetected`` (None or an UndetectedTargets)."""
+    if isinstance(carried, (str, bytes)) or not isinstance(carried, Sequence):
+        raise InputError(
+            f"carried must be a sequence of CarriedTrack (RunState.carried), "
+            f"got {shown(carried)}"
+        )
+    for i, track in enumerate(carried):
+        check_instance(f"carried[{i}]", track, CarriedTrack)
+    if undetected is not None:
+        check_instance(
+            "undetected",
+            undetected,
+            UndetectedTargets,
+            hint="None starts the recording at the window's first scan",
+        )
+    return list(carried)
+
+
 class WindowEstimator:
     """Sliding-window MAP estimator of track sets and of the number of tracks.
 
@@ -627,6 +655,7 @@ class WindowEstimator:
             out of (time, sensor) order or repeated, an unknown sensor).
         """
         scans = check_scans(scans, self.config.sensors, what="solve")
+        carried = _check_carried(carried, undetected)
         load_kernels()  # a first run's compilation is not the window's time
         t0 = time.perf_counter()
         deadline = t0 + self.settings.time_limit
@@ -697,6 +726,8 @@ class WindowEstimator:
             gives that set's T as ``chosen_tracks``.  Default: the estimator's own set.
         """
         scans = check_scans(scans, self.config.sensors)
+        for name, call in (("progress", progress), ("on_window", on_window), ("select", select)):
+            check_callback(f"run: {name}", call)
         state = self.start(scans)
         reports: list[WindowReport] = []
         while not state.done:
@@ -785,6 +816,12 @@ class WindowEstimator:
         -------
         WindowReport
         """
+        check_instance("step: state", state, RunState, hint="start a run with start(scans)")
+        if isinstance(scans, (str, bytes)) or not isinstance(scans, Sequence):
+            raise InputError(
+                f"step: scans must be the sequence of Scan given to start, got {shown(scans)}"
+            )
+        check_callback("step: select", select)
         if len(scans) != state.total_scans:
             raise InputError(
                 f"state is of a run over {state.total_scans} scans, got {len(scans)} scans"

@@ -49,7 +49,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
@@ -70,6 +70,7 @@ from mapassoc.models.target_count import (
     UniformLaw,
     WeightsLaw,
 )
+from mapassoc.validation import check_instance, check_numeric_array
 
 __all__ = [
     "COUNT_LAWS",
@@ -417,19 +418,18 @@ def _window_tables(
 ) -> _Tables:
     """Check :func:`k_posterior`'s tables (shapes (T,), T <= kmax + 1) and cut them after
     the last feasible T."""
-    best = np.asarray(best, dtype=float)
-    log_mass = np.asarray(log_mass, dtype=float)
-    best_upper = best if best_upper is None else np.asarray(best_upper, dtype=float)
-    mass_upper = log_mass if log_mass_upper is None else np.asarray(log_mass_upper, dtype=float)
+    best, log_mass, best_upper, mass_upper = _score_arrays(
+        best, log_mass, best_upper, log_mass_upper
+    )
     if (
         best.ndim != 1
         or not (best.shape == log_mass.shape == best_upper.shape == mass_upper.shape)
         or not 1 <= best.shape[0] <= kmax + 1
     ):
         raise InputError(
-            f"best, log_mass and their bounds must be 1-D of one length in 1..kmax + 1 = "
-            f"{kmax + 1}, got {best.shape}, {log_mass.shape}, {best_upper.shape}, "
-            f"{mass_upper.shape}"
+            f"best, log_mass and their bounds best_upper, log_mass_upper must be 1-D of one "
+            f"length in 1..kmax + 1 = {kmax + 1}, got shapes {best.shape}, {log_mass.shape}, "
+            f"{best_upper.shape}, {mass_upper.shape}"
         )
     reachable = np.flatnonzero(np.isfinite(mass_upper))
     if reachable.size == 0:
@@ -541,6 +541,24 @@ def _posterior(
     )
 
 
+def _score_arrays(
+    best: ArrayLike,
+    log_mass: ArrayLike,
+    best_upper: ArrayLike | None,
+    log_mass_upper: ArrayLike | None,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`k_posterior`'s four arrays as floats (a bound left None: the value itself)."""
+    lower = check_numeric_array("best", best), check_numeric_array("log_mass", log_mass)
+    upper = [
+        low if value is None else check_numeric_array(name, value)
+        for name, value, low in (
+            ("best_upper", best_upper, lower[0]),
+            ("log_mass_upper", log_mass_upper, lower[1]),
+        )
+    ]
+    return lower[0], lower[1], upper[0], upper[1]
+
+
 def k_posterior(
     best: FloatArray,
     log_mass: FloatArray,
@@ -602,6 +620,9 @@ def k_posterior(
     InputError
         Shapes disagree, or no K has both a feasible track set and prior mass.
     """
+    check_instance("k_posterior: prior", prior, CountPrior)
+    check_instance("k_posterior: population", population, WindowPopulation)
+    check_instance("k_posterior: exact", exact, (bool, np.bool_), expected="True or False")
     tables = _window_tables(best, log_mass, best_upper, log_mass_upper, prior.kmax)
     top = _first_top(prior, population, tables)
     top, sweep = _sweep_to_end(prior, population, tables, top)

@@ -38,12 +38,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from mapassoc.data.config import Config
-from mapassoc.data.scans import Scan, check_scan_order
+from mapassoc.data.config import Config, check_config
+from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError
 from mapassoc.estimator.pipeline import EstimateResult, WindowEstimator, WindowReport, WindowTally
 from mapassoc.estimator.refinement import refine_track_rows
 from mapassoc.filtering.smoothing import smooth_tracks
+from mapassoc.validation import check_instance
 
 __all__ = [
     "Segment",
@@ -401,11 +402,18 @@ def run_segmented(
     executor : concurrent.futures.Executor, optional
         Where the segments run (for example a ``ProcessPoolExecutor``); default: here,
         one after the other.
+
+    Raises
+    ------
+    InputError
+        ``config`` not a :class:`Config` (a path is loaded with ``load_config`` first),
+        ``scans`` not a run of scans (:func:`mapassoc.data.scans.check_scans`), or a bad
+        ``segments``, ``overlap`` or ``executor``.
     """
-    scans = list(scans)
-    if not scans:
-        raise InputError("scans is empty: there is nothing to estimate")
-    check_scan_order(scans)
+    config = check_config(config)
+    scans = check_scans(scans, config.sensors)
+    if executor is not None:
+        check_instance("executor", executor, concurrent.futures.Executor)
     window = config.estimator.window_length
     if overlap is None:
         overlap = 4 * window

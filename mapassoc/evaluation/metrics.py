@@ -580,7 +580,7 @@ def evaluate(
     order = check_order(p)
     gamma = None if switch_cost is None else check_positive("switch_cost", switch_cost)
     check_cost_powers(order, c=cutoff, **({} if gamma is None else {"switch_cost": gamma}))
-    method = _check_method(tgospa_method)
+    method = _check_method(tgospa_method, "tgospa_method")
     check_runs(truth, estimates)
     times, results = _per_time_gospa(truth, estimates, cutoff, order)
     series = _series(times, results, cutoff, order)

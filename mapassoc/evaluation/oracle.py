@@ -10,11 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from mapassoc.data.config import Config
+from mapassoc.data.config import Config, check_config
 from mapassoc.data.io import Origins, TrackTable
-from mapassoc.data.scans import Scan, check_scan_order
+from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError
 from mapassoc.filtering.smoothing import smooth_tracks
+from mapassoc.validation import check_instance
 
 __all__ = ["oracle_tracks"]
 
@@ -44,19 +45,19 @@ def oracle_tracks(scans: Sequence[Scan], origins: Origins, config: Config) -> Tr
     Raises
     ------
     InputError
-        Unsorted scans, an unknown sensor, a detection row without an origin or an origin
+        ``config`` not a Config, ``scans`` not a run of scans
+        (:func:`mapassoc.data.scans.check_scans`: none, unsorted, an unknown sensor),
+        ``origins`` not an Origins, a detection row without an origin or an origin
         row without a detection, or a target with two detections in one scan.
     """
-    scans = list(scans)
-    check_scan_order(scans)
-    if not isinstance(origins, Origins):
-        raise InputError(f"origins must be an Origins, got {origins!r}")
-    for scan in scans:
-        if scan.sensor not in config.sensors:
-            raise InputError(
-                f"scan at time {scan.time} is from sensor {scan.sensor!r}, which is not in the "
-                f"configuration (sensors: {list(config.sensors)})"
-            )
+    config = check_config(config)
+    scans = check_scans(scans, config.sensors, what="track")
+    check_instance(
+        "oracle_tracks: origins",
+        origins,
+        Origins,
+        hint="read them with mapassoc.data.formats.read_origins_file(path)",
+    )
     origin_of = dict(zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True))
     scan_rows = {int(row) for scan in scans for row in scan.rows}
     unknown = sorted(set(origin_of) - scan_rows)

@@ -1519,9 +1519,9 @@ def scenario_names() -> list[str]:
 
 
 def _check_name(name: str) -> str:
-    if name not in SCENARIOS:
+    if not isinstance(name, str) or name not in SCENARIOS:
         raise InputError(
-            f"unknown scenario {name!r}; expected one of {', '.join(scenario_names())}"
+            f"unknown scenario name {name!r}; expected one of {', '.join(scenario_names())}"
         )
     return name
 

@@ -254,7 +254,7 @@ class _ScoringSettings:
         )
         gamma = cutoff if switch_cost is None else check_positive("switch_cost", switch_cost)
         check_cost_powers(order, c=cutoff, switch_cost=gamma)
-        method = _check_method(tgospa_method)
+        method = _check_method(tgospa_method, "tgospa_method")
         if not isinstance(clear_mot_scores, bool):
             raise InputError(f"clear_mot_scores must be True or False, got {clear_mot_scores!r}")
         return cls(cutoff, order, threshold, gamma, method, clear_mot_scores, ospa2_window)

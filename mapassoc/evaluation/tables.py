@@ -19,6 +19,7 @@ import numpy as np
 from mapassoc.data.io import TrackTable, TruthTable
 from mapassoc.errors import InputError
 from mapassoc.evaluation.metrics import RunEvaluation, TimedPoints, evaluate
+from mapassoc.validation import check_instance
 
 __all__ = [
     "position_names",
@@ -29,6 +30,19 @@ __all__ = [
 ]
 
 _AXES = ("x", "y", "z")
+
+
+def _check_tables(truth: object, tracks: object) -> None:
+    """Raise an InputError unless ``truth`` is a TruthTable and ``tracks`` a TrackTable."""
+    order = "evaluate_tables(truth, tracks, c=...): the truth comes first"
+    swapped = isinstance(truth, TrackTable) and isinstance(tracks, TruthTable)
+    hint = f"the two are swapped; {order}" if swapped else None
+    check_instance(
+        "truth", truth, TruthTable, hint=hint or "read one with mapassoc.read_truth_file(path)"
+    )
+    check_instance(
+        "tracks", tracks, TrackTable, hint="read one with mapassoc.read_tracks_file(path)"
+    )
 
 
 def position_names(truth: TruthTable, tracks: TrackTable) -> tuple[str, ...]:
@@ -82,7 +96,14 @@ def evaluate_tables(
     share no time (:func:`disjoint_times_message`).  With a ``switch_cost`` (gamma > 0) it
     adds T-GOSPA of the trajectories (one target id, one track id = one trajectory) and the
     fragments per target (:func:`mapassoc.evaluation.metrics.evaluate`).
+
+    Raises
+    ------
+    InputError
+        ``truth`` not a TruthTable or ``tracks`` not a TrackTable (the message says when
+        the two are swapped), or a bad ``c``, ``p``, ``switch_cost`` or ``tgospa_method``.
     """
+    _check_tables(truth, tracks)
     names = position_names(truth, tracks)
     message = disjoint_times_message(truth, tracks)
     if message is not None:

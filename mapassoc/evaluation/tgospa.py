@@ -880,10 +880,10 @@ def _result(
 # ----------------------------------------------------------------------------------------------
 
 
-def _check_method(method: object) -> str:
-    if method not in METHODS:
-        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    return str(method)
+def _check_method(method: object, argument: str = "method") -> str:
+    if not isinstance(method, str) or method not in METHODS:
+        raise InputError(f"{argument} must be one of {', '.join(METHODS)}, got {method!r}")
+    return method
 
 
 def tgospa(

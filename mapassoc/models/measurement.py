@@ -35,7 +35,16 @@ from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
 from mapassoc.models.angles import wrap_angle
 from mapassoc.models.motion import MotionModel
-from mapassoc.validation import check_covariance, check_finite_array, check_standard_deviation
+from mapassoc.validation import (
+    check_covariance,
+    check_finite_array,
+    check_instance,
+    check_integer,
+    check_numeric_array,
+    check_standard_deviation,
+    check_text,
+    shown,
+)
 
 __all__ = [
     "MeasurementModel",
@@ -151,6 +160,26 @@ class MeasurementModel(Protocol):
         return self
 
 
+def _names(argument: str, value: object) -> tuple[str, ...]:
+    """``value`` as a tuple of strings (a sequence of names, not one string)."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise InputError(
+            f"{argument} must be a list or tuple of strings, got {shown(value)}", key=argument
+        )
+    for i, name in enumerate(value):
+        check_text(f"{argument}[{i}]", name, key=argument)
+    return tuple(value)
+
+
+def _indices(argument: str, value: object) -> tuple[int, ...]:
+    """``value`` as a tuple of state indices (integers >= 0)."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise InputError(
+            f"{argument} must be a list or tuple of integers, got {shown(value)}", key=argument
+        )
+    return tuple(check_integer(f"{argument}[{i}]", v, minimum=0) for i, v in enumerate(value))
+
+
 class LinearMeasurement(MeasurementModel):
     """Linear-Gaussian measurement ``z = H x + v``, ``v ~ N(0, R)``.
 
@@ -184,13 +213,15 @@ class LinearMeasurement(MeasurementModel):
         dz = H_arr.shape[0]
         self.H = H_arr
         self.R = check_covariance("R", R, dim=dz)
-        names = tuple(component_names)
+        names = _names("component_names", component_names)
         if len(names) != dz or len(set(names)) != dz:
             raise InputError(
                 f"component_names must be {dz} distinct names (one per row of H), got {names!r}"
             )
         self._names = names
-        self._position_indices = None if position_indices is None else tuple(position_indices)
+        self._position_indices = (
+            None if position_indices is None else _indices("position_indices", position_indices)
+        )
 
     @classmethod
     def position(
@@ -205,9 +236,10 @@ class LinearMeasurement(MeasurementModel):
         noise_std : float or array_like, shape (d,)
             Standard deviation of each position component (same units as the state).
         """
+        check_instance("motion", motion, MotionModel, expected="a motion model")
         idx = tuple(motion.position_indices)
         d = len(idx)
-        std = np.broadcast_to(np.asarray(noise_std, dtype=float), (d,))
+        std = np.broadcast_to(check_numeric_array("noise_std", noise_std), (d,))
         if not np.all(np.isfinite(std)) or np.any(std <= 0):
             raise InputError(
                 f"noise_std must be positive and finite, got {noise_std!r}", key="noise_std"
@@ -331,12 +363,12 @@ class RangeBearing(MeasurementModel):
         position_indices: tuple[int, int] = (0, 1),
     ) -> None:
         self.sensor_position = check_finite_array("sensor_position", sensor_position, shape=(2,))
-        for name, val in (("range_std", range_std), ("bearing_std", bearing_std)):
-            if not (np.isfinite(val) and val > 0):
-                raise InputError(f"{name} must be positive and finite, got {val!r}", key=name)
+        stds = [
             check_standard_deviation(name, val, key=name)
-        self.R = np.diag([float(range_std) ** 2, float(bearing_std) ** 2])
-        idx = tuple(int(i) for i in position_indices)
+            for name, val in (("range_std", range_std), ("bearing_std", bearing_std))
+        ]
+        self.R = np.diag([stds[0] ** 2, stds[1] ** 2])
+        idx = _indices("position_indices", position_indices)
         if len(idx) != 2:
             raise InputError(f"position_indices must name the x and y indices, got {idx!r}")
         self.position_indices = idx

@@ -58,6 +58,7 @@ from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
 from mapassoc.validation import (
     check_nonnegative,
+    check_number,
     check_probability,
     check_standard_deviation,
 )
@@ -169,13 +170,8 @@ class UndetectedTargets:
     time: float
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.expected_count) and self.expected_count >= 0):
-            raise InputError(
-                f"UndetectedTargets.expected_count must be a finite number >= 0, got "
-                f"{self.expected_count!r}"
-            )
-        if not math.isfinite(self.time):
-            raise InputError(f"UndetectedTargets.time must be finite, got {self.time!r}")
+        check_nonnegative("UndetectedTargets.expected_count", self.expected_count)
+        check_number("UndetectedTargets.time", self.time)
 
 
 def recording_start(birth: BirthModel, time: float) -> UndetectedTargets:

@@ -16,7 +16,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from mapassoc.errors import InputError
 from mapassoc.models.measurement import MeasurementModel
-from mapassoc.validation import check_finite_array, check_nonnegative, check_probability
+from mapassoc.validation import (
+    check_finite_array,
+    check_instance,
+    check_nonnegative,
+    check_numeric_array,
+    check_probability,
+)
 
 __all__ = ["Region", "Sensor"]
 
@@ -65,7 +71,7 @@ class Region:
     @classmethod
     def from_bounds(cls, bounds: ArrayLike) -> Region:
         """Build from ``[[lo_1, hi_1], ..., [lo_dz, hi_dz]]``."""
-        b = np.asarray(bounds, dtype=float)
+        b = check_numeric_array("region bounds", bounds)
         if b.ndim != 2 or b.shape[1] != 2:
             raise InputError(f"region bounds must be a list of [low, high] pairs, got {bounds!r}")
         return cls(lower=b[:, 0], upper=b[:, 1])
@@ -137,6 +143,14 @@ class Sensor:
                 f"spaces, got {name!r}"
             )
         self.name = name
+        check_instance(
+            f"sensor '{name}' measurement",
+            measurement,
+            MeasurementModel,
+            expected="a measurement model (mapassoc.LinearMeasurement, mapassoc.RangeBearing)",
+            hint="for a position sensor: mapassoc.LinearMeasurement.position(motion, "
+            "noise_std=...)",
+        )
         self.measurement = measurement
         self.detection_probability = check_probability(
             f"sensor '{name}' detection_probability", detection_probability, allow_zero=False
@@ -144,8 +158,12 @@ class Sensor:
         self.false_alarms_per_scan = check_nonnegative(
             f"sensor '{name}' false_alarms_per_scan", false_alarms_per_scan
         )
-        if not isinstance(region, Region):
-            raise InputError(f"sensor '{name}' region must be a Region, got {region!r}")
+        check_instance(
+            f"sensor '{name}' region",
+            region,
+            Region,
+            hint="build one with mapassoc.Region.from_bounds([[low, high], ...])",
+        )
         density = self.false_alarms_per_scan / region.volume
         if self.false_alarms_per_scan > 0 and not (density > 0.0 and math.isfinite(density)):
             raise InputError(

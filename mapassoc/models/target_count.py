@@ -13,6 +13,7 @@ nothing above the models.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -22,6 +23,7 @@ from numpy.typing import NDArray
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
 from mapassoc.models.population import MAX_KMAX, WindowPopulation, poisson_log_pmf
+from mapassoc.validation import check_number, check_positive, shown
 
 __all__ = [
     "COUNT_LAWS",
@@ -32,6 +34,7 @@ __all__ = [
     "PoissonLaw",
     "WeightsLaw",
     "CountPrior",
+    "check_weights",
     "CountPosterior",
     "K_ESTIMATORS",
     "KEstimator",
@@ -188,6 +191,21 @@ COUNT_PRIORS = tuple(COUNT_LAWS)
 """Their names."""
 
 
+def check_weights(value: object) -> tuple[float, ...]:
+    """``k_prior_weights`` as a tuple of floats: a list, tuple or 1-D array of numbers
+    (their range is the ``"weights"`` law's to check); text, ``None`` or a single number
+    is an InputError naming the field."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise InputError(
+            f"k_prior_weights must be a list or tuple of numbers, got {shown(value)}",
+            key="k_prior_weights",
+        )
+    return tuple(
+        check_number(f"k_prior_weights[{i}]", v, key=f"k_prior_weights[{i}]")
+        for i, v in enumerate(value)
+    )
+
+
 @dataclass(frozen=True)
 class CountPrior:
     """The prior on the number K of targets present in a window, K = 0..kmax.
@@ -225,10 +243,8 @@ class CountPrior:
                 f"precision), got {self.kmax!r}",
                 key="max_tracks",
             )
-        if not (math.isfinite(self.mean) and self.mean > 0):
-            raise InputError(
-                f"k_prior_mean must be a finite number > 0, got {self.mean!r}", key="k_prior_mean"
-            )
+        check_positive("k_prior_mean", self.mean, key="k_prior_mean")
+        object.__setattr__(self, "weights", check_weights(self.weights))
         self.law.check(self)
 
     @property

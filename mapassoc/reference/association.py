@@ -55,6 +55,7 @@ from mapassoc.validation import (
     check_integer,
     check_positive,
     check_probability,
+    shown,
 )
 
 __all__ = [
@@ -724,6 +725,8 @@ def single_object_sequences(
             f"motion has state dimension {motion.state_dim} but prior_mean has length {dx}"
         )
     dz = _check_model_dims(measurement_model, x0[None, :])
+    if isinstance(scans, (str, bytes)) or not isinstance(scans, (Sequence, np.ndarray)):
+        raise InputError(f"scans must be a sequence of (m_k, dz) arrays, got {shown(scans)}")
     scan_arrays = [
         check_finite_array(f"scans[{k}]", scan, shape=(None, dz)) for k, scan in enumerate(scans)
     ]

@@ -92,7 +92,7 @@ def test_an_unknown_detections_suffix_says_how_to_name_the_format(tmp_path: Path
         f"{path}: unknown file suffix '.gz'; expected one of .csv, .parquet, .pq (CSV or "
         "Parquet); or name its format: --format csv|parquet"
     )
-    with pytest.raises(InputError, match="unknown file format 'tsv'; known formats: csv"):
+    with pytest.raises(InputError, match="format_name must be one of csv, parquet, got 'tsv'"):
         read_detections_file(path, {}, format_name="tsv")
     with pytest.raises(InputError, match="detections_format must be one of"):
         RunOptions(detections_format="tsv")
@@ -219,5 +219,5 @@ def test_a_new_format_is_one_module_and_one_row(
     options = RunOptions(tracks_format="copy", progress=False)
     assert options.tracks_format == "copy"
     assert [r.detections.name for r in find_recordings(tmp_path)] == ["detections.csvx"]
-    with pytest.raises(InputError, match="unknown file format 'nope'; known formats: csv"):
+    with pytest.raises(InputError, match="format_name must be one of csv, parquet, copy, got"):
         file_name("tracks", "nope")

@@ -164,3 +164,140 @@ def test_the_warning_reaches_summary_json(tmp_path: Path) -> None:
     assert main([*args, "--out", str(out), "--no-progress", "--no-timings"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert any("time units apart" in w for w in summary["warnings"])
+
+
+# ------------------------------------------------------- wrong types at the boundaries
+
+
+def _sensor() -> ma.Sensor:
+    return next(iter(SCENARIO.config.sensors.values()))
+
+
+def _sensor_with(**change: object) -> ma.Sensor:
+    sensor = _sensor()
+    arguments: dict[str, object] = {
+        "name": "s",
+        "measurement": sensor.measurement,
+        "detection_probability": 0.9,
+        "false_alarms_per_scan": 1.0,
+        "region": sensor.region,
+    }
+    return ma.Sensor(**{**arguments, **change})  # type: ignore[arg-type]
+
+
+def _tracks() -> ma.TrackTable:
+    return ma.oracle_tracks(SCENARIO.scans, SCENARIO.origins, SCENARIO.config)
+
+
+NO_ROWS = np.zeros(0, dtype=np.int64)
+
+# (the call, the argument's name as the message gives it, the value's repr and type)
+WRONG_TYPES: dict[str, tuple[Callable[[], object], str, str]] = {
+    "scan_time_text": (lambda: Scan("12:00", "s", np.zeros((0, 2)), NO_ROWS),  # type: ignore[arg-type]
+                       "scan time", "'12:00' (str)"),
+    "scan_time_none": (lambda: Scan(None, "s", np.zeros((0, 2)), NO_ROWS),  # type: ignore[arg-type]
+                       "scan time", "None (NoneType)"),
+    "scan_detections_text": (lambda: Scan(1.0, "s", [["1", "2"]], np.zeros(1)),  # type: ignore[arg-type]
+                             "scan detections", "[['1', '2']] (list)"),
+    "scan_sensor_int": (lambda: Scan(1.0, 5, np.zeros((0, 2)), NO_ROWS),  # type: ignore[arg-type]
+                        "scan sensor", "5 (int)"),
+    "sensor_measurement_text": (lambda: _sensor_with(measurement="position"),
+                                "sensor 's' measurement", "'position' (str)"),
+    "sensor_measurement_none": (lambda: _sensor_with(measurement=None),
+                                "sensor 's' measurement", "None (NoneType)"),
+    "sensor_region_bounds": (lambda: _sensor_with(region=[[0, 1], [0, 1]]),
+                             "sensor 's' region", "[[0, 1], [0, 1]] (list)"),
+    "range_std_text": (lambda: ma.RangeBearing(sensor_position=[0, 0], range_std="1",  # type: ignore[arg-type]
+                                               bearing_std=0.1),
+                       "range_std", "'1' (str)"),
+    "bearing_std_text": (lambda: ma.RangeBearing(sensor_position=[0, 0], range_std=1.0,
+                                                 bearing_std="0.1"),  # type: ignore[arg-type]
+                         "bearing_std", "'0.1' (str)"),
+    "noise_std_text": (lambda: ma.LinearMeasurement.position(SCENARIO.config.motion,
+                                                             noise_std="1"),
+                       "noise_std", "'1' (str)"),
+    "component_names_text": (lambda: ma.LinearMeasurement(H=np.eye(2), R=np.eye(2),
+                                                           component_names="xy"),
+                             "component_names", "'xy' (str)"),
+    "load_config_none": (lambda: ma.load_config(None), "load_config: path",  # type: ignore[arg-type]
+                         "None (NoneType)"),
+    "load_config_int": (lambda: ma.load_config(5), "load_config: path", "5 (int)"),  # type: ignore[arg-type]
+    "read_detections_file_none": (
+        lambda: ma.read_detections_file(None, SCENARIO.config.sensors),  # type: ignore[arg-type]
+        "read_detections_file: path", "None (NoneType)"),
+    "read_detections_content_text": (
+        lambda: ma.read_detections("d.csv", SCENARIO.config.sensors, content="time"),  # type: ignore[arg-type]
+        "read_detections: content", "'time' (str)"),
+    "read_tracks_none": (lambda: ma.read_tracks(None), "read_tracks: path",  # type: ignore[arg-type]
+                         "None (NoneType)"),
+    "read_truth_file_int": (lambda: ma.read_truth_file(5), "read_truth_file: path",  # type: ignore[arg-type]
+                            "5 (int)"),
+    "evaluate_tables_swapped": (lambda: ma.evaluate_tables(_tracks(), SCENARIO.truth, c=10.0),  # type: ignore[arg-type]
+                                "truth", "(TrackTable); the two are swapped"),
+    "evaluate_tables_tracks_none": (lambda: ma.evaluate_tables(SCENARIO.truth, None, c=10.0),  # type: ignore[arg-type]
+                                    "tracks", "None (NoneType)"),
+    "run_segmented_path": (lambda: ma.run_segmented("config.toml", SCENARIO.scans,  # type: ignore[arg-type]
+                                                    segments=2),
+                           "config", "'config.toml'"),
+    "run_segmented_file_of_scans": (lambda: ma.run_segmented(SCENARIO.config, "d.csv",  # type: ignore[arg-type]
+                                                             segments=2),
+                                    "scans", "'d.csv'"),
+    "run_files_config": (lambda: ma.run_files(SCENARIO.config, "d.csv", "out"),  # type: ignore[arg-type]
+                         "run_files: config_path", "(Config); run_files reads a TOML file"),
+    "run_files_out_none": (lambda: ma.run_files("c.toml", "d.csv", None),  # type: ignore[arg-type]
+                           "run_files: out_dir", "None (NoneType)"),
+    "run_files_stop_text": (lambda: ma.run_files("c.toml", "d.csv", "out", stop="now"),  # type: ignore[arg-type]
+                            "run_files: stop", "'now' (str)"),
+    "find_recordings_none": (lambda: ma.find_recordings(None), "find_recordings: source",  # type: ignore[arg-type]
+                             "None (NoneType)"),
+    "find_recordings_int": (lambda: ma.find_recordings(5), "find_recordings: source",  # type: ignore[arg-type]
+                            "5 (int)"),
+    "run_batch_folder": (lambda: ma.run_batch("recordings", "out"),  # type: ignore[arg-type]
+                         "run_batch: recordings", "'recordings' (str); list the recordings"),
+    "run_batch_out_none": (lambda: ma.run_batch([_recording()], None),  # type: ignore[arg-type]
+                           "run_batch: out", "None (NoneType)"),
+    "run_batch_progress_text": (lambda: ma.run_batch([_recording()], "out", progress="no"),  # type: ignore[arg-type]
+                                "run_batch: progress", "'no' (str)"),
+    "birth_rate_text": (lambda: ma.BirthModel(rate="0.1"), "birth rate", "'0.1' (str)"),  # type: ignore[arg-type]
+    "birth_rate_bool": (lambda: ma.BirthModel(rate=True), "birth rate", "boolean True"),
+    "k_prior_mean_text": (lambda: ma.EstimatorSettings(k_prior_mean="5"), "k_prior_mean",  # type: ignore[arg-type]
+                          "'5' (str)"),
+    "k_prior_weights_text": (lambda: ma.CountPrior(weights="1,2"), "k_prior_weights",  # type: ignore[arg-type]
+                             "'1,2' (str)"),
+    "region_bounds_text": (lambda: ma.Region.from_bounds("0,1"), "region bounds", "'0,1' (str)"),
+    "run_progress_text": (lambda: WindowEstimator(config=SCENARIO.config).run(
+        SCENARIO.scans, progress="yes"), "run: progress", "'yes' (str)"),  # type: ignore[arg-type]
+    "solve_window_carried_none": (lambda: WindowEstimator(config=SCENARIO.config).solve_window(
+        SCENARIO.scans[:5], None), "carried", "None (NoneType)"),  # type: ignore[arg-type]
+    "step_state_text": (lambda: WindowEstimator(config=SCENARIO.config).step(
+        SCENARIO.scans, "state"), "step: state", "'state' (str)"),  # type: ignore[arg-type]
+    "run_state_total_text": (lambda: ma.RunState(total_scans="6"), "RunState total_scans",  # type: ignore[arg-type]
+                             "'6' (str)"),
+    "oracle_config_path": (lambda: ma.oracle_tracks(SCENARIO.scans, SCENARIO.origins, "c.toml"),  # type: ignore[arg-type]
+                           "config", "'c.toml'"),
+    "k_posterior_prior_none": (lambda: ma.k_posterior(np.zeros(1), np.zeros(1), prior=None,  # type: ignore[arg-type]
+                                                      population=None),  # type: ignore[arg-type]
+                               "k_posterior: prior", "None (NoneType)"),
+}  # fmt: skip
+
+
+def _recording() -> object:
+    from mapassoc.apps.batch import Recording
+
+    return Recording("a", Path("a.csv"), None)
+
+
+@pytest.mark.parametrize("case", sorted(WRONG_TYPES))
+def test_a_wrong_type_is_one_input_error_naming_the_argument_and_the_value(
+    case: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each of these raised a raw TypeError, AttributeError or ValueError, or (a rate
+    given as text) was accepted; nothing is read or written before the check."""
+    monkeypatch.chdir(tmp_path)
+    call, argument, value = WRONG_TYPES[case]
+    with pytest.raises(InputError) as info:
+        call()
+    message = str(info.value)
+    assert message.startswith(f"{argument} must be "), message
+    assert value in message and "\n" not in message, message
+    assert list(tmp_path.iterdir()) == []

@@ -198,5 +198,5 @@ def test_tgospa_columns(crossing: tuple[TruthTable, TrackerOutput]) -> None:
     assert perfect.fragments_per_target == 1.0 and perfect.tgospa_id_switches == 0
     with pytest.raises(InputError, match="^switch_cost "):
         score_tracks(truth, output, c=10.0, switch_cost=-1.0)
-    with pytest.raises(InputError, match="^method "):
+    with pytest.raises(InputError, match="^tgospa_method "):
         score_tracks(truth, output, c=10.0, tgospa_method="exact")

@@ -362,5 +362,5 @@ def test_evaluate_adds_tgospa_and_fragmentation_only_with_a_switch_cost() -> Non
     assert "LP lower bound" in format_report(lower)
     with pytest.raises(InputError, match="^switch_cost "):
         evaluate(truth, estimates, c=3.0, switch_cost=0.0)
-    with pytest.raises(InputError, match="^method "):
+    with pytest.raises(InputError, match="^tgospa_method "):
         evaluate(truth, estimates, c=3.0, switch_cost=1.0, tgospa_method="simplex")
