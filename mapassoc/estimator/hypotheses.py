@@ -29,6 +29,9 @@ missed                                ``log(1 - Pd_s P_G)`` (P_G: gate probabili
 ended over dt                         ``log(1 - Ps^dt)``
 ====================================  ===============================================
 
+Each term is computed by its function in :mod:`mapassoc.estimator.terms`, the one place
+the trees, the recording objective and the trackers that share the model take it from.
+
 Growth is bounded by a chi-square gate and by pruning, which compares like with like.
 At each scan a node is dropped
 
@@ -72,8 +75,14 @@ from numpy.typing import NDArray
 from mapassoc.array_types import BoolArray, FloatArray, IntArray
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
+from mapassoc.estimator.terms import (
+    SensorTerms,
+    birth_term,
+    detection_term,
+    end_term,
+    survival_term,
+)
 from mapassoc.filtering.kalman import (
-    gate_threshold,
     gated_pairs_and_loglik,
     innovation_covariance,
     pairwise_gate_and_loglik,
@@ -598,18 +607,11 @@ class HypothesisGenerator:
     ) -> None:
         self.motion = motion
         self.sensors = dict(sensors)
-        for name, sensor in self.sensors.items():
-            if not sensor.false_alarms_per_scan > 0:
-                raise InputError(
-                    f"sensor '{name}' has false_alarms_per_scan = "
-                    f"{sensor.false_alarms_per_scan}; the estimator scores detections against "
-                    "the false-alarm density and needs a positive rate (use a small value such "
-                    "as 1e-6 for nearly clutter-free data)"
-                )
         self.birth = birth
         if not 0 < gate_probability <= 1:
             raise InputError(f"gate_probability must be in (0, 1], got {gate_probability!r}")
         self.gate_probability = float(gate_probability)
+        self._terms = SensorTerms.of_all(self.sensors, self.gate_probability)
         self.max_hypotheses_per_tree = int(max_hypotheses_per_tree)
         self.prune_log_ratio = float(prune_log_ratio)
         self.sibling_prune_log_ratio = float(
@@ -624,16 +626,6 @@ class HypothesisGenerator:
         self._converts = needs_conversion(motion)
         self._n_max = max(motion.state_dim, self._init_model.state_dim)
         self._log_survival = math.log(birth.survival_probability)
-
-    # -- scoring terms ---------------------------------------------------------------
-    def _log_end(self, dt: FloatArray) -> FloatArray:
-        """log(1 - Ps^dt); -inf where ending is impossible (dt = 0 or Ps = 1)."""
-        with np.errstate(divide="ignore"):
-            return np.log(-np.expm1(dt * self._log_survival))
-
-    def _log_miss(self, sensor: Sensor) -> float:
-        p = sensor.detection_probability * self.gate_probability
-        return math.log1p(-p) if p < 1.0 else -math.inf
 
     # -- bounds for pruning ----------------------------------------------------------
     def continuation_gain_bound(self, sensor: Sensor) -> float:
@@ -669,7 +661,10 @@ class HypothesisGenerator:
                 f"sensor '{sensor.name}' measurement noise covariance R={R.tolist()} must be "
                 "positive-definite (det R > 0) to bound the innovation likelihood"
             )
-        return math.log(sensor.detection_probability) - sensor.log_clutter_density - 0.5 * logdet
+        terms = self._terms.get(sensor.name)
+        if terms is None or self.sensors[sensor.name] is not sensor:
+            terms = SensorTerms.of(sensor, self.gate_probability)
+        return terms.log_pd - terms.log_clutter - 0.5 * logdet
 
     def remaining_gain_bounds(self, scans: Sequence[Scan]) -> FloatArray:
         """``G_j``, the most a path alive at scan ``j`` can still gain by the window's end.
@@ -1094,7 +1089,7 @@ class HypothesisGenerator:
         node_id = frontier.ids
         dt = scan.time - frontier.time
         # Ended between the previous state and this scan.
-        log_end = self._log_end(dt)
+        log_end = end_term(dt, self._log_survival)
         can_end = np.isfinite(log_end)
         # A carried track that can end keeps its "ended before the window" leaf protected;
         # otherwise its all-miss path carries the protection.
@@ -1116,10 +1111,8 @@ class HypothesisGenerator:
                     states=_gathered(f.means, f.covariances, idx),
                 )
             )
-        log_miss = self._log_miss(sensor)
-        log_pd = math.log(sensor.detection_probability)
-        log_lambda = sensor.log_clutter_density
-        threshold = gate_threshold(self.gate_probability, sensor.measurement.measurement_dim)
+        terms = self._terms[scan.sensor]
+        log_miss, threshold = terms.miss, terms.threshold
         R = sensor.measurement.noise_covariance
         Z = scan.detections
         for initiated in (False, True):
@@ -1141,7 +1134,7 @@ class HypothesisGenerator:
                 sel = np.flatnonzero(gdt == value)
                 if value > 0:
                     x[sel], P[sel], _ = predict_motion(model, x[sel], P[sel], float(value))
-            base = f.score[group] + gdt * self._log_survival
+            base = f.score[group] + survival_term(gdt, self._log_survival)
             # Missed at this scan.
             if math.isfinite(log_miss):
                 groups.append(
@@ -1191,7 +1184,8 @@ class HypothesisGenerator:
                     initiated=init_flags,
                     num_detections=f.num_detections[group][li] + 1,
                     first_time=first_time,
-                    score=base[li] + log_pd + pair_loglik - log_lambda,
+                    score=base[li]
+                    + detection_term(terms.log_pd, pair_loglik, terms.log_clutter),
                     protected=np.zeros(len(li), dtype=bool),
                     states=self._updated(
                         x, P, H, S, R, li, nu_pairs, None if initiated else init_flags
@@ -1256,11 +1250,8 @@ class HypothesisGenerator:
             return []
         if undetected_mean == 0.0:
             return []  # no undetected target can be here: no detection starts a track
-        score = (
-            math.log(undetected_mean)
-            + math.log(sensor.detection_probability)
-            - math.log(sensor.false_alarms_per_scan)
-        )
+        terms = self._terms[scan.sensor]
+        score = birth_term(undetected_mean, terms.log_pd, terms.log_false_alarms)
 
         def states(index: IntArray) -> tuple[FloatArray, FloatArray]:
             detections = scan.detections[index]

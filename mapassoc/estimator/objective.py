@@ -32,7 +32,8 @@ the best of the track's endings after its last detection (it ends in the gap aft
 ``m``, or is missed at scan ``m + 1`` and ends later, or lives to the recording's end).
 The death time is thus part of ``omega`` and maximised over, as the windows' "ended"
 and "missed to the end" hypotheses are.  These are exactly the terms the hypothesis
-trees use (:mod:`mapassoc.estimator.hypotheses`), computed with the same filter, so a
+trees use (:mod:`mapassoc.estimator.hypotheses`), taken from the same table of terms
+(:class:`~mapassoc.estimator.terms.ScanTerms`) and computed with the same filter, so a
 recording no longer than one window gets J equal to its window's best objective.
 
 J is defined under the birth model (the default ``k_prior``); a named prior on K
@@ -58,9 +59,9 @@ from mapassoc.array_types import BoolArray, FloatArray, IntArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
+from mapassoc.estimator.terms import ScanTerms, detection_term
 from mapassoc.filtering.compiled import ScanModel, kalman_kernels
 from mapassoc.filtering.kalman import (
-    gate_threshold,
     innovation_covariance,
     pairwise_gate_and_loglik,
     predict_motion,
@@ -76,7 +77,6 @@ from mapassoc.models.birth import (
 )
 from mapassoc.models.measurement import LinearMeasurement
 from mapassoc.models.motion import MotionModel
-from mapassoc.models.population import recording_start, window_population
 
 __all__ = [
     "TrackPath",
@@ -199,20 +199,10 @@ class RecordingObjective:
 
     Attributes
     ----------
-    birth_terms : ndarray, shape (M,)
-        ``log u_m + log Pd_m - log lambda_bar_m`` per scan (``-inf`` where ``u_m = 0``).
-    miss_terms : ndarray, shape (M,)
-        ``log(1 - Pd_m P_G)``.
-    survival_terms : ndarray, shape (M,)
-        ``dt log Ps`` of the step from scan ``m - 1`` to scan ``m`` (0 for ``m = 0``).
-    end_terms : ndarray, shape (M,)
-        ``log(1 - Ps^dt)`` of ending in the gap from scan ``m`` to scan ``m + 1``
-        (``-inf`` after the last scan).
-    tails : ndarray, shape (M,)
-        ``tail(m)``: the best value of a track's endings after its last detection at ``m``.
-    tail_masses : ndarray, shape (M,)
-        The log of the *summed* probability of those endings (``tail`` with log-sum-exp
-        for max): what a track's endings weigh in a sum over track sets.
+    terms : ScanTerms
+        The per-scan terms of the model (:mod:`mapassoc.estimator.terms`): the first
+        detection, miss, survival and end terms, the tails and their masses, ``log Pd``,
+        ``log lambda`` and the gates.
     undetected_after : tuple of UndetectedTargets, length M
         The targets never detected, just after each scan (where a window starting at
         the next scan continues from).
@@ -229,45 +219,12 @@ class RecordingObjective:
         self.gate_probability = float(config.estimator.gate_probability)
         self._init_model = initiation_model(self.motion)
         self._converts = needs_conversion(self.motion)
-        M = len(self.scans)
-        self.times = np.array([s.time for s in self.scans], dtype=float)
-        sensors = [config.sensors[s.sensor] for s in self.scans]
-        self._sensors = sensors
+        self._sensors = [config.sensors[s.sensor] for s in self.scans]
         self._measurement_dim = max(
             sensor.measurement.measurement_dim for sensor in config.sensors.values()
         )
-        pd = np.array([s.detection_probability for s in sensors], dtype=float)
-        population = window_population(
-            self.scans, pd.tolist(), birth, recording_start(birth, self.scans[0].time)
-        )
-        u = np.asarray(population.first_detection_means, dtype=float)
-        self.undetected_after = population.after_scan
-        log_ps = math.log(birth.survival_probability)
-        with np.errstate(divide="ignore"):
-            self.birth_terms = (
-                np.log(u)
-                + np.log(pd)
-                - np.log([s.false_alarms_per_scan for s in sensors])
-            )
-            self.miss_terms = np.log1p(-(pd * self.gate_probability))
-            gaps = np.diff(self.times)
-            self.survival_terms = np.concatenate([[0.0], gaps * log_ps])
-            self.end_terms = np.concatenate([np.log(-np.expm1(gaps * log_ps)), [-math.inf]])
-        self.log_pd = np.log(pd)
-        self.log_clutter = np.array([s.log_clutter_density for s in sensors], dtype=float)
-        tails = np.zeros(M)
-        for m in range(M - 2, -1, -1):
-            missed = self.survival_terms[m + 1] + self.miss_terms[m + 1] + tails[m + 1]
-            tails[m] = max(self.end_terms[m], missed)
-        self.tails = tails
-        tail_masses = np.zeros(M)
-        for m in range(M - 2, -1, -1):
-            missed = self.survival_terms[m + 1] + self.miss_terms[m + 1] + tail_masses[m + 1]
-            tail_masses[m] = np.logaddexp(self.end_terms[m], missed)
-        self.tail_masses = tail_masses
-        self._thresholds = np.array(
-            [gate_threshold(self.gate_probability, s.measurement.measurement_dim) for s in sensors]
-        )
+        self.terms = ScanTerms.of_recording(config, self.scans)
+        self.times = self.terms.times
         self._trajectories: dict[TrackPath, Trajectory] = {}
         self._motion_cache: dict[tuple[int, float], tuple[FloatArray, FloatArray]] = {}
         self._scan_model_cache: ScanModel | None = None
@@ -278,10 +235,7 @@ class RecordingObjective:
     # -- the pieces --------------------------------------------------------------------
     def misses_between(self, first: int, last: int) -> float:
         """Sum of ``dt log Ps + log(1 - Pd P_G)`` over scans ``first..last`` (0 if empty)."""
-        if last < first:
-            return 0.0
-        steps = slice(first, last + 1)
-        return float(np.sum(self.survival_terms[steps]) + np.sum(self.miss_terms[steps]))
+        return self.terms.misses_between(first, last)
 
     def start_path(self, path: TrackPath) -> PathState:
         """The state of a track at its first detection, valued by the first-detection term."""
@@ -295,7 +249,7 @@ class RecordingObjective:
             covariances=P,
             initiated=not self._converts,
             first_time=np.array([scan.time]),
-            value=np.array([self.birth_terms[m]]),
+            value=np.array([self.terms.birth[m]]),
         )
 
     def continue_paths(self, start: PathState, path: Iterable[tuple[int, int]]) -> PathState:
@@ -369,7 +323,7 @@ class RecordingObjective:
             S_inv, _ = _inverse_and_logdet(innovation_covariance(H, P, R))
             predicted = x @ H.T
             # A slightly wider gate first; the exact one is applied by the update.
-            wide = self._thresholds[m] * (1.0 + 1e-9)
+            wide = self.terms.thresholds[m] * (1.0 + 1e-9)
             measured = self.scans[m].detections[[detections[i][1] for i in indices]]
             inside = _squared_distances(predicted, S_inv, measured) <= wide
             gated = [np.flatnonzero(inside[:, col]) for col in range(len(indices))]
@@ -382,7 +336,7 @@ class RecordingObjective:
                 )
                 value_all = (
                     missed.value[rows_all]
-                    + self.survival_terms[m]
+                    + self.terms.survival[m]
                     + self._detection_term(m, d2, loglik)
                 )
             bounds = np.concatenate([[0], np.cumsum([g.size for g in gated])])
@@ -486,8 +440,8 @@ class RecordingObjective:
     ) -> FloatArray:
         """``c_m`` of a detection at scan ``m`` (per track, or per track's own scan):
         ``log Pd + log N(nu; 0, S) - log lambda`` inside the gate, ``-inf`` outside."""
-        term = self.log_pd[m] + loglik - self.log_clutter[m]
-        return np.where(d2 <= self._thresholds[m], term, -math.inf)
+        term = detection_term(self.terms.log_pd[m], loglik, self.terms.log_clutter[m])
+        return np.where(d2 <= self.terms.thresholds[m], term, -math.inf)
 
     def _detect(self, state: PathState, m: int, j: int) -> PathState:
         """The step to scan ``m`` = ``state.scan + 1`` continued by its detection ``j``."""
@@ -512,7 +466,7 @@ class RecordingObjective:
             d2, loglik = pairwise_gate_and_loglik(nu, S)
             d2, loglik, nu = d2[:, 0], loglik[:, 0], nu[:, 0]
             xu, Pu = update(x, P, nu, S, H, R)
-        value = state.value + self.survival_terms[m] + self._detection_term(m, d2, loglik)
+        value = state.value + self.terms.survival[m] + self._detection_term(m, d2, loglik)
         if not initiated:
             # A coordinated-turn track converts at its first detection later than its
             # first one, as in the hypothesis trees; batches share the first time only
@@ -581,7 +535,7 @@ class RecordingObjective:
                 initiated=np.array(initiated, dtype=bool),
                 first_time=float(state.first_time[0]),
                 values=np.array(values),
-                value=float(values[-1] + self.tails[path[-1][0]]),
+                value=float(values[-1] + self.terms.tails[path[-1][0]]),
             )
             if len(self._trajectories) >= TRAJECTORY_CACHE:
                 del self._trajectories[next(iter(self._trajectories))]
@@ -645,7 +599,7 @@ class RecordingObjective:
                 return out
             if k == stop < last:  # cut short: the reference's terms from here on
                 out[rows] = state.value + (reference.values[last] - reference.values[k])
-                return out + self.tails[reference.path[last][0]]
+                return out + self.terms.tails[reference.path[last][0]]
             if k < last and state.initiated == bool(reference.initiated[k]):
                 mean, cov = reference.means[k], reference.covariances[k]
                 if state.means.shape[1:] == mean.shape:
@@ -664,7 +618,7 @@ class RecordingObjective:
                             break
         if len(state):
             out[rows] = state.value
-        return out + self.tails[reference.path[last][0]]
+        return out + self.terms.tails[reference.path[last][0]]
 
     def continue_converging_many(
         self,
@@ -805,7 +759,7 @@ class RecordingObjective:
             target = table.scan[request, step]
             self._predict_batch(x, P, value, scan, target)
             d2, loglik = self._update_batch(table, x, P, request, step, target)
-            value += self.survival_terms[target] + self._detection_term(target, d2, loglik)
+            value += self.terms.survival[target] + self._detection_term(target, d2, loglik)
             leave, result = table.leaving(x, P, value, request, step)
             flat[track[leave]] = result[leave]
             keep = np.flatnonzero(~leave)
@@ -831,7 +785,7 @@ class RecordingObjective:
                 x[rows] = x[rows] @ F.T
                 P[rows] = predicted_covariance(F, P[rows], Q)
             missed = nxt < target[moving]
-            value[moving[missed]] += self.survival_terms[nxt[missed]] + self.miss_terms[nxt[missed]]
+            value[moving[missed]] += self.terms.survival[nxt[missed]] + self.terms.miss[nxt[missed]]
             scan[moving] = nxt
 
     def _update_batch(
@@ -921,11 +875,11 @@ class RecordingObjective:
                 H,
                 R,
                 dims,
-                np.ascontiguousarray(self.survival_terms, dtype=np.float64),
-                np.ascontiguousarray(self.miss_terms, dtype=np.float64),
-                np.ascontiguousarray(self.log_pd, dtype=np.float64),
-                np.ascontiguousarray(self.log_clutter, dtype=np.float64),
-                np.ascontiguousarray(self._thresholds, dtype=np.float64),
+                np.ascontiguousarray(self.terms.survival, dtype=np.float64),
+                np.ascontiguousarray(self.terms.miss, dtype=np.float64),
+                np.ascontiguousarray(self.terms.log_pd, dtype=np.float64),
+                np.ascontiguousarray(self.terms.log_clutter, dtype=np.float64),
+                np.ascontiguousarray(self.terms.thresholds, dtype=np.float64),
             )
         return self._scan_model_cache
 
@@ -1007,7 +961,7 @@ class _ReferenceSteps:
         covariance = np.zeros((C, W, n, n))
         tail = np.zeros(C)
         for c, (_, reference, first) in enumerate(requests):
-            tail[c] = objective.tails[reference.path[-1][0]]
+            tail[c] = objective.terms.tails[reference.path[-1][0]]
             for s in range(int(steps[c])):
                 m, j = reference.path[first + s]
                 z = objective.scans[m].detections[j]

@@ -825,13 +825,8 @@ class Refiner:
         value_alive = float(alive.value[0])
         if not math.isfinite(value_alive):
             return None
-        last = at_last.scan
-        ended = mass_ended = -math.inf
-        running = float(at_last.value[0])
-        for g in range(last, a - 1):  # end in the gap after scan g < a - 1
-            ended = max(ended, running + float(obj.end_terms[g]))
-            mass_ended = float(np.logaddexp(mass_ended, running + float(obj.end_terms[g])))
-            running += float(obj.survival_terms[g + 1] + obj.miss_terms[g + 1])
+        # End in the gap after a scan g < a - 1.
+        ended, mass_ended = obj.terms.endings_before(float(at_last.value[0]), at_last.scan, a - 1)
         state = CarriedTrack(
             track_id=tid,
             mean=alive.means[0].copy(),
@@ -870,9 +865,9 @@ class Refiner:
         alive = nodes.alive[leaves]
         layer = nodes.layer[leaves]
         scores = hyps.scores.astype(float).copy()
-        tails = np.where(alive, obj.tails[a + np.maximum(layer, 0)], 0.0)
+        tails = np.where(alive, obj.terms.tails[a + np.maximum(layer, 0)], 0.0)
         plain = scores + tails
-        weights = scores + np.where(alive, obj.tail_masses[a + np.maximum(layer, 0)], 0.0)
+        weights = scores + np.where(alive, obj.terms.tail_masses[a + np.maximum(layer, 0)], 0.0)
         is_carried = hyps.tree < C
         for h in np.flatnonzero(is_carried & ~hyps.counts_toward_k).tolist():
             c = carried[int(hyps.tree[h])]
@@ -1148,12 +1143,12 @@ class Refiner:
         carried, anchors, touched = self._split(tracks, values, a, b)
         window_scans = self.scans[a:b]
         carried_states = [c.state for c in carried]
-        undetected = obj.undetected_after[a - 1] if a > 0 else None
+        undetected = obj.terms.undetected_after[a - 1] if a > 0 else None
         population = generator.population(window_scans, carried_states, undetected)
         end_gain = 0.0
         for anchor in anchors:
             first = anchor.path[0][0]
-            end_gain = max(end_gain, self._gain_bounds[first] - obj.birth_terms[first])
+            end_gain = max(end_gain, self._gain_bounds[first] - obj.terms.birth[first])
         hyps = generator.generate(
             window_scans, carried_states, population=population, end_gain=end_gain
         )

@@ -37,7 +37,8 @@ ScanModel = tuple[
 * ``H`` (M, dz, n), ``R`` (M, dz, dz), ``dims`` (M,) int: the scan's linear
   measurement, in its first ``dims[m]`` rows and columns;
 * ``survival``, ``miss``, ``log_pd``, ``log_clutter``, ``thresholds`` (M,): the
-  recording objective's per-scan terms and the gate.
+  per-scan terms and the gate, from the recording's table of terms
+  (``mapassoc.estimator.terms.ScanTerms``).
 
 Built once per recording by ``RecordingObjective``."""
 

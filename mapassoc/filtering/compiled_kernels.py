@@ -259,6 +259,7 @@ def _step_to(
             Pt[a, b] = P_tmp[a, b]
     term = -math.inf
     if d2 <= thresholds[target]:
+        # mapassoc.estimator.terms.detection_term, with the table's numbers.
         term = log_pd[target] + loglik - log_clutter[target]
     return v + survival[target] + term, True
 

@@ -48,7 +48,6 @@ __all__ = [
     "FilteredTrack",
     "Innovations",
     "innovations",
-    "miss_log_likelihood_ratio",
     "predict_track",
     "start_track",
     "update_track",
@@ -245,12 +244,3 @@ def update_track_mixture(
     spread = (innov.nu.T * weights) @ innov.nu - np.outer(nu_c, nu_c)
     P_new = miss_weight * P + (1.0 - miss_weight) * P_single + K @ spread @ K.T
     return _converted_after_update(config, track, x_new, _symmetrize(P_new))
-
-
-def miss_log_likelihood_ratio(detection_probability: float, gate_probability: float) -> float:
-    """Track-score increment of a scan without a detection in the gate: ``log(1 - Pd P_G)``.
-
-    Blackman & Popoli (1999), eq. (6.13); ``-inf`` when ``Pd = P_G = 1``.
-    """
-    miss = 1.0 - detection_probability * gate_probability
-    return math.log(miss) if miss > 0.0 else -math.inf

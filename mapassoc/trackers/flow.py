@@ -108,7 +108,13 @@ from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan
 from mapassoc.data.windows import window_spans
 from mapassoc.errors import InputError
-from mapassoc.filtering.kalman import gate_threshold
+from mapassoc.estimator.terms import (
+    ScanTerms,
+    SensorTerms,
+    earlier_ending,
+    end_term,
+    survival_term,
+)
 from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.filtering.track_filter import (
     FilteredTrack,
@@ -136,7 +142,7 @@ from mapassoc.solvers.results import SolveStatus
 from mapassoc.trackers.base import TrackerOutput, check_scans
 from mapassoc.trackers.management import check_tracker_config, with_own_gate
 
-__all__ = ["FlowTracker", "FlowWindowReport", "window_tails"]
+__all__ = ["FlowTracker", "FlowWindowReport"]
 
 _SSP = "successive-shortest-paths"
 _SOLVERS = (_SSP, NetworkxFlowSolver.name)
@@ -333,52 +339,6 @@ def _decode_paths(
     return paths
 
 
-def _log_end(dt: float, log_survival: float) -> float:
-    """``log(1 - Ps^dt)``: ended within dt; ``-inf`` when impossible (dt = 0 or Ps = 1)."""
-    value = -math.expm1(dt * log_survival)
-    return math.log(value) if value > 0.0 else -math.inf
-
-
-def window_tails(
-    times: FloatArray, log_miss: FloatArray, log_survival: float
-) -> FloatArray:
-    """Best score of "no further detection in the window" after each scan.
-
-    The MAP estimator's tails of a track alive at scan ``j`` of an ``N``-scan window
-    (:mod:`mapassoc.estimator.hypotheses`, module table): missed at each later scan
-    (``dt log Ps + log(1 - Pd P_G)``) up to the end, or missed up to a scan and ended
-    before it (``log(1 - Ps^dt)``); the best of them, by the backward recursion
-
-        tail_{N-1} = 0,
-        tail_j = max(log(1 - Ps^dt_j), dt_j log Ps + log_miss_{j+1} + tail_{j+1}),
-
-    ``dt_j = t_{j+1} - t_j``.
-
-    Parameters
-    ----------
-    times : ndarray, shape (N,)
-        Scan times of the window.
-    log_miss : ndarray, shape (N,)
-        ``log(1 - Pd P_G)`` of each scan's sensor (``-inf`` when a miss is impossible).
-    log_survival : float
-        ``log Ps`` per unit time.
-
-    Returns
-    -------
-    ndarray, shape (N,)
-        ``tail_j``; ``-inf`` when every continuation is impossible.
-    """
-    n = len(times)
-    tails = np.zeros(n)
-    for j in range(n - 2, -1, -1):
-        dt = float(times[j + 1] - times[j])
-        tails[j] = max(
-            _log_end(dt, log_survival),
-            dt * log_survival + float(log_miss[j + 1]) + tails[j + 1],
-        )
-    return tails
-
-
 class FlowTracker:
     """Sliding-window min-cost network-flow tracker (module docstring).
 
@@ -445,21 +405,14 @@ class FlowTracker:
         self.solver_name = solver
         self.solver = NetworkxFlowSolver()
         self._log_survival = math.log(config.birth.survival_probability)
-        self._pg = config.estimator.gate_probability
-
-    # -- per-scan terms --------------------------------------------------------------
-    def _log_miss(self, scan: Scan) -> float:
-        """``log(1 - Pd P_G)`` of the scan's sensor (Blackman & Popoli 1999, eq. 6.13)."""
-        p = self.config.sensors[scan.sensor].detection_probability * self._pg
-        return math.log1p(-p) if p < 1.0 else -math.inf
+        self._sensor_terms = SensorTerms.of_all(config.sensors, config.estimator.gate_probability)
 
     def _gated(self, track: FilteredTrack, scan: Scan) -> tuple[NDArray[np.int64], FloatArray]:
         """Detections of ``scan`` in the gate of ``track`` and their ``log N(nu; 0, S)``."""
         if scan.size == 0:
             return np.zeros(0, dtype=np.int64), np.zeros(0)
         innov = innovations(self.config, predict_track(self.config, track, scan.time), scan)
-        dz = self.config.sensors[scan.sensor].measurement.measurement_dim
-        inside = np.flatnonzero(innov.d2 <= gate_threshold(self._pg, dz))
+        inside = np.flatnonzero(innov.d2 <= self._sensor_terms[scan.sensor].threshold)
         return inside.astype(np.int64), innov.log_likelihood[inside]
 
     # -- run -------------------------------------------------------------------------
@@ -468,7 +421,7 @@ class FlowTracker:
         scans = check_scans(scans, self.config)
         started = time.perf_counter()
         total = len(scans)
-        log_miss = np.array([self._log_miss(s) for s in scans])
+        terms = ScanTerms.of_recording(self.config, scans)
         two_point: dict[tuple[int, int, int], tuple[NDArray[np.int64], FloatArray]] = {}
         births: dict[tuple[int, int], FilteredTrack] = {}  # two-point starts, per detection
         carried: list[_Track] = []
@@ -484,7 +437,7 @@ class FlowTracker:
                 del births[birth_key]
             window_started = time.perf_counter()
             paths, report_parts, undetected_after = self._solve_window(
-                scans, start, end, commit, carried, undetected, log_miss, two_point, births
+                scans, start, end, commit, carried, undetected, terms, two_point, births
             )
             undetected = undetected_after
             carried, next_id, ended = self._commit(
@@ -523,7 +476,7 @@ class FlowTracker:
         commit: int,
         carried: list[_Track],
         undetected: UndetectedTargets,
-        log_miss: FloatArray,
+        terms: ScanTerms,
         two_point: dict[tuple[int, int, int], tuple[NDArray[np.int64], FloatArray]],
         births: dict[tuple[int, int], FilteredTrack],
     ) -> tuple[list[_Path], _WindowReportParts, UndetectedTargets]:
@@ -543,8 +496,8 @@ class FlowTracker:
             undetected,
             [t.state.time for t in carried],
         )
-        times = np.array([s.time for s in window])
-        tails = window_tails(times, log_miss[start:end], self._log_survival)
+        log_miss = terms.miss
+        tails = terms.window_tails(start, end)
         graph = self._window_items(window, start, len(carried), population, tails)
         self._carried_links(graph, carried, log_miss, tails)
         self._detection_links(graph, log_miss, two_point, births)
@@ -626,9 +579,8 @@ class FlowTracker:
             u = float(population.first_detection_means[p])
             if u > 0.0:
                 graph.entry[sl] = -(math.log(u) - math.log(sensor.region.volume))
-            graph.observation[sl] = -(
-                math.log(sensor.detection_probability) - sensor.log_clutter_density
-            )
+            own = self._sensor_terms[scan.sensor]
+            graph.observation[sl] = -(own.log_pd - own.log_clutter)
             if math.isfinite(tails[p]):
                 graph.exits[sl] = -tails[p]
         return graph
@@ -658,7 +610,7 @@ class FlowTracker:
                 inside, loglik = self._gated(link.track, graph.window[q])
                 if cache_key is not None:
                     two_point[cache_key] = (inside, loglik)
-            base = (times[q] - link.time) * self._log_survival + misses
+            base = survival_term(times[q] - link.time, self._log_survival) + misses
             graph.link_tails.extend([link.item] * inside.size)
             graph.link_heads.extend((graph.first_item[q] + inside).tolist())
             graph.link_costs.extend((-(base + loglik)).tolist())
@@ -676,9 +628,11 @@ class FlowTracker:
         for c, track in enumerate(carried):
             t_c = track.state.time
             dt0 = float(graph.times[0] - t_c)
-            tail0 = max(
-                _log_end(dt0, self._log_survival),
-                dt0 * self._log_survival + float(log_miss[start]) + tails[0],
+            tail0 = earlier_ending(
+                float(end_term(dt0, self._log_survival)),
+                float(survival_term(dt0, self._log_survival)),
+                float(log_miss[start]),
+                float(tails[0]),
             )
             if math.isfinite(tail0):
                 graph.exits[c] = -tail0

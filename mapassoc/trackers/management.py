@@ -54,12 +54,11 @@ from mapassoc.array_types import BoolArray, FloatArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
-from mapassoc.filtering.kalman import gate_threshold
+from mapassoc.estimator.terms import SensorTerms, birth_term, miss_term
 from mapassoc.filtering.track_filter import (
     FilteredTrack,
     Innovations,
     innovations,
-    miss_log_likelihood_ratio,
     predict_track,
     start_track,
 )
@@ -341,12 +340,8 @@ def new_target_log_ratio(
     start = recording_start(config.birth, scan.time) if undetected is None else undetected
     population = window_population([scan], [sensor.detection_probability], config.birth, start)
     u = float(population.first_detection_means[0])
-    log_new = (
-        math.log(u) + math.log(sensor.detection_probability)
-        - math.log(sensor.false_alarms_per_scan)
-        if u > 0.0
-        else -math.inf
-    )
+    own = SensorTerms.of(sensor, config.estimator.gate_probability)
+    log_new = birth_term(u, own.log_pd, own.log_false_alarms)
     return log_new, population.after_scan[0]
 
 
@@ -373,10 +368,8 @@ def gated_log_ratios(
     innovations : list of Innovations, length T
     """
     sensor = config.sensors[scan.sensor]
-    threshold = gate_threshold(
-        config.estimator.gate_probability, sensor.measurement.measurement_dim
-    )
-    offset = math.log(sensor.detection_probability) - sensor.log_clutter_density
+    own = SensorTerms.of(sensor, config.estimator.gate_probability)
+    threshold, offset = own.threshold, own.log_pd - own.log_clutter
     out = np.full((len(tracks), scan.size), -math.inf)
     innov = []
     for t, track in enumerate(tracks):
@@ -514,7 +507,7 @@ class TrackManager:
 
     def miss_log_ratio(self, scan: Scan) -> float:
         """``log(1 - Pd P_G)`` of the scan's sensor (Blackman & Popoli, eq. 6.13)."""
-        return miss_log_likelihood_ratio(
+        return miss_term(
             self.config.sensors[scan.sensor].detection_probability,
             self.config.estimator.gate_probability,
         )

@@ -24,7 +24,7 @@ root (first detection, scan j)      ``log u_j + log Pd - log lambda_bar`` (eq. 6
 detection in the gate               ``log Pd + log N(nu; 0, S) - log lambda``
                                     (:func:`~mapassoc.trackers.management.gated_log_ratios`)
 miss                                ``log(1 - Pd P_G)``
-                                    (:func:`~mapassoc.filtering.track_filter.miss_log_likelihood_ratio`)
+                                    (:func:`~mapassoc.estimator.terms.miss_term`)
 ==================================  ===================================================
 
 When ``u_j = 0`` no detection of scan j roots a tree.
@@ -111,10 +111,10 @@ from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
+from mapassoc.estimator.terms import miss_term
 from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.filtering.track_filter import (
     FilteredTrack,
-    miss_log_likelihood_ratio,
     predict_track,
     start_track,
     update_track,
@@ -686,7 +686,7 @@ class MhtTracker:
             return out
         predicted = [predict_track(self.config, leaf.filtered, scan.time) for leaf in live]
         log_ratio, _ = gated_log_ratios(self.config, predicted, scan)
-        log_miss = miss_log_likelihood_ratio(
+        log_miss = miss_term(
             self.config.sensors[scan.sensor].detection_probability,
             self.config.estimator.gate_probability,
         )

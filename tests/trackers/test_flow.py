@@ -17,7 +17,7 @@ from mapassoc.evaluation.scoring import score_tracks
 from mapassoc.filtering import track_filter as tf
 from mapassoc.models.motion import ConstantVelocity
 from mapassoc.models.population import recording_start, window_population
-from mapassoc.trackers.flow import FlowTracker, FlowWindowReport, window_tails
+from mapassoc.trackers.flow import FlowTracker, FlowWindowReport
 from mapassoc.trackers.oracle import OracleTracker
 
 
@@ -221,15 +221,6 @@ def test_one_window_is_the_best_track_set_under_its_own_costs(seed: int, solver:
         assert float(np.min(report.track_costs)) == pytest.approx(cost, abs=1e-5)
         got = sorted(tuple(sorted(a.items())) for a in out.associations.values())
         assert got == sorted(tuple(path) for path in track_set)
-
-
-def test_window_tails_hand_worked() -> None:
-    # Ps = 0.9 per unit, scans at 0, 1, 3; log(1 - Pd P_G) = log 0.2 at every scan.
-    log_ps, log_miss = math.log(0.9), math.log(0.2)
-    tails = window_tails(np.array([0.0, 1.0, 3.0]), np.full(3, log_miss), log_ps)
-    # tail_2 = 0; tail_1 = max(log(1 - 0.81), 2 log 0.9 + log 0.2) = log 0.19;
-    # tail_0 = max(log 0.1, log 0.9 + log 0.2 + log 0.19) = log 0.1.
-    assert tails.tolist() == pytest.approx([math.log(0.1), math.log(0.19), 0.0])
 
 
 def test_number_of_tracks_follows_the_clutter_free_targets() -> None:

@@ -88,11 +88,6 @@ def test_innovations_match_the_gaussian_log_likelihood() -> None:
         tf.innovations(config, tf.start_track(config, scans[0], 0), scans[1])
 
 
-def test_miss_score_is_log_one_minus_pd_pg() -> None:
-    assert tf.miss_log_likelihood_ratio(0.9, 0.99) == pytest.approx(np.log(1 - 0.891))
-    assert tf.miss_log_likelihood_ratio(1.0, 1.0) == -np.inf
-
-
 def test_smooth_tracks_refuses_a_track_without_detections_or_a_missing_detection() -> None:
     config = _config()
     scans = [_scan(0.0, [[0.0, 0.0]], 2)]
