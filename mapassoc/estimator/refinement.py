@@ -481,7 +481,9 @@ def _add_associations(
     if not owner or base.size == 0:
         return
     trees = np.asarray(hyps.tree, dtype=np.int64)
-    has_owner = np.zeros(int(trees.max()) + 1, dtype=bool)
+    # A carried track's tree may have no hypothesis left in the program (pruned), so the
+    # owners' tree numbers can lie past the largest tree with one.
+    has_owner = np.zeros(max(int(trees.max()), max(owner)) + 1, dtype=bool)
     track = np.zeros(has_owner.size, dtype=np.int64)
     for tree, tid in owner.items():
         has_owner[tree] = True

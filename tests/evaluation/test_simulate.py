@@ -394,7 +394,8 @@ def test_write_scenario_round_trips_two_sensors(tmp_path) -> None:
 
 def test_write_scenario_round_trips_empty_scans_and_overwrites(tmp_path) -> None:
     motion = CoordinatedTurn(speed_noise_intensity=0.01, turn_rate_noise_intensity=1e-4)
-    sensor = _position_sensor(motion, pd=0.3, false_alarms=0.0)
+    # Almost no clutter (a configuration file needs a rate > 0), so that scans are empty.
+    sensor = _position_sensor(motion, pd=0.3, false_alarms=1e-9)
     target = TargetSpec(np.array([0.0, 0.0, 1.0, 0.0, 0.05]), 0.0, math.inf)
     plan = scan_plan_regular(["pos"], 0.0, 1.0, 30)
     sparse = simulate(_config(motion, [sensor]), [target], plan, seed=4)
