@@ -20,6 +20,7 @@ import itertools
 import math
 import resource
 import signal
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -302,3 +303,15 @@ def file_size_limit(size: int) -> Iterator[None]:
     finally:
         resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
         signal.signal(signal.SIGXFSZ, previous)
+
+
+def polling_unit(units: tuple[str, ...], depth: int = 3) -> str:
+    """The innermost function of ``units`` on the call stack above a ``stop`` callable's
+    ``__call__`` (``depth`` frames up: this function, the caller's helper, the poll), or
+    ``"other"``: which phase's unit of work polled the run's stop."""
+    frame = sys._getframe(depth)
+    while frame is not None:
+        if frame.f_code.co_name in units:
+            return frame.f_code.co_name
+        frame = frame.f_back  # type: ignore[assignment]
+    return "other"

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import polling_unit
 
 from mapassoc.apps.cli import main
 from mapassoc.apps.run_folders import CHECKPOINT_NAME, MANIFEST_NAME, read_manifest
@@ -155,12 +156,7 @@ _UNITS = ("link_fragments", "refine", "confidence", "_run_windows", "_forward_ru
 
 def _unit() -> str:
     """The phase method that polled ``stop`` (the innermost of :data:`_UNITS` on the stack)."""
-    frame = sys._getframe(2)
-    while frame is not None:
-        if frame.f_code.co_name in _UNITS:
-            return frame.f_code.co_name
-        frame = frame.f_back  # type: ignore[assignment]
-    return "other"
+    return polling_unit(_UNITS)
 
 
 class _SignalAt:

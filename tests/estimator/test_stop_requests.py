@@ -8,11 +8,11 @@ gives what an uninterrupted one gives.
 
 from __future__ import annotations
 
-import sys
 from collections import Counter
 from collections.abc import Callable
 
 import pytest
+from support import polling_unit
 
 from mapassoc.errors import StopRequested
 from mapassoc.estimator.parameters import EstimationStopped, estimate_parameters
@@ -27,12 +27,7 @@ _UNITS = ("link_fragments", "refine", "confidence", "_forward_run")
 
 def _unit() -> str:
     """The phase method that polled ``stop`` (the innermost of :data:`_UNITS` on the stack)."""
-    frame = sys._getframe(2)
-    while frame is not None:
-        if frame.f_code.co_name in _UNITS:
-            return frame.f_code.co_name
-        frame = frame.f_back  # type: ignore[assignment]
-    return "other"
+    return polling_unit(_UNITS)
 
 
 class _StopAt:
