@@ -488,8 +488,8 @@ def _with_flat(records: dict[str, Any], flat: Mapping[str, object]) -> dict[str,
         try:
             out[record] = dataclasses.replace(records[record], **fields)
         except InputError as exc:
-            name = given_as.get((record, exc.key or ""), exc.key)
-            raise InputError(str(exc), key=name) from None
+            as_given: str | None = given_as.get((record, exc.key or ""), exc.key)
+            raise InputError(str(exc), key=as_given) from None
     return out
 
 
@@ -551,7 +551,7 @@ class EstimatorSettings:
         )
         records: dict[str, Any] = {}
         for name, cls in COMPONENTS.items():
-            value = given[name]
+            value: Any = given[name]
             if value is None:
                 value = _DEFAULT_COMPONENTS[name]
             elif not isinstance(value, cls):
@@ -559,6 +559,22 @@ class EstimatorSettings:
             records[name] = value
         for name, value in _with_flat(records, flat).items():
             object.__setattr__(self, name, value)
+
+    def with_time_limit(self, seconds: float) -> EstimatorSettings:
+        """These settings with ``seconds`` for a window (``windows.time_limit``) and for
+        each integer program of the refinement (``search.program_time_limit``): what the
+        flat key ``time_limit`` set, and what the benchmarks' ``--time-limit`` sets."""
+        return dataclasses.replace(
+            self,
+            windows=dataclasses.replace(self.windows, time_limit=seconds),
+            search=dataclasses.replace(self.search, program_time_limit=seconds),
+        )
+
+    def with_window_length(self, length: int) -> EstimatorSettings:
+        """These settings with ``windows.window_length = length``."""
+        return dataclasses.replace(
+            self, windows=dataclasses.replace(self.windows, window_length=length)
+        )
 
     # -- what the estimator asks of several records --------------------------------------
     def k_estimator(self) -> KEstimator:

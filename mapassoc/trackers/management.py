@@ -282,7 +282,7 @@ def management_rule(rule: ManagementRule | None) -> ManagementRule:
 def with_own_gate(config: Config, gate_probability: float | None) -> Config:
     """``config`` as a baseline tracker sees it: with its own gate probability, if given.
 
-    The baselines gate with ``config.estimator.gate_probability`` unless their
+    The baselines gate with ``config.estimator.pruning.gate_probability`` unless their
     ``gate_probability`` option (``[trackers.<name>] gate_probability = ...``) says
     otherwise; the option is checked as that setting is (a probability in (0, 1], by
     :class:`~mapassoc.data.settings.EstimatorSettings`).
@@ -290,7 +290,8 @@ def with_own_gate(config: Config, gate_probability: float | None) -> Config:
     check_config(config)
     if gate_probability is None:
         return config
-    return replace(config, estimator=replace(config.estimator, gate_probability=gate_probability))
+    pruning = replace(config.estimator.pruning, gate_probability=gate_probability)
+    return replace(config, estimator=replace(config.estimator, pruning=pruning))
 
 
 def check_tracker_config(config: Config) -> None:
@@ -301,7 +302,7 @@ def check_tracker_config(config: Config) -> None:
     track could never miss a scan: ``log(1 - Pd P_G) = -inf``).
     """
     check_config(config)
-    pg = config.estimator.gate_probability
+    pg = config.estimator.pruning.gate_probability
     for name, sensor in config.sensors.items():
         if not sensor.false_alarms_per_scan > 0:
             raise InputError(
@@ -357,7 +358,7 @@ def gated_log_ratios(
 
     ``log Pd + log N(nu; 0, S) - log lambda`` (Blackman & Popoli 1999, eq. 6.10; Afzal's survey,
     eqs. 11-13) where ``nu^T S^-1 nu`` is within the chi-square gate of probability
-    ``config.estimator.gate_probability``; ``-inf`` outside.
+    ``config.estimator.pruning.gate_probability``; ``-inf`` outside.
 
     Parameters
     ----------
@@ -374,7 +375,7 @@ def gated_log_ratios(
     """
     sensor = config.sensors[scan.sensor]
     threshold = gate_threshold(
-        config.estimator.gate_probability, sensor.measurement.measurement_dim
+        config.estimator.pruning.gate_probability, sensor.measurement.measurement_dim
     )
     offset = math.log(sensor.detection_probability) - sensor.log_clutter_density
     out = np.full((len(tracks), scan.size), -math.inf)
@@ -516,7 +517,7 @@ class TrackManager:
         """``log(1 - Pd P_G)`` of the scan's sensor (Blackman & Popoli, eq. 6.13)."""
         return miss_log_likelihood_ratio(
             self.config.sensors[scan.sensor].detection_probability,
-            self.config.estimator.gate_probability,
+            self.config.estimator.pruning.gate_probability,
         )
 
     def commit(
