@@ -723,7 +723,8 @@ def _add_bench_command(sub: Subcommands) -> None:
         type=float,
         default=2.0,
         metavar="SECONDS",
-        help="estimator time limit in seconds (EstimatorSettings.time_limit), also the "
+        help="estimator time limit in seconds (estimator.windows.time_limit and "
+        "estimator.search.program_time_limit), also the "
         "per-window budget counted (default 2.0)",
     )
     p.add_argument(
@@ -747,7 +748,7 @@ def _add_bench_command(sub: Subcommands) -> None:
         default=",".join(DEFAULT_K_PRIORS),
         metavar="PRIOR,...",
         help="comma-separated priors on the number of targets per window "
-        "(EstimatorSettings.k_prior: birth, uniform, poisson with the configuration's "
+        "(estimator.count.k_prior: birth, uniform, poisson with the configuration's "
         "k_prior_mean) to run every family with; the first is the one the goals judge "
         f"(default {','.join(DEFAULT_K_PRIORS)})",
     )
