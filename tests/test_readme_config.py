@@ -1,4 +1,5 @@
-"""The configuration example of README.md ("## Files") loads and lists every key."""
+"""The configuration example of README.md ("## Files") loads and lists every key: every
+field of every settings record, in its table, with its default."""
 
 from __future__ import annotations
 
@@ -11,12 +12,17 @@ from pathlib import Path
 import pytest
 
 from mapassoc.data.config import load_config
-from mapassoc.data.settings import BirthModel, EstimatorSettings
+from mapassoc.data.settings import COMPONENTS, BirthModel, EstimatorSettings
 from mapassoc.models.measurement import MEASUREMENT_REGISTRY
 from mapassoc.models.motion import MOTION_REGISTRY
 
 README = Path(__file__).resolve().parent.parent / "README.md"
-SETTINGS = {"birth": BirthModel, "estimator": EstimatorSettings}
+DEFAULTS: dict[str, object] = {
+    "birth": BirthModel(),
+    **{f"estimator.{name}": getattr(EstimatorSettings(), name) for name in COMPONENTS},
+}
+"""Every settings record by its TOML table, with its defaults (the estimator's records
+as ``EstimatorSettings()`` composes them)."""
 
 
 def files_section() -> str:
@@ -41,18 +47,33 @@ def test_the_readme_example_loads_without_warnings(tmp_path: Path) -> None:
     assert list(config.sensors) == ["radar", "esm"]
 
 
-@pytest.mark.parametrize("section", list(SETTINGS))
+def _table(document: dict[str, object], section: str) -> dict[str, object]:
+    table: object = document
+    for part in section.split("."):
+        assert isinstance(table, dict) and part in table, f"README lacks [{section}]"
+        table = table[part]
+    assert isinstance(table, dict)
+    return table
+
+
+def test_the_example_has_a_table_per_record_and_nothing_else() -> None:
+    document = tomllib.loads(toml_block())
+    assert set(document["estimator"]) == set(COMPONENTS)  # no old flat key
+    assert set(DEFAULTS) == {"birth", *(f"estimator.{name}" for name in COMPONENTS)}
+
+
+@pytest.mark.parametrize("section", list(DEFAULTS))
 def test_every_settings_field_is_a_key_of_the_example(section: str) -> None:
-    table = tomllib.loads(toml_block())[section]
-    fields = [field.name for field in dataclasses.fields(SETTINGS[section])]
+    table = _table(tomllib.loads(toml_block()), section)
+    fields = [field.name for field in dataclasses.fields(DEFAULTS[section])]  # type: ignore[arg-type]
     missing = [name for name in fields if name not in table]
     assert not missing, f"README [{section}] lacks {missing}"
     assert list(table) == fields  # in the dataclass's order, nothing else
 
 
-@pytest.mark.parametrize("section", list(SETTINGS))
+@pytest.mark.parametrize("section", list(DEFAULTS))
 def test_the_defaults_the_example_states_are_the_defaults(section: str) -> None:
-    defaults = SETTINGS[section]()
+    defaults = DEFAULTS[section]
     lines = toml_block().split(f"[{section}]", 1)[1].split("\n[", 1)[0].splitlines()
     stated = {}
     for line in lines:
@@ -61,7 +82,7 @@ def test_the_defaults_the_example_states_are_the_defaults(section: str) -> None:
             stated[found.group(1)] = None  # an optional key: unset by default
         elif found:
             stated[found.group(1)] = tomllib.loads(f"v = {found.group(2)}")["v"]
-    assert set(stated) == {field.name for field in dataclasses.fields(defaults)}
+    assert set(stated) == {field.name for field in dataclasses.fields(defaults)}  # type: ignore[arg-type]
     for name, value in stated.items():
         expected = getattr(defaults, name)
         assert value == (list(expected) if isinstance(expected, tuple) else expected), name

@@ -82,7 +82,7 @@ def test_integer_settings_are_stored_as_python_ints() -> None:
         int,
         int,
     ]
-    assert json.loads(json.dumps(dataclasses.asdict(settings)))["window_length"] == 6
+    assert json.loads(json.dumps(dataclasses.asdict(settings)))["windows"]["window_length"] == 6
     assert type(RunOptions(segments=np.int64(3)).segments) is int
     below = r"window_length must be an integer >= 1, got np.int64\(0\)"
     with pytest.raises(InputError, match=below):

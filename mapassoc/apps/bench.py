@@ -498,10 +498,10 @@ def _ratio(estimate: float, oracle: float) -> float:
 
 def _bench_config(base: Config, window_length: int | None, time_limit: float) -> Config:
     """The scenario's own configuration with the bench's window length and time limit."""
-    changes: dict[str, object] = {"time_limit": time_limit}
+    estimator = base.estimator.with_time_limit(time_limit)
     if window_length is not None:
-        changes["window_length"] = window_length
-    return replace(base, estimator=replace(base.estimator, **changes))  # type: ignore[arg-type]
+        estimator = estimator.with_window_length(window_length)
+    return replace(base, estimator=estimator)
 
 
 def bench_scenario(
@@ -598,7 +598,8 @@ def _bench_setup(
         run_config = generic_config(scenario, window_length=window_length, time_limit=limit)
     else:
         run_config = _bench_config(scenario.config, window_length, limit)
-    run_config = replace(run_config, estimator=replace(run_config.estimator, k_prior=prior))
+    count = replace(run_config.estimator.count, k_prior=prior)
+    run_config = replace(run_config, estimator=replace(run_config.estimator, count=count))
     return _BenchSetup(scenario, run_config, choice, prior, limit)
 
 
@@ -710,9 +711,9 @@ def _run_result(name: str, seed: int, setup: _BenchSetup, timed: _TimedRun) -> R
         scans=n_scans,
         detections_per_scan=float(np.mean(sizes)),
         max_detections=int(max(sizes)),
-        window_length=setup.config.estimator.window_length,
+        window_length=setup.config.estimator.windows.window_length,
         time_limit=setup.limit,
-        max_tracks=setup.config.estimator.max_tracks,
+        max_tracks=setup.config.estimator.count.max_tracks,
         seconds=seconds,
         scans_per_second=n_scans / seconds if seconds > 0 else math.inf,
         seconds_per_scan=seconds / n_scans,

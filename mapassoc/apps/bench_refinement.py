@@ -6,7 +6,7 @@ lanes, Pd 0.8 among dense clutter, births and deaths throughout) and seed, with 
 benchmark's untuned configuration (:func:`mapassoc.evaluation.scenarios.generic_config`)
 it runs
 
-* ``forward``: the window estimator with ``refine_passes = 0`` (each window's decision
+* ``forward``: the window estimator with ``refinement.passes = 0`` (each window's decision
   final);
 * ``refined``: the whole recording's refinement of that forward pass
   (:mod:`mapassoc.estimator.refinement`, the estimator's default), timed on its own
@@ -220,14 +220,15 @@ class _Outputs:
 
 
 def _run_methods(scenario: Scenario, config: Config) -> _Outputs:
-    """Run the forward pass (``refine_passes = 0``), refine and smooth its tracks, run MHT."""
+    """Run the forward pass (``refinement.passes = 0``), refine and smooth its tracks, run MHT."""
     from mapassoc.estimator.pipeline import WindowEstimator
     from mapassoc.estimator.refinement import refine_track_rows
     from mapassoc.filtering.smoothing import smooth_tracks
     from mapassoc.trackers.registry import build_tracker
 
+    no_refinement = dataclasses.replace(config.estimator.refinement, passes=0)
     forward_config = dataclasses.replace(
-        config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
+        config, estimator=dataclasses.replace(config.estimator, refinement=no_refinement)
     )
     where = {
         int(row): (k, j) for k, scan in enumerate(scenario.scans) for j, row in enumerate(scan.rows)

@@ -20,7 +20,6 @@ import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import TypedDict
 
 import numpy as np
 import pandas as pd
@@ -66,13 +65,6 @@ COMPARE_FILES = ("compare.csv", "compare_summary.csv", "compare.png")
 plotted)."""
 
 _SUMMARY_KEYS = ("scenario", "tracker")
-
-
-class _EstimatorOverrides(TypedDict, total=False):
-    """The :class:`~mapassoc.data.settings.EstimatorSettings` fields :func:`compare` overrides."""
-
-    window_length: int
-    time_limit: float
 
 
 def _check_names(kind: str, names: Sequence[str], known: Sequence[str]) -> list[str]:
@@ -222,15 +214,12 @@ def compare(
             if scans is not None:
                 scenario = truncate_scenario(scenario, int(scans))
             run_config = _config_for(scenario, config)
-            overrides: _EstimatorOverrides = {}
+            estimator = run_config.estimator
             if window_length is not None:
-                overrides["window_length"] = int(window_length)
+                estimator = estimator.with_window_length(int(window_length))
             if time_limit is not None:
-                overrides["time_limit"] = float(time_limit)
-            if overrides:
-                run_config = replace(
-                    run_config, estimator=replace(run_config.estimator, **overrides)
-                )
+                estimator = estimator.with_time_limit(float(time_limit))
+            run_config = replace(run_config, estimator=estimator)
             if options:
                 run_config = replace(run_config, trackers={**run_config.trackers, **options})
             for name in names:

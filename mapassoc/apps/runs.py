@@ -337,7 +337,7 @@ def _as_warnings(messages: Iterable[str]) -> list[warnings.WarningMessage]:
 
 
 def _integer_solvers() -> tuple[str, ...]:
-    """The solvers ``estimator.solver`` may name (the estimator solves integer programs).
+    """The solvers ``estimator.search.solver`` may name (the estimator solves integer programs).
 
     Imported when a run starts, not with this module: the solver backends import
     scipy.optimize and cvxpy, which every command line start-up would otherwise pay.
@@ -931,7 +931,7 @@ def _run_segments(
     from mapassoc.estimator.segments import plan_segments, solve_segment, stitch_segments
 
     plan = plan_segments(
-        len(scans), segments=segments, overlap=4 * config.estimator.window_length
+        len(scans), segments=segments, overlap=4 * config.estimator.windows.window_length
     )
     done: dict[int, Any] = dict(checkpoint["segments"]) if checkpoint is not None else {}
     todo = [segment for segment in plan if segment.index not in done]
@@ -977,7 +977,7 @@ def _run_segments(
         session.save("interrupted")
         raise session.interrupted()
     stitched = stitch_segments(scans, [done[s.index] for s in plan], config, stop=stopped)
-    message = stitched.tally.kmax_warning(config.estimator.max_tracks)
+    message = stitched.tally.kmax_warning(config.estimator.count.max_tracks)
     if message is not None:
         session.messages.append(message)
     session.windows_committed = stitched.tally.windows

@@ -25,13 +25,31 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     region = [[-100.0, 100.0], [-100.0, 100.0]]   # one [low, high] per measured component
 
     [birth]        # optional; keys and defaults: the fields of mapassoc.data.settings.BirthModel
-    [estimator]    # optional; keys and defaults: the fields of
-                   # mapassoc.data.settings.EstimatorSettings
+
+    # optional: the estimator's settings, one table per component it configures; keys
+    # and defaults: the fields of each record of mapassoc.data.settings.EstimatorSettings
+    [estimator.windows]     # WindowSettings: window_length, stride, time_limit
+    [estimator.pruning]     # PruningSettings: gating, the trees' cap and pruning rules
+    [estimator.search]      # SearchSettings: the per-cluster solve, integer programs
+    [estimator.count]       # CountSettings: Kmax, the prior on K, which K is reported
+    [estimator.refinement]  # RefinementSettings: the whole recording's refinement
+    [estimator.parameters]  # ParameterSettings: the EM of "auto" sensor parameters
 
     [trackers.mht] # optional, one table per baseline tracker (mapassoc.trackers.registry):
     n_scan = 4     # its own keyword options, numbers, booleans or strings; checked when
                    # the tracker is built (mapassoc compare), names against the registry
                    # when the caller passes them (tracker_names)
+
+The estimator's tables are sub-tables of ``[estimator]`` rather than sections of their
+own: a dotted key path is then the attribute path (``estimator.windows.time_limit`` in a
+file and in an error is ``config.estimator.windows.time_limit``), as
+``[trackers.<name>]`` is ``config.trackers[name]``; everything the estimator reads stays
+under one name, apart from the model (``[motion]``, ``[[sensors]]``, ``[birth]``); and
+``[estimator]`` keeps its meaning for the missing-section warning below.  The old flat
+``[estimator]`` keys (``window_length = 5`` directly in ``[estimator]``) still load, each
+setting what :data:`~mapassoc.data.settings.FLAT_KEYS` says, with one
+``DeprecationWarning`` naming the keys that replace them (``mapassoc migrate-config``
+rewrites such a file); a setting given both ways is an error.
 
 The ``[birth]`` and ``[estimator]`` sections are optional by design (every field has a
 default), but :func:`load_config` warns (``UserWarning``) when one is missing, naming
@@ -47,13 +65,14 @@ such a configuration to anything that would run on the placeholders.
 (GNN, JPDA, MHT, network flow, LP relaxation): each holds options of that tracker's own
 (``MhtTracker(n_scan=...)``), which the tracker registry hands to it when it builds it
 and checks there, since this layer may not import the trackers.  The MAP estimator's own
-settings stay in ``[estimator]``.
+settings stay under ``[estimator]``.
 
-``estimator.solver`` is a name of the solver registry, which this layer may not import
+``estimator.search.solver`` is a name of the solver registry, which this layer may not import
 (``tests/test_architecture.py``): the caller that wires the solvers passes the names it
 accepts as ``solver_names`` (for example the integer-capable ones of
 ``mapassoc.solvers.available_solvers()``), and an unknown name is then a
-:class:`~mapassoc.errors.ConfigError` naming the file and ``estimator.solver``.
+:class:`~mapassoc.errors.ConfigError` naming the file and ``estimator.search.solver``
+(``estimator.solver`` when the file gives it under its old flat key).
 
 Key paths in errors are dotted, with 0-based indices for arrays: ``sensors[1].region[0]`` is
 the first row of the region of the second ``[[sensors]]`` table.  Integer settings must be
@@ -77,7 +96,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from mapassoc.data.settings import EstimatorSettings
+from mapassoc.data.settings import COMPONENTS, FLAT_KEYS, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
 from mapassoc.models.measurement import (
     MEASUREMENT_REGISTRY,
@@ -636,9 +655,9 @@ def _parse_sensors(
 
 
 def _field_kind(field: dataclasses.Field[object]) -> str:
-    """``"int"``, ``"float"``, ``"float | None"``, ``"str"`` or ``"tuple[float, ...]"``
-    for a settings field (``float | None``: a key that may be left out, and is not
-    written when unset)."""
+    """``"int"``, ``"int | None"``, ``"float"``, ``"float | None"``, ``"bool"``, ``"str"``
+    or ``"tuple[float, ...]"`` for a settings field (``... | None``: a key that may be
+    left out, and is not written when unset)."""
     annotation = field.type
     if isinstance(annotation, str):
         return annotation
@@ -647,54 +666,125 @@ def _field_kind(field: dataclasses.Field[object]) -> str:
     return str(annotation)
 
 
-_Settings = TypeVar("_Settings", BirthModel, EstimatorSettings)
+def _setting_value(parser: _Parser, value: object, key: str, kind: str, owner: str) -> Any:
+    """A TOML value checked against the type of the settings field it sets."""
+    if kind in ("int", "int | None"):
+        return parser.integer(value, key)
+    if kind in ("float", "float | None"):
+        return parser.number(value, key)
+    if kind == "bool":
+        return value  # the record says "true or false", naming its field
+    if kind == "str":
+        return parser.string(value, key)
+    if kind == "tuple[float, ...]":
+        entries = parser.array(value, key)
+        return tuple(parser.finite(v, f"{key}[{i}]") for i, v in enumerate(entries))
+    raise TypeError(f"{owner} has a field of unsupported type {kind!r} ({key})")
 
 
-def _parse_settings(
-    parser: _Parser, data: Mapping[str, object], section: str, cls: type[_Settings]
-) -> _Settings:
-    fields = {field.name: field for field in dataclasses.fields(cls)}
-    if section not in data:
-        return cls()
-    table = parser.table(data[section], section)
-    parser.only_keys(table, section, tuple(fields), f"in [{section}]")
-    # Each value is converted and checked against its field's type below, so the dict is
-    # typed Any for the keyword arguments of ``cls``.
-    values: dict[str, Any] = {}
-    for name, value in table.items():
-        key = f"{section}.{name}"
-        kind = _field_kind(fields[name])
-        if kind == "int":
-            values[name] = parser.integer(value, key)
-        elif kind in ("float", "float | None"):
-            values[name] = parser.number(value, key)
-        elif kind == "str":
-            values[name] = parser.string(value, key)
-        elif kind == "tuple[float, ...]":
-            entries = parser.array(value, key)
-            values[name] = tuple(parser.finite(v, f"{key}[{i}]") for i, v in enumerate(entries))
-        else:
-            raise TypeError(f"{cls.__name__}.{name} has unsupported field type {kind!r}")
+_Record = TypeVar("_Record")
+
+
+def _parse_record(
+    parser: _Parser, value: object, prefix: str, base: _Record
+) -> tuple[_Record, dict[str, Any]]:
+    """The record ``base`` with the keys of the table ``value`` (at key ``prefix``)
+    replaced, and those keys' values."""
+    fields = {field.name: field for field in dataclasses.fields(base)}  # type: ignore[arg-type]
+    table = parser.table(value, prefix)
+    parser.only_keys(table, prefix, tuple(fields), f"in [{prefix}]")
+    owner = type(base).__name__
+    values = {
+        name: _setting_value(parser, item, f"{prefix}.{name}", _field_kind(fields[name]), owner)
+        for name, item in table.items()
+    }
     try:
-        return cls(**values)
+        return dataclasses.replace(base, **values), values  # type: ignore[type-var]
     except InputError as exc:
         # The settings constructors name the offending field in ``exc.key``; an error
-        # without one is reported against the whole section.
-        key = section if exc.key is None else f"{section}.{exc.key}"
-        raise parser.fail(key, str(exc)) from None
+        # without one is reported against the whole table.
+        raise parser.fail(_subkey(prefix, exc), str(exc)) from None
+
+
+def _parse_birth(parser: _Parser, data: Mapping[str, object]) -> BirthModel:
+    if "birth" not in data:
+        return BirthModel()
+    return _parse_record(parser, data["birth"], "birth", BirthModel())[0]
+
+
+def _parse_estimator(
+    parser: _Parser, data: Mapping[str, object]
+) -> tuple[EstimatorSettings, tuple[str, ...]]:
+    """The ``[estimator]`` table: its sub-tables, one per record of
+    :class:`EstimatorSettings`, and any keys of the old flat table, which set what
+    :data:`~mapassoc.data.settings.FLAT_KEYS` says (returned, to be warned about)."""
+    if "estimator" not in data:
+        return EstimatorSettings(), ()
+    table = parser.table(data["estimator"], "estimator")
+    parser.only_keys(
+        table, "estimator", (*COMPONENTS, *FLAT_KEYS), "in [estimator] (sub-tables, and "
+        "the old flat keys `mapassoc migrate-config` rewrites)",
+    )  # fmt: skip
+    defaults = EstimatorSettings()
+    records: dict[str, Any] = {}
+    given: set[tuple[str, str]] = set()
+    for name in COMPONENTS:
+        if name in table:
+            prefix = f"estimator.{name}"
+            records[name], values = _parse_record(
+                parser, table[name], prefix, getattr(defaults, name)
+            )
+            given |= {(name, field) for field in values}
+    flat: dict[str, Any] = {}
+    for name in (key for key in table if key in FLAT_KEYS):
+        record, target = FLAT_KEYS[name][0]
+        kind = _field_kind(_fields_of(COMPONENTS[record])[target])
+        flat[name] = _setting_value(parser, table[name], f"estimator.{name}", kind, "estimator")
+        both = [f"estimator.{r}.{f}" for r, f in FLAT_KEYS[name] if (r, f) in given]
+        if both:
+            raise parser.fail(
+                f"estimator.{name}",
+                f"set twice: the old key estimator.{name} and {both[0]}; keep {both[0]}",
+            )
+    try:
+        return EstimatorSettings(**records, **flat), tuple(flat)
+    except InputError as exc:
+        raise parser.fail(_subkey("estimator", exc), str(exc)) from None
+
+
+def _fields_of(cls: type) -> dict[str, dataclasses.Field[object]]:
+    return {field.name: field for field in dataclasses.fields(cls)}
+
+
+def _deprecation_message(source: str | None, flat: Collection[str]) -> str:
+    """One message for every old flat ``[estimator]`` key a document holds, naming the
+    keys that replace each."""
+    where = source or "the configuration"
+    moves = "; ".join(
+        f"{name} -> {' and '.join(f'estimator.{r}.{f}' for r, f in FLAT_KEYS[name])}"
+        for name in flat
+    )
+    command = f"mapassoc migrate-config {source}" if source else "mapassoc migrate-config"
+    return (
+        f"{where}: the flat [estimator] keys are deprecated, each setting now lives in the "
+        f"table of what it configures ({moves}); `{command}` rewrites the file"
+    )
 
 
 def _check_solver(
-    parser: _Parser, settings: EstimatorSettings, solver_names: Collection[str] | None
+    parser: _Parser,
+    settings: EstimatorSettings,
+    solver_names: Collection[str] | None,
+    key: str = "estimator.search.solver",
 ) -> None:
     if solver_names is None:
         return
     if isinstance(solver_names, str) or not all(isinstance(n, str) for n in solver_names):
         raise InputError(f"solver_names must be a collection of names, got {solver_names!r}")
-    if settings.solver not in solver_names:
+    if settings.search.solver not in solver_names:
         known = ", ".join(solver_names) if solver_names else "(none)"
         raise parser.fail(
-            "estimator.solver", f"unknown solver {settings.solver!r}; known solvers: {known}"
+            key, f"unknown solver {settings.search.solver!r}; known solvers: {known}"
         )
 
 
@@ -737,9 +827,12 @@ def parse_config(
     parser.only_keys(document, "", _SECTIONS, "at the top level")
     motion = _parse_motion(parser, document)
     sensors, auto = _parse_sensors(parser, document, motion)
-    birth = _parse_settings(parser, document, "birth", BirthModel)
-    estimator = _parse_settings(parser, document, "estimator", EstimatorSettings)
-    _check_solver(parser, estimator, solver_names)
+    birth = _parse_birth(parser, document)
+    estimator, flat = _parse_estimator(parser, document)
+    if flat:
+        warnings.warn(_deprecation_message(source, flat), DeprecationWarning, stacklevel=2)
+    solver_key = "estimator.solver" if "solver" in flat else "estimator.search.solver"
+    _check_solver(parser, estimator, solver_names, solver_key)
     trackers = _parse_trackers(parser, document, tracker_names)
     return Config(
         motion=motion,
@@ -772,16 +865,17 @@ def _parse_trackers(
         raise parser.fail(exc.key or "trackers", str(exc)) from None
 
 
-def _defaults_text(cls: type[BirthModel] | type[EstimatorSettings]) -> str:
-    """``"name value, ..."`` of every field default of a settings class (an optional key,
-    unset by default, is left out)."""
-    defaults = cls()
+def _defaults_text(settings: object, prefix: str = "") -> str:
+    """``"name value, ..."`` of every field of a settings record, a composed record's by
+    dotted path (an optional key, unset by default, is left out)."""
     parts = []
-    for field in dataclasses.fields(cls):
-        value = getattr(defaults, field.name)
-        if value is None:
-            continue
-        parts.append(f"{field.name} {list(value) if isinstance(value, tuple) else value!r}")
+    for field in dataclasses.fields(settings):  # type: ignore[arg-type]
+        value = getattr(settings, field.name)
+        if dataclasses.is_dataclass(value):
+            parts.append(_defaults_text(value, f"{prefix}{field.name}."))
+        elif value is not None:
+            shown = list(value) if isinstance(value, tuple) else value
+            parts.append(f"{prefix}{field.name} {shown!r}")
     return ", ".join(parts)
 
 
@@ -790,7 +884,7 @@ def _warn_missing_sections(data: Mapping[str, object], source: str) -> None:
         if section not in data:
             warnings.warn(
                 f"{source} has no [{section}] section: the defaults of {cls.__name__} are "
-                f"used ({_defaults_text(cls)})",
+                f"used ({_defaults_text(cls())})",
                 UserWarning,
                 stacklevel=3,
             )
@@ -974,29 +1068,39 @@ def config_to_toml(config: Config) -> str:
             )
             + "]",
         ]
-    for section, settings in (("birth", config.birth), ("estimator", config.estimator)):
-        lines += ["", f"[{section}]"]
-        for field in dataclasses.fields(settings):
-            value = getattr(settings, field.name)
-            kind = _field_kind(field)
-            if value is None and kind == "float | None":
-                continue  # unset: the key is left out, as in the file it came from
-            if kind == "int":
-                text = str(int(value))
-            elif kind in ("float", "float | None"):
-                text = _toml_float(value)
-            elif kind == "str":
-                text = _toml_string(value)
-            elif kind == "tuple[float, ...]":
-                text = _toml_floats(value) if len(value) else "[]"
-            else:
-                raise TypeError(f"{type(settings).__name__}.{field.name} has unsupported type")
-            lines.append(f"{field.name} = {text}")
+    lines += ["", "[birth]", *_record_lines(config.birth)]
+    for name in COMPONENTS:
+        lines += ["", f"[estimator.{name}]", *_record_lines(getattr(config.estimator, name))]
     for name, options in config.trackers.items():
         lines += ["", f"[trackers.{_toml_key(name)}]"]
         for option, value in options.items():
             lines.append(f"{_toml_key(option)} = {_toml_option(value)}")
     return "\n".join(lines) + "\n"
+
+
+def _record_lines(settings: object) -> list[str]:
+    """``key = value`` of every field of a settings record (an unset optional one left
+    out, as in the file it came from)."""
+    lines = []
+    for field in dataclasses.fields(settings):  # type: ignore[arg-type]
+        value = getattr(settings, field.name)
+        kind = _field_kind(field)
+        if value is None and kind.endswith(" | None"):
+            continue
+        if kind in ("int", "int | None"):
+            text = str(int(value))
+        elif kind in ("float", "float | None"):
+            text = _toml_float(value)
+        elif kind == "bool":
+            text = "true" if value else "false"
+        elif kind == "str":
+            text = _toml_string(value)
+        elif kind == "tuple[float, ...]":
+            text = _toml_floats(value) if len(value) else "[]"
+        else:
+            raise TypeError(f"{type(settings).__name__}.{field.name} has unsupported type")
+        lines.append(f"{field.name} = {text}")
+    return lines
 
 
 def _toml_key(name: str) -> str:

@@ -47,6 +47,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mapassoc.array_types import IntArray
+from mapassoc.data.settings import SearchSettings
+from mapassoc.errors import InputError
 from mapassoc.formulations.bounds import (
     exclusive_groups,
     fixed_variable_bounds,
@@ -83,6 +85,7 @@ from mapassoc.solvers import (
     RelaxationSolver,
     SolverError,
     SolveStatus,
+    get_integer_solver,
     relaxation_sequence,
 )
 
@@ -395,6 +398,26 @@ class ClusterSolver:
         self.map_margin = float(map_margin)
         self.bound_prune_min_hypotheses = int(bound_prune_min_hypotheses)
         self.work_projection = None if work_projection is None else float(work_projection)
+
+    @classmethod
+    def from_settings(cls, search: SearchSettings) -> ClusterSolver:
+        """The solver a configuration's ``[estimator.search]`` describes.
+
+        Raises
+        ------
+        InputError
+            ``search.solver`` names no integer-program backend (key ``solver``).
+        """
+        try:
+            solver = get_integer_solver(search.solver)
+        except ValueError as exc:
+            raise InputError(f"estimator solver: {exc}", key="solver") from None
+        return cls(
+            solver=solver,
+            exact_work_limit=search.exact_work_limit,
+            beam_width=search.beam_width,
+            prune_log_ratio=search.bound_prune_log_ratio,
+        )
 
     # -- the window -------------------------------------------------------------------
     def solve_window(self, problem: PackingProblem, kmax: int, deadline: float) -> WindowTables:

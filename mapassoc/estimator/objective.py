@@ -216,7 +216,7 @@ class RecordingObjective:
         birth = config.birth
         self.motion = config.motion
         self.birth = birth
-        self.gate_probability = float(config.estimator.gate_probability)
+        self.gate_probability = float(config.estimator.pruning.gate_probability)
         self._init_model = initiation_model(self.motion)
         self._converts = needs_conversion(self.motion)
         self._sensors = [config.sensors[s.sensor] for s in self.scans]

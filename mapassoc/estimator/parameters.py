@@ -442,11 +442,11 @@ def estimate_parameters(
     *,
     false_alarms: Collection[str] | None = None,
     detection_probability: Mapping[str, float | None] | None = None,
-    rate_tolerance: float = 0.02,
-    pd_tolerance: float = 0.005,
-    max_passes: int = 3,
-    sample_scans: int = 600,
-    sample_blocks_count: int = 6,
+    rate_tolerance: float | None = None,
+    pd_tolerance: float | None = None,
+    max_passes: int | None = None,
+    sample_scans: int | None = None,
+    sample_blocks_count: int | None = None,
     on_pass: Callable[[EstimationPass], None] | None = None,
     stop: Callable[[], bool] | None = None,
     finish: bool = True,
@@ -466,6 +466,9 @@ def estimate_parameters(
         The sensors whose ``Pd`` to estimate, each with its starting value (None:
         :data:`DEFAULT_PD_START`).  When neither is given, the configuration's
         ``"auto"`` parameters (:attr:`Config.auto`) are estimated.
+    rate_tolerance, pd_tolerance, max_passes, sample_scans, sample_blocks_count : optional
+        Default: the configuration's (``config.estimator.parameters``, whose defaults are
+        the values given below).
     rate_tolerance : float
         Relative change of every rate below which the iteration stops (> 0).
     pd_tolerance : float
@@ -520,6 +523,13 @@ def estimate_parameters(
             "detection_probability to estimate what the configuration asks",
             key="auto",
         )
+    own = config.estimator.parameters  # [estimator.parameters]: what is not given here
+    rate_tolerance = own.rate_tolerance if rate_tolerance is None else rate_tolerance
+    pd_tolerance = own.pd_tolerance if pd_tolerance is None else pd_tolerance
+    max_passes = own.max_passes if max_passes is None else max_passes
+    sample_scans = own.sample_scans if sample_scans is None else sample_scans
+    if sample_blocks_count is None:
+        sample_blocks_count = own.sample_blocks_count
     rate_tolerance = check_positive("rate_tolerance", rate_tolerance, key="rate_tolerance")
     pd_tolerance = check_positive("pd_tolerance", pd_tolerance, key="pd_tolerance")
     for name, count in (("max_passes", max_passes), ("sample_scans", sample_scans),

@@ -36,6 +36,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from enum import StrEnum
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,7 +60,7 @@ from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.formulations.cardinality import CombinedTable
 from mapassoc.formulations.packing import PackingProblem, gather_rows
 from mapassoc.models.population import UndetectedTargets, WindowPopulation
-from mapassoc.solvers import get_integer_solver
+from mapassoc.models.target_count import CountPrior, KEstimator
 from mapassoc.validation import check_callback, check_instance, check_integer, shown
 
 __all__ = [
@@ -590,6 +591,36 @@ def _check_carried(carried: object, undetected: object) -> list[CarriedTrack]:
     return list(carried)
 
 
+_Component = TypeVar("_Component")
+
+
+def _component(
+    name: str, given: object, kind: type[_Component], build: Callable[[], _Component]
+) -> _Component:
+    """``given`` when it is a ``kind`` (InputError naming ``name`` otherwise), else
+    ``build()``."""
+    if given is None:
+        return build()
+    if not isinstance(given, kind):
+        raise InputError(f"{name} must be a {kind.__name__}, got {given!r:.80}", key=name)
+    return given
+
+
+def default_generator(config: Config) -> HypothesisGenerator:
+    """The forward pass's hypothesis generator: ``config``'s models and its
+    ``[estimator.pruning]`` settings."""
+    pruning = config.estimator.pruning
+    return HypothesisGenerator(
+        motion=config.motion,
+        sensors=config.sensors,
+        birth=config.birth,
+        gate_probability=pruning.gate_probability,
+        max_hypotheses_per_tree=pruning.max_hypotheses_per_tree,
+        prune_log_ratio=pruning.prune_log_ratio,
+        sibling_prune_log_ratio=pruning.sibling_log_ratio,
+    )
+
+
 class WindowEstimator:
     """Sliding-window MAP estimator of track sets and of the number of tracks.
 
@@ -597,33 +628,52 @@ class WindowEstimator:
     ----------
     config : Config
         Motion model, sensors, birth model and estimator settings.
+    generator : HypothesisGenerator, optional
+        Grows the windows' hypothesis trees; default :func:`default_generator` of
+        ``config`` (its ``[estimator.pruning]``).
+    cluster_solver : ClusterSolver, optional
+        Solves the windows' clusters; default
+        ``ClusterSolver.from_settings(config.estimator.search)``.
+    count_prior : CountPrior, optional
+        Prior on the number of targets in a window; default
+        ``config.estimator.count.count_prior()``.
+    k_estimator : KEstimator, optional
+        Which K the committed track set has; default
+        ``config.estimator.count.k_estimator()``.
+
+    Every component not given is built from ``config`` (:meth:`from_config` builds them
+    all), so a test or an experiment can swap one piece and keep the rest.
     """
 
-    def __init__(self, *, config: Config) -> None:
+    def __init__(
+        self,
+        *,
+        config: Config,
+        generator: HypothesisGenerator | None = None,
+        cluster_solver: ClusterSolver | None = None,
+        count_prior: CountPrior | None = None,
+        k_estimator: KEstimator | None = None,
+    ) -> None:
         self.config = check_config(config)
         s = config.estimator
         self.settings = s
-        self.generator = HypothesisGenerator(
-            motion=config.motion,
-            sensors=config.sensors,
-            birth=config.birth,
-            gate_probability=s.gate_probability,
-            max_hypotheses_per_tree=s.max_hypotheses_per_tree,
-            prune_log_ratio=s.prune_log_ratio,
-            sibling_prune_log_ratio=s.sibling_log_ratio,
+        self.generator = _component(
+            "generator", generator, HypothesisGenerator, lambda: default_generator(config)
         )
-        try:
-            self.solver = get_integer_solver(s.solver)
-        except ValueError as exc:
-            raise InputError(f"estimator solver: {exc}", key="solver") from None
-        self.cluster_solver = ClusterSolver(
-            solver=self.solver,
-            exact_work_limit=s.exact_work_limit,
-            beam_width=s.beam_width,
-            prune_log_ratio=s.prune_log_ratio,
+        self.cluster_solver = _component(
+            "cluster_solver",
+            cluster_solver,
+            ClusterSolver,
+            lambda: ClusterSolver.from_settings(s.search),
         )
-        self.count_prior = s.count_prior()
-        self.k_estimator = s.k_estimator()
+        self.solver = self.cluster_solver.solver
+        self.count_prior = _component("count_prior", count_prior, CountPrior, s.count_prior)
+        self.k_estimator = _component("k_estimator", k_estimator, KEstimator, s.k_estimator)
+
+    @classmethod
+    def from_config(cls, config: Config) -> WindowEstimator:
+        """The estimator with every component built from ``config``'s settings."""
+        return cls(config=config)
 
     # -- one window ------------------------------------------------------------------
     def solve_window(
@@ -658,7 +708,7 @@ class WindowEstimator:
         carried = _check_carried(carried, undetected)
         load_kernels()  # a first run's compilation is not the window's time
         t0 = time.perf_counter()
-        deadline = t0 + self.settings.time_limit
+        deadline = t0 + self.settings.windows.time_limit
         population = self.generator.population(scans, carried, undetected)
         hyps = self.generator.generate(scans, carried, population=population)
         t1 = time.perf_counter()
@@ -667,7 +717,7 @@ class WindowEstimator:
         # FULL_LENGTH_KMAX the per-T tables stop there whatever max_tracks says (the K
         # beyond are the posterior's business, k_posterior).
         counted = int(np.count_nonzero(problem.counts))
-        kmax = min(self.settings.max_tracks, max(counted, FULL_LENGTH_KMAX))
+        kmax = min(self.settings.count.max_tracks, max(counted, FULL_LENGTH_KMAX))
         solved = self.cluster_solver.solve_window(problem, kmax, deadline)
         combined = solved.table
         posterior = k_posterior(
@@ -762,7 +812,7 @@ class WindowEstimator:
         message = time_scale_warning(self.config, scans)
         if message is not None:
             warnings.warn(message, RuntimeWarning, stacklevel=2)
-        if self.settings.max_tracks == 0:
+        if self.settings.count.max_tracks == 0:
             warnings.warn(
                 "max_tracks = 0: every detection is a false alarm and p(K = 0 | Z) = 1 by "
                 "construction, so no window can show that Kmax cuts the posterior off; "
@@ -832,8 +882,8 @@ class WindowEstimator:
         span = window_span(
             state.next_scan,
             state.total_scans,
-            length=self.settings.window_length,
-            stride=self.settings.stride,
+            length=self.settings.windows.window_length,
+            stride=self.settings.windows.stride,
         )
         start, end, commit = span.start, span.end, span.commit
         solution = self.solve_window(scans[start:end], state.carried, undetected=state.undetected)
@@ -939,12 +989,12 @@ class WindowEstimator:
             )
         t_start = time.perf_counter()
         tally = state.tally
-        message = tally.kmax_warning(self.settings.max_tracks)
+        message = tally.kmax_warning(self.settings.count.max_tracks)
         if message is not None:
             warnings.warn(message, RuntimeWarning, stacklevel=3)
         track_rows = {tid: tuple(r.rows) for tid, r in sorted(state.records.items()) if r.rows}
         refined = None
-        if refine and self.settings.refine_passes > 0 and track_rows:
+        if refine and self.settings.refinement.passes > 0 and track_rows:
             refined = refine_track_rows(self.config, scans, track_rows, stop=stop)
             track_rows = refined.track_rows
         tracks = self._smooth(scans, track_rows)

@@ -20,7 +20,7 @@ first-detection term the join replaces.  A hypothesis that joins nothing and is 
 the window's end gets its best ending (``tail``).  The window's hypothesis trees are
 grown as in the forward pass (carried and new trees, the same scoring and gating), but
 pruned at the refinement's own, wider ``prune_log_ratio``
-(``EstimatorSettings.refine_prune_log_ratio``: a re-solve that keeps only what the
+(``RefinementSettings.prune_log_ratio``: a re-solve that keeps only what the
 forward pass kept can mostly confirm it; the new trees' bound pruning allows for the most
 a join can add; the long windows at ``long_prune_log_ratio``), and one
 integer program (detections at most once, carried tracks exactly once, anchors at most
@@ -47,7 +47,7 @@ window found worth a track; the single-scan windows, run at the scans where the 
 cap cut a longer window's trees, are exact coordinate-ascent steps whose trees the cap
 never cuts, which closely spaced targets need. Every move is accepted only when the exact
 J of the changed tracks rises, so J never decreases; with the integer program's time limit
-(``EstimatorSettings.time_limit``) and the pass budget the work is bounded, and without a
+(``SearchSettings.program_time_limit``) and the pass budget the work is bounded, and without a
 time limit reached the result is a function of the input alone.
 
 Proposals re-filter at most ``refilter_detections`` of an anchor's detections (the
@@ -70,6 +70,7 @@ from scipy.optimize import linear_sum_assignment
 from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
+from mapassoc.data.settings import RefinementSettings
 from mapassoc.errors import InputError, check_stop
 from mapassoc.estimator.cluster_solving import (
     WORK_PROJECTION,
@@ -166,106 +167,6 @@ REFINEMENT_PHASE = "the refinement of the whole recording"
 """The phase a stop during :meth:`Refiner.refine` names (in its StopRequested)."""
 CONFIDENCE_PHASE = "the confidence pass"
 """The phase a stop during :meth:`Refiner.confidence` names."""
-
-
-@dataclass(frozen=True)
-class RefinementSettings:
-    """How the whole recording's track set is refined after the forward pass.
-
-    Parameters
-    ----------
-    passes : int
-        Most sweeps over the recording's windows; 0 turns refinement off.  Sweeps
-        cycle through the window lengths (short, long, single scan, short, ...), forward
-        then backward once per cycle; they stop once a sweep of each length changed
-        nothing.
-    window_length : int or None
-        Scans per short re-solved window; ``None``: the estimator's ``window_length``.
-    long_window_length : int or None
-        Scans per long re-solved window; ``None``: twice the short one; a value no longer
-        than the short one leaves the long sweeps out.  Long windows let a target that no
-        forward window found worth a track (low Pd in dense clutter: its first scans
-        score below zero) start a track that pays over more scans, and join fragments
-        further apart.
-    stride : int or None
-        Scans between the starts of consecutive re-solved windows; ``None``: about half
-        the window (``(window_length + 1) // 2``), so that every window boundary of one
-        sweep lies inside a window of the next.
-    scan_windows : bool
-        Also sweep windows of a single scan (when the short window is longer) at the
-        scans of the re-solved windows whose trees the per-tree cap cut: the scan's
-        associations re-solved with both boundaries, the tracks before it carried in and
-        the tracks after it anchors (where nothing was capped, the longer window's
-        program already held every change of one scan that its width keeps). A one-scan
-        tree is a carried track's gated detections, its miss and its ending, so the
-        per-tree cap never cuts it, and the re-solve is exact over what the refinement's
-        width keeps: block coordinate ascent on J, one scan's associations at a time. It
-        completes what the cap cuts from the longer windows' trees where targets are
-        closely spaced (converging seeds 0 and 1: J 1408 -> 1476 and 1408 -> 1513, the
-        truth's 1504 and 1508).
-    link_gap : int
-        Most scans between a track's last detection and another's first for a
-        fragment-linking candidate; 0 turns fragment linking off.
-    refilter_detections : int
-        How many of a joined track piece's detections are re-filtered from the joining
-        state when a move is *proposed*; past them the piece's own filter's terms are
-        taken (:meth:`~mapassoc.estimator.objective.RecordingObjective.continue_converging`).
-        Moves are *accepted* on the exact J of the changed tracks (every detection
-        re-filtered), so this trades the proposals' accuracy against speed, never J's
-        monotonicity.
-    prune_log_ratio : float
-        Pruning width of the re-solved windows' trees and of the joins to one anchor
-        (``EstimatorSettings.refine_prune_log_ratio``; >= 0, ``inf`` disables).
-    long_prune_log_ratio : float or None
-        The same for the long windows; ``None``: ``prune_log_ratio``.  The estimator's
-        refinement (:func:`refine_track_rows` from a configuration) prunes them at the
-        forward pass's ``prune_log_ratio``: they are there to start tracks and join
-        fragments no short window can, and at the wide width a long window's trees cost
-        about four short ones' (14 runs over the 8 bench families: the same J on 12, the
-        other two 0.3 and 0.1 nats lower, in 0.66-0.90x the refinement's time).
-    """
-
-    passes: int = 6
-    window_length: int | None = None
-    long_window_length: int | None = None
-    stride: int | None = None
-    scan_windows: bool = True
-    link_gap: int = 10
-    refilter_detections: int = 15
-    prune_log_ratio: float = 18.0
-    long_prune_log_ratio: float | None = None
-
-    def __post_init__(self) -> None:
-        for name, minimum in (("passes", 0), ("link_gap", 0), ("refilter_detections", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-                raise InputError(
-                    f"refine {name} must be an integer >= {minimum}, got {value!r}",
-                    key=f"refine_{name}",
-                )
-        if not isinstance(self.scan_windows, bool):
-            raise InputError(
-                f"refine scan_windows must be true or false, got {self.scan_windows!r}",
-                key="refine_scan_windows",
-            )
-        for name in ("window_length", "long_window_length", "stride"):
-            value = getattr(self, name)
-            if value is not None and (
-                isinstance(value, bool) or not isinstance(value, int) or value < 1
-            ):
-                raise InputError(
-                    f"refine {name} must be an integer >= 1 or None, got {value!r}",
-                    key=f"refine_{name}",
-                )
-        for name in ("prune_log_ratio", "long_prune_log_ratio"):
-            ratio = getattr(self, name)
-            if ratio is None and name == "long_prune_log_ratio":
-                continue
-            if isinstance(ratio, bool) or not (isinstance(ratio, (int, float)) and ratio >= 0):
-                raise InputError(
-                    f"refine {name} must be a number >= 0 (inf disables), got {ratio!r}",
-                    key=f"refine_{name}",
-                )
 
 
 @dataclass
@@ -556,7 +457,7 @@ class Refiner:
         except ValueError as exc:
             raise InputError(f"estimator solver: {exc}", key="solver") from None
         self.lp_solver = default_lp_solver(self.solver)
-        self.time_limit = est.time_limit
+        self.time_limit = est.search.program_time_limit  # each integer program's
         self._refilter = settings.refilter_detections
         self._capped_scans: set[int] = set()  # scans of re-solves whose trees the cap cut
         self.exact_work_limit = est.exact_work_limit
@@ -1353,14 +1254,13 @@ def refine_track_rows(
     track_rows : mapping of int to sequence of int
         Detection ids of every track.
     settings : RefinementSettings, optional
-        Default: the estimator's ``refine_passes``, ``refine_link_gap`` and
-        ``refine_prune_log_ratio``, and its ``prune_log_ratio`` for the long windows.
+        Default: the configuration's (``config.estimator.refinement``).
     confidence : bool
         Whether to compute the refined set's existence and association probabilities
         (:meth:`Refiner.confidence`).
     min_existence : float, optional
         Leave out the tracks whose existence probability is below this (needs
-        ``confidence``); default: the estimator's ``min_existence``.
+        ``confidence``); default: ``config.estimator.refinement.min_existence``.
     stop : callable, optional
         Polled between the units of the refinement and of the confidence pass
         (:meth:`Refiner.refine`, :meth:`Refiner.confidence`).
@@ -1375,16 +1275,10 @@ def refine_track_rows(
         ``stop`` returned True (nothing is returned: the caller starts again from
         ``track_rows``, which gives the same result, the refinement being deterministic).
     """
-    est = config.estimator
     if settings is None:
-        settings = RefinementSettings(
-            passes=est.refine_passes,
-            link_gap=est.refine_link_gap,
-            prune_log_ratio=est.refine_prune_log_ratio,
-            long_prune_log_ratio=est.prune_log_ratio,
-        )
+        settings = config.estimator.refinement
     if min_existence is None:
-        min_existence = est.min_existence
+        min_existence = config.estimator.refinement.min_existence
     objective = RecordingObjective(config=config, scans=scans)
     paths = {tid: objective.path_of_rows(rows) for tid, rows in track_rows.items() if len(rows)}
     refiner = Refiner(config=config, scans=scans, settings=settings, objective=objective)

@@ -355,7 +355,7 @@ def stitch_segments(
         for tid, a in associations.items()
     }
     refined = None
-    if config.estimator.refine_passes > 0 and track_rows:
+    if config.estimator.refinement.passes > 0 and track_rows:
         refined = refine_track_rows(config, scans, track_rows, stop=stop)
         track_rows = refined.track_rows
         associations = {
@@ -414,7 +414,7 @@ def run_segmented(
     scans = check_scans(scans, config.sensors)
     if executor is not None:
         check_instance("executor", executor, concurrent.futures.Executor)
-    window = config.estimator.window_length
+    window = config.estimator.windows.window_length
     if overlap is None:
         overlap = 4 * window
     if isinstance(overlap, bool) or not isinstance(overlap, int) or overlap < window:

@@ -351,7 +351,7 @@ class ScanTerms:
         if not scans:
             raise InputError("a table of scan terms needs at least one scan")
         birth = config.birth
-        per_sensor = SensorTerms.of_all(config.sensors, config.estimator.gate_probability)
+        per_sensor = SensorTerms.of_all(config.sensors, config.estimator.pruning.gate_probability)
         rows = [per_sensor[s.sensor] for s in scans]
         times = np.array([s.time for s in scans], dtype=float)
         pd = [config.sensors[s.sensor].detection_probability for s in scans]

@@ -48,7 +48,7 @@ from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import Origins, TruthTable, number_rows
 from mapassoc.data.scans import Scan
-from mapassoc.data.settings import EstimatorSettings
+from mapassoc.data.settings import CountSettings, EstimatorSettings
 from mapassoc.errors import InputError
 from mapassoc.evaluation.simulate import Scenario, TargetSpec, scan_plan_regular, simulate
 from mapassoc.models.measurement import LinearMeasurement, RangeBearing
@@ -265,7 +265,7 @@ def _scenario(
         motion=motion,
         sensors={sensor.name: sensor for sensor in sensors},
         birth=birth_model_for(motion, targets, plan),
-        estimator=EstimatorSettings(max_tracks=max_tracks_for(targets, plan)),
+        estimator=EstimatorSettings(count=CountSettings(max_tracks=max_tracks_for(targets, plan))),
     )
     return simulate(config, targets, plan, seed=seed, name=name)
 
@@ -1379,7 +1379,7 @@ def generic_config(
 
     * ``BirthModel(rate=0.05, initial_count=5.0, velocity_std=v)`` with ``v`` the top
       initial target speed (:func:`top_initial_speed`), every other field default;
-    * ``EstimatorSettings(max_tracks=2 * m)`` with ``m`` the most detections in any scan
+    * ``count.max_tracks = 2 * m`` with ``m`` the most detections in any scan
       of ``scenario`` (so a truncated scenario gets its own ``m``), every other setting
       default except ``window_length`` and ``time_limit`` when given.
 
@@ -1407,11 +1407,11 @@ def generic_config(
     if not scenario.scans:
         raise InputError(f"scenario {scenario.name!r} has no scan")
     most = max(scan.size for scan in scenario.scans)
-    overrides: dict[str, object] = {}
+    estimator = EstimatorSettings(count=CountSettings(max_tracks=2 * most))
     if window_length is not None:
-        overrides["window_length"] = window_length
+        estimator = estimator.with_window_length(window_length)
     if time_limit is not None:
-        overrides["time_limit"] = time_limit
+        estimator = estimator.with_time_limit(time_limit)
     return Config(
         motion=scenario.config.motion,
         sensors=dict(scenario.config.sensors),
@@ -1420,7 +1420,7 @@ def generic_config(
             initial_count=GENERIC_INITIAL_COUNT,
             velocity_std=top_initial_speed(scenario),
         ),
-        estimator=EstimatorSettings(max_tracks=2 * most, **overrides),  # type: ignore[arg-type]
+        estimator=estimator,
     )
 
 

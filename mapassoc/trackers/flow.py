@@ -6,8 +6,8 @@ flows", CVPR 2008 (the graph and its costs, section 3); Berclaz, Fleuret, Türet
 (min-cost flow for every number of tracks K, whose cost is convex in K).
 
 **Windows.**  The recording is cut like the MAP estimator cuts it: windows of
-``window_length`` scans (default ``config.estimator.window_length``), of which the first
-``stride`` (default ``config.estimator.stride``) are committed before the window slides;
+``window_length`` scans (default ``config.estimator.windows.window_length``), of which the first
+``stride`` (default ``config.estimator.windows.stride``) are committed before the window slides;
 the last window commits all its scans.  Each window is one flow program
 (:mod:`mapassoc.formulations.tracking_flow`) whose items are
 
@@ -37,7 +37,7 @@ link: detection i -> detection k  ``-(dt log Ps + sum of log(1 - Pd P_G) over th
                                   likelihood (Afzal's survey, eq. 3): the two-point Markov
                                   term of Zhang et al., eq. 7; only for
                                   ``k - i - 1 <= max_gap`` and ``d2 <=`` the chi-square
-                                  gate of ``config.estimator.gate_probability``
+                                  gate of ``config.estimator.pruning.gate_probability``
 link: carried track -> detection  the same with the carried track's filtered state
                                   (all its committed detections) instead of a
                                   two-point start; the gap counts its misses since its
@@ -64,7 +64,7 @@ one Dijkstra per K on the float costs) or by networkx's network simplex
 two new tracks first and twice as many while the minimum sits at the largest K solved;
 the components' convex costs are combined
 (:func:`~mapassoc.formulations.tracking_flow.combine_convex_costs`) for K up to
-``Kmax = max(C, min(config.estimator.max_tracks, items kept))`` (C carried tracks; no
+``Kmax = max(C, min(config.estimator.count.max_tracks, items kept))`` (C carried tracks; no
 flow has more tracks than items), and the window's
 track set is the flow of the K >= C with the smallest total cost (ties: the smaller K).
 Under these costs that is the most likely track set of the window over every K with the
@@ -349,13 +349,13 @@ class FlowTracker:
         (largest K solved per window), ``window_length`` and ``stride`` (defaults).
     gate_probability : float, optional
         The links' own gate probability, in (0, 1]; default
-        ``config.estimator.gate_probability``.
+        ``config.estimator.pruning.gate_probability``.
     max_gap : int, default 2
         Most consecutive scans a link may skip (0: links join consecutive scans only).
     window_length : int, optional
-        Scans per window (default ``config.estimator.window_length``).
+        Scans per window (default ``config.estimator.windows.window_length``).
     stride : int, optional
-        Scans committed per window, 1..window_length (default ``config.estimator.stride``).
+        Scans committed per window, 1..window_length (default ``config.estimator.windows.stride``).
     solver : {"successive-shortest-paths", "networkx-flow"}
         How each window's flows are found: successive shortest paths on the float costs
         (:func:`~mapassoc.formulations.tracking_flow.successive_shortest_paths`, one
@@ -386,10 +386,10 @@ class FlowTracker:
         config = with_own_gate(config, gate_probability)
         if isinstance(max_gap, bool) or not isinstance(max_gap, int) or max_gap < 0:
             raise InputError(f"max_gap must be an integer >= 0, got {max_gap!r}")
-        length = config.estimator.window_length if window_length is None else window_length
+        length = config.estimator.windows.window_length if window_length is None else window_length
         if isinstance(length, bool) or not isinstance(length, int) or length < 1:
             raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
-        step = config.estimator.stride if stride is None else stride
+        step = config.estimator.windows.stride if stride is None else stride
         if isinstance(step, bool) or not isinstance(step, int) or not 1 <= step <= length:
             raise InputError(
                 f"stride must be an integer in 1..window_length ({length}), got {step!r}"
@@ -405,7 +405,9 @@ class FlowTracker:
         self.solver_name = solver
         self.solver = NetworkxFlowSolver()
         self._log_survival = math.log(config.birth.survival_probability)
-        self._sensor_terms = SensorTerms.of_all(config.sensors, config.estimator.gate_probability)
+        self._sensor_terms = SensorTerms.of_all(
+            config.sensors, config.estimator.pruning.gate_probability
+        )
 
     def _gated(self, track: FilteredTrack, scan: Scan) -> tuple[NDArray[np.int64], FloatArray]:
         """Detections of ``scan`` in the gate of ``track`` and their ``log N(nu; 0, S)``."""
@@ -504,7 +506,7 @@ class FlowTracker:
         kept, forced, sub = self._kept_subgraph(graph)
         # No flow has more tracks than items kept (each track holds one at least), so
         # a huge max_tracks costs no more than that.
-        kmax = max(graph.carried, min(self.config.estimator.max_tracks, int(kept.size)))
+        kmax = max(graph.carried, min(self.config.estimator.count.max_tracks, int(kept.size)))
         count, label = connected_components(
             coo_array(
                 (np.ones(sub.tails.size), (sub.tails, sub.heads)),

@@ -322,12 +322,12 @@ class JpdaTracker:
     Parameters
     ----------
     config : Config
-        Motion, sensor, clutter and birth models; ``config.estimator.gate_probability``
+        Motion, sensor, clutter and birth models; ``config.estimator.pruning.gate_probability``
         is the gate.  Every sensor needs ``false_alarms_per_scan > 0`` and
         ``Pd * P_G < 1`` (:func:`~mapassoc.trackers.management.check_tracker_config`).
     gate_probability : float, optional
         This tracker's own gate probability, in (0, 1]; default
-        ``config.estimator.gate_probability``.
+        ``config.estimator.pruning.gate_probability``.
     management : ScoreRule or MOfNRule, optional
         Confirmation and deletion rule; default :class:`~.management.ScoreRule` ().
     max_events : int

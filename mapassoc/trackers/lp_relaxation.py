@@ -492,7 +492,7 @@ class _LpRule:
         t = self.tracker
         problem = solution.problem
         nu = solution.posterior.undetected_mean
-        top = min(chosen_k, t.config.estimator.max_tracks)
+        top = min(chosen_k, t.config.estimator.count.max_tracks)
         solved: dict[int, LpSolve] = {}
 
         def value(T: int) -> float:
@@ -595,10 +595,11 @@ class LpRelaxationTracker:
         self.gap_tolerance = _check_positive("gap_tolerance", gap_tolerance)
         self.time_limit = None if time_limit is None else _check_positive("time_limit", time_limit)
         # The windows' LP-rounded sets as they are: refining the whole recording
-        # afterwards (refine_passes) would show the refinement, not the relaxation.
+        # afterwards (refinement.passes) would show the refinement, not the relaxation.
+        no_refinement = dataclasses.replace(config.estimator.refinement, passes=0)
         self.estimator = WindowEstimator(
             config=dataclasses.replace(
-                config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
+                config, estimator=dataclasses.replace(config.estimator, refinement=no_refinement)
             )
         )
         self.lp_solver = CvxpySolver(backend="CLARABEL")

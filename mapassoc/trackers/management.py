@@ -281,7 +281,7 @@ def management_rule(rule: ManagementRule | None) -> ManagementRule:
 def with_own_gate(config: Config, gate_probability: float | None) -> Config:
     """``config`` as a baseline tracker sees it: with its own gate probability, if given.
 
-    The baselines gate with ``config.estimator.gate_probability`` unless their
+    The baselines gate with ``config.estimator.pruning.gate_probability`` unless their
     ``gate_probability`` option (``[trackers.<name>] gate_probability = ...``) says
     otherwise; the option is checked as that setting is (a probability in (0, 1], by
     :class:`~mapassoc.data.settings.EstimatorSettings`).
@@ -289,7 +289,8 @@ def with_own_gate(config: Config, gate_probability: float | None) -> Config:
     check_config(config)
     if gate_probability is None:
         return config
-    return replace(config, estimator=replace(config.estimator, gate_probability=gate_probability))
+    pruning = replace(config.estimator.pruning, gate_probability=gate_probability)
+    return replace(config, estimator=replace(config.estimator, pruning=pruning))
 
 
 def check_tracker_config(config: Config) -> None:
@@ -300,7 +301,7 @@ def check_tracker_config(config: Config) -> None:
     track could never miss a scan: ``log(1 - Pd P_G) = -inf``).
     """
     check_config(config)
-    pg = config.estimator.gate_probability
+    pg = config.estimator.pruning.gate_probability
     for name, sensor in config.sensors.items():
         if not sensor.false_alarms_per_scan > 0:
             raise InputError(
@@ -340,7 +341,7 @@ def new_target_log_ratio(
     start = recording_start(config.birth, scan.time) if undetected is None else undetected
     population = window_population([scan], [sensor.detection_probability], config.birth, start)
     u = float(population.first_detection_means[0])
-    own = SensorTerms.of(sensor, config.estimator.gate_probability)
+    own = SensorTerms.of(sensor, config.estimator.pruning.gate_probability)
     log_new = birth_term(u, own.log_pd, own.log_false_alarms)
     return log_new, population.after_scan[0]
 
@@ -352,7 +353,7 @@ def gated_log_ratios(
 
     ``log Pd + log N(nu; 0, S) - log lambda`` (Blackman & Popoli 1999, eq. 6.10; Afzal's survey,
     eqs. 11-13) where ``nu^T S^-1 nu`` is within the chi-square gate of probability
-    ``config.estimator.gate_probability``; ``-inf`` outside.
+    ``config.estimator.pruning.gate_probability``; ``-inf`` outside.
 
     Parameters
     ----------
@@ -368,7 +369,7 @@ def gated_log_ratios(
     innovations : list of Innovations, length T
     """
     sensor = config.sensors[scan.sensor]
-    own = SensorTerms.of(sensor, config.estimator.gate_probability)
+    own = SensorTerms.of(sensor, config.estimator.pruning.gate_probability)
     threshold, offset = own.threshold, own.log_pd - own.log_clutter
     out = np.full((len(tracks), scan.size), -math.inf)
     innov = []
@@ -509,7 +510,7 @@ class TrackManager:
         """``log(1 - Pd P_G)`` of the scan's sensor (Blackman & Popoli, eq. 6.13)."""
         return miss_term(
             self.config.sensors[scan.sensor].detection_probability,
-            self.config.estimator.gate_probability,
+            self.config.estimator.pruning.gate_probability,
         )
 
     def commit(

@@ -66,14 +66,15 @@ class MapTracker:
 class MapForwardTracker(MapTracker):
     """The MAP estimator's forward pass alone: each window's decision is final.
 
-    The same estimator with ``refine_passes = 0`` (no refinement of the whole
+    The same estimator with ``refinement.passes = 0`` (no refinement of the whole
     recording, :mod:`mapassoc.estimator.refinement`): in comparisons it shows what the
     refinement adds.
     """
 
     def __init__(self, *, config: Config, name: str = "map-forward") -> None:
         config = check_config(config)
+        no_refinement = dataclasses.replace(config.estimator.refinement, passes=0)
         forward = dataclasses.replace(
-            config, estimator=dataclasses.replace(config.estimator, refine_passes=0)
+            config, estimator=dataclasses.replace(config.estimator, refinement=no_refinement)
         )
         super().__init__(config=forward, name=name)

@@ -38,8 +38,8 @@ no more, so a target that has gone stays explained without coasting into clutter
 
 **Per-tree pruning** after each scan's branching: the gate; leaves scoring more than
 ``prune_log_ratio`` below the best leaf of their tree; then all but the ``max_leaves``
-best leaves of each tree (defaults: ``config.estimator.prune_log_ratio`` and
-``config.estimator.max_hypotheses_per_tree``).
+best leaves of each tree (defaults: ``config.estimator.pruning.prune_log_ratio`` and
+``config.estimator.pruning.max_hypotheses_per_tree``).
 
 **Global hypothesis.** At every scan the best *global hypothesis* chooses at most one
 leaf per tree, no detection used twice, maximising the summed leaf scores (Blackman
@@ -499,12 +499,12 @@ class MhtTracker:
     Parameters
     ----------
     config : Config
-        Motion, sensor, clutter and birth models; ``config.estimator.gate_probability``
+        Motion, sensor, clutter and birth models; ``config.estimator.pruning.gate_probability``
         is the gate.  Every sensor needs ``false_alarms_per_scan > 0`` and
         ``Pd * P_G < 1`` (:func:`~mapassoc.trackers.management.check_tracker_config`).
     gate_probability : float, optional
         This tracker's own gate probability, in (0, 1]; default
-        ``config.estimator.gate_probability``.
+        ``config.estimator.pruning.gate_probability``.
     n_scan : int
         N >= 1: the decision of scan ``k - N`` is fixed after scan k.  Default 3.
     m_best : int
@@ -514,10 +514,10 @@ class MhtTracker:
         leaves.  Default False.
     prune_log_ratio : float, optional
         Leaves more than this below the best leaf of their tree are pruned (> 0, ``inf``
-        disables); default ``config.estimator.prune_log_ratio``.
+        disables); default ``config.estimator.pruning.prune_log_ratio``.
     max_leaves : int, optional
         Most leaves per tree after each scan (>= 1); default
-        ``config.estimator.max_hypotheses_per_tree``.
+        ``config.estimator.pruning.max_hypotheses_per_tree``.
     termination_drop : float, optional
         Score drop below a path's maximum at which a leaf is a terminated track (> 0,
         ``inf`` disables); default ``management.deletion_drop``.
@@ -558,13 +558,14 @@ class MhtTracker:
         if not isinstance(m_best_pruning, bool):
             raise InputError(f"m_best_pruning must be True or False, got {m_best_pruning!r}")
         self.m_best_pruning = m_best_pruning
+        pruning = config.estimator.pruning
         self.prune_log_ratio = _check_drop(
             "prune_log_ratio",
-            config.estimator.prune_log_ratio if prune_log_ratio is None else prune_log_ratio,
+            pruning.prune_log_ratio if prune_log_ratio is None else prune_log_ratio,
         )
         self.max_leaves = check_integer(
             "max_leaves",
-            config.estimator.max_hypotheses_per_tree if max_leaves is None else max_leaves,
+            config.estimator.pruning.max_hypotheses_per_tree if max_leaves is None else max_leaves,
             minimum=1,
         )
         self.tentative_scans = (
@@ -688,7 +689,7 @@ class MhtTracker:
         log_ratio, _ = gated_log_ratios(self.config, predicted, scan)
         log_miss = miss_term(
             self.config.sensors[scan.sensor].detection_probability,
-            self.config.estimator.gate_probability,
+            self.config.estimator.pruning.gate_probability,
         )
         drop = self.termination_drop
         for leaf, track, row in zip(live, predicted, log_ratio, strict=True):

@@ -43,7 +43,7 @@ def test_unknown_solver_names_the_file(
     assert _run(config, scenario / "detections.csv", tmp_path / "out") == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1
-    assert "solver.toml" in err and "estimator.solver" in err and "gurobi" in err
+    assert "solver.toml" in err and "estimator.search.solver" in err and "gurobi" in err
     assert "highs" in err  # the known names
 
 
@@ -271,7 +271,7 @@ def test_estimate_parameters_prints_its_warnings_as_run_does(
     lines (with the source line under them); now `mapassoc: warning: ...`, once each."""
     text = (tiny / "config.toml").read_text()
     config = tmp_path / "nobirth.toml"
-    config.write_text(text[: text.index("[birth]")] + text[text.index("[estimator]") :])
+    config.write_text(text[: text.index("[birth]")] + text[text.index("[estimator.") :])
     ms = _edited_detections(tiny / "detections.csv", tmp_path / "ms.csv", 0, 0.0, 1000.0)
     capsys.readouterr()
     assert main(["estimate-parameters", str(config), str(ms), "--no-progress"]) == 0

@@ -24,13 +24,21 @@ def scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _edit(scenario: Path, target: Path, replace: dict[str, str]) -> Path:
-    """The scenario's config.toml with the lines starting with a key of ``replace``
-    replaced, and no clock limit."""
-    replace = {"time_limit =": "time_limit = 600.0", **replace}
+    """The scenario's config.toml with the lines replaced whose ``[table] key =`` start is
+    a key of ``replace`` (``"[estimator.windows] time_limit ="``; a key without a table
+    matches in every table), and no clock limit."""
+    replace = {
+        "[estimator.windows] time_limit =": "time_limit = 600.0",
+        "[estimator.search] program_time_limit =": "program_time_limit = 600.0",
+        **replace,
+    }
     lines = []
+    table = ""
     for line in (scenario / "config.toml").read_text().splitlines():
+        if line.startswith("["):
+            table = line
         for start, new in replace.items():
-            if line.startswith(start):
+            if line.startswith(start) or f"{table} {line}".startswith(start):
                 line = new
         lines.append(line)
     target.write_text("\n".join(lines) + "\n")
@@ -38,9 +46,10 @@ def _edit(scenario: Path, target: Path, replace: dict[str, str]) -> Path:
 
 
 INFINITE = {
-    "prune_log_ratio =": "prune_log_ratio = inf\nsibling_prune_log_ratio = inf",
-    "refine_prune_log_ratio =": "refine_prune_log_ratio = inf",
-    "refine_passes =": "refine_passes = 1",
+    "[estimator.pruning] prune_log_ratio =": "prune_log_ratio = inf\n"
+    "sibling_prune_log_ratio = inf",
+    "[estimator.refinement] prune_log_ratio =": "prune_log_ratio = inf",
+    "[estimator.refinement] passes =": "passes = 1",
 }
 
 
@@ -70,8 +79,9 @@ def test_inf_prune_widths_are_written_and_resumed(scenario: Path, tmp_path: Path
         _strict_json(reference / name)
     manifest = json.loads((reference / "manifest.json").read_text())
     recorded = manifest["settings"]["estimator"]
-    for key in ("prune_log_ratio", "sibling_prune_log_ratio", "refine_prune_log_ratio"):
-        assert recorded[key] == "inf", key
+    for record, key in (("pruning", "prune_log_ratio"), ("pruning", "sibling_prune_log_ratio"),
+                        ("refinement", "prune_log_ratio")):  # fmt: skip
+        assert recorded[record][key] == "inf", key
     assert settings_from_json(EstimatorSettings, recorded) == load_config(config).estimator
 
     out = tmp_path / "out"
@@ -91,7 +101,7 @@ def test_a_minus_inf_pass_objective_is_written(scenario: Path, tmp_path: Path) -
     config = _edit(scenario, tmp_path / "pd1.toml", {
         "detection_probability =": "detection_probability = 1.0",
         "false_alarms_per_scan =": 'false_alarms_per_scan = "auto"',
-        "refine_passes =": "refine_passes = 0",
+        "[estimator.refinement] passes =": "passes = 0",
     })  # fmt: skip
     out = tmp_path / "out"
     run_files(config, scenario / "detections.csv", out, _options())

@@ -16,7 +16,7 @@ from mapassoc.solvers import SOLVER_NAMES, available_solvers
 
 BASE = MINIMAL_CONFIG_TOML
 BIRTH = "\n[birth]\nrate = 0.2\n"
-ESTIMATOR = "\n[estimator]\nwindow_length = 4\n"
+ESTIMATOR = "\n[estimator.windows]\nwindow_length = 4\n"
 
 
 def write(tmp_path: Path, text: str) -> Path:
@@ -34,11 +34,18 @@ def test_a_missing_estimator_section_warns_with_the_file_and_the_defaults(
     messages = [str(w.message) for w in caught]
     assert messages == [
         f"{path} has no [estimator] section: the defaults of EstimatorSettings are used "
-        "(window_length 5, stride 1, max_tracks 20, gate_probability 0.999, "
-        "max_hypotheses_per_tree 64, prune_log_ratio 9.0, k_prior 'birth', k_prior_mean 5.0, "
-        "k_prior_weights [], k_estimate 'marginal', solver 'highs', time_limit 2.0, "
-        "exact_work_limit 500000, beam_width 200, refine_passes 6, refine_link_gap 10, "
-        "refine_prune_log_ratio 18.0, min_existence 0.0)"
+        "(windows.window_length 5, windows.stride 1, windows.time_limit 2.0, "
+        "pruning.gate_probability 0.999, pruning.max_hypotheses_per_tree 64, "
+        "pruning.prune_log_ratio 9.0, search.solver 'highs', search.exact_work_limit 500000, "
+        "search.beam_width 200, search.bound_prune_log_ratio 9.0, "
+        "search.program_time_limit 2.0, count.max_tracks 20, count.k_prior 'birth', "
+        "count.k_prior_mean 5.0, count.k_prior_weights [], count.k_estimate 'marginal', "
+        "refinement.passes 6, refinement.scan_windows True, refinement.link_gap 10, "
+        "refinement.refilter_detections 15, refinement.prune_log_ratio 18.0, "
+        "refinement.long_prune_log_ratio 9.0, refinement.min_existence 0.0, "
+        "parameters.rate_tolerance 0.02, parameters.pd_tolerance 0.005, "
+        "parameters.max_passes 3, parameters.sample_scans 600, "
+        "parameters.sample_blocks_count 6)"
     ]
     assert config.estimator == EstimatorSettings()  # still optional: the defaults are used
     assert config.birth.rate == 0.2
@@ -96,7 +103,7 @@ def test_known_solvers_pass_and_without_names_the_check_is_left_to_the_pipeline(
 
 def test_the_default_solver_is_checked_too_and_solver_names_must_be_names(tmp_path: Path) -> None:
     path = write(tmp_path, BASE + BIRTH + ESTIMATOR)
-    message = r"estimator\.solver': unknown solver 'highs'; known solvers: cvxpy-clarabel$"
+    message = r"estimator\.search\.solver': unknown solver 'highs'; known solvers: cvxpy-clarabel$"
     with pytest.raises(ConfigError, match=message):
         load_config(path, solver_names=["cvxpy-clarabel"])
     with pytest.raises(InputError, match=r"solver_names must be a collection of names, got 'hi"):

@@ -1,7 +1,8 @@
 """Tests of ``InputError.key``: the settings dataclasses name the offending field.
 
 :mod:`mapassoc.data.config` reports ``<section>.<key>`` from it, so every validated field of
-:class:`BirthModel` and :class:`EstimatorSettings` must set it.
+:class:`BirthModel` and of each record :class:`EstimatorSettings` composes must set it (and
+an old flat key of ``EstimatorSettings`` is reported under the name it was given as).
 """
 
 from __future__ import annotations
@@ -14,7 +15,17 @@ import pytest
 from support import MINIMAL_CONFIG_TOML
 
 from mapassoc.data.config import parse_config
-from mapassoc.data.settings import BirthModel, EstimatorSettings
+from mapassoc.data.settings import (
+    FLAT_KEYS,
+    BirthModel,
+    CountSettings,
+    EstimatorSettings,
+    ParameterSettings,
+    PruningSettings,
+    RefinementSettings,
+    SearchSettings,
+    WindowSettings,
+)
 from mapassoc.errors import ConfigError, InputError
 from mapassoc.estimator.posterior import CountPrior
 
@@ -31,7 +42,52 @@ BAD_BIRTH: dict[str, tuple[object, dict[str, object]]] = {
     "survival_probability": (0.0, {}),
 }
 
-BAD_ESTIMATOR: dict[str, tuple[object, dict[str, object]]] = {
+BAD_WINDOWS: dict[str, tuple[object, dict[str, object]]] = {
+    "window_length": (0, {}),
+    "stride": (6, {"window_length": 5}),
+    "time_limit": (0.0, {}),
+}
+BAD_PRUNING: dict[str, tuple[object, dict[str, object]]] = {
+    "gate_probability": (1.5, {}),
+    "max_hypotheses_per_tree": (0, {}),
+    "prune_log_ratio": (-1.0, {}),
+    "sibling_prune_log_ratio": (-1.0, {}),
+}
+BAD_SEARCH: dict[str, tuple[object, dict[str, object]]] = {
+    "solver": ("", {}),
+    "exact_work_limit": (0, {}),
+    "beam_width": (0, {}),
+    "bound_prune_log_ratio": (-1.0, {}),
+    "program_time_limit": (0.0, {}),
+}
+BAD_COUNT: dict[str, tuple[object, dict[str, object]]] = {
+    "max_tracks": (-1, {}),
+    "k_prior": ("flat", {}),
+    "k_prior_mean": (0.0, {}),
+    "k_prior_weights": ((1.0,), {"k_prior": "weights", "max_tracks": 2}),
+    "k_estimate": ("mode", {}),
+}
+BAD_REFINEMENT: dict[str, tuple[object, dict[str, object]]] = {
+    "passes": (-1, {}),
+    "window_length": (0, {}),
+    "long_window_length": (0, {}),
+    "stride": (0, {}),
+    "scan_windows": (1, {}),
+    "link_gap": (-1, {}),
+    "refilter_detections": (0, {}),
+    "prune_log_ratio": (-1.0, {}),
+    "long_prune_log_ratio": (-1.0, {}),
+    "min_existence": (1.5, {}),
+}
+BAD_PARAMETERS: dict[str, tuple[object, dict[str, object]]] = {
+    "rate_tolerance": (0.0, {}),
+    "pd_tolerance": (-1.0, {}),
+    "max_passes": (0, {}),
+    "sample_scans": (0, {}),
+    "sample_blocks_count": (0, {}),
+}
+# The old flat keys of EstimatorSettings (FLAT_KEYS): an error names the key as given.
+BAD_FLAT: dict[str, tuple[object, dict[str, object]]] = {
     "window_length": (0, {}),
     "stride": (6, {"window_length": 5}),
     "max_tracks": (-1, {}),
@@ -53,14 +109,22 @@ BAD_ESTIMATOR: dict[str, tuple[object, dict[str, object]]] = {
     "min_existence": (1.5, {}),
 }
 
+RECORDS: dict[str, tuple[type, dict[str, tuple[object, dict[str, object]]]]] = {
+    "birth": (BirthModel, BAD_BIRTH),
+    "estimator.windows": (WindowSettings, BAD_WINDOWS),
+    "estimator.pruning": (PruningSettings, BAD_PRUNING),
+    "estimator.search": (SearchSettings, BAD_SEARCH),
+    "estimator.count": (CountSettings, BAD_COUNT),
+    "estimator.refinement": (RefinementSettings, BAD_REFINEMENT),
+    "estimator.parameters": (ParameterSettings, BAD_PARAMETERS),
+}
+
 CASES = [
     (section, cls, name, bad, extra)
-    for section, cls, table in (
-        ("birth", BirthModel, BAD_BIRTH),
-        ("estimator", EstimatorSettings, BAD_ESTIMATOR),
-    )
+    for section, (cls, table) in RECORDS.items()
     for name, (bad, extra) in table.items()
 ]
+FLAT_CASES = [(name, bad, extra) for name, (bad, extra) in BAD_FLAT.items()]
 
 
 def _validated_fields(cls: type) -> set[str]:
@@ -68,9 +132,7 @@ def _validated_fields(cls: type) -> set[str]:
     return {field.name for field in dataclasses.fields(cls)}
 
 
-@pytest.mark.parametrize(
-    ("cls", "table"), [(BirthModel, BAD_BIRTH), (EstimatorSettings, BAD_ESTIMATOR)]
-)
+@pytest.mark.parametrize(("cls", "table"), list(RECORDS.values()), ids=list(RECORDS))
 def test_table_covers_every_validated_field(
     cls: type, table: dict[str, tuple[object, dict[str, object]]]
 ) -> None:
@@ -78,6 +140,10 @@ def test_table_covers_every_validated_field(
         f"{cls.__name__}: give every validated field a bad value in this table"
     )
     cls()  # the defaults are valid
+
+
+def test_the_flat_table_covers_every_old_key() -> None:
+    assert set(BAD_FLAT) == set(FLAT_KEYS)
 
 
 @pytest.mark.parametrize(
@@ -92,6 +158,16 @@ def test_settings_error_names_the_field(
     assert name in str(info.value)
 
 
+def _document(section: str, table: dict[str, object]) -> dict[str, object]:
+    data = copy.deepcopy(tomllib.loads(MINIMAL_CONFIG_TOML))
+    table = {k: list(v) if isinstance(v, tuple) else v for k, v in table.items()}
+    if section.startswith("estimator."):
+        data["estimator"] = {section.split(".", 1)[1]: table}
+    else:
+        data[section] = table
+    return data
+
+
 @pytest.mark.parametrize(
     ("section", "cls", "name", "bad", "extra"), CASES, ids=[f"{c[0]}.{c[2]}" for c in CASES]
 )
@@ -100,12 +176,23 @@ def test_config_reports_section_and_field(
 ) -> None:
     with pytest.raises(InputError) as direct:
         cls(**extra, **{name: bad})
-    data = copy.deepcopy(tomllib.loads(MINIMAL_CONFIG_TOML))
-    data[section] = {**extra, name: list(bad) if isinstance(bad, tuple) else bad}
     with pytest.raises(ConfigError) as info:
-        parse_config(data, source="bad.toml")
+        parse_config(_document(section, {**extra, name: bad}), source="bad.toml")
     assert info.value.key == f"{section}.{name}"
     assert str(info.value) == f"bad.toml: config key '{section}.{name}': {direct.value}"
+
+
+@pytest.mark.parametrize(("name", "bad", "extra"), FLAT_CASES, ids=[c[0] for c in FLAT_CASES])
+def test_an_old_flat_key_error_names_the_key_as_given(
+    name: str, bad: object, extra: dict[str, object]
+) -> None:
+    with pytest.raises(InputError) as direct:
+        EstimatorSettings(**extra, **{name: bad})
+    assert direct.value.key == name
+    with pytest.raises(ConfigError) as info:  # refused before the deprecation is told
+        parse_config(_document("estimator", {**extra, name: bad}), source="bad.toml")
+    assert info.value.key == f"estimator.{name}"
+    assert str(info.value) == f"bad.toml: config key 'estimator.{name}': {direct.value}"
 
 
 def test_weight_entry_error_names_the_entry() -> None:

@@ -40,9 +40,17 @@ def test_settings_round_trip_through_strict_json(
 
 def test_infinite_widths_are_written_as_inf() -> None:
     record = settings_to_json(EstimatorSettings(prune_log_ratio=math.inf))
-    assert record["prune_log_ratio"] == "inf"
-    assert record["sibling_prune_log_ratio"] is None
-    assert record["solver"] == "highs"
+    assert record["pruning"]["prune_log_ratio"] == "inf"  # type: ignore[index]
+    assert record["pruning"]["sibling_prune_log_ratio"] is None  # type: ignore[index]
+    assert record["search"]["solver"] == "highs"  # type: ignore[index]
+
+
+def test_a_record_of_the_old_flat_keys_reads_as_the_same_settings() -> None:
+    """Run folders written before the records hold the flat form; it reads back equal."""
+    flat = {"prune_log_ratio": "inf", "time_limit": 600.0, "k_prior": "uniform"}
+    assert settings_from_json(EstimatorSettings, flat) == EstimatorSettings(
+        prune_log_ratio=math.inf, time_limit=600.0, k_prior="uniform"
+    )
 
 
 def test_a_bad_record_names_the_field() -> None:
@@ -50,3 +58,5 @@ def test_a_bad_record_names_the_field() -> None:
         settings_from_json(EstimatorSettings, {"prune_log_ratio": "lots"})
     with pytest.raises(InputError, match="no fields \\['colour'\\]"):
         settings_from_json(EstimatorSettings, {"colour": 1})
+    with pytest.raises(InputError, match="windows: expected an object"):
+        settings_from_json(EstimatorSettings, {"windows": 5})

@@ -320,7 +320,7 @@ def test_single_scan_windows_go_where_the_cap_cut_a_longer_windows_trees() -> No
     assert solved == [(0, 1)]
     with pytest.raises(InputError) as error:
         RefinementSettings(scan_windows=1)  # type: ignore[arg-type]
-    assert error.value.key == "refine_scan_windows"
+    assert error.value.key == "scan_windows"
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -363,7 +363,7 @@ def test_long_windows_are_pruned_at_their_own_width(monkeypatch: pytest.MonkeyPa
     assert same.long_generator.prune_log_ratio == 7.0
     with pytest.raises(InputError) as error:
         RefinementSettings(long_prune_log_ratio=-1.0)
-    assert error.value.key == "refine_long_prune_log_ratio"
+    assert error.value.key == "long_prune_log_ratio"
 
     # The estimator's refinement: its own width for the short windows, the forward pass's
     # for the long ones.

@@ -183,7 +183,7 @@ def test_a_max_tracks_beyond_2_53_is_refused_naming_the_key(tmp_path: Path) -> N
     (tmp_path / "config.toml").write_text(text)
     with pytest.raises(ConfigError) as error:
         load_config(tmp_path / "config.toml")
-    assert error.value.key == "estimator.max_tracks"
+    assert error.value.key == "estimator.count.max_tracks"
     assert str(MAX_KMAX + 1) in str(error.value) and "\n" not in str(error.value)
 
 
