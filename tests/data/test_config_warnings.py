@@ -95,10 +95,11 @@ def test_known_solvers_pass_and_without_names_the_check_is_left_to_the_pipeline(
     tmp_path: Path,
 ) -> None:
     for name in available_solvers():
-        path = write(tmp_path, BASE + BIRTH + f'\n[estimator]\nsolver = "{name}"\n')
-        assert load_config(path, solver_names=SOLVER_NAMES).estimator.solver == name
-    path = write(tmp_path, BASE + BIRTH + '\n[estimator]\nsolver = "gurobi"\n')
-    assert load_config(path).estimator.solver == "gurobi"
+        path = write(tmp_path, BASE + BIRTH + f'\n[estimator.search]\nsolver = "{name}"\n')
+        config = load_config(path, solver_names=SOLVER_NAMES)
+        assert config.estimator.search.solver == name
+    path = write(tmp_path, BASE + BIRTH + '\n[estimator.search]\nsolver = "gurobi"\n')
+    assert load_config(path).estimator.search.solver == "gurobi"
 
 
 def test_the_default_solver_is_checked_too_and_solver_names_must_be_names(tmp_path: Path) -> None:

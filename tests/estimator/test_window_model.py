@@ -756,7 +756,7 @@ def small_config(*, false_alarms_per_scan: float = 1.0, solver: str = "highs") -
                     "region": [[-10.0, 10.0]],
                 }
             ],
-            "estimator": {"solver": solver},
+            "estimator": {"search": {"solver": solver}},
         }
     )
 

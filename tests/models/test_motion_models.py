@@ -258,8 +258,10 @@ initial_count = 3.0
 velocity_std = 3.0
 acceleration_std = 0.1
 
-[estimator]
+[estimator.windows]
 window_length = 3
+
+[estimator.count]
 max_tracks = 8
 """
 
