@@ -30,7 +30,12 @@ With ``max_frontiers`` (and ``entry_margin``) the forward pass is the beam of
 :func:`~mapassoc.formulations.frontier.frontier_search`; the backward pass then runs only
 through the (frontier, k) entries the beam kept, so ``log_mass``, ``N_h`` and ``Z`` are
 all sums over the *same* subset of feasible sets (each counted once): lower bounds of
-the full sums, and ``N_h / Z`` the marginal among the sets captured.
+the full sums, and ``N_h / Z`` the marginal among the sets captured.  A beam's memory
+grows with its frontiers times the hypotheses and positions, not with how far the
+hypotheses span: where a hypothesis spans 64 positions or more (a clutter burst's
+cluster: hundreds of thousands of hypotheses spanning thousands of positions), its
+frontiers are rows of the positions they cover ahead, which order, merge and rank as
+the bit words do.
 """
 
 from __future__ import annotations
@@ -282,7 +287,8 @@ def _compiled_forward_backward(
     """:func:`_forward_backward` in the compiled kernel
     (:func:`mapassoc.formulations.compiled_frontier.forward_backward`): the same sums to
     round-off, the same work, stops and ``exact``; ``None`` where a hypothesis spans 64
-    positions or more (the numpy pass then takes Python integers as words)."""
+    positions or more (the numpy pass then takes Python integers as words, or, for a
+    beam, rows of covered positions: :class:`_PositionRows`)."""
     layout = frontier_words(problem, order)
     if layout is None:
         return None
