@@ -30,7 +30,12 @@ With ``max_frontiers`` (and ``entry_margin``) the forward pass is the beam of
 :func:`~mapassoc.formulations.frontier.frontier_search`; the backward pass then runs only
 through the (frontier, k) entries the beam kept, so ``log_mass``, ``N_h`` and ``Z`` are
 all sums over the *same* subset of feasible sets (each counted once): lower bounds of
-the full sums, and ``N_h / Z`` the marginal among the sets captured.
+the full sums, and ``N_h / Z`` the marginal among the sets captured.  A beam's memory
+grows with its frontiers times the hypotheses and positions, not with how far the
+hypotheses span: where a hypothesis spans 64 positions or more (a clutter burst's
+cluster: hundreds of thousands of hypotheses spanning thousands of positions), its
+frontiers are rows of the positions they cover ahead, which order, merge and rank as
+the bit words do.
 """
 
 from __future__ import annotations
@@ -282,7 +287,8 @@ def _compiled_forward_backward(
     """:func:`_forward_backward` in the compiled kernel
     (:func:`mapassoc.formulations.compiled_frontier.forward_backward`): the same sums to
     round-off, the same work, stops and ``exact``; ``None`` where a hypothesis spans 64
-    positions or more (the numpy pass then takes Python integers as words)."""
+    positions or more (the numpy pass then takes Python integers as words, or, for a
+    beam, rows of covered positions: :class:`_PositionRows`)."""
     layout = frontier_words(problem, order)
     if layout is None:
         return None
@@ -314,6 +320,155 @@ def _compiled_forward_backward(
     return FrontierMarginals(log_mass, log_total, containing, bool(exact), work)
 
 
+_Spans = tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]
+""":func:`~mapassoc.formulations.frontier.hypothesis_spans`: owner, offsets, first, last."""
+
+
+class _Words:
+    """Frontier words as bit words relative to the current position: one uint64 when
+    every hypothesis spans fewer than 64 positions, Python integers (an object array)
+    otherwise.  Bit ``i`` of a word: the position ``i`` ahead of the current one is
+    covered by a hypothesis already taken."""
+
+    def __init__(self, problem: PackingProblem, spans: _Spans) -> None:
+        H = problem.num_hypotheses
+        owner, offsets, first, last = spans
+        self.first = first
+        if H == 0 or np.all(last - first < _WORD_BITS):
+            self.relative: NDArray[Any] = np.zeros(H, dtype=np.uint64)
+            np.bitwise_or.at(
+                self.relative, owner, np.left_shift(np.uint64(1), offsets.astype(np.uint64))
+            )
+            self.one: Any = np.uint64(1)
+            self.word: Any = np.uint64
+        else:
+            codes = [0] * H
+            for h, o in zip(owner.tolist(), offsets.tolist(), strict=True):
+                codes[h] |= 1 << o
+            self.relative = np.empty(H, dtype=object)
+            self.relative[:] = codes
+            self.one, self.word = 1, object
+
+    def initial(self) -> NDArray[Any]:
+        return np.zeros(1, dtype=self.word)
+
+    def covered(self, covers: NDArray[Any], step: int) -> NDArray[np.bool_]:
+        return (covers & self.one).astype(bool)
+
+    def pairs(
+        self,
+        covers: NDArray[Any],
+        covered: NDArray[np.bool_],
+        starting: NDArray[np.int64],
+        step: int,
+        most: int | None,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        return open_pairs(covers, covered, self.relative, starting, most)
+
+    def candidates(
+        self,
+        covers: NDArray[Any],
+        keep: NDArray[np.int64],
+        pair_row: NDArray[np.int64],
+        pair_h: NDArray[np.int64],
+        step: int,
+    ) -> NDArray[Any]:
+        one = self.one
+        return np.concatenate(
+            [covers[keep] >> one, (covers[pair_row] | self.relative[pair_h]) >> one]
+        ).astype(self.word)
+
+    @staticmethod
+    def grouped(cand: NDArray[Any]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """Candidates ranked by word (stable) and where a new word starts in that rank."""
+        ranked = np.argsort(cand, kind="stable")
+        ordered = cand[ranked]
+        return ranked, np.r_[True, ordered[1:] != ordered[:-1]]
+
+
+class _PositionRows(_Words):
+    """Frontier words for a beam over hypotheses spanning 64 positions or more: each
+    frontier is the row of the positions it covers ahead (absolute, descending, padded
+    with -1), so a word costs the positions covered rather than a bit per position
+    spanned, and the step's memory stays proportional to its candidates.
+
+    Rows compare as the bit words do (highest position first; a row that is a prefix of
+    another is the smaller), so frontiers are numbered, merged and ranked exactly as
+    with :class:`_Words`, and the sums are the same.
+    """
+
+    def __init__(self, problem: PackingProblem, spans: _Spans) -> None:
+        H = problem.num_hypotheses
+        owner, offsets, first, _ = spans
+        self.first = first
+        spots = first[owner] + offsets
+        lengths = np.diff(problem.resource_indptr)
+        width = int(lengths.max()) if H else 0
+        rows = np.full((H, max(width, 1)), -1, dtype=np.int64)
+        column = np.arange(spots.size) - np.repeat(problem.resource_indptr[:-1], lengths)
+        rows[owner, column] = spots
+        self.rows = -np.sort(-rows, axis=1)  # descending, -1 last
+
+    def initial(self) -> NDArray[Any]:
+        return np.full((1, 1), -1, dtype=np.int64)
+
+    def covered(self, covers: NDArray[Any], step: int) -> NDArray[np.bool_]:
+        return np.any(covers == step, axis=1)
+
+    def pairs(
+        self,
+        covers: NDArray[Any],
+        covered: NDArray[np.bool_],
+        starting: NDArray[np.int64],
+        step: int,
+        most: int | None,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Every fitting (open frontier, starting hypothesis) pair, rows first, as
+        :func:`open_pairs` orders them (all of them: ``most`` only spares work there)."""
+        open_rows = np.flatnonzero(~covered)
+        if not (starting.size and open_rows.size):
+            empty = np.zeros(0, dtype=np.int64)
+            return empty, empty
+        cover = covers[open_rows]
+        held = np.unique(cover[cover >= 0])  # positions some open frontier covers
+        clash = np.zeros((starting.size, open_rows.size), dtype=bool)
+        if held.size:
+            wanted = self.rows[starting]
+            spot = np.minimum(np.searchsorted(held, wanted), held.size - 1)
+            hit_h, hit_col = np.nonzero((wanted >= 0) & (held[spot] == wanted))
+            if hit_h.size:
+                # (open frontier, hit): the frontier covers the hit's position
+                holds = np.any(cover[:, :, None] == wanted[hit_h, hit_col], axis=1)
+                np.logical_or.at(clash, hit_h, holds.T)
+        pair_row, pair_h = np.nonzero(~clash.T)
+        return open_rows[pair_row], starting[pair_h]
+
+    def candidates(
+        self,
+        covers: NDArray[Any],
+        keep: NDArray[np.int64],
+        pair_row: NDArray[np.int64],
+        pair_h: NDArray[np.int64],
+        step: int,
+    ) -> NDArray[Any]:
+        width = covers.shape[1] + self.rows.shape[1]
+        cand = np.full((keep.size + pair_row.size, width), -1, dtype=np.int64)
+        cand[: keep.size, : covers.shape[1]] = covers[keep]
+        taken = cand[keep.size :]
+        taken[:, : covers.shape[1]] = covers[pair_row]
+        taken[:, covers.shape[1] :] = self.rows[pair_h]
+        cand[cand == step] = -1  # the position passed
+        cand[keep.size :] = -np.sort(-taken, axis=1)
+        used = np.flatnonzero(np.any(cand >= 0, axis=0))
+        return cand[:, : max(int(used[-1]) + 1 if used.size else 0, 1)]
+
+    @staticmethod
+    def grouped(cand: NDArray[Any]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        ranked = np.lexsort(cand.T[::-1])  # first column (the highest position) first
+        ordered = cand[ranked]
+        return ranked, np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]
+
+
 def _forward_backward(
     problem: PackingProblem,
     order: NDArray[np.int64],
@@ -328,30 +483,22 @@ def _forward_backward(
     S, width = seeds.shape
     kmax = width - 1
     R = order.size
-    owner, offsets, first, last = hypothesis_spans(problem, order)
-    # Frontier words relative to the current position: one uint64 when every hypothesis
-    # spans fewer than 64 positions, Python integers (object arrays) otherwise.
-    if H == 0 or np.all(last - first < _WORD_BITS):
-        relative = np.zeros(H, dtype=np.uint64)
-        np.bitwise_or.at(relative, owner, np.left_shift(np.uint64(1), offsets.astype(np.uint64)))
-        # A frontier word is a uint64 or a Python integer (an object array's element).
-        one: Any = np.uint64(1)
-        word: Any = np.uint64
+    spans = hypothesis_spans(problem, order)
+    _, _, first, last = spans
+    if max_frontiers is not None and H and np.any(last - first >= _WORD_BITS):
+        # A beam keeps few frontiers, each covering few positions ahead: rows of them
+        # cost less than Python integers as wide as the hypotheses' spans.
+        words: _Words = _PositionRows(problem, spans)
     else:
-        codes = [0] * H
-        for h, o in zip(owner.tolist(), offsets.tolist(), strict=True):
-            codes[h] |= 1 << o
-        relative = np.empty(H, dtype=object)
-        relative[:] = codes
-        one, word = 1, object
+        words = _Words(problem, spans)
     counts = problem.counts.astype(np.int64)
     weights = problem.weights
-    by_start = np.argsort(first, kind="stable")
-    bounds = np.searchsorted(first[by_start], np.arange(R + 1))
+    by_start = np.argsort(words.first, kind="stable")
+    bounds = np.searchsorted(words.first[by_start], np.arange(R + 1))
     exactly_one = problem.exactly_one[order]
 
     exact = True
-    covers: NDArray[Any] = np.zeros(1, dtype=word)
+    covers: NDArray[Any] = words.initial()
     mass = np.zeros((1, 1))
     steps: list[_Step] = []
     work = 0
@@ -363,12 +510,12 @@ def _forward_backward(
         work=0,
     )
     for step in range(R):
-        covered = (covers & one).astype(bool)
-        keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(covers.size)
+        covered = words.covered(covers, step)
+        keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(len(covers))
         starting = by_start[bounds[step] : bounds[step + 1]]
         reach = mass.shape[1] - 1
         most = pair_budget(work_limit, work, reach + 1, keep.size, _ENTRIES_PER_TRANSITION)
-        pair_row, pair_h = open_pairs(covers, covered, relative, starting, most)
+        pair_row, pair_h = words.pairs(covers, covered, starting, step, most)
         grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and reach < kmax)
         cols = reach + 1 + grow
         source = np.concatenate([keep, pair_row]).astype(np.int64)
@@ -391,37 +538,35 @@ def _forward_backward(
                 continue
             span = min(reach + 1, cols - c)
             cand[taken[sel], c : c + span] = mass[pair_row[sel], :span] + weights[pair_h[sel], None]
-        cand_covers = np.concatenate(
-            [covers[keep] >> one, (covers[pair_row] | relative[pair_h]) >> one]
-        ).astype(word)
+        cand_covers = words.candidates(covers, keep, pair_row, pair_h, step)
         decision = np.concatenate([np.full(keep.size, -1, dtype=np.int64), pair_h])
-        ranked = np.argsort(cand_covers, kind="stable")
-        sorted_covers = cand_covers[ranked]
-        new_frontier = np.r_[True, sorted_covers[1:] != sorted_covers[:-1]]
+        ranked, new_frontier = words.grouped(cand_covers)
         starts = np.flatnonzero(new_frontier)
         target = np.empty(source.size, dtype=np.int64)
         target[ranked] = np.cumsum(new_frontier) - 1
         new_mass = np.logaddexp.reduceat(cand[ranked], starts, axis=0)
-        new_covers = sorted_covers[starts]
+        new_covers = cand_covers[ranked[starts]]
         if entry_margin is not None:
             light = new_mass < new_mass.max(axis=1, keepdims=True) - entry_margin
             if np.any(light):
                 new_mass[light] = _NEG_INF
                 exact = False
-        if max_frontiers is not None and new_covers.size > max_frontiers:
+        if max_frontiers is not None and len(new_covers) > max_frontiers:
             heaviest = new_mass.max(axis=1)
             kept = np.sort(np.argsort(-heaviest, kind="stable")[:max_frontiers])
-            renumber = np.full(new_covers.size, -1, dtype=np.int64)
+            renumber = np.full(len(new_covers), -1, dtype=np.int64)
             renumber[kept] = np.arange(kept.size)
             target = renumber[target]
             new_covers, new_mass = new_covers[kept], new_mass[kept]
             exact = False
-        steps.append(_Step(mass, source, decision, target))
+        # Only the candidates that reach a kept frontier carry anything backward.
+        live = np.flatnonzero(target >= 0)
+        steps.append(_Step(mass, source[live], decision[live], target[live]))
         covers, mass = new_covers, new_mass
 
     # Every frontier word is 0 after the last position: one frontier remains.
     log_mass = np.full(width, _NEG_INF)
-    if covers.size:
+    if len(covers):
         log_mass[: mass.shape[1]] = mass[0]
     total = np.array([_lse(log_mass + seed) for seed in seeds])
     containing = np.full((S, H), _NEG_INF)

@@ -262,3 +262,48 @@ def test_the_projection_stops_marginals_only_early_and_changes_no_result() -> No
     assert stopped >= 10 and finished >= 15
     with pytest.raises(ValueError, match="work_projection"):
         frontier_marginals(problem, seed, work_projection=2.0)
+
+
+def _wide_problem(rng: np.random.Generator) -> PackingProblem:
+    """Random hypotheses of one to three resources, and a few using 70 (spans of 64
+    positions or more in any order)."""
+    H, R = int(rng.integers(20, 50)), int(rng.integers(80, 120))
+    rows = [rng.choice(R, size=int(rng.integers(1, 4)), replace=False) for _ in range(H)]
+    for h in rng.choice(H, size=3, replace=False):
+        rows[h] = np.union1d(rows[h], rng.choice(R, size=70, replace=False))
+    w = rng.normal(0.0, 3.0, size=H)
+    return PackingProblem(
+        w,
+        np.r_[0, np.cumsum([len(r) for r in rows])].astype(np.int64),
+        np.concatenate(rows).astype(np.int64),
+        rng.random(R) < 0.05,
+        rng.random(H) < 0.7,
+    )
+
+
+@pytest.mark.parametrize("trial", range(8))
+def test_a_beam_over_wide_hypotheses_sums_what_the_word_beam_sums(
+    trial: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A beam over hypotheses spanning 64 positions or more keeps its frontiers as rows
+    of covered positions: the same frontiers numbered, merged and ranked as with the
+    span-wide integer words, so every sum is the same, to the bit; and a beam wide
+    enough to keep every frontier is the exact search."""
+    from mapassoc.formulations import marginals
+
+    rng = np.random.default_rng(100 + trial)
+    problem = _wide_problem(rng)
+    seeds = np.stack([np.zeros(4), rng.normal(0.0, 1.0, size=4)])
+    exact = frontier_marginals(problem, seeds)
+    beams = [(1, None), (4, None), (16, 5.0), (4096, None)]
+    rows = [frontier_marginals(problem, seeds, max_frontiers=f, entry_margin=m) for f, m in beams]
+    monkeypatch.setattr(marginals, "_PositionRows", marginals._Words)
+    words = [frontier_marginals(problem, seeds, max_frontiers=f, entry_margin=m) for f, m in beams]
+    for a, b in zip(rows, words, strict=True):
+        assert a.exact == b.exact and a.work == b.work
+        for field in ("log_mass", "log_total", "log_containing"):
+            assert np.array_equal(getattr(a, field), getattr(b, field)), field
+    assert rows[-1].exact
+    assert_log_close(rows[-1].log_total, exact.log_total)
+    assert_log_close(rows[-1].log_containing, exact.log_containing)
+    assert np.all(rows[0].log_containing <= exact.log_containing + 1e-9)
