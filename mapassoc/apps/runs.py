@@ -24,10 +24,10 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 from mapassoc.apps.progress import Progress
 from mapassoc.apps.run_folders import (
@@ -43,6 +43,11 @@ from mapassoc.errors import DataFileError, InputError, MapassocError, OutputErro
 from mapassoc.trackers.registry import tracker_names
 from mapassoc.validation import check_callback, check_integer, check_path
 
+if TYPE_CHECKING:  # the models are imported when a run starts, not with this module
+    from mapassoc.data.config import Config
+    from mapassoc.data.scans import Scan
+    from mapassoc.estimator.pipeline import EstimateResult, RunState, WindowReport
+
 __all__ = [
     "RunOptions",
     "RunOutcome",
@@ -53,6 +58,9 @@ __all__ = [
     "estimate_with_progress",
     "json_dump",
     "run_files",
+    "RunInputs",
+    "RunModel",
+    "RunSession",
 ]
 
 WINDOWS_NAME = "windows.jsonl"
@@ -178,13 +186,10 @@ class RunOptions:
         if self.overwrite and self.resume:
             raise InputError("--overwrite and --resume exclude each other; choose one")
         if not (self.checkpoint_seconds >= 0):
-            raise InputError(
-                f"checkpoint_seconds must be >= 0, got {self.checkpoint_seconds!r}"
-            )
+            raise InputError(f"checkpoint_seconds must be >= 0, got {self.checkpoint_seconds!r}")
         if self.tracks_format not in format_names():
             raise InputError(
-                f"tracks_format must be one of {sorted(format_names())}, got "
-                f"{self.tracks_format!r}"
+                f"tracks_format must be one of {sorted(format_names())}, got {self.tracks_format!r}"
             )
         if self.detections_format is not None and self.detections_format not in format_names():
             raise InputError(
@@ -329,13 +334,6 @@ def _with_estimates(config: Any, parameters: dict[str, Any]) -> Any:
     return with_sensor_parameters(config, values)
 
 
-def _as_warnings(messages: Iterable[str]) -> list[warnings.WarningMessage]:
-    """Messages in the shape of recorded warnings (to join the configuration's)."""
-    return [
-        warnings.WarningMessage(message, UserWarning, __file__, 0) for message in messages
-    ]
-
-
 def _integer_solvers() -> tuple[str, ...]:
     """The solvers ``estimator.search.solver`` may name (the estimator solves integer programs).
 
@@ -377,8 +375,9 @@ def _settings_record(
     }
 
 
-def _same_run(manifest: dict[str, Any], inputs: dict[str, Any], settings: dict[str, Any],
-              folder: Path) -> None:
+def _same_run(
+    manifest: dict[str, Any], inputs: dict[str, Any], settings: dict[str, Any], folder: Path
+) -> None:
     """Raise InputError unless ``manifest`` is of a run over the same inputs and settings."""
     for kind in ("config", "detections"):
         before = manifest["inputs"][kind]
@@ -389,9 +388,7 @@ def _same_run(manifest: dict[str, Any], inputs: dict[str, Any], settings: dict[s
                 f"{before['sha256'][:12]}...); pass --overwrite to start again"
             )
     if manifest["settings"] != json.loads(json.dumps(settings)):
-        changed = sorted(
-            key for key in settings if manifest["settings"].get(key) != settings[key]
-        )
+        changed = sorted(key for key in settings if manifest["settings"].get(key) != settings[key])
         raise InputError(
             f"cannot resume {folder}: settings {changed} differ from those the run started "
             "with (for example --no-timings or --segments); resume with the same options, "
@@ -399,8 +396,9 @@ def _same_run(manifest: dict[str, Any], inputs: dict[str, Any], settings: dict[s
         )
 
 
-class _Session:
-    """One session of a run in ``OUT.partial``: its manifest, warnings and checkpoints."""
+class _RunRecord:
+    """The record of one session of a run in ``OUT.partial``: its manifest, warnings
+    and checkpoints."""
 
     def __init__(
         self, folder: RunFolder, manifest: dict[str, Any], messages: list[str], total: int
@@ -462,6 +460,10 @@ def run_files(
 ) -> RunOutcome:
     """Read a configuration and a detections file, estimate tracks, write a run folder.
 
+    The steps are those of a :class:`RunSession`: open the folder and read the inputs,
+    take a resumed run's checkpoint (or find it complete), read the scans, estimate the
+    "auto" sensor parameters, then run and write.
+
     Parameters
     ----------
     config_path, detections_path : path
@@ -494,166 +496,485 @@ def run_files(
         options = RunOptions()
     elif not isinstance(options, RunOptions):
         raise InputError(f"options must be a RunOptions, got {type(options).__name__}")
-    timings, progress, resume = options.timings, options.progress, options.resume
-    segments, tracks_format = options.segments, options.tracks_format
-    t_session = time.perf_counter()
-    folder = RunFolder(out_dir)
-    folder.check_writable_place()
-    if options.overwrite or resume:
-        folder.check_replaceable((config_path, detections_path))
-    else:
-        folder.refuse_existing()
+    session = RunSession(options, stop=stop)
+    session.open(config_path, detections_path, out_dir)
+    done = session.resume()
+    if done is not None:
+        return done
+    session.read_scans()
+    session.estimate_parameters()
+    return session.execute()
 
-    # Each input is read once (a named pipe cannot be read twice), hashed for the
-    # manifest, then parsed from its bytes; a stop request is honoured while reading.
-    config_bytes, config_identity = read_input(config_path, stop=stop)
-    # The models (numpy, scipy.linalg) are imported only once there is something to parse.
-    from mapassoc.data.checks import detections_outside_region
-    from mapassoc.data.config import load_config
-    from mapassoc.data.formats import read_detections_file, write_tracks_file
-    from mapassoc.data.io import write_associations
 
-    with warnings.catch_warnings(record=True) as config_warnings:
-        warnings.simplefilter("always")
-        _ignore_resource_warnings()
-        config = load_config(
-            config_path,
-            solver_names=_integer_solvers(),
-            tracker_names=tracker_names(),
-            content=config_bytes,
-        )
-    detections_bytes, detections_identity = read_input(detections_path, stop=stop)
-    inputs = {"config": config_identity, "detections": detections_identity}
-    settings = _settings_record(config, timings, segments, tracks_format)
+@dataclass(frozen=True)
+class RunInputs:
+    """What a run session read before anything is written (:meth:`RunSession.open`).
 
-    point = _ResumePoint()
-    if resume:
-        point = _resume_point(folder, inputs, settings)
-        if point.outcome is not None and point.outcome.status == "skipped":
-            return point.outcome
-        if point.outcome is not None:  # finished now: moved into place
-            return dataclasses.replace(point.outcome, seconds=time.perf_counter() - t_session)
-    checkpoint, manifest = point.checkpoint, point.manifest
+    Attributes
+    ----------
+    detections_path : path
+        The detections file (its name and format for the parser).
+    config : Config
+        The configuration as loaded ("auto" sensor parameters still open).
+    messages : tuple of str
+        The warnings of loading it.
+    identities : dict
+        ``{"config": ..., "detections": ...}``: each input's path, size and SHA-256.
+    settings : dict
+        The settings a resumed run must share (:func:`_settings_record`).
+    """
 
-    scans = read_detections_file(detections_path, config.sensors, content=detections_bytes,
-                                 format_name=options.detections_format)  # fmt: skip
-    del detections_bytes  # parsed: the scans are what the run needs from here on
-    parameters: dict[str, Any] | None = None
-    precomputed = None
-    if config.auto.pending:
-        if manifest is not None and manifest.get("parameters") is not None:
-            parameters = manifest["parameters"]  # a resumed run keeps its estimates
+    detections_path: str | os.PathLike[str]
+    config: Config
+    messages: tuple[str, ...]
+    identities: dict[str, Any]
+    settings: dict[str, object]
+
+
+@dataclass(frozen=True)
+class RunModel:
+    """The model a run session runs (:meth:`RunSession.estimate_parameters`).
+
+    Attributes
+    ----------
+    config : Config
+        The configuration with no "auto" value left.
+    parameters : dict or None
+        The ``parameters`` record of the estimates (None: nothing was "auto").
+    precomputed : (RunState, tuple of WindowReport) or None
+        The estimation's last pass when it was the whole forward pass with the final
+        values (written, not solved again).
+    messages : tuple of str
+        The warnings so far: loading the configuration, then estimating.
+    """
+
+    config: Config
+    parameters: dict[str, Any] | None
+    precomputed: tuple[RunState, tuple[WindowReport, ...]] | None
+    messages: tuple[str, ...]
+
+
+class RunSession:
+    """One session of :func:`run_files`, in its steps, each a method called in order.
+
+    :meth:`open` checks the folder and reads the inputs once; :meth:`resume` finds what
+    ``--resume`` continues; :meth:`read_scans` parses the detections;
+    :meth:`estimate_parameters` settles the "auto" sensor parameters; :meth:`execute`
+    starts the estimator, opens the run's record in ``OUT.partial`` and runs
+    (:meth:`run_windows`, or :meth:`run_segments`), then :meth:`write_outputs`.
+
+    Parameters
+    ----------
+    options : RunOptions
+    stop : callable, optional
+        Polled between the units of every phase (see :func:`run_files`).
+    """
+
+    def __init__(self, options: RunOptions, *, stop: Callable[[], bool] | None = None) -> None:
+        self.options = options
+        self.stop = stop
+        self.started = time.perf_counter()
+        self.point = _ResumePoint()
+        self.resumed_at = 0
+        self._detections: bytes | None = None
+
+    def seconds(self) -> float:
+        """Wall time since the session began."""
+        return time.perf_counter() - self.started
+
+    def open(
+        self,
+        config_path: str | os.PathLike[str],
+        detections_path: str | os.PathLike[str],
+        out_dir: str | os.PathLike[str],
+    ) -> RunInputs:
+        """Check the run folder, then read each input once and load the configuration.
+
+        Each input is read once (a named pipe cannot be read twice), hashed for the
+        manifest, then parsed from its bytes; a stop request is honoured while reading.
+
+        Raises
+        ------
+        OutputError
+            ``out_dir`` is unusable, or holds a run the options do not allow to replace.
+        DataFileError, ConfigError, InputWaitInterrupted
+            An input cannot be read or loaded, or ``stop`` asked to stop while reading.
+        """
+        options = self.options
+        self.folder = folder = RunFolder(out_dir)
+        folder.check_writable_place()
+        if options.overwrite or options.resume:
+            folder.check_replaceable((config_path, detections_path))
         else:
-            with warnings.catch_warnings(record=True) as estimation_warnings:
-                warnings.simplefilter("always")  # the passes' own, kept for summary.json
-                _ignore_resource_warnings()
-                estimate = estimate_with_progress(config, scans, stop=stop, progress=progress)
-            parameters = estimate.to_json(timings=timings)
-            precomputed = estimate.last_run if segments == 1 else None
-            config_warnings.extend(estimation_warnings)
-            config_warnings.extend(_as_warnings(estimate.warnings))
-        config = _with_estimates(config, parameters)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        _ignore_resource_warnings()
+            folder.refuse_existing()
+        config_bytes, config_identity = read_input(config_path, stop=self.stop)
+        # The models (numpy, scipy.linalg) are imported only once there is something to parse.
+        from mapassoc.data.config import load_config
+
+        with warnings.catch_warnings(record=True) as config_warnings:
+            warnings.simplefilter("always")
+            _ignore_resource_warnings()
+            config = load_config(
+                config_path,
+                solver_names=_integer_solvers(),
+                tracker_names=tracker_names(),
+                content=config_bytes,
+            )
+        self._detections, detections_identity = read_input(detections_path, stop=self.stop)
+        self.inputs = RunInputs(
+            detections_path=detections_path,
+            config=config,
+            messages=tuple(str(w.message) for w in config_warnings),
+            identities={"config": config_identity, "detections": detections_identity},
+            settings=_settings_record(
+                config, options.timings, options.segments, options.tracks_format
+            ),
+        )
+        return self.inputs
+
+    def resume(self) -> RunOutcome | None:
+        """With ``resume``, what the run continues from (kept as :attr:`point`); the
+        outcome when the run is complete already (``"skipped"``, or ``"complete"`` when
+        it was finished now by moving it into place), else None: run."""
+        if not self.options.resume:
+            return None
+        self.point = _resume_point(self.folder, self.inputs.identities, self.inputs.settings)
+        outcome = self.point.outcome
+        if outcome is None or outcome.status == "skipped":
+            return outcome
+        return dataclasses.replace(outcome, seconds=self.seconds())
+
+    def read_scans(self) -> list[Scan]:
+        """Parse the detections read by :meth:`open` (then let their bytes go)."""
+        from mapassoc.data.formats import read_detections_file
+
+        assert self._detections is not None, "read_scans follows open, once"
+        self.scans: list[Scan] = read_detections_file(
+            self.inputs.detections_path, self.inputs.config.sensors, content=self._detections,
+            format_name=self.options.detections_format,
+        )  # fmt: skip
+        self._detections = None  # parsed: the scans are what the run needs from here on
+        return self.scans
+
+    def estimate_parameters(self) -> RunModel:
+        """The configuration's "auto" sensor parameters: estimated from the scans (a line
+        per pass on stderr), or, for a resumed run, the estimates it started with.
+
+        Raises
+        ------
+        StoppedBeforeRun
+            ``stop`` asked to stop during the estimation (nothing is written).
+        """
+        config, options, manifest = self.inputs.config, self.options, self.point.manifest
+        messages = list(self.inputs.messages)
+        parameters: dict[str, Any] | None = None
+        precomputed = None
+        if config.auto.pending:
+            if manifest is not None and manifest.get("parameters") is not None:
+                parameters = manifest["parameters"]  # a resumed run keeps its estimates
+            else:
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")  # the passes' own, kept for summary.json
+                    _ignore_resource_warnings()
+                    estimate = estimate_with_progress(
+                        config, self.scans, stop=self.stop, progress=options.progress
+                    )
+                parameters = estimate.to_json(timings=options.timings)
+                precomputed = estimate.last_run if options.segments == 1 else None
+                messages += [str(w.message) for w in caught]
+                messages += estimate.warnings
+            assert parameters is not None
+            config = _with_estimates(config, parameters)
+        self.model = RunModel(config, parameters, precomputed, tuple(messages))
+        return self.model
+
+    def execute(self) -> RunOutcome:
+        """Start the estimator (every check of the whole run, before anything is
+        written), open the run's record, run and write; print the run's warnings.
+
+        Warnings are recorded from the estimator's start to the end of the run, for
+        ``summary.json`` (and the checkpoints).
+        """
         from mapassoc.estimator.pipeline import WindowEstimator
 
-        estimator = WindowEstimator(config=config)
-        # Every check of the whole run, before anything is written; a resumed run steps on
-        # from its checkpoint's state instead of this fresh one.
-        fresh_state = estimator.start(scans)
-        folder.begin(fresh=checkpoint is None)
-        try:
-            if checkpoint is None:
-                # Typed as JSON (Any values): its nested tables are read for the summary below.
-                started: dict[str, Any] = new_manifest(
-                    inputs=inputs, settings=settings, scans_total=len(scans)
-                )
-                manifest = started
-                if parameters is not None:
-                    manifest["parameters"] = parameters
-                messages = [str(w.message) for w in (*config_warnings, *caught)]
-                messages += detections_outside_region(scans, config.sensors)
-            else:
-                assert manifest is not None
-                sessions = int(manifest["sessions"]) + 1
-                manifest.update(status="running", sessions=sessions, error=None)
-                messages = list(checkpoint["warnings"])
-            del caught[:]
-            session = _Session(folder, manifest, messages, len(scans))
-            session.save("running")
-            resumed_at = session.scans_committed
-            ticker = Progress(
-                sys.stderr,
-                label="run",
-                unit="scans",
-                enabled=progress,
-                log_seconds=options.log_seconds,
-                initial=resumed_at,
-            )
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _ignore_resource_warnings()
+            self.estimator = WindowEstimator(config=self.model.config)
+            # A resumed run steps on from its checkpoint's state instead of this fresh one.
+            fresh_state = self.estimator.start(self.scans)
+            self.folder.begin(fresh=self.point.checkpoint is None)
             try:
-                if segments == 1:
-                    result = _run_windows(
-                        session, estimator, scans, fresh_state, checkpoint, timings=timings,
-                        stop=stop, checkpoint_seconds=options.checkpoint_seconds, ticker=ticker,
-                        caught=caught, precomputed=precomputed, digest=point.digest,
-                    )  # fmt: skip
-                else:
-                    result = _run_segments(
-                        session, config, scans, checkpoint, segments=segments, jobs=options.jobs,
-                        stop=stop, timings=timings, ticker=ticker,
-                    )  # fmt: skip
-                messages.extend(str(w.message) for w in caught)
-                # One line per message: segments (and sessions) repeat start()'s warnings.
-                messages[:] = dict.fromkeys(messages)
-                summary = {
-                    "mapassoc_version": manifest["mapassoc_version"],
-                    "config": manifest["inputs"]["config"]["path"],
-                    "detections": manifest["inputs"]["detections"]["path"],
-                    **result.summary(timings=timings),
-                    **({"parameters": parameters} if parameters is not None else {}),
-                    "warnings": messages,
-                }
-                session.writing = folder.partial / file_name("tracks", tracks_format)
-                write_tracks_file(session.writing, result.tracks)
-                if result.confidence is not None:
-                    session.writing = folder.partial / ASSOCIATIONS_NAME
-                    kept = {
-                        tid: rows
-                        for tid, rows in result.confidence.associations.items()
-                        if tid in result.track_rows
-                    }
-                    write_associations(session.writing, kept)
-                session.writing = folder.partial / SUMMARY_NAME
-                json_dump(summary, session.writing)
-                manifest["outputs"] = _output_records(folder.partial, summary, tracks_format)
-                session.save("complete")
-                folder.complete()
-            except RunInterrupted:
-                raise
-            except StopRequested as exc:  # after the forward pass: its checkpoint stands
-                _mark(session.save, "interrupted")
-                raise session.interrupted(exc.phase) from None
-            except KeyboardInterrupt:
-                _mark(session.save, "interrupted")
-                raise session.interrupted() from None
-            except OSError as exc:
-                error = OutputError(str(session.writing), f"cannot write: {os_reason(exc)}")
-                _mark(session.save, "failed", error)
-                raise error from None
-            except MapassocError as exc:
-                _mark(session.save, "failed", exc)
-                raise
-            except Exception as exc:  # a bug or a crashed worker: still say so in the manifest
-                _mark(session.save, "failed", exc)
-                raise
+                record = self.open_record(caught)
+                summary = self.run_and_write(fresh_state, caught)
             finally:
-                ticker.close()
+                self.folder.release()
+        for message in record.messages:
+            print(f"mapassoc: warning: {message}", file=sys.stderr)
+        return RunOutcome(self.folder.path, "complete", summary, self.resumed_at, self.seconds())
+
+    def open_record(self, caught: list[warnings.WarningMessage]) -> _RunRecord:
+        """The run's manifest in ``OUT.partial``, marked running: a new one, or the
+        resumed run's for one more session (with the warnings of its checkpoint).
+
+        ``caught``: the warnings recorded so far (the estimator's start), emptied here.
+        """
+        checkpoint, model = self.point.checkpoint, self.model
+        manifest: dict[str, Any]
+        if checkpoint is None:
+            manifest = new_manifest(
+                inputs=self.inputs.identities, settings=self.inputs.settings,
+                scans_total=len(self.scans),
+            )  # fmt: skip
+            if model.parameters is not None:
+                manifest["parameters"] = model.parameters
+            from mapassoc.data.checks import detections_outside_region
+
+            messages = [*model.messages, *(str(w.message) for w in caught)]
+            messages += detections_outside_region(self.scans, model.config.sensors)
+        else:
+            assert self.point.manifest is not None
+            manifest = self.point.manifest
+            sessions = int(manifest["sessions"]) + 1
+            manifest.update(status="running", sessions=sessions, error=None)
+            messages = list(checkpoint["warnings"])
+        del caught[:]
+        self.record = _RunRecord(self.folder, manifest, messages, len(self.scans))
+        self.record.save("running")
+        self.resumed_at = self.record.scans_committed
+        return self.record
+
+    def run_and_write(
+        self, fresh_state: RunState, caught: list[warnings.WarningMessage]
+    ) -> dict[str, Any]:
+        """Run (windows or segments), then write the outputs; the run's summary.
+
+        Every way out is recorded in the manifest: a stop as ``interrupted`` (raised as
+        :class:`RunInterrupted`; a stop after the forward pass keeps its checkpoint), a
+        failed write as ``failed`` (an :class:`OutputError`), any other error as ``failed``.
+        """
+        record = self.record
+        self.ticker = Progress(
+            sys.stderr, label="run", unit="scans", enabled=self.options.progress,
+            log_seconds=self.options.log_seconds, initial=self.resumed_at,
+        )  # fmt: skip
+        try:
+            if self.options.segments == 1:
+                result = self.run_windows(fresh_state, caught)
+            else:
+                result = self.run_segments()
+            return self.write_outputs(result, caught)
+        except RunInterrupted:
+            raise
+        except StopRequested as exc:  # after the forward pass: its checkpoint stands
+            _mark(record.save, "interrupted")
+            raise record.interrupted(exc.phase) from None
+        except KeyboardInterrupt:
+            _mark(record.save, "interrupted")
+            raise record.interrupted() from None
+        except OSError as exc:
+            error = OutputError(str(record.writing), f"cannot write: {os_reason(exc)}")
+            _mark(record.save, "failed", error)
+            raise error from None
+        except MapassocError as exc:
+            _mark(record.save, "failed", exc)
+            raise
+        except Exception as exc:  # a bug or a crashed worker: still say so in the manifest
+            _mark(record.save, "failed", exc)
+            raise
         finally:
-            folder.release()
-    for message in messages:
-        print(f"mapassoc: warning: {message}", file=sys.stderr)
-    return RunOutcome(folder.path, "complete", summary, resumed_at, time.perf_counter() - t_session)
+            self.ticker.close()
+
+    def run_windows(
+        self, fresh_state: RunState, caught: list[warnings.WarningMessage]
+    ) -> EstimateResult:
+        """The sequential run, window by window, writing ``windows.jsonl`` as it goes,
+        then the whole recording's refinement.
+
+        The forward pass checkpoints every ``checkpoint_seconds`` and once more when it
+        is done, so a stop during the refinement (which polls ``stop`` between its moves
+        and raises StopRequested) resumes from the done forward pass.  The model's
+        ``precomputed`` forward pass (the parameter estimation's last pass covered every
+        scan with the final values) is written, not solved again.  A resumed run goes on
+        from its checkpoint's state and the SHA-256 of ``windows.jsonl`` up to it
+        (:func:`_checked_windows`), carried on as lines are added.
+
+        Raises
+        ------
+        RunInterrupted
+            ``stop`` returned True between two windows (checkpointed first).
+        """
+        record, checkpoint, estimator, scans = (
+            self.record,
+            self.point.checkpoint,
+            self.estimator,
+            self.scans,
+        )
+        timings, stop = self.options.timings, self.stop
+        if checkpoint is None:
+            state, windows_bytes, digest = fresh_state, 0, hashlib.sha256()
+        else:
+            state, windows_bytes = checkpoint["state"], int(checkpoint["windows_bytes"])
+            digest = self.point.digest
+
+        def save_checkpoint(stream: BinaryIO) -> None:
+            stream.flush()
+            os.fsync(stream.fileno())
+            record.scans_committed, record.windows_committed = state.next_scan, state.tally.windows
+            record.checkpoint(
+                {
+                    "state": state,
+                    "windows_bytes": stream.tell(),
+                    "windows_sha256": digest.hexdigest(),
+                }
+            )
+
+        def write(stream: BinaryIO, report: WindowReport) -> None:
+            line = _window_line(report, timings)
+            stream.write(line)
+            digest.update(line)
+
+        with _open_windows(self.folder.partial / WINDOWS_NAME, windows_bytes) as stream:
+            if self.model.precomputed is not None and checkpoint is None:
+                state, reports = self.model.precomputed
+                for report in reports:
+                    write(stream, report)
+                self.ticker(state.next_scan, state.total_scans)
+            last_checkpoint = time.monotonic()
+            while not state.done:
+                if stop is not None and stop():
+                    save_checkpoint(stream)
+                    record.save("interrupted")
+                    raise record.interrupted()
+                write(stream, estimator.step(scans, state))
+                stream.flush()
+                record.messages.extend(str(w.message) for w in caught)
+                del caught[:]
+                self.ticker(state.next_scan, state.total_scans)
+                if time.monotonic() - last_checkpoint >= self.options.checkpoint_seconds:
+                    save_checkpoint(stream)
+                    last_checkpoint = time.monotonic()
+            save_checkpoint(stream)
+        return estimator.finish(scans, state, stop=stop)
+
+    def run_segments(self) -> EstimateResult:
+        """The run in overlapping segments on local processes, checkpointing finished
+        ones; then stitched, and ``windows.jsonl`` written whole.
+
+        Raises
+        ------
+        RunInterrupted
+            ``stop`` returned True before every segment was done (the finished ones are
+            checkpointed).
+        """
+        from mapassoc.estimator.segments import plan_segments, stitch_segments
+
+        config, scans, record = self.model.config, self.scans, self.record
+        plan = plan_segments(
+            len(scans), segments=self.options.segments,
+            overlap=4 * config.estimator.windows.window_length,
+        )  # fmt: skip
+        checkpoint = self.point.checkpoint
+        done: dict[int, Any] = dict(checkpoint["segments"]) if checkpoint is not None else {}
+        self._solve_segments([segment for segment in plan if segment.index not in done], done)
+        if len(done) < len(plan):
+            record.save("interrupted")
+            raise record.interrupted()
+        stitched = stitch_segments(scans, [done[s.index] for s in plan], config, stop=self._stopped)
+        message = stitched.tally.kmax_warning(config.estimator.count.max_tracks)
+        if message is not None:
+            record.messages.append(message)
+        record.windows_committed = stitched.tally.windows
+        with _open_windows(self.folder.partial / WINDOWS_NAME, 0) as stream:
+            for report in stitched.windows:
+                stream.write(_window_line(report, self.options.timings))
+        return stitched
+
+    def _stopped(self) -> bool:
+        return self.stop is not None and self.stop()
+
+    def _solve_segments(self, todo: list[Any], done: dict[int, Any]) -> None:
+        """Solve the segments ``todo`` (on ``jobs`` processes when more than one is
+        useful), adding each result to ``done`` and checkpointing it as it comes; a stop
+        leaves the rest undone."""
+        from mapassoc.apps.workers import check_jobs, run_on_pool, worker_stop_requested
+        from mapassoc.estimator.segments import solve_segment
+
+        config, scans, record = self.model.config, self.scans, self.record
+        workers = min(check_jobs(self.options.jobs), len(todo)) if todo else 1
+
+        def keep(result: Any) -> None:
+            done[result.segment.index] = result
+            owned = sum(r.segment.own_stop - r.segment.own_first for r in done.values())
+            record.scans_committed = owned
+            record.checkpoint({"segments": dict(done)})
+            self.ticker(owned, len(scans))
+
+        if workers <= 1:
+            for segment in todo:
+                result = solve_segment(
+                    config, scans[segment.first : segment.stop], segment, stop=self._stopped
+                )
+                if result is None:
+                    break
+                keep(result)
+            return
+
+        def on_done(index: int, future: concurrent.futures.Future[Any]) -> None:
+            result = future.result()
+            if result is not None:  # None: stopped at a window boundary
+                keep(result)
+
+        run_on_pool(
+            workers,
+            [
+                (solve_segment, (config, scans[s.first : s.stop], s),
+                 {"stop": worker_stop_requested})
+                for s in todo
+            ],
+            on_done=on_done,
+            stop=self._stopped,
+        )  # fmt: skip
+
+    def write_outputs(
+        self, result: EstimateResult, caught: list[warnings.WarningMessage]
+    ) -> dict[str, Any]:
+        """Write ``tracks``, ``associations.csv`` (when the run has a confidence pass) and
+        ``summary.json`` into ``OUT.partial``, record their sizes and SHA-256 in the
+        manifest, mark it complete and move the folder into place; the summary."""
+        from mapassoc.data.formats import write_tracks_file
+        from mapassoc.data.io import write_associations
+
+        record, folder, manifest = self.record, self.folder, self.record.manifest
+        messages, tracks_format = record.messages, self.options.tracks_format
+        messages.extend(str(w.message) for w in caught)
+        # One line per message: segments (and sessions) repeat start()'s warnings.
+        messages[:] = dict.fromkeys(messages)
+        parameters = self.model.parameters
+        summary = {
+            "mapassoc_version": manifest["mapassoc_version"],
+            "config": manifest["inputs"]["config"]["path"],
+            "detections": manifest["inputs"]["detections"]["path"],
+            **result.summary(timings=self.options.timings),
+            **({"parameters": parameters} if parameters is not None else {}),
+            "warnings": messages,
+        }
+        record.writing = folder.partial / file_name("tracks", tracks_format)
+        write_tracks_file(record.writing, result.tracks)
+        if result.confidence is not None:
+            record.writing = folder.partial / ASSOCIATIONS_NAME
+            kept = {
+                tid: rows
+                for tid, rows in result.confidence.associations.items()
+                if tid in result.track_rows
+            }
+            write_associations(record.writing, kept)
+        record.writing = folder.partial / SUMMARY_NAME
+        json_dump(summary, record.writing)
+        manifest["outputs"] = _output_records(folder.partial, summary, tracks_format)
+        record.save("complete")
+        folder.complete()
+        return summary
 
 
 @dataclass(frozen=True)
@@ -790,7 +1111,8 @@ def _missing_parts(folder: Path, manifest: dict[str, Any]) -> list[str]:
         if not path.is_file():
             problems.append(f"{name} is missing")
         elif name in recorded and _sha256_file(path) != (
-            recorded[name]["bytes"], recorded[name]["sha256"]
+            recorded[name]["bytes"],
+            recorded[name]["sha256"],
         ):
             problems.append(f"{name} is not the file the run wrote (its size or SHA-256 differs)")
     windows = folder / WINDOWS_NAME
@@ -843,148 +1165,6 @@ def _checked_windows(partial: Path, checkpoint: dict[str, Any]) -> Any:
             "before the checkpoint are lost; pass --overwrite to start the run again"
         )
     return digest
-
-
-def _run_windows(
-    session: _Session,
-    estimator: Any,
-    scans: list[Any],
-    fresh_state: Any,
-    checkpoint: dict[str, Any] | None,
-    *,
-    timings: bool,
-    stop: Callable[[], bool] | None,
-    checkpoint_seconds: float,
-    ticker: Progress,
-    caught: list[warnings.WarningMessage],
-    precomputed: tuple[Any, tuple[Any, ...]] | None = None,
-    digest: Any = None,
-) -> Any:
-    """The sequential run, window by window, writing ``windows.jsonl`` as it goes, then
-    the whole recording's refinement.
-
-    The forward pass checkpoints every ``checkpoint_seconds`` and once more when it is
-    done, so a stop during the refinement (which polls ``stop`` between its moves and
-    raises StopRequested) resumes from the done forward pass.  ``precomputed``: the
-    forward pass already done (the parameter estimation's last pass covered every scan
-    with the final values): its done state and window reports, written, not solved
-    again.  ``digest``: the SHA-256 of ``windows.jsonl`` up to the checkpoint
-    (:func:`_checked_windows`), carried on as lines are added.
-    """
-    if checkpoint is None:
-        state, windows_bytes = fresh_state, 0
-        digest = hashlib.sha256()
-    else:
-        state, windows_bytes = checkpoint["state"], int(checkpoint["windows_bytes"])
-
-    def save_checkpoint(stream: BinaryIO) -> None:
-        stream.flush()
-        os.fsync(stream.fileno())
-        session.scans_committed, session.windows_committed = state.next_scan, state.tally.windows
-        session.checkpoint(
-            {"state": state, "windows_bytes": stream.tell(), "windows_sha256": digest.hexdigest()}
-        )
-
-    def write(stream: BinaryIO, report: Any) -> None:
-        line = _window_line(report, timings)
-        stream.write(line)
-        digest.update(line)
-
-    with _open_windows(session.folder.partial / WINDOWS_NAME, windows_bytes) as stream:
-        if precomputed is not None and checkpoint is None:
-            state, reports = precomputed
-            for report in reports:
-                write(stream, report)
-            ticker(state.next_scan, state.total_scans)
-        last_checkpoint = time.monotonic()
-        while not state.done:
-            if stop is not None and stop():
-                save_checkpoint(stream)
-                session.save("interrupted")
-                raise session.interrupted()
-            write(stream, estimator.step(scans, state))
-            stream.flush()
-            session.messages.extend(str(w.message) for w in caught)
-            del caught[:]
-            ticker(state.next_scan, state.total_scans)
-            if time.monotonic() - last_checkpoint >= checkpoint_seconds:
-                save_checkpoint(stream)
-                last_checkpoint = time.monotonic()
-        save_checkpoint(stream)
-    return estimator.finish(scans, state, stop=stop)
-
-
-def _run_segments(
-    session: _Session,
-    config: Any,
-    scans: list[Any],
-    checkpoint: dict[str, Any] | None,
-    *,
-    segments: int,
-    jobs: int | None,
-    stop: Callable[[], bool] | None,
-    timings: bool,
-    ticker: Progress,
-) -> Any:
-    """The run in overlapping segments on local processes, checkpointing finished ones."""
-    from mapassoc.apps.workers import check_jobs, run_on_pool
-    from mapassoc.estimator.segments import plan_segments, solve_segment, stitch_segments
-
-    plan = plan_segments(
-        len(scans), segments=segments, overlap=4 * config.estimator.windows.window_length
-    )
-    done: dict[int, Any] = dict(checkpoint["segments"]) if checkpoint is not None else {}
-    todo = [segment for segment in plan if segment.index not in done]
-    workers = min(check_jobs(jobs), len(todo)) if todo else 1
-
-    def record(result: Any) -> None:
-        done[result.segment.index] = result
-        owned = sum(r.segment.own_stop - r.segment.own_first for r in done.values())
-        session.scans_committed = owned
-        session.checkpoint({"segments": dict(done)})
-        ticker(owned, len(scans))
-
-    def stopped() -> bool:
-        return stop is not None and stop()
-
-    if workers <= 1:
-        for segment in todo:
-            result = solve_segment(
-                config, scans[segment.first : segment.stop], segment, stop=stopped
-            )
-            if result is None:
-                break
-            record(result)
-    else:
-        from mapassoc.apps.workers import worker_stop_requested
-
-        def on_done(index: int, future: concurrent.futures.Future[Any]) -> None:
-            result = future.result()
-            if result is not None:  # None: stopped at a window boundary
-                record(result)
-
-        run_on_pool(
-            workers,
-            [
-                (solve_segment, (config, scans[s.first : s.stop], s),
-                 {"stop": worker_stop_requested})
-                for s in todo
-            ],
-            on_done=on_done,
-            stop=stopped,
-        )  # fmt: skip
-    if len(done) < len(plan):
-        session.save("interrupted")
-        raise session.interrupted()
-    stitched = stitch_segments(scans, [done[s.index] for s in plan], config, stop=stopped)
-    message = stitched.tally.kmax_warning(config.estimator.count.max_tracks)
-    if message is not None:
-        session.messages.append(message)
-    session.windows_committed = stitched.tally.windows
-    with _open_windows(session.folder.partial / WINDOWS_NAME, 0) as stream:
-        for report in stitched.windows:
-            stream.write(_window_line(report, timings))
-    return stitched
 
 
 def _window_line(report: Any, timings: bool) -> bytes:

@@ -60,6 +60,7 @@ it, and its last pass is the run itself (:attr:`ParameterEstimate.result`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import warnings
@@ -98,6 +99,11 @@ __all__ = [
     "EstimationStopped",
     "association_counts",
     "estimate_parameters",
+    "EMSettings",
+    "EMState",
+    "EStep",
+    "MStep",
+    "ParameterEM",
     "sample_blocks",
     "with_sensor_parameters",
 ]
@@ -453,6 +459,9 @@ def estimate_parameters(
 ) -> ParameterEstimate:
     """Estimate sensors' false-alarm rates and detection probabilities (module docstring).
 
+    The steps are those of a :class:`ParameterEM`: initialise, then E and M steps until
+    the update converges or the pass limit, then finish.
+
     Parameters
     ----------
     config : Config
@@ -504,194 +513,440 @@ def estimate_parameters(
     EstimationStopped
         ``stop`` returned True.
     """
-    from mapassoc.estimator.pipeline import WindowEstimator
+    rates, pds = _asked(config, false_alarms, detection_probability)  # checked first
+    em = ParameterEM(
+        config, scans, false_alarms=rates, detection_probability=pds,
+        settings=EMSettings.resolve(
+            config, rate_tolerance=rate_tolerance, pd_tolerance=pd_tolerance,
+            max_passes=max_passes, sample_scans=sample_scans,
+            sample_blocks_count=sample_blocks_count,
+        ),
+        on_pass=on_pass, stop=stop,
+    )  # fmt: skip
+    state = em.initialise()
+    while not em.done(state):
+        state = em.step(state)
+    return em.finish(state, finish=finish)
 
-    if false_alarms is None and detection_probability is None:
-        false_alarms, detection_probability = config.auto.false_alarms, config.auto.pd_starts()
-    rates = list(dict.fromkeys(false_alarms or ()))
-    for name in rates:
-        _check_sensor(config, name, "false_alarms_per_scan")
-    pds = _check_starts(config, detection_probability or {})
-    left = [f"sensor '{n}' false_alarms_per_scan" for n in config.auto.false_alarms
-            if n not in rates]
-    left += [f"sensor '{n}' detection_probability" for n in config.auto.pd_starts()
-             if n not in pds]  # fmt: skip
-    if left:
-        raise InputError(
-            f"the configuration leaves {', '.join(left)} = \"auto\", which this call does "
-            "not estimate; ask for it too, or call without false_alarms and "
-            "detection_probability to estimate what the configuration asks",
-            key="auto",
-        )
-    own = config.estimator.parameters  # [estimator.parameters]: what is not given here
-    rate_tolerance = own.rate_tolerance if rate_tolerance is None else rate_tolerance
-    pd_tolerance = own.pd_tolerance if pd_tolerance is None else pd_tolerance
-    max_passes = own.max_passes if max_passes is None else max_passes
-    sample_scans = own.sample_scans if sample_scans is None else sample_scans
-    if sample_blocks_count is None:
-        sample_blocks_count = own.sample_blocks_count
-    rate_tolerance = check_positive("rate_tolerance", rate_tolerance, key="rate_tolerance")
-    pd_tolerance = check_positive("pd_tolerance", pd_tolerance, key="pd_tolerance")
-    for name, count in (("max_passes", max_passes), ("sample_scans", sample_scans),
-                        ("sample_blocks_count", sample_blocks_count)):  # fmt: skip
-        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-            raise InputError(f"{name} must be an integer >= 1, got {count!r}", key=name)
-    scans = check_scans(scans, config.sensors, what="estimate parameters from")
-    asked = [name for name in config.sensors if name in rates or name in pds]
-    blocks = sample_blocks(len(scans), sample_scans=sample_scans, blocks=sample_blocks_count)
-    pieces = [scans[first:stop] for first, stop in blocks]
-    sampled = [scan for piece in pieces for scan in piece]
-    whole = len(pieces) == 1 and len(pieces[0]) == len(scans)
 
-    notes: dict[str, list[str]] = {name: [] for name in asked}
-    current: dict[str, tuple[float, float]] = {}
-    upper: dict[str, float] = {}
-    for name in asked:
-        sensor = config.sensors[name]
-        of_sensor = [scan for scan in sampled if scan.sensor == name]
-        rate = sensor.false_alarms_per_scan
-        if name in rates and len(of_sensor) < MIN_SCANS:
-            if name in config.auto.false_alarms:  # no configured number to keep
-                rate = _clutter_rate(sum(scan.size for scan in of_sensor), len(of_sensor))
-                kept = f"used the mean detections per scan, {rate!r}"
-            else:
-                kept = f"kept {rate!r}"
-            notes[name].append(
-                f"sensor '{name}': false_alarms_per_scan not estimable from "
-                f"{len(of_sensor)} scans (at least {MIN_SCANS} needed); {kept}"
-            )
-            rates.remove(name)
-        elif name in rates:  # every detection clutter: an upper bound on the rate
-            rate = upper[name] = _clutter_rate(sum(s.size for s in of_sensor), len(of_sensor))
-        start = pds.get(name)
-        pd = sensor.detection_probability if name not in pds else start or DEFAULT_PD_START
-        current[name] = (rate, pd)
+@dataclass(frozen=True)
+class EMSettings:
+    """How the EM iterates (the arguments of :func:`estimate_parameters` of that name).
 
-    def check_stop(done: int, total: int) -> None:
-        if stop is not None and stop():
-            raise EstimationStopped(
-                f"stopped while estimating the sensor parameters (pass {len(passes) + 1}, "
-                f"{done} of {total} scans)"
-            )
+    Attributes
+    ----------
+    rate_tolerance : float
+        Relative change of every rate below which the iteration stops (> 0).
+    pd_tolerance : float
+        Absolute change of every ``Pd`` below which it stops (> 0).
+    max_passes, sample_scans, sample_blocks_count : int
+        Most passes, most scans a pass runs on, blocks of that sample (each >= 1).
 
-    passes: list[EstimationPass] = []
-    converged = False
-    retried = False
+    Raises
+    ------
+    InputError
+        A tolerance <= 0 or a count that is not an integer >= 1 (naming its key).
+    """
+
+    rate_tolerance: float
+    pd_tolerance: float
+    max_passes: int
+    sample_scans: int
+    sample_blocks_count: int
+
+    def __post_init__(self) -> None:
+        check = check_positive("rate_tolerance", self.rate_tolerance, key="rate_tolerance")
+        object.__setattr__(self, "rate_tolerance", check)
+        check = check_positive("pd_tolerance", self.pd_tolerance, key="pd_tolerance")
+        object.__setattr__(self, "pd_tolerance", check)
+        for name in ("max_passes", "sample_scans", "sample_blocks_count"):
+            count = getattr(self, name)
+            if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+                raise InputError(f"{name} must be an integer >= 1, got {count!r}", key=name)
+
+    @classmethod
+    def resolve(cls, config: Config, **given: float | int | None) -> EMSettings:
+        """The values ``given``, the configuration's ``[estimator.parameters]`` for those
+        None (or not given)."""
+        own = config.estimator.parameters
+        values = {
+            field.name: getattr(own, field.name) if given.get(field.name) is None
+            else given[field.name]
+            for field in dataclasses.fields(cls)
+        }  # fmt: skip
+        return cls(**values)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class EMState:
+    """Where the EM iteration is: what :meth:`ParameterEM.step` maps to the next.
+
+    Attributes
+    ----------
+    current : dict of str to (float, float)
+        Per sensor, the ``(false_alarms_per_scan, detection_probability)`` the next pass
+        runs with.
+    rates : tuple of str
+        The sensors whose rate is estimated (asked for, with enough scans).
+    upper : dict of str to float
+        Their starting rate, the upper bound (every detection clutter).
+    notes : dict of str to tuple of str
+        Per sensor, what the start could not estimate.
+    passes : tuple of EstimationPass
+        The passes so far.
+    retried : bool
+        Whether the probe at a quarter of the upper bound was made.
+    converged : bool
+        Whether the last pass's update moved every estimate by less than the tolerance.
+    pd_estimable : dict of str to bool
+        Per sensor whose ``Pd`` is asked for: whether the last pass could estimate it.
+    no_clutter : dict of str to int
+        Per sensor whose rate is estimated: its scans when the last pass left no
+        detection unexplained, else 0.
+    last_run : (WindowEstimator, RunState, list of WindowReport) or None
+        The last pass's estimator, done run state and window reports when it covered the
+        whole recording.
+    """
+
+    current: dict[str, tuple[float, float]]
+    rates: tuple[str, ...]
+    upper: dict[str, float]
+    notes: dict[str, tuple[str, ...]]
+    pd_estimable: dict[str, bool]
+    no_clutter: dict[str, int]
+    passes: tuple[EstimationPass, ...] = ()
+    retried: bool = False
+    converged: bool = False
     last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None = None
-    pd_estimable = dict.fromkeys(pds, False)
-    no_clutter = dict.fromkeys(rates, 0)  # scans of a sensor whose last pass left no
-    # detection unexplained (else 0)
-    while len(passes) < max_passes + retried:  # the probe at a quarter is not counted
-        started = time.perf_counter()
-        trial = with_sensor_parameters(config, current)
-        estimator = WindowEstimator(config=trial)
-        # The passes count associations of the forward pass; the whole recording's
-        # refinement runs once, on the last pass's run (below).
-        runs = [_forward_run(estimator, piece, check_stop) for piece in pieces]
-        results = [result for result, _, _ in runs]
-        counts_by_piece = [
-            association_counts(piece, result.tracks, asked)
-            for piece, result in zip(pieces, results, strict=True)
+
+
+@dataclass(frozen=True)
+class EStep:
+    """One E step: a forward run with the current values and what its tracks say.
+
+    Attributes
+    ----------
+    counts : dict of str to AssociationCounts
+        Per sensor asked, the association counts merged over the sample's blocks.
+    tracks : int
+        Tracks the runs found.
+    last_run : (WindowEstimator, RunState, list of WindowReport) or None
+        The run when it covered the whole recording.
+    """
+
+    counts: dict[str, AssociationCounts]
+    tracks: int
+    last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None
+
+
+@dataclass(frozen=True)
+class MStep:
+    """One M step: the updated values and what could be estimated.
+
+    Attributes
+    ----------
+    updated : dict of str to (float, float)
+        Per sensor asked, the new ``(false_alarms_per_scan, detection_probability)``.
+    objective : float
+        The complete-data log-likelihood at them (:attr:`EstimationPass.objective`).
+    pd_estimable, no_clutter : dict
+        As :class:`EMState`'s, for this pass.
+    """
+
+    updated: dict[str, tuple[float, float]]
+    objective: float
+    pd_estimable: dict[str, bool]
+    no_clutter: dict[str, int]
+
+
+class ParameterEM:
+    """The hard EM of sensor parameters (module docstring), one method per step.
+
+    :meth:`initialise` gives the starting :class:`EMState`; :meth:`step` makes one pass
+    (:meth:`e_step`, :meth:`m_step`, then the probe or the :meth:`converged` test) and
+    :meth:`done` says when to stop; :meth:`finish` gives the :class:`ParameterEstimate`.
+
+    Parameters
+    ----------
+    config, scans, false_alarms, detection_probability, on_pass, stop
+        As :func:`estimate_parameters`'s.
+    settings : EMSettings
+        The tolerances, the pass limit and the sample.
+
+    Raises
+    ------
+    InputError
+        An unknown sensor, a start outside (0, 1], an "auto" value not asked for, or
+        scans that are not the configuration's.
+    """
+
+    def __init__(
+        self,
+        config: Config,
+        scans: Sequence[Scan],
+        *,
+        false_alarms: Collection[str] | None = None,
+        detection_probability: Mapping[str, float | None] | None = None,
+        settings: EMSettings,
+        on_pass: Callable[[EstimationPass], None] | None = None,
+        stop: Callable[[], bool] | None = None,
+    ) -> None:
+        self.rates, self.pds = _asked(config, false_alarms, detection_probability)
+        self.config, self.settings, self.on_pass, self.stop = config, settings, on_pass, stop
+        self.scans = check_scans(scans, config.sensors, what="estimate parameters from")
+        self.asked = tuple(
+            name for name in config.sensors if name in self.rates or name in self.pds
+        )
+        blocks = sample_blocks(
+            len(self.scans), sample_scans=settings.sample_scans, blocks=settings.sample_blocks_count
+        )
+        self.pieces = [self.scans[first:stop] for first, stop in blocks]
+        self.sampled = [scan for piece in self.pieces for scan in piece]
+        self.whole = len(self.pieces) == 1 and len(self.pieces[0]) == len(self.scans)
+
+    def initialise(self) -> EMState:
+        """The starting values: each estimated rate at its upper bound (the mean
+        detections per scan of the sample), each ``Pd`` at its start; a sensor with fewer
+        than :data:`MIN_SCANS` scans keeps its rate (an "auto" one: the mean), noted."""
+        config, rates = self.config, list(self.rates)
+        notes: dict[str, tuple[str, ...]] = {name: () for name in self.asked}
+        current: dict[str, tuple[float, float]] = {}
+        upper: dict[str, float] = {}
+        for name in self.asked:
+            sensor = config.sensors[name]
+            of_sensor = [scan for scan in self.sampled if scan.sensor == name]
+            rate = sensor.false_alarms_per_scan
+            if name in rates and len(of_sensor) < MIN_SCANS:
+                if name in config.auto.false_alarms:  # no configured number to keep
+                    rate = _clutter_rate(sum(scan.size for scan in of_sensor), len(of_sensor))
+                    kept = f"used the mean detections per scan, {rate!r}"
+                else:
+                    kept = f"kept {rate!r}"
+                notes[name] += (
+                    f"sensor '{name}': false_alarms_per_scan not estimable from "
+                    f"{len(of_sensor)} scans (at least {MIN_SCANS} needed); {kept}",
+                )
+                rates.remove(name)
+            elif name in rates:  # every detection clutter: an upper bound on the rate
+                rate = upper[name] = _clutter_rate(sum(s.size for s in of_sensor), len(of_sensor))
+            start = self.pds.get(name)
+            pd = sensor.detection_probability if name not in self.pds else start or DEFAULT_PD_START
+            current[name] = (rate, pd)
+        return EMState(
+            current=current, rates=tuple(rates), upper=upper, notes=notes,
+            pd_estimable=dict.fromkeys(self.pds, False), no_clutter=dict.fromkeys(rates, 0),
+        )  # fmt: skip
+
+    def e_step(self, state: EMState) -> EStep:
+        """Run the forward pass with ``state.current`` on each block of the sample (no
+        refinement: it runs once, on the last pass) and count its associations.
+
+        Raises
+        ------
+        EstimationStopped
+            ``stop`` returned True after a window.
+        """
+        from mapassoc.estimator.pipeline import WindowEstimator
+
+        estimator = WindowEstimator(config=with_sensor_parameters(self.config, state.current))
+
+        def check_stop(done: int, total: int) -> None:
+            if self.stop is not None and self.stop():
+                raise EstimationStopped(
+                    "stopped while estimating the sensor parameters (pass "
+                    f"{len(state.passes) + 1}, {done} of {total} scans)"
+                )
+
+        runs = [_forward_run(estimator, piece, check_stop) for piece in self.pieces]
+        by_piece = [
+            association_counts(piece, result.tracks, self.asked)
+            for piece, (result, _, _) in zip(self.pieces, runs, strict=True)
         ]
+        return EStep(
+            counts={name: _merge([counts[name] for counts in by_piece]) for name in self.asked},
+            tracks=sum(len(result.track_rows) for result, _, _ in runs),
+            last_run=(estimator, runs[0][1], runs[0][2]) if self.whole else None,
+        )
+
+    def m_step(self, state: EMState, counts: Mapping[str, AssociationCounts]) -> MStep:
+        """The values that maximise the complete-data likelihood of ``counts``: per
+        sensor, the unexplained detections per scan (:func:`_clutter_rate`) and the
+        detected share of the interior track-scans (when there are at least
+        :data:`MIN_INTERIOR_SCANS` and one detection; else ``Pd`` stays)."""
         updated: dict[str, tuple[float, float]] = {}
+        pd_estimable = dict(state.pd_estimable)
+        no_clutter = dict(state.no_clutter)
         objective = 0.0
-        for name in asked:
-            merged = _merge([counts[name] for counts in counts_by_piece])
-            rate, pd = current[name]
-            if name in rates:
+        for name in self.asked:
+            merged = counts[name]
+            rate, pd = state.current[name]
+            if name in state.rates:
                 no_clutter[name] = merged.scans if merged.unexplained == 0 else 0
                 rate = _clutter_rate(merged.unexplained, merged.scans)
-            if name in pds:
+            if name in self.pds:
                 pd_estimable[name] = (
                     merged.interior_scans >= MIN_INTERIOR_SCANS and merged.interior_detections > 0
                 )
                 if pd_estimable[name]:
                     pd = merged.interior_detections / merged.interior_scans
             updated[name] = (rate, pd)
-            objective += _objective(merged, rate, pd, config.sensors[name].region.volume)
-        record = EstimationPass(
-            index=len(passes),
-            used=dict(current),
-            updated=updated,
-            objective=objective,
-            tracks=sum(len(result.track_rows) for result in results),
-            scans=len(sampled),
-            seconds=time.perf_counter() - started,
+            objective += _objective(merged, rate, pd, self.config.sensors[name].region.volume)
+        return MStep(updated, objective, pd_estimable, no_clutter)
+
+    def converged(
+        self, current: Mapping[str, tuple[float, float]], updated: Mapping[str, tuple[float, float]]
+    ) -> bool:
+        """Whether the update moves every rate by at most ``rate_tolerance`` of the larger
+        and every ``Pd`` by at most ``pd_tolerance``."""
+        settings = self.settings
+        return all(
+            _close(current[name], updated[name], settings.rate_tolerance, settings.pd_tolerance)
+            for name in self.asked
         )
-        passes.append(record)
-        if on_pass is not None:
-            on_pass(record)
-        last_run = (estimator, *runs[0][1:]) if whole else None
+
+    def done(self, state: EMState) -> bool:
+        """Whether the iteration ends: converged, or ``max_passes`` made (the probe at a
+        quarter of the upper bound is not counted)."""
+        return state.converged or len(state.passes) >= self.settings.max_passes + state.retried
+
+    def step(self, state: EMState) -> EMState:
+        """One pass: E step, M step, its :class:`EstimationPass` (given to ``on_pass``),
+        then the next values: a quarter of the upper bound once, where it hid every
+        track; else the update, unless it :meth:`converged`."""
+        started = time.perf_counter()
+        e = self.e_step(state)
+        m = self.m_step(state, e.counts)
+        record = EstimationPass(
+            index=len(state.passes), used=dict(state.current), updated=m.updated,
+            objective=m.objective, tracks=e.tracks, scans=len(self.sampled),
+            seconds=time.perf_counter() - started,
+        )  # fmt: skip
+        if self.on_pass is not None:
+            self.on_pass(record)
+        after = dataclasses.replace(
+            state, passes=(*state.passes, record), pd_estimable=m.pd_estimable,
+            no_clutter=m.no_clutter, last_run=e.last_run,
+        )  # fmt: skip
+        current, upper = state.current, state.upper
         hidden = [
-            name for name in rates
-            if not retried and current[name][0] == upper[name] and updated[name][0] == upper[name]
-            and upper[name] > 0
+            name for name in state.rates
+            if not state.retried and current[name][0] == upper[name]
+            and m.updated[name][0] == upper[name] and upper[name] > 0
         ]  # fmt: skip
         if hidden:  # the upper bound hides every track: try a quarter of it, once
-            retried = True
-            current = {
-                name: (current[name][0] / 4 if name in hidden else updated[name][0],
-                       updated[name][1])
-                for name in asked
+            probe = {
+                name: (current[name][0] / 4 if name in hidden else m.updated[name][0],
+                       m.updated[name][1])
+                for name in self.asked
             }  # fmt: skip
-            continue
-        if all(_close(current[name], updated[name], rate_tolerance, pd_tolerance)
-               for name in asked):  # fmt: skip
-            converged = True
-            break
-        current = updated
-    messages: list[str] = []
-    estimates: dict[str, SensorEstimate] = {}
-    for name in asked:
-        rate, pd = passes[-1].used[name]
-        if name in pds and not pd_estimable[name]:
-            notes[name].append(
+            return dataclasses.replace(after, current=probe, retried=True)
+        if self.converged(current, m.updated):
+            return dataclasses.replace(after, converged=True)
+        return dataclasses.replace(after, current=m.updated)
+
+    def finish(self, state: EMState, *, finish: bool = True) -> ParameterEstimate:
+        """The estimates: the values the last pass ran with, each sensor's notes, and
+        (``finish``, the last pass covering the whole recording) that run finished as a
+        run finishes it.
+
+        Raises
+        ------
+        EstimationStopped
+            ``stop`` returned True during the last run's refinement.
+        """
+        used = state.passes[-1].used
+        estimates = {name: self._sensor_estimate(state, name) for name in self.asked}
+        last_result = None
+        if state.last_run is not None and finish:
+            last_result = self._finished_run(state.last_run)
+        return ParameterEstimate(
+            config=with_sensor_parameters(self.config, used),
+            sensors=estimates,
+            passes=state.passes,
+            converged=state.converged,
+            sample_scans=len(self.sampled),
+            result=last_result,
+            warnings=tuple(note for estimate in estimates.values() for note in estimate.notes),
+            last_run=None
+            if state.last_run is None
+            else (state.last_run[1], tuple(state.last_run[2])),
+        )
+
+    def _sensor_estimate(self, state: EMState, name: str) -> SensorEstimate:
+        """One sensor's estimates after the last pass, with the notes of what was not
+        estimable."""
+        rate, pd = state.passes[-1].used[name]
+        notes = list(state.notes[name])
+        estimable = name in self.pds and state.pd_estimable[name]
+        if name in self.pds and not estimable:
+            notes.append(
                 f"sensor '{name}': detection_probability not estimable: its tracks give "
                 f"fewer than {MIN_INTERIOR_SCANS} scans between a first and a last "
                 f"detection (a recording without targets gives none); kept {pd!r}"
             )
-        if no_clutter.get(name, 0):
-            notes[name].append(
+        if state.no_clutter.get(name, 0):
+            notes.append(
                 f"sensor '{name}': every detection is in a track, so the recording shows no "
                 f"false alarms; false_alarms_per_scan = {rate:.4g} ({UNSEEN_FALSE_ALARMS:g} "
-                f"false alarm over its {no_clutter[name]} scans: the estimator needs a rate > 0)"
+                f"false alarm over its {state.no_clutter[name]} scans: the estimator needs a "
+                "rate > 0)"
             )
-        messages.extend(notes[name])
-        estimates[name] = SensorEstimate(
-            sensor=name,
-            false_alarms_per_scan=rate,
-            detection_probability=pd,
-            rate_estimated=name in rates,
-            pd_estimated=name in pds and pd_estimable[name],
-            notes=tuple(notes[name]),
-        )
-    last_result = None
-    if last_run is not None and finish:
-        # The estimator's answer under the returned values: the last pass's windows,
-        # finished as a run finishes them (refined when refine_passes > 0).  The Kmax
-        # warning of its windows was given when the pass itself finished.
+        return SensorEstimate(
+            sensor=name, false_alarms_per_scan=rate, detection_probability=pd,
+            rate_estimated=name in state.rates, pd_estimated=estimable, notes=tuple(notes),
+        )  # fmt: skip
+
+    def _finished_run(
+        self, last_run: tuple[WindowEstimator, RunState, list[WindowReport]]
+    ) -> EstimateResult:
+        """The estimator's answer under the returned values: the last pass's windows,
+        finished as a run finishes them (refined when refine_passes > 0).  The Kmax
+        warning of its windows was given when the pass itself finished."""
         estimator, state, reports = last_run
         with warnings.catch_warnings():
             warnings.filterwarnings(
                 "ignore", message=r"p\(K = Kmax \| Z\) exceeded", category=RuntimeWarning
             )
             try:
-                last_result = estimator.finish(scans, state, windows=reports, stop=stop)
+                return estimator.finish(self.scans, state, windows=reports, stop=self.stop)
             except StopRequested as exc:
                 raise EstimationStopped(
-                    f"stopped while estimating the sensor parameters ({exc.phase} of the "
-                    "last pass)"
+                    f"stopped while estimating the sensor parameters ({exc.phase} of the last pass)"
                 ) from None
-    return ParameterEstimate(
-        config=with_sensor_parameters(config, passes[-1].used),
-        sensors=estimates,
-        passes=tuple(passes),
-        converged=converged,
-        sample_scans=len(sampled),
-        result=last_result,
-        warnings=tuple(messages),
-        last_run=None if last_run is None else (last_run[1], tuple(last_run[2])),
-    )
+
+
+def _asked(
+    config: Config,
+    false_alarms: Collection[str] | None,
+    detection_probability: Mapping[str, float | None] | None,
+) -> tuple[tuple[str, ...], dict[str, float | None]]:
+    """The sensors whose rate to estimate and those whose ``Pd`` (with its start),
+    checked; the configuration's "auto" ones when neither is given.
+
+    Raises
+    ------
+    InputError
+        An unknown sensor, a start outside (0, 1], or an "auto" value not asked for.
+    """
+    if false_alarms is None and detection_probability is None:
+        false_alarms, detection_probability = config.auto.false_alarms, config.auto.pd_starts()
+    rates = tuple(dict.fromkeys(false_alarms or ()))
+    for name in rates:
+        _check_sensor(config, name, "false_alarms_per_scan")
+    pds = _check_starts(config, detection_probability or {})
+    left = [
+        f"sensor '{n}' false_alarms_per_scan" for n in config.auto.false_alarms if n not in rates
+    ]
+    left += [f"sensor '{n}' detection_probability" for n in config.auto.pd_starts()
+             if n not in pds]  # fmt: skip
+    if left:
+        raise InputError(
+            f'the configuration leaves {", ".join(left)} = "auto", which this call does '
+            "not estimate; ask for it too, or call without false_alarms and "
+            "detection_probability to estimate what the configuration asks",
+            key="auto",
+        )
+    return rates, pds
 
 
 def _clutter_rate(count: int, scans: int) -> float:

@@ -151,7 +151,7 @@ def _same_results(a: Path, b: Path) -> None:
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
 
 
-_UNITS = ("link_fragments", "refine", "confidence", "_run_windows", "_forward_run")
+_UNITS = ("link_fragments", "refine", "confidence", "run_windows", "_forward_run")
 
 
 def _unit() -> str:
@@ -256,7 +256,7 @@ def test_a_stop_in_the_refinement_after_the_parameter_estimation_keeps_its_passe
         stop = _SignalAt(flag, signal.SIGINT, "refine")
         with pytest.raises(RunInterrupted, match=REFINEMENT_PHASE):
             _run(small, out, stop=stop, config=config)
-    assert stop.polls["_forward_run"] >= 26 and "_run_windows" not in stop.polls
+    assert stop.polls["_forward_run"] >= 26 and "run_windows" not in stop.polls
     assert calls == [1]
     manifest = read_manifest(out.with_name("out.partial"))
     assert manifest is not None and manifest["parameters"] is not None
