@@ -82,13 +82,7 @@ from mapassoc.estimator.terms import (
     end_term,
     survival_term,
 )
-from mapassoc.filtering.kalman import (
-    gated_pairs_and_loglik,
-    innovation_covariance,
-    pairwise_gate_and_loglik,
-    predict_motion,
-    update,
-)
+from mapassoc.filtering.batch import GatedPairs, Innovation, KalmanFilter
 from mapassoc.models.birth import (
     birth_states,
     convert_initiated,
@@ -114,9 +108,6 @@ __all__ = [
     "WindowHypotheses",
     "HypothesisGenerator",
 ]
-
-_DENSE_GATING_PAIRS = 4096
-"""Above this many (node, detection) pairs per scan, linear gating goes through a k-d tree."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,8 +223,7 @@ class HypothesisNodes:
         for name in _NODE_FIELDS:
             if len(getattr(self, name)) != n:
                 raise ValueError(
-                    f"node field '{name}' has {len(getattr(self, name))} entries, "
-                    f"'parent' has {n}"
+                    f"node field '{name}' has {len(getattr(self, name))} entries, 'parent' has {n}"
                 )
 
     def __len__(self) -> int:
@@ -626,6 +616,7 @@ class HypothesisGenerator:
         self._converts = needs_conversion(motion)
         self._n_max = max(motion.state_dim, self._init_model.state_dim)
         self._log_survival = math.log(birth.survival_probability)
+        self._filter = KalmanFilter()
 
     # -- bounds for pruning ----------------------------------------------------------
     def continuation_gain_bound(self, sensor: Sensor) -> float:
@@ -896,7 +887,7 @@ class HypothesisGenerator:
         """The nodes created at scan ``j``, states not yet computed: children of the
         frontier, then births."""
         sensor = self.sensors[scan.sensor]
-        groups = self._grow(frontier, scan, sensor, j, det_offset)
+        groups = self._grow(frontier, scan, sensor, det_offset)
         groups += self._births(scan, sensor, det_offset, first_tree, undetected_mean)
         return groups
 
@@ -1078,121 +1069,142 @@ class HypothesisGenerator:
         frontier: _Frontier,
         scan: Scan,
         sensor: Sensor,
-        j: int,
         det_offset: int,
     ) -> list[_NewNodes]:
-        """Children of every frontier node at scan ``j``: end, miss, each gated detection."""
+        """Children of every frontier node at the scan: end, miss, each gated detection."""
         if len(frontier) == 0:
             return []
-        groups: list[_NewNodes] = []
         f = frontier.nodes
-        node_id = frontier.ids
         dt = scan.time - frontier.time
         # Ended between the previous state and this scan.
         log_end = end_term(dt, self._log_survival)
         can_end = np.isfinite(log_end)
         # A carried track that can end keeps its "ended before the window" leaf protected;
         # otherwise its all-miss path carries the protection.
-        protect_end = f.protected & can_end
+        groups = self._ended(frontier, log_end, f.protected & can_end)
         protect_miss = f.protected & ~can_end
-        idx = np.flatnonzero(can_end)
-        if len(idx):
-            groups.append(
-                _NewNodes(
-                    parent=node_id[idx],
-                    detection=np.full(len(idx), -1, dtype=np.int64),
-                    alive=False,
-                    tree=f.tree[idx],
-                    initiated=f.initiated[idx],
-                    num_detections=f.num_detections[idx],
-                    first_time=f.first_time[idx],
-                    score=f.score[idx] + log_end[idx],
-                    protected=protect_end[idx],
-                    states=_gathered(f.means, f.covariances, idx),
-                )
-            )
-        terms = self._terms[scan.sensor]
-        log_miss, threshold = terms.miss, terms.threshold
-        R = sensor.measurement.noise_covariance
-        Z = scan.detections
         for initiated in (False, True):
             group = np.flatnonzero(f.initiated == initiated)
-            if len(group) == 0:
-                continue
-            model = self.motion if initiated else self._init_model
-            measurement = (
-                sensor.measurement
-                if initiated
-                else initiation_measurement(self.motion, sensor.measurement)
+            if len(group):
+                groups += self._grown_group(
+                    frontier, group, initiated, dt[group], protect_miss[group], scan, sensor,
+                    det_offset,
+                )  # fmt: skip
+        return groups
+
+    @staticmethod
+    def _ended(frontier: _Frontier, log_end: FloatArray, protect: BoolArray) -> list[_NewNodes]:
+        """The "ended" children of the frontier nodes that can end (a finite term)."""
+        f = frontier.nodes
+        idx = np.flatnonzero(np.isfinite(log_end))
+        if len(idx) == 0:
+            return []
+        return [
+            _NewNodes(
+                parent=frontier.ids[idx],
+                detection=np.full(len(idx), -1, dtype=np.int64),
+                alive=False,
+                tree=f.tree[idx],
+                initiated=f.initiated[idx],
+                num_detections=f.num_detections[idx],
+                first_time=f.first_time[idx],
+                score=f.score[idx] + log_end[idx],
+                protected=protect[idx],
+                states=_gathered(f.means, f.covariances, idx),
             )
-            d = model.state_dim
-            x = f.means[group, :d]
-            P = f.covariances[group, :d, :d]
-            gdt = dt[group]
-            # Predict, grouped by distinct dt (one value except at a window's start).
-            for value in np.unique(gdt):
-                sel = np.flatnonzero(gdt == value)
-                if value > 0:
-                    x[sel], P[sel], _ = predict_motion(model, x[sel], P[sel], float(value))
-            base = f.score[group] + survival_term(gdt, self._log_survival)
-            # Missed at this scan.
-            if math.isfinite(log_miss):
-                groups.append(
-                    _NewNodes(
-                        parent=node_id[group],
-                        detection=np.full(len(group), -1, dtype=np.int64),
-                        alive=True,
-                        tree=f.tree[group],
-                        initiated=np.full(len(group), initiated),
-                        num_detections=f.num_detections[group],
-                        first_time=f.first_time[group],
-                        score=base + log_miss,
-                        protected=protect_miss[group],
-                        states=self._padded(x, P),
-                    )
-                )
-            if scan.size == 0:
-                continue
-            # Gate and score every (node, detection) pair at once.
-            H = measurement.jacobian(x)
-            z_hat = measurement.predict(x)
-            S = innovation_covariance(H, P, R)
-            if (
-                measurement.is_linear
-                and math.isfinite(threshold)
-                and len(x) * scan.size > _DENSE_GATING_PAIRS
-            ):
-                li, mi, nu_pairs, _, pair_loglik = gated_pairs_and_loglik(z_hat, S, Z, threshold)
-            else:
-                nu = measurement.residual(Z[None, :, :], z_hat[:, None, :])
-                d2, loglik = pairwise_gate_and_loglik(nu, S)
-                li, mi = np.nonzero(d2 <= threshold)
-                nu_pairs, pair_loglik = nu[li, mi], loglik[li, mi]
-            if len(li) == 0:
-                continue
-            first_time = f.first_time[group][li]
-            # Only coordinated-turn tracks are ever uninitiated.  One enters the turn
-            # state at its first detection later in time than its first one (the
-            # velocity is then observed); its padded row takes the converted state.
-            init_flags = np.full(len(li), True) if initiated else scan.time > first_time
+        ]
+
+    def _grown_group(
+        self,
+        frontier: _Frontier,
+        group: IntArray,
+        initiated: bool,
+        dt: FloatArray,
+        protect_miss: BoolArray,
+        scan: Scan,
+        sensor: Sensor,
+        det_offset: int,
+    ) -> list[_NewNodes]:
+        """The missed and continued children of the frontier nodes ``group``, all in one
+        state space (``initiated``), ``dt`` after their states."""
+        f = frontier.nodes
+        model = self.motion if initiated else self._init_model
+        d = model.state_dim
+        x = f.means[group, :d]
+        P = f.covariances[group, :d, :d]
+        # Predict, grouped by distinct dt (one value except at a window's start).
+        for value in np.unique(dt):
+            sel = np.flatnonzero(dt == value)
+            if value > 0:
+                x[sel], P[sel], _ = self._filter.predict(model, x[sel], P[sel], float(value))
+        base = f.score[group] + survival_term(dt, self._log_survival)
+        groups: list[_NewNodes] = []
+        log_miss = self._terms[scan.sensor].miss
+        if math.isfinite(log_miss):
             groups.append(
                 _NewNodes(
-                    parent=node_id[group][li],
-                    detection=det_offset + mi,
+                    parent=frontier.ids[group],
+                    detection=np.full(len(group), -1, dtype=np.int64),
                     alive=True,
-                    tree=f.tree[group][li],
-                    initiated=init_flags,
-                    num_detections=f.num_detections[group][li] + 1,
-                    first_time=first_time,
-                    score=base[li]
-                    + detection_term(terms.log_pd, pair_loglik, terms.log_clutter),
-                    protected=np.zeros(len(li), dtype=bool),
-                    states=self._updated(
-                        x, P, H, S, R, li, nu_pairs, None if initiated else init_flags
-                    ),
+                    tree=f.tree[group],
+                    initiated=np.full(len(group), initiated),
+                    num_detections=f.num_detections[group],
+                    first_time=f.first_time[group],
+                    score=base + log_miss,
+                    protected=protect_miss,
+                    states=self._padded(x, P),
                 )
             )
+        if scan.size:
+            groups += self._continued(frontier, group, initiated, x, P, base, scan, sensor,
+                                      det_offset)  # fmt: skip
         return groups
+
+    def _continued(
+        self,
+        frontier: _Frontier,
+        group: IntArray,
+        initiated: bool,
+        x: FloatArray,
+        P: FloatArray,
+        base: FloatArray,
+        scan: Scan,
+        sensor: Sensor,
+        det_offset: int,
+    ) -> list[_NewNodes]:
+        """The children of the predicted nodes ``group`` (states ``x``, ``P``, scores so
+        far ``base``) continued by each detection of the scan in their gate."""
+        f = frontier.nodes
+        measurement = (
+            sensor.measurement
+            if initiated
+            else initiation_measurement(self.motion, sensor.measurement)
+        )
+        terms = self._terms[scan.sensor]
+        innovation = self._filter.innovation(measurement, x, P)
+        pairs = innovation.gate(scan.detections, terms.threshold)
+        if len(pairs) == 0:
+            return []
+        li = pairs.row
+        first_time = f.first_time[group][li]
+        # Only coordinated-turn tracks are ever uninitiated.  One enters the turn state at
+        # its first detection later in time than its first one (the velocity is then
+        # observed); its padded row takes the converted state.
+        init_flags = np.full(len(li), True) if initiated else scan.time > first_time
+        return [
+            _NewNodes(
+                parent=frontier.ids[group][li],
+                detection=det_offset + pairs.detection,
+                alive=True,
+                tree=f.tree[group][li],
+                initiated=init_flags,
+                num_detections=f.num_detections[group][li] + 1,
+                first_time=first_time,
+                score=base[li] + detection_term(terms.log_pd, pairs.loglik, terms.log_clutter),
+                protected=np.zeros(len(li), dtype=bool),
+                states=self._updated(x, P, innovation, pairs, None if initiated else init_flags),
+            )
+        ]
 
     def _padded(self, x: FloatArray, P: FloatArray) -> StatesOf:
         """States of the nodes at given rows of ``x``, ``P``, padded to ``n_max``."""
@@ -1206,22 +1218,17 @@ class HypothesisGenerator:
         self,
         x: FloatArray,
         P: FloatArray,
-        H: FloatArray,
-        S: FloatArray,
-        R: FloatArray,
-        pair_node: IntArray,
-        pair_residual: FloatArray,
+        innovation: Innovation,
+        pairs: GatedPairs,
         convert: BoolArray | None,
     ) -> StatesOf:
-        """States of the gated pairs' children: the Kalman update of node
-        ``pair_node[i]``'s prediction (``x``, ``P``, its ``H`` and ``S``) with the
-        residual ``pair_residual[i]``, padded to ``n_max``; a child flagged in
-        ``convert`` (an uninitiated track initiated by this detection) takes the
-        converted state."""
+        """States of the gated pairs' children: the update of row ``pairs.row[i]`` of
+        the prediction ``x``, ``P`` by its innovation ``pairs.nu[i]``, padded to
+        ``n_max``; a child flagged in ``convert`` (an uninitiated track initiated by this
+        detection) takes the converted state."""
 
         def states(index: IntArray) -> tuple[FloatArray, FloatArray]:
-            li = pair_node[index]
-            xu, Pu = update(x[li], P[li], pair_residual[index], S[li], H[li], R)
+            xu, Pu = self._filter.update(x, P, innovation, pairs.row[index], pairs.nu[index])
             means, covs = _pad(xu, Pu, self._n_max)
             if convert is not None:
                 for k in np.flatnonzero(convert[index]):

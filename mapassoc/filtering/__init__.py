@@ -1,2 +1,1 @@
-"""Kalman / extended Kalman filtering, gating and RTS smoothing.
-"""
+"""Kalman / extended Kalman filtering, gating and RTS smoothing."""

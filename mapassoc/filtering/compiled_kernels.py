@@ -1,11 +1,13 @@
 """Numba kernels of the linear Kalman steps that refinement takes track by track.
 
 Imported only through :func:`mapassoc.filtering.compiled.kalman_kernels` (numba is an
-optional accelerator: ``pip install 'mapassoc[accelerate]'``).  Each kernel is the same
-algebra as its numpy twin in :mod:`mapassoc.estimator.objective` (gain through
-``S^-1``, Joseph-form covariance, closed-form inverses for d = 1 and 2, the same gate
-and terms), written as loops over small matrices so that one track's step costs
-arithmetic rather than numpy's per-call overhead.  Results agree with the numpy path to
+optional accelerator: ``pip install 'mapassoc[accelerate]'``; chosen by
+:func:`mapassoc.filtering.compiled.filter_backend`).  Each kernel is the same algebra
+as its numpy twin in :mod:`mapassoc.filtering.scan_steps` and the batched interface
+:mod:`mapassoc.filtering.batch` (gain through ``S^-1``, Joseph-form covariance,
+closed-form inverses for d = 1 and 2, the same gate and terms), written as loops over
+small matrices so that one track's step costs arithmetic rather than numpy's per-call
+overhead.  Results agree with the numpy path to
 rounding (sums are taken in another order).
 
 The kernels do not raise: a step whose innovation covariance is not positive-definite
@@ -20,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from mapassoc.array_types import FloatArray, IntArray
-from mapassoc.filtering.compiled import ScanModel
+from mapassoc.filtering.scan_steps import ScanModel
 
 _LOG_2PI = math.log(2.0 * math.pi)
 
@@ -95,31 +97,19 @@ def _scratch(n: int, dz: int) -> tuple[FloatArray, ...]:
 
 
 @njit(cache=True)
-def _update_one(
-    x: FloatArray,
-    P: FloatArray,
-    z: FloatArray,
-    H: FloatArray,
-    R: FloatArray,
-    d: int,
-    x_out: FloatArray,
-    P_out: FloatArray,
-    scratch: tuple[FloatArray, ...],
-) -> tuple[float, float, bool]:
-    """One track's Kalman update by one detection of dimension ``d`` (the leading
-    entries of ``z``, rows of ``H`` and block of ``R``; no slices, so every array keeps
-    one layout and the function one compiled version): writes the posterior into
-    ``x_out``, ``P_out`` (n,) and (n, n); returns ``(d2, loglik, positive)``.
-    ``scratch`` is :func:`_scratch`'s work arrays."""
+def _innovation(
+    x: FloatArray, P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray, d: int,
+    HP: FloatArray, S: FloatArray, nu: FloatArray,
+) -> None:  # fmt: skip
+    """``HP = H P``, ``S = H P H^T + R`` (symmetrised) and ``nu = z - H x`` of a
+    measurement of dimension ``d``, into the leading blocks of the work arrays."""
     n = x.shape[0]
-    HP = scratch[0]
     for i in range(d):
         for k in range(n):
             total = 0.0
             for j in range(n):
                 total += H[i, j] * P[j, k]
             HP[i, k] = total
-    S = scratch[1]
     for i in range(d):
         for m in range(d):
             total = R[i, m]
@@ -131,24 +121,20 @@ def _update_one(
             mean = 0.5 * (S[i, m] + S[m, i])
             S[i, m] = mean
             S[m, i] = mean
-    nu = scratch[2]
     for i in range(d):
         total = z[i]
         for j in range(n):
             total -= H[i, j] * x[j]
         nu[i] = total
-    S_inv = scratch[3]
-    logdet, positive = _inverse_and_logdet(S, S_inv, d)
-    if not positive:
-        return 0.0, 0.0, False
-    d2 = 0.0
-    for i in range(d):
-        total = 0.0
-        for m in range(d):
-            total += S_inv[i, m] * nu[m]
-        d2 += nu[i] * total
-    loglik = -0.5 * (d * _LOG_2PI + logdet + d2)
-    K = scratch[4]  # HP^T S^-1
+
+
+@njit(cache=True)
+def _gain_and_mean(
+    x: FloatArray, HP: FloatArray, S_inv: FloatArray, nu: FloatArray, d: int,
+    K: FloatArray, x_out: FloatArray,
+) -> None:  # fmt: skip
+    """``K = (H P)^T S^-1`` and ``x_out = x + K nu``."""
+    n = x.shape[0]
     for a in range(n):
         for i in range(d):
             total = 0.0
@@ -160,21 +146,27 @@ def _update_one(
         for i in range(d):
             total += K[a, i] * nu[i]
         x_out[a] = total
-    A = scratch[5]  # I - K H
+
+
+@njit(cache=True)
+def _joseph(
+    P: FloatArray, H: FloatArray, R: FloatArray, K: FloatArray, d: int,
+    A: FloatArray, AP: FloatArray, KR: FloatArray, P_out: FloatArray,
+) -> None:  # fmt: skip
+    """``P_out = (I - K H) P (I - K H)^T + K R K^T``, symmetrised (Joseph form)."""
+    n = P.shape[0]
     for a in range(n):
         for b in range(n):
             total = 1.0 if a == b else 0.0
             for i in range(d):
                 total -= K[a, i] * H[i, b]
             A[a, b] = total
-    AP = scratch[6]
     for a in range(n):
         for b in range(n):
             total = 0.0
             for k in range(n):
                 total += A[a, k] * P[k, b]
             AP[a, b] = total
-    KR = scratch[7]
     for a in range(n):
         for i in range(d):
             total = 0.0
@@ -194,6 +186,40 @@ def _update_one(
             mean = 0.5 * (P_out[a, b] + P_out[b, a])
             P_out[a, b] = mean
             P_out[b, a] = mean
+
+
+@njit(cache=True)
+def _update_one(
+    x: FloatArray,
+    P: FloatArray,
+    z: FloatArray,
+    H: FloatArray,
+    R: FloatArray,
+    d: int,
+    x_out: FloatArray,
+    P_out: FloatArray,
+    scratch: tuple[FloatArray, ...],
+) -> tuple[float, float, bool]:
+    """One track's Kalman update by one detection of dimension ``d`` (the leading
+    entries of ``z``, rows of ``H`` and block of ``R``; no slices, so every array keeps
+    one layout and the function one compiled version): writes the posterior into
+    ``x_out``, ``P_out`` (n,) and (n, n); returns ``(d2, loglik, positive)``.
+    ``scratch`` is :func:`_scratch`'s work arrays."""
+    HP, S, nu, S_inv = scratch[0], scratch[1], scratch[2], scratch[3]
+    _innovation(x, P, z, H, R, d, HP, S, nu)
+    logdet, positive = _inverse_and_logdet(S, S_inv, d)
+    if not positive:
+        return 0.0, 0.0, False
+    d2 = 0.0
+    for i in range(d):
+        total = 0.0
+        for m in range(d):
+            total += S_inv[i, m] * nu[m]
+        d2 += nu[i] * total
+    loglik = -0.5 * (d * _LOG_2PI + logdet + d2)
+    K = scratch[4]
+    _gain_and_mean(x, HP, S_inv, nu, d, K, x_out)
+    _joseph(P, H, R, K, d, scratch[5], scratch[6], scratch[7], P_out)
     return d2, loglik, True
 
 
@@ -216,7 +242,21 @@ def _step_to(
     place.  Returns the value with the step's terms added (``-inf`` outside the gate)
     and whether ``S`` was positive-definite.  ``x_tmp``, ``P_tmp``, ``FP`` and
     ``scratch`` are work arrays."""
-    moves, F, Q, H, R, dims, survival, miss, log_pd, log_clutter, thresholds = scan_model
+    moves, F, Q, H, R, dims = (
+        scan_model[0],
+        scan_model[1],
+        scan_model[2],
+        scan_model[3],
+        scan_model[4],
+        scan_model[5],
+    )
+    survival, miss, log_pd, log_clutter, thresholds = (
+        scan_model[6],
+        scan_model[7],
+        scan_model[8],
+        scan_model[9],
+        scan_model[10],
+    )
     n = xt.shape[0]
     while cur < target:
         nxt = cur + 1
@@ -336,6 +376,24 @@ def filter_along_path(
 
 
 @njit(cache=True)
+def _same_state(
+    x: FloatArray, P: FloatArray, mean: FloatArray, covariance: FloatArray, converged: float
+) -> bool:
+    """Whether every entry of ``x``, ``P`` is within ``converged`` of the reference's
+    ``mean``, ``covariance``, relative to ``1 + |entry|``."""
+    n = x.shape[0]
+    for a in range(n):
+        if abs(x[a] - mean[a]) > converged * (1.0 + abs(mean[a])):
+            return False
+    for a in range(n):
+        for b in range(n):
+            ref = covariance[a, b]
+            if abs(P[a, b] - ref) > converged * (1.0 + abs(ref)):
+                return False
+    return True
+
+
+@njit(cache=True)
 def continue_along_references(
     x: FloatArray,
     P: FloatArray,
@@ -420,20 +478,7 @@ def continue_along_references(
             if s == steps[c] - 1:
                 out[t] = result
                 break
-            same = True
-            for a in range(n):
-                if abs(xt[a] - mean[c, s, a]) > converged * (1.0 + abs(mean[c, s, a])):
-                    same = False
-                    break
-            if same:
-                for a in range(n):
-                    for b in range(n):
-                        ref = covariance[c, s, a, b]
-                        if abs(Pt[a, b] - ref) > converged * (1.0 + abs(ref)):
-                            same = False
-                            break
-                    if not same:
-                        break
+            same = _same_state(xt, Pt, mean[c, s], covariance[c, s], converged)
             if same:
                 out[t] = result
                 break
@@ -449,7 +494,8 @@ def _warm_up() -> None:
     scan_model = (
         np.ones(M, dtype=np.bool_), F, F, np.tile(np.eye(dz, n), (M, 1, 1)),
         np.tile(np.eye(dz), (M, 1, 1)), np.full(M, dz, dtype=np.int64),
-        terms, terms, terms, terms, np.full(M, 10.0),
+        terms, terms, terms, terms, np.full(M, 10.0), np.zeros(M, dtype=np.int64),
+        np.zeros(M, dtype=np.int64),
     )  # fmt: skip
     path = np.array([1, 2], dtype=np.int64)
     filter_along_path(np.zeros(n), np.eye(n), 0.0, 0, path, np.zeros((2, dz)), scan_model)

@@ -9,8 +9,12 @@ any leading axes are a batch.  Equations follow Afzal's survey, section 4.3:
 * gain ``K = P H^T S^-1``; update ``x + K nu`` and the Joseph form
   ``(I - K H) P (I - K H)^T + K R K^T``, which stays symmetric positive-definite where
   the textbook ``P - K H P`` can lose definiteness to round-off;
-* predicted likelihood (Afzal's survey, eq. 3) ``log N(nu; 0, S)`` through a Cholesky factor
-  of S.
+* predicted likelihood (Afzal's survey, eq. 3) ``log N(nu; 0, S)``.
+
+``S^-1`` and ``log det S`` come from one function (:func:`inverse_and_logdet`: closed
+forms for ``dz <= 2``, a Cholesky factor otherwise) and ``nu^T S^-1 nu`` with the
+log-likelihood from another (:func:`gaussian_terms`), which every gate, score and update
+of the package calls, batched through :mod:`mapassoc.filtering.batch`.
 
 A covariance that is not positive-definite raises
 :class:`~mapassoc.errors.NotPositiveDefiniteError` naming the batch index; nothing is
@@ -39,9 +43,13 @@ __all__ = [
     "innovation",
     "innovation_covariance",
     "update",
+    "inverse_and_logdet",
+    "gaussian_terms",
+    "joseph_update",
     "log_gaussian",
     "pairwise_gate_and_loglik",
     "gated_pairs_and_loglik",
+    "strip_gate",
     "gate_threshold",
     "rts_smooth",
     "FilterStep",
@@ -192,33 +200,112 @@ def innovation_covariance(H: FloatArray, P: FloatArray, R: FloatArray) -> FloatA
     return _symmetrize(H @ P @ np.swapaxes(H, -1, -2) + R)
 
 
-def _small_inverse(S: FloatArray) -> FloatArray | None:
-    """Closed-form inverses of a batch of symmetric 1x1 or 2x2 matrices, ``None`` when
-    the matrices are larger or one is not positive-definite (the caller's Cholesky
-    factorisation then names it)."""
+def inverse_and_logdet(S: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``S^-1`` and ``log det S`` of a batch of symmetric positive-definite matrices.
+
+    Closed forms for ``d = 1`` and ``2`` (``S^-1 = adj(S) / det S``: numpy's batched
+    solves cost far more than this arithmetic), a Cholesky factor ``L`` otherwise
+    (``S^-1 = L^-T L^-1``, ``log det S = 2 sum log L_ii``).  The one inverse of an
+    innovation covariance in the package.
+
+    Parameters
+    ----------
+    S : ndarray, shape (..., d, d)
+
+    Returns
+    -------
+    S_inv : ndarray, shape (..., d, d)
+    logdet : ndarray, shape (...)
+
+    Raises
+    ------
+    NotPositiveDefiniteError
+        Where an ``S`` is not positive-definite (naming its batch index).
+    """
+    S = np.asarray(S, dtype=np.float64)
     d = S.shape[-1]
     if d == 1:
         a = S[..., 0, 0]
-        if not np.all(a > 0):
-            return None
-        return np.asarray(1.0 / S, dtype=np.float64)
-    if d != 2:
-        return None
-    a, b, c = S[..., 0, 0], S[..., 0, 1], S[..., 1, 1]
-    det = a * c - b * b
-    if not (np.all(a > 0) and np.all(det > 0)):
-        return None
-    inverse = np.empty_like(S, dtype=np.float64)
-    inverse[..., 0, 0] = c / det
-    inverse[..., 1, 1] = a / det
-    inverse[..., 0, 1] = inverse[..., 1, 0] = -b / det
-    return inverse
+        if np.all(a > 0):
+            return 1.0 / S, np.log(a)
+    elif d == 2:
+        a, b, c = S[..., 0, 0], S[..., 0, 1], S[..., 1, 1]
+        det = a * c - b * b
+        if np.all(a > 0) and np.all(det > 0):
+            inverse = np.empty_like(S)
+            inverse[..., 0, 0] = c / det
+            inverse[..., 1, 1] = a / det
+            inverse[..., 0, 1] = inverse[..., 1, 0] = -b / det
+            return inverse, np.log(det)
+    L = cholesky(S, "innovation covariance S")  # raises, naming the index, if not PD
+    Linv = np.linalg.inv(L)
+    logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
+    return np.swapaxes(Linv, -1, -2) @ Linv, logdet
+
+
+def gaussian_terms(
+    nu: FloatArray, S_inv: FloatArray, logdet: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """``d2 = nu^T S^-1 nu`` and ``log N(nu; 0, S)`` (Afzal's survey, eq. 3), pair by pair.
+
+    ``d2`` is summed entry by entry of ``S^-1`` (each diagonal entry, then twice each
+    entry right of it, row by row), so a pair's numbers have the same bits whether it is
+    scored alone, among all the pairs of a scan or in a gate's strip: the trees, the
+    recording objective and the gates agree exactly.
+
+    Parameters
+    ----------
+    nu : ndarray, shape (..., d)
+    S_inv : ndarray, shape (..., d, d)
+        Broadcast against ``nu``'s leading axes.
+    logdet : ndarray, shape (...)
+        ``log det S``, broadcast likewise.
+
+    Returns
+    -------
+    d2, loglik : ndarray, shape (...)
+    """
+    d = nu.shape[-1]
+    d2 = np.zeros(np.broadcast_shapes(nu.shape[:-1], S_inv.shape[:-2]))
+    for i in range(d):
+        d2 += S_inv[..., i, i] * nu[..., i] ** 2
+        for j in range(i + 1, d):
+            d2 += 2.0 * S_inv[..., i, j] * nu[..., i] * nu[..., j]
+    return d2, -0.5 * (d * _LOG_2PI + logdet + d2)
+
+
+def joseph_update(
+    x: FloatArray, P: FloatArray, nu: FloatArray, S_inv: FloatArray, H: FloatArray, R: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Kalman update: gain ``K = P H^T S^-1`` through ``S^-1``, Joseph-form covariance.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., n)
+    P : ndarray, shape (..., n, n)
+    nu : ndarray, shape (..., dz)
+    S_inv : ndarray, shape (..., dz, dz)
+    H : ndarray, shape (..., dz, n) or (dz, n)
+    R : ndarray, shape (dz, dz) or (..., dz, dz)
+
+    Returns
+    -------
+    x_post : ndarray, shape (..., n)
+    P_post : ndarray, shape (..., n, n)
+    """
+    Kt = S_inv @ (H @ P)  # K^T = S^-1 H P
+    K = np.swapaxes(Kt, -1, -2)
+    x_post = x + np.einsum("...ij,...j->...i", K, nu)
+    A = np.eye(P.shape[-1]) - K @ H
+    P_post = A @ P @ np.swapaxes(A, -1, -2) + K @ R @ Kt
+    return x_post, _symmetrize(P_post)
 
 
 def update(
     x: FloatArray, P: FloatArray, nu: FloatArray, S: FloatArray, H: FloatArray, R: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Kalman update with the Joseph-form covariance.
+    """Kalman update with the Joseph-form covariance (:func:`joseph_update` with the
+    :func:`inverse_and_logdet` of S).
 
     Parameters
     ----------
@@ -234,26 +321,11 @@ def update(
     x_post : ndarray, shape (..., n)
     P_post : ndarray, shape (..., n, n)
     """
-    HP = H @ P
-    S_inv = _small_inverse(S)
-    if S_inv is not None:
-        # dz <= 2: K^T = S^-1 H P through the closed-form inverse of a positive-definite
-        # 1x1 or 2x2 matrix (numpy's batched solves cost far more than this arithmetic).
-        Kt = S_inv @ HP
-    else:
-        L = cholesky(S, "innovation covariance S")
-        # K^T = S^-1 H P, solved through the Cholesky factor (no explicit inverse).
-        Kt = np.linalg.solve(np.swapaxes(L, -1, -2), np.linalg.solve(L, HP))
-    K = np.swapaxes(Kt, -1, -2)
-    x_post = x + np.einsum("...ij,...j->...i", K, nu)
-    n = P.shape[-1]
-    A = np.eye(n) - K @ H
-    P_post = A @ P @ np.swapaxes(A, -1, -2) + K @ R @ Kt
-    return x_post, _symmetrize(P_post)
+    return joseph_update(x, P, nu, inverse_and_logdet(S)[0], H, R)
 
 
 def log_gaussian(nu: FloatArray, S: FloatArray) -> FloatArray:
-    """``log N(nu; 0, S)`` through a Cholesky factor of S (Afzal's survey, eq. 3).
+    """``log N(nu; 0, S)`` (Afzal's survey, eq. 3; :func:`gaussian_terms`).
 
     Parameters
     ----------
@@ -265,18 +337,15 @@ def log_gaussian(nu: FloatArray, S: FloatArray) -> FloatArray:
     ndarray, shape (...)
     """
     nu = np.asarray(nu, dtype=float)
-    L = cholesky(S, "innovation covariance S")
-    y = np.linalg.solve(L, nu[..., None])[..., 0]
-    d = nu.shape[-1]
-    logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
-    return -0.5 * (d * _LOG_2PI + logdet + np.sum(y * y, axis=-1))
+    S_inv, logdet = inverse_and_logdet(S)
+    return gaussian_terms(nu, S_inv, logdet)[1]
 
 
 def pairwise_gate_and_loglik(nu: FloatArray, S: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Squared Mahalanobis distances and log-likelihoods for every (track, detection) pair.
 
-    One Cholesky factorisation and one triangular inverse per track, then a single
-    ``einsum`` over all pairs: this is the hot loop of hypothesis generation.
+    One inverse per track (:func:`inverse_and_logdet`), then :func:`gaussian_terms` over
+    all pairs.
 
     Parameters
     ----------
@@ -299,14 +368,8 @@ def pairwise_gate_and_loglik(nu: FloatArray, S: FloatArray) -> tuple[FloatArray,
             f"nu must be (T, M, d) and S (T, d, d) with matching T and d, got {nu.shape} "
             f"and {S.shape}"
         )
-    d = nu.shape[-1]
-    L = cholesky(S, "innovation covariance S")
-    Linv = np.linalg.inv(L)  # triangular, d x d per track
-    y = np.einsum("tij,tmj->tmi", Linv, nu)
-    d2 = np.einsum("tmi,tmi->tm", y, y)
-    logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
-    loglik = -0.5 * (d * _LOG_2PI + logdet[:, None] + d2)
-    return d2, loglik
+    S_inv, logdet = inverse_and_logdet(S)
+    return gaussian_terms(nu, S_inv[:, None], logdet[:, None])
 
 
 def gated_pairs_and_loglik(
@@ -319,12 +382,10 @@ def gated_pairs_and_loglik(
     within ``r`` too.  The detections are sorted along the coordinate where they spread
     most; each track's candidates are the run of detections within ``r`` of its
     prediction there (two binary searches), the other coordinates filter them, and only
-    the rest are scored.  Cost grows with the number of candidates in the strips, not with
-    tracks x detections.  (A k-d tree radius query per prediction found the same pairs in
-    2.4 s against 0.85 s on the 870 gates of the dense_radar bench family's first seed,
-    about 1,700 predictions against 56 detections each: its lists of hits cost more than
-    the search.)  For residuals that are plain differences ``z - z_hat`` only (no angle
-    wrapping).
+    the rest are scored (:func:`gaussian_terms`).  Cost grows with the number of
+    candidates in the strips, not with tracks x detections; a k-d tree radius query per
+    prediction finds the same pairs, but its lists of hits cost more than the search.
+    For residuals that are plain differences ``z - z_hat`` only (no angle wrapping).
 
     Parameters
     ----------
@@ -344,30 +405,30 @@ def gated_pairs_and_loglik(
     """
     if not math.isfinite(threshold):
         raise InputError("gated_pairs_and_loglik needs a finite gate threshold")
-    T, d = z_hat.shape
-    S_inv = _small_inverse(S) if d == 2 else None
-    if S_inv is not None:
-        # Closed forms for the usual 2-D measurements: the largest eigenvalue and the
-        # determinant of each S.
+    S_inv, logdet = inverse_and_logdet(S)
+    return strip_gate(z_hat, S, S_inv, logdet, Z, threshold)
+
+
+def strip_gate(
+    z_hat: FloatArray,
+    S: FloatArray,
+    S_inv: FloatArray,
+    logdet: FloatArray,
+    Z: FloatArray,
+    threshold: float,
+) -> tuple[IntArray, IntArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`gated_pairs_and_loglik` given each ``S``'s inverse and log-determinant
+    (:func:`inverse_and_logdet`); the same returns."""
+    if S.shape[-1] == 2:
+        # The largest eigenvalue of each 2 x 2 S in closed form.
         a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
         largest = 0.5 * (a + c) + np.sqrt((0.5 * (a - c)) ** 2 + b * b)
-        logdet = np.log(a * c - b * b)
     else:
-        L = cholesky(S, "innovation covariance S")
         largest = np.asarray(np.linalg.eigvalsh(S)[:, -1], dtype=np.float64)
-        logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
     radius = np.sqrt(threshold * largest)
     track, detection = _strip_candidates(z_hat, radius, Z)
     nu = Z[detection] - z_hat[track]
-    if S_inv is not None:
-        W = S_inv[track]
-        d2 = W[:, 0, 0] * nu[:, 0] ** 2 + 2.0 * W[:, 0, 1] * nu[:, 0] * nu[:, 1]
-        d2 += W[:, 1, 1] * nu[:, 1] ** 2
-    else:
-        Linv = np.linalg.inv(L)
-        y = np.einsum("pij,pj->pi", Linv[track], nu)
-        d2 = np.einsum("pi,pi->p", y, y)
-    loglik = -0.5 * (d * _LOG_2PI + logdet[track] + d2)
+    d2, loglik = gaussian_terms(nu, S_inv[track], logdet[track])
     keep = d2 <= threshold
     return track[keep], detection[keep], nu[keep], d2[keep], loglik[keep]
 
@@ -443,7 +504,7 @@ def gate_threshold(probability: float, dim: int) -> float:
         return math.inf
     # The chi-square quantile with dim degrees of freedom, as scipy.stats.chi2.ppf
     # computes it (2 P^-1(dim / 2, probability), P the regularised lower incomplete
-    # gamma function), without importing scipy.stats (about 0.3 s).
+    # gamma function), without importing scipy.stats (a slow import).
     return float(2.0 * gammaincinv(dim / 2.0, probability))
 
 

@@ -26,6 +26,7 @@ import pytest
 
 from mapassoc.accelerate import KERNEL_MODULES, compiled_module, load_kernels
 from mapassoc.estimator.objective import RecordingObjective, paths_from_rows
+from mapassoc.estimator.refiltering import Refiltering
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.evaluation.scenarios import build_scenario
 from mapassoc.filtering import compiled
@@ -63,6 +64,8 @@ def _one_update(
         zeros,
         zeros,
         np.full(2, np.inf),
+        np.zeros(2, dtype=np.int64),
+        np.zeros(2, dtype=np.int64),
     )
     return kernels.filter_along_path(x, P, 0.0, 0, np.array([1]), z[None, :], scan_model)
 
@@ -124,16 +127,16 @@ def test_a_tracks_filter_run_is_the_numpy_run(family: str, monkeypatch: pytest.M
     for row in rows.tolist():
         if origin.get(row, -1) >= 0:
             true_rows.setdefault(origin[row], []).append(row)
-    compiled_runs = []
-    filter_compiled = RecordingObjective._filter_compiled
-
-    def spy(self: RecordingObjective, kernels: object, state: object, path: tuple) -> object:
-        compiled_runs.append(len(path))
-        return filter_compiled(self, kernels, state, path)
-
-    monkeypatch.setattr(RecordingObjective, "_filter_compiled", spy)
+    backends: dict[str, list[str]] = {"1": [], "0": []}
+    filter_path = Refiltering.filter_path
     runs = {}
     for switch in ("1", "0"):
+
+        def spy(self: Refiltering, state: object, path: tuple, switch: str = switch) -> object:
+            backends[switch].append(compiled.filter_backend().__name__)
+            return filter_path(self, state, path)  # type: ignore[arg-type]
+
+        monkeypatch.setattr(Refiltering, "filter_path", spy)
         monkeypatch.setenv(compiled.COMPILED_SWITCH, switch)
         objective = RecordingObjective(config=scenario.config, scans=scans)  # fresh cache
         paths = paths_from_rows(objective, true_rows)
@@ -141,8 +144,12 @@ def test_a_tracks_filter_run_is_the_numpy_run(family: str, monkeypatch: pytest.M
         pieces = [p for path in paths.values() for p in (path, path[len(path) // 2 :])]
         runs[switch] = [objective.trajectory(p) for p in pieces if p]
     assert len(runs["1"]) >= 4
-    # Linear motion: the kernel ran (only with the switch on); coordinated turn: never.
-    assert (len(compiled_runs) > 0) == (family != "turning")
+    # Linear motion: the backend's run took over (the kernel with the switch on, its numpy
+    # twin with it off); coordinated turn: never.
+    assert (len(backends["1"]) > 0) == (family != "turning")
+    assert set(backends["1"]) <= {"mapassoc.filtering.compiled_kernels"}
+    assert set(backends["0"]) <= {"mapassoc.filtering.scan_steps"}
+    assert len(backends["0"]) == len(backends["1"])
     for fast, plain in zip(runs["1"], runs["0"], strict=True):
         assert fast.path == plain.path
         np.testing.assert_array_equal(fast.initiated, plain.initiated)
