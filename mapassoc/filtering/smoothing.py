@@ -10,11 +10,11 @@ For each track:
    :func:`mapassoc.models.birth.birth_state` (the detection fixes the position; this is already the
    posterior given that detection, so it is not updated with it again).
 2. Every later scan of *any* sensor up to the track's last detection is one step: a
-   prediction over ``dt`` through :func:`mapassoc.filtering.kalman.predict_motion` (skipped when
-   ``dt == 0``, two sensors scanning at the same time), then a Kalman/EKF update
-   (:func:`mapassoc.filtering.kalman.innovation`,
-   :func:`mapassoc.filtering.kalman.update`) when the track has a detection in that scan;
-   a scan without one is a pure prediction.
+   prediction over ``dt`` (skipped when ``dt == 0``, two sensors scanning at the same
+   time), then a Kalman/EKF update when the track has a detection in that scan, both
+   through the batched filter interface the trees and the recording objective use
+   (:class:`mapassoc.filtering.batch.KalmanFilter`); a scan without one is a pure
+   prediction.
 3. Rauch-Tung-Striebel smoothing (:func:`mapassoc.filtering.kalman.rts_smooth`).
 
 Coordinated turn.  A coordinated-turn track starts in the constant-velocity initiation
@@ -55,7 +55,8 @@ from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
-from mapassoc.filtering.kalman import innovation, predict_motion, rts_smooth, update
+from mapassoc.filtering.batch import KalmanFilter
+from mapassoc.filtering.kalman import rts_smooth
 from mapassoc.models.birth import (
     birth_state,
     convert_initiated,
@@ -63,6 +64,7 @@ from mapassoc.models.birth import (
     initiation_model,
     needs_conversion,
 )
+from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
 from mapassoc.models.population import BirthModel
 
@@ -70,6 +72,27 @@ __all__ = ["Associations", "smooth_track", "smooth_tracks"]
 
 #: Track id -> {scan index -> index of the track's detection in that scan}.
 Associations = Mapping[int, Mapping[int, int]]
+
+_KALMAN = KalmanFilter()
+"""The batched filter interface, on batches of one track (the steps of the trees)."""
+
+
+def _predict(
+    motion: MotionModel, x: FloatArray, P: FloatArray, dt: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """One track's prediction over ``dt > 0`` and its transition matrix or Jacobian."""
+    x_pred, P_pred, F = _KALMAN.predict(motion, x[None], P[None], dt)
+    return x_pred[0], P_pred[0], F.reshape(P.shape)
+
+
+def _update(
+    measurement: MeasurementModel, x: FloatArray, P: FloatArray, z: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """One track's update by detection ``z``."""
+    innovation = _KALMAN.innovation(measurement, x[None], P[None])
+    nu = innovation.residuals(z[None])
+    x_post, P_post = _KALMAN.update(x[None], P[None], innovation, np.zeros(1, np.int64), nu)
+    return x_post[0], P_post[0]
 
 
 class _Segment:
@@ -179,16 +202,14 @@ def smooth_track(
         dt = scan.time - scans[k - 1].time
         current_model = motion if late is not None else model
         if dt > 0.0:
-            x_pred, P_pred, F = predict_motion(current_model, x, P, dt)
+            x_pred, P_pred, F = _predict(current_model, x, P, dt)
         else:
             x_pred, P_pred, F = x, P, np.eye(x.shape[0])
         if k in detections:
             measurement = config.sensors[scan.sensor].measurement
             if late is None:
                 measurement = initiation_measurement(motion, measurement)
-            z = scan.detections[detections[k]]
-            nu, S, H = innovation(measurement, x_pred, P_pred, z)
-            x, P = update(x_pred, P_pred, nu, S, H, measurement.noise_covariance)
+            x, P = _update(measurement, x_pred, P_pred, scan.detections[detections[k]])
         else:
             x, P = x_pred, P_pred
         segment = early if late is None else late

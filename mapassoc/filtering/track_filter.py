@@ -27,14 +27,8 @@ from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
-from mapassoc.filtering.kalman import (
-    _symmetrize,
-    cholesky,
-    innovation,
-    pairwise_gate_and_loglik,
-    predict_motion,
-    update,
-)
+from mapassoc.filtering.batch import KalmanFilter
+from mapassoc.filtering.kalman import _symmetrize, inverse_and_logdet
 from mapassoc.models.birth import (
     birth_state,
     convert_initiated,
@@ -43,6 +37,9 @@ from mapassoc.models.birth import (
     needs_conversion,
 )
 from mapassoc.models.measurement import MeasurementModel
+
+_KALMAN = KalmanFilter()
+"""The batched filter interface, on batches of one track (the steps of the trees)."""
 
 __all__ = [
     "FilteredTrack",
@@ -146,9 +143,9 @@ def predict_track(config: Config, track: FilteredTrack, time: float) -> Filtered
     if dt == 0.0:
         return track
     motion = config.motion if track.converted else initiation_model(config.motion)
-    x, P, _ = predict_motion(motion, track.x, track.P, dt)
+    x, P, _ = _KALMAN.predict(motion, track.x[None], track.P[None], dt)
     return FilteredTrack(
-        x=x, P=P, time=time, first_time=track.first_time, converted=track.converted
+        x=x[0], P=P[0], time=time, first_time=track.first_time, converted=track.converted
     )
 
 
@@ -159,25 +156,22 @@ def innovations(config: Config, track: FilteredTrack, scan: Scan) -> Innovations
             f"the track is at time {track.time} but the scan is at {scan.time}; predict first"
         )
     measurement = _measurement(config, track, scan)
+    innovation = _KALMAN.innovation(measurement, track.x[None], track.P[None])
     Z = scan.detections
-    if Z.shape[0] == 0:
-        nu0, S, H = innovation(measurement, track.x, track.P, measurement.predict(track.x))
-        empty = np.zeros(0)
-        return Innovations(np.zeros((0, nu0.shape[-1])), S, H, empty, empty)
-    nu, S, H = innovation(measurement, track.x, track.P, Z)
-    S0, H0 = S[0] if S.ndim == 3 else S, H[0] if H.ndim == 3 else H
-    d2, loglik = pairwise_gate_and_loglik(nu[None], S0[None])
-    return Innovations(nu=nu, S=S0, H=H0, d2=d2[0], log_likelihood=loglik[0])
+    nu = innovation.residuals(Z[None], np.zeros(1, dtype=np.int64))[0]
+    d2, loglik = innovation.scores(nu, np.zeros(Z.shape[0], dtype=np.int64))
+    return Innovations(nu=nu, S=innovation.S[0], H=innovation.H[0], d2=d2, log_likelihood=loglik)
 
 
-def _converted_after_update(config: Config, track: FilteredTrack, x: FloatArray,
-                            P: FloatArray) -> FilteredTrack:
+def _converted_after_update(
+    config: Config, track: FilteredTrack, x: FloatArray, P: FloatArray
+) -> FilteredTrack:
     if not track.converted and track.time > track.first_time:
         x, P = convert_initiated(config.motion, x, P, config.birth)
-        return FilteredTrack(x=x, P=P, time=track.time, first_time=track.first_time,
-                             converted=True)
-    return FilteredTrack(x=x, P=P, time=track.time, first_time=track.first_time,
-                         converted=track.converted)
+        return FilteredTrack(x=x, P=P, time=track.time, first_time=track.first_time, converted=True)
+    return FilteredTrack(
+        x=x, P=P, time=track.time, first_time=track.first_time, converted=track.converted
+    )
 
 
 def update_track(config: Config, track: FilteredTrack, scan: Scan, detection: int) -> FilteredTrack:
@@ -187,9 +181,10 @@ def update_track(config: Config, track: FilteredTrack, scan: Scan, detection: in
     first detection.
     """
     measurement = _measurement(config, track, scan)
-    nu, S, H = innovation(measurement, track.x, track.P, scan.detections[detection])
-    x, P = update(track.x, track.P, nu, S, H, measurement.noise_covariance)
-    return _converted_after_update(config, track, x, P)
+    innovation = _KALMAN.innovation(measurement, track.x[None], track.P[None])
+    nu = innovation.residuals(scan.detections[detection][None])
+    x, P = _KALMAN.update(track.x[None], track.P[None], innovation, np.zeros(1, np.int64), nu)
+    return _converted_after_update(config, track, x[0], P[0])
 
 
 def update_track_mixture(
@@ -234,8 +229,7 @@ def update_track_mixture(
     measurement = _measurement(config, track, scan)
     R = measurement.noise_covariance
     x, P, S, H = track.x, track.P, innov.S, innov.H
-    L = cholesky(S, "innovation covariance S")
-    Kt = np.linalg.solve(L.T, np.linalg.solve(L, H @ P))
+    Kt = inverse_and_logdet(S)[0] @ (H @ P)  # K^T = S^-1 H P
     K = Kt.T
     nu_c = weights @ innov.nu
     x_new = x + K @ nu_c
