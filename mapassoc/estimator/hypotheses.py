@@ -82,6 +82,11 @@ from mapassoc.estimator.terms import (
     end_term,
     survival_term,
 )
+from mapassoc.estimator.tree_pruning import (
+    continuation_gain_bound,
+    prune_mask,
+    remaining_gain_bounds,
+)
 from mapassoc.filtering.batch import GatedPairs, Innovation, KalmanFilter
 from mapassoc.models.birth import (
     birth_states,
@@ -505,10 +510,9 @@ class _NewNodes:
     """A group of one scan's new nodes before pruning: what pruning reads, and how to
     compute the states of the nodes it keeps.
 
-    Pruning reads only scores, trees and flags, and drops about half of the nodes
-    generated in dense clutter (a dense_radar run: 2.6 of 5.0 million), while the
-    children's Kalman updates were the largest part of growing them: states are computed
-    for the kept nodes only (1.2 million updates instead of 1.9), row by row the same as
+    Pruning reads only scores, trees and flags, and in dense clutter drops about half
+    of the nodes generated, while the children's Kalman updates are the largest part of
+    growing them: states are computed for the kept nodes only, row by row the same as
     for all of them.
     """
 
@@ -559,6 +563,133 @@ def _gathered(means: FloatArray, covs: FloatArray, rows: IntArray) -> StatesOf:
         return means[rows[index]], covs[rows[index]]
 
     return states
+
+
+def _node_record(
+    dims: tuple[int, int],
+    *,
+    parent: IntArray,
+    layer: int,
+    detection: IntArray,
+    alive: bool | BoolArray,
+    tree: IntArray,
+    initiated: BoolArray,
+    num_detections: IntArray,
+    first_time: FloatArray | float,
+    score: FloatArray,
+    protected: BoolArray,
+    means: FloatArray,
+    covs: FloatArray,
+) -> HypothesisNodes:
+    """A record of new nodes at scan ``layer``; states already padded to ``n_max``;
+    ``dims`` the state dimensions before and after initiation."""
+    k = len(score)
+    initiated = np.asarray(initiated, dtype=bool)
+    return HypothesisNodes(
+        parent=np.asarray(parent, dtype=np.int64),
+        layer=np.full(k, layer, dtype=np.int64),
+        detection=np.asarray(detection, dtype=np.int64),
+        alive=np.broadcast_to(np.asarray(alive, dtype=bool), (k,)).copy(),
+        tree=np.asarray(tree, dtype=np.int64),
+        initiated=initiated,
+        num_detections=np.asarray(num_detections, dtype=np.int64),
+        first_time=np.broadcast_to(np.asarray(first_time, dtype=float), (k,)).copy(),
+        score=np.asarray(score, dtype=float),
+        protected=np.asarray(protected, dtype=bool),
+        means=means,
+        covariances=covs,
+        state_dims=np.where(initiated, dims[1], dims[0]).astype(np.int64),
+    )
+
+
+def _carried_frontier(
+    carried: Sequence[CarriedTrack], dims: tuple[int, int], n_max: int
+) -> _Frontier:
+    """The frontier of the carried tracks' priors (before the window's first scan)."""
+    if not carried:
+        return _Frontier.empty(n_max)
+    means, covs = [], []
+    for t in carried:
+        d = dims[1] if t.initiated else dims[0]
+        m = np.asarray(t.mean, dtype=float)
+        c = np.asarray(t.covariance, dtype=float)
+        if m.shape != (d,) or c.shape != (d, d):
+            raise InputError(
+                f"carried track {t.track_id} state has shape {m.shape}, covariance "
+                f"{c.shape}; expected ({d},) and ({d}, {d})"
+            )
+        pm, pc = _pad(m[None], c[None], n_max)
+        means.append(pm[0])
+        covs.append(pc[0])
+    k = len(carried)
+    nodes = _node_record(
+        dims,
+        parent=np.full(k, -1),
+        layer=-1,
+        detection=np.full(k, -1),
+        alive=True,
+        tree=np.arange(k),
+        initiated=np.array([t.initiated for t in carried], dtype=bool),
+        num_detections=np.array([t.num_detections for t in carried], dtype=np.int64),
+        first_time=np.array([t.first_detection_time for t in carried], dtype=float),
+        score=np.zeros(k),
+        protected=np.ones(k, dtype=bool),
+        means=np.array(means),
+        covs=np.array(covs),
+    )
+    return _Frontier(
+        nodes, np.full(k, -1, dtype=np.int64), np.array([t.time for t in carried], dtype=float)
+    )
+
+
+def _ended_nodes(frontier: _Frontier, log_end: FloatArray, protect: BoolArray) -> list[_NewNodes]:
+    """The "ended" children of the frontier nodes that can end (a finite term)."""
+    f = frontier.nodes
+    idx = np.flatnonzero(np.isfinite(log_end))
+    if len(idx) == 0:
+        return []
+    return [
+        _NewNodes(
+            parent=frontier.ids[idx],
+            detection=np.full(len(idx), -1, dtype=np.int64),
+            alive=False,
+            tree=f.tree[idx],
+            initiated=f.initiated[idx],
+            num_detections=f.num_detections[idx],
+            first_time=f.first_time[idx],
+            score=f.score[idx] + log_end[idx],
+            protected=protect[idx],
+            states=_gathered(f.means, f.covariances, idx),
+        )
+    ]
+
+
+def _padded(x: FloatArray, P: FloatArray, n_max: int) -> StatesOf:
+    """States of the nodes at given rows of ``x``, ``P``, padded to ``n_max``."""
+
+    def states(index: IntArray) -> tuple[FloatArray, FloatArray]:
+        return _pad(x[index], P[index], n_max)
+
+    return states
+
+
+def _roots(
+    scan: Scan, det_offset: int, first_tree: int, score: float, initiated: bool, states: StatesOf
+) -> _NewNodes:
+    """The roots of new trees, one at each detection of ``scan``, scored ``score``."""
+    m = scan.size
+    return _NewNodes(
+        parent=np.full(m, -1, dtype=np.int64),
+        detection=det_offset + np.arange(m),
+        alive=True,
+        tree=first_tree + np.arange(m),
+        initiated=np.full(m, initiated),
+        num_detections=np.ones(m, dtype=np.int64),
+        first_time=np.full(m, scan.time),
+        score=np.full(m, score),
+        protected=np.zeros(m, dtype=bool),
+        states=states,
+    )
 
 
 class HypothesisGenerator:
@@ -614,95 +745,32 @@ class HypothesisGenerator:
             )
         self._init_model = initiation_model(motion)
         self._converts = needs_conversion(motion)
-        self._n_max = max(motion.state_dim, self._init_model.state_dim)
+        self._dims = (self._init_model.state_dim, motion.state_dim)
+        self._n_max = max(self._dims)
         self._log_survival = math.log(birth.survival_probability)
         self._filter = KalmanFilter()
 
     # -- bounds for pruning ----------------------------------------------------------
     def continuation_gain_bound(self, sensor: Sensor) -> float:
-        """Upper bound ``b_s`` of the term a continuation by a detection of ``sensor`` adds.
-
-        The term is ``dt log Ps + log Pd_s + log N(nu; 0, S) - log lambda_s`` (module
-        table; ``docs/model.md`` section 2, ``score_tau``), and
-
-            b_s = log Pd_s - log lambda_s - 0.5 log det(2 pi R_s)
-
-        bounds it for every state of the track, every detection and every time step
-        (proof in :meth:`remaining_gain_bounds`).  ``R_s`` is the sensor's measurement
-        noise covariance, for linear and range-bearing measurements alike.
-
-        Parameters
-        ----------
-        sensor : Sensor
-
-        Returns
-        -------
-        float
-            ``b_s``; it may be negative (then a continuation always lowers the score).
-
-        Raises
-        ------
-        InputError
-            When ``R_s`` is not positive-definite.
-        """
-        R = np.asarray(sensor.measurement.noise_covariance, dtype=float)
-        sign, logdet = np.linalg.slogdet(2.0 * math.pi * R)
-        if sign <= 0 or not math.isfinite(logdet):
-            raise InputError(
-                f"sensor '{sensor.name}' measurement noise covariance R={R.tolist()} must be "
-                "positive-definite (det R > 0) to bound the innovation likelihood"
-            )
+        """Upper bound ``b_s`` of the term a continuation by a detection of ``sensor``
+        adds (:func:`~mapassoc.estimator.tree_pruning.continuation_gain_bound`, with the
+        generator's terms of the sensor)."""
         terms = self._terms.get(sensor.name)
         if terms is None or self.sensors[sensor.name] is not sensor:
             terms = SensorTerms.of(sensor, self.gate_probability)
-        return terms.log_pd - terms.log_clutter - 0.5 * logdet
+        return continuation_gain_bound(sensor, terms)
 
     def remaining_gain_bounds(self, scans: Sequence[Scan]) -> FloatArray:
-        """``G_j``, the most a path alive at scan ``j`` can still gain by the window's end.
-
-        With ``b_k`` the :meth:`continuation_gain_bound` of scan ``k``'s sensor and ``N``
-        scans in the window,
-
-            G_j = sum_{k = j+1}^{N-1} max(0, b_k),    G_{N-1} = 0.
-
-        **Why this is an upper bound.**  Let ``v`` be an alive node at scan ``j`` with
-        score ``s_v``.  A hypothesis grown from ``v`` adds one term at each later scan
-        ``k`` it reaches (module table; ``docs/model.md`` section 3), until the window's
-        end or its "ended" node:
-
-        * ended over dt: ``log(1 - Ps^dt) <= 0``;
-        * missed: ``dt log Ps + log(1 - Pd_k P_G) <= 0`` (``dt >= 0``, ``Ps <= 1``);
-        * continued by a detection: ``dt log Ps + log Pd_k + log N(nu; 0, S) - log
-          lambda_k``.  The Gaussian density (Afzal's survey, eq. 3) is
-          ``log N(nu; 0, S) = -0.5 log det(2 pi S) - 0.5 nu^T S^-1 nu
-          <= -0.5 log det(2 pi S)``.  The innovation covariance is
-          ``S = H P H^T + R`` (Afzal's survey, section 4.3; for the EKF H is the Jacobian of
-          the range-bearing model, the same form), and ``H P H^T`` is positive
-          semidefinite, so ``det S = det R det(I + R^-1/2 H P H^T R^-1/2) >= det R``
-          (the second factor is a product of eigenvalues >= 1).  With ``dt log Ps <= 0``
-          the term is at most ``b_k``.
-
-        Each term is thus at most ``max(0, b_k)``, and a path gains at most one term per
-        later scan, so every hypothesis grown from ``v`` scores at most ``s_v + G_j``,
-        whatever the track's covariance, the gate and the detections.  A node that has
-        ended gains nothing more: its bound is its score.
-
-        Parameters
-        ----------
-        scans : sequence of Scan
-            The window's scans in time order.
-
-        Returns
-        -------
-        ndarray, shape (N,)
-            ``G_j`` for every scan position ``j``; non-increasing, last entry 0.
+        """``G_j``, the most a path alive at scan ``j`` can still gain by the window's end
+        (:func:`~mapassoc.estimator.tree_pruning.remaining_gain_bounds` of the scans'
+        :meth:`continuation_gain_bound`).
 
         Raises
         ------
         InputError
             When a scan names a sensor the generator does not know.
         """
-        per_scan = np.zeros(len(scans))
+        bounds = np.zeros(len(scans))
         for k, scan in enumerate(scans):
             sensor = self.sensors.get(scan.sensor)
             if sensor is None:
@@ -710,10 +778,8 @@ class HypothesisGenerator:
                     f"scan at time {scan.time} names sensor '{scan.sensor}', which is not "
                     f"configured (known: {sorted(self.sensors)})"
                 )
-            per_scan[k] = max(0.0, self.continuation_gain_bound(sensor))
-        # G_j = sum over k > j: reversed cumulative sum, shifted by one scan.
-        from_here = np.cumsum(per_scan[::-1])[::-1]
-        return np.concatenate([from_here[1:], [0.0]])
+            bounds[k] = self.continuation_gain_bound(sensor)
+        return remaining_gain_bounds(bounds)
 
     # -- main entry ------------------------------------------------------------------
     def population(
@@ -805,7 +871,7 @@ class HypothesisGenerator:
         detections, offsets = _window_detections(scans)
         tree_track_ids: list[int] = [t.track_id for t in carried]
         remaining_gain = self.remaining_gain_bounds(scans) + end_gain
-        frontier = self._carried_frontier(carried)
+        frontier = _carried_frontier(carried, self._dims, self._n_max)
         kept_layers: list[HypothesisNodes] = []
         node_count = generated = pruned = capped = 0
         for j, scan in enumerate(scans):
@@ -826,7 +892,7 @@ class HypothesisGenerator:
             frontier = _Frontier.of_layer(kept, node_count, scan.time)
             node_count += len(kept)
         nodes = HypothesisNodes.concat(kept_layers, state_dim=self._n_max)
-        leaves, used = self._leaves_in_canonical_order(
+        leaves, used = _canonical_leaves(
             nodes, detections, tree_track_ids, len(carried), len(scans)
         )
         used_mask = used >= 0
@@ -916,7 +982,8 @@ class HypothesisGenerator:
                 group_means, group_covs = group.states(index)
                 means.append(group_means)
                 covs.append(group_covs)
-        nodes = self._nodes(
+        nodes = _node_record(
+            self._dims,
             parent=joined("parent")[keep],
             layer=j,
             detection=joined("detection")[keep],
@@ -932,138 +999,7 @@ class HypothesisGenerator:
         )
         return nodes, int(np.count_nonzero(~keep)), cut_by_cap
 
-    def _leaves_in_canonical_order(
-        self,
-        nodes: HypothesisNodes,
-        detections: WindowDetections,
-        tree_track_ids: Sequence[int],
-        num_carried: int,
-        num_scans: int,
-    ) -> tuple[IntArray, IntArray]:
-        """The window's leaves in canonical order, and the detections along each path.
-
-        Returns
-        -------
-        leaves : ndarray of int, shape (H,)
-        used : ndarray of int, shape (H, num_scans)
-            Window detection of each leaf's path at each scan, -1 for none.
-        """
-        last = num_scans - 1
-        is_leaf = (~nodes.alive) | (nodes.layer == last)
-        leaf_nodes = np.flatnonzero(is_leaf)
-        self._check_carried_have_leaves(nodes.tree[leaf_nodes], num_carried)
-        # Canonical order, independent of the order of detections within a scan (so
-        # that ties between equal-scoring sets are broken the same way whatever the file
-        # order): carried trees by track id, then new trees by their birth detection's
-        # row; within a tree by the rows along the path (-1 for a miss, a shorter path
-        # first), alive last.  Paths are walked for all leaves at once, one layer a step.
-        row_of = detections.rows
-        n_leaves = leaf_nodes.size
-        path_rows = np.full((n_leaves, num_scans), -2, dtype=np.int64)  # -2: no node
-        path_dets = np.full((n_leaves, num_scans), -1, dtype=np.int64)
-        root = leaf_nodes.copy()
-        current = leaf_nodes.copy()
-        walking = np.arange(n_leaves)
-        while walking.size:
-            at = current[walking]
-            det = nodes.detection[at]
-            layer = nodes.layer[at]
-            path_dets[walking, layer] = det
-            rows_here = np.full(det.shape, -1, dtype=np.int64)
-            rows_here[det >= 0] = row_of[det[det >= 0]]
-            path_rows[walking, layer] = rows_here
-            root[walking] = at
-            current[walking] = nodes.parent[at]
-            walking = walking[current[walking] >= 0]
-        leaf_tree = nodes.tree[leaf_nodes]
-        is_new = leaf_tree >= num_carried
-        root_layer = nodes.layer[root]
-        ids = np.asarray(tree_track_ids, dtype=np.int64)
-        owner = np.where(is_new, path_rows[np.arange(n_leaves), root_layer], ids[leaf_tree])
-        order = np.lexsort(
-            (
-                nodes.alive[leaf_nodes],
-                *path_rows.T[::-1],
-                root_layer,
-                owner,
-                is_new,
-            )
-        )
-        return leaf_nodes[order], path_dets[order]
-
     # -- pieces ----------------------------------------------------------------------
-    def _nodes(
-        self,
-        *,
-        parent: IntArray,
-        layer: int,
-        detection: IntArray,
-        alive: bool | BoolArray,
-        tree: IntArray,
-        initiated: BoolArray,
-        num_detections: IntArray,
-        first_time: FloatArray | float,
-        score: FloatArray,
-        protected: BoolArray,
-        means: FloatArray,
-        covs: FloatArray,
-    ) -> HypothesisNodes:
-        """A record of new nodes at scan ``layer``; states already padded to ``n_max``."""
-        k = len(score)
-        initiated = np.asarray(initiated, dtype=bool)
-        return HypothesisNodes(
-            parent=np.asarray(parent, dtype=np.int64),
-            layer=np.full(k, layer, dtype=np.int64),
-            detection=np.asarray(detection, dtype=np.int64),
-            alive=np.broadcast_to(np.asarray(alive, dtype=bool), (k,)).copy(),
-            tree=np.asarray(tree, dtype=np.int64),
-            initiated=initiated,
-            num_detections=np.asarray(num_detections, dtype=np.int64),
-            first_time=np.broadcast_to(np.asarray(first_time, dtype=float), (k,)).copy(),
-            score=np.asarray(score, dtype=float),
-            protected=np.asarray(protected, dtype=bool),
-            means=means,
-            covariances=covs,
-            state_dims=np.where(
-                initiated, self.motion.state_dim, self._init_model.state_dim
-            ).astype(np.int64),
-        )
-
-    def _carried_frontier(self, carried: Sequence[CarriedTrack]) -> _Frontier:
-        if not carried:
-            return _Frontier.empty(self._n_max)
-        means, covs = [], []
-        for t in carried:
-            d = self.motion.state_dim if t.initiated else self._init_model.state_dim
-            m = np.asarray(t.mean, dtype=float)
-            c = np.asarray(t.covariance, dtype=float)
-            if m.shape != (d,) or c.shape != (d, d):
-                raise InputError(
-                    f"carried track {t.track_id} state has shape {m.shape}, covariance "
-                    f"{c.shape}; expected ({d},) and ({d}, {d})"
-                )
-            pm, pc = _pad(m[None], c[None], self._n_max)
-            means.append(pm[0])
-            covs.append(pc[0])
-        k = len(carried)
-        nodes = self._nodes(
-            parent=np.full(k, -1),
-            layer=-1,
-            detection=np.full(k, -1),
-            alive=True,
-            tree=np.arange(k),
-            initiated=np.array([t.initiated for t in carried], dtype=bool),
-            num_detections=np.array([t.num_detections for t in carried], dtype=np.int64),
-            first_time=np.array([t.first_detection_time for t in carried], dtype=float),
-            score=np.zeros(k),
-            protected=np.ones(k, dtype=bool),
-            means=np.array(means),
-            covs=np.array(covs),
-        )
-        return _Frontier(
-            nodes, np.full(k, -1, dtype=np.int64), np.array([t.time for t in carried], dtype=float)
-        )
-
     def _grow(
         self,
         frontier: _Frontier,
@@ -1081,7 +1017,7 @@ class HypothesisGenerator:
         can_end = np.isfinite(log_end)
         # A carried track that can end keeps its "ended before the window" leaf protected;
         # otherwise its all-miss path carries the protection.
-        groups = self._ended(frontier, log_end, f.protected & can_end)
+        groups = _ended_nodes(frontier, log_end, f.protected & can_end)
         protect_miss = f.protected & ~can_end
         for initiated in (False, True):
             group = np.flatnonzero(f.initiated == initiated)
@@ -1091,28 +1027,6 @@ class HypothesisGenerator:
                     det_offset,
                 )  # fmt: skip
         return groups
-
-    @staticmethod
-    def _ended(frontier: _Frontier, log_end: FloatArray, protect: BoolArray) -> list[_NewNodes]:
-        """The "ended" children of the frontier nodes that can end (a finite term)."""
-        f = frontier.nodes
-        idx = np.flatnonzero(np.isfinite(log_end))
-        if len(idx) == 0:
-            return []
-        return [
-            _NewNodes(
-                parent=frontier.ids[idx],
-                detection=np.full(len(idx), -1, dtype=np.int64),
-                alive=False,
-                tree=f.tree[idx],
-                initiated=f.initiated[idx],
-                num_detections=f.num_detections[idx],
-                first_time=f.first_time[idx],
-                score=f.score[idx] + log_end[idx],
-                protected=protect[idx],
-                states=_gathered(f.means, f.covariances, idx),
-            )
-        ]
 
     def _grown_group(
         self,
@@ -1152,7 +1066,7 @@ class HypothesisGenerator:
                     first_time=f.first_time[group],
                     score=base + log_miss,
                     protected=protect_miss,
-                    states=self._padded(x, P),
+                    states=_padded(x, P, self._n_max),
                 )
             )
         if scan.size:
@@ -1206,14 +1120,6 @@ class HypothesisGenerator:
             )
         ]
 
-    def _padded(self, x: FloatArray, P: FloatArray) -> StatesOf:
-        """States of the nodes at given rows of ``x``, ``P``, padded to ``n_max``."""
-
-        def states(index: IntArray) -> tuple[FloatArray, FloatArray]:
-            return _pad(x[index], P[index], self._n_max)
-
-        return states
-
     def _updated(
         self,
         x: FloatArray,
@@ -1265,20 +1171,7 @@ class HypothesisGenerator:
             x, P = birth_states(self.motion, sensor.measurement, detections, self.birth)
             return _pad(x, P, self._n_max)
 
-        return [
-            _NewNodes(
-                parent=np.full(m, -1, dtype=np.int64),
-                detection=det_offset + np.arange(m),
-                alive=True,
-                tree=first_tree + np.arange(m),
-                initiated=np.full(m, not self._converts),
-                num_detections=np.ones(m, dtype=np.int64),
-                first_time=np.full(m, scan.time),
-                score=np.full(m, score),
-                protected=np.zeros(m, dtype=bool),
-                states=states,
-            )
-        ]
+        return [_roots(scan, det_offset, first_tree, score, not self._converts, states)]
 
     def _prune_mask(
         self,
@@ -1288,72 +1181,85 @@ class HypothesisGenerator:
         is_new_tree: BoolArray,
         gain: FloatArray,
     ) -> tuple[BoolArray, int]:
-        """Which nodes of one scan's layer are kept, and how many the cap alone cut.
+        """:func:`~mapassoc.estimator.tree_pruning.prune_mask` with the generator's
+        ratios and cap."""
+        return prune_mask(
+            tree, score, protected, is_new_tree, gain,
+            prune_log_ratio=self.prune_log_ratio,
+            sibling_prune_log_ratio=self.sibling_prune_log_ratio,
+            max_hypotheses_per_tree=self.max_hypotheses_per_tree,
+        )  # fmt: skip
 
-        A node passes the score-ratio tests when
 
-        * ``score >= best - sibling_prune_log_ratio``, ``best`` the highest score of its
-          tree in this layer (siblings, which compete for the same detections; a
-          heuristic); and, for a node of a new tree,
-        * ``score + gain >= -prune_log_ratio``: ``gain`` bounds what its path can still
-          add (:meth:`remaining_gain_bounds`), so a node failing this has only
-          descendants scoring below ``-prune_log_ratio``.  A new tree's hypothesis has no
-          "exactly one" constraint, so removing such a hypothesis from a track set keeps
-          the set feasible and raises its score by more than ``prune_log_ratio``: it is
-          dropped by a bound on what it can add to a window's best set.
+def _check_carried_have_leaves(leaf_trees: IntArray, num_carried: int) -> None:
+    """Every carried tree must keep a leaf (pruning protects one; only the model can fail)."""
+    if num_carried == 0:
+        return
+    present = np.zeros(num_carried, dtype=bool)
+    present[leaf_trees[leaf_trees < num_carried]] = True
+    if not np.all(present):
+        missing = np.flatnonzero(~present)
+        raise InputError(
+            f"carried track tree(s) {missing.tolist()} have no possible hypothesis: "
+            "detection probability x gate probability is 1 (a miss is impossible) and the "
+            "track cannot end (survival_probability 1 or zero time step); lower one of them"
+        )
 
-        Of the nodes that pass, the ``max_hypotheses_per_tree`` best-scoring of each tree
-        are kept (ties by position); protected nodes are always kept.
 
-        Parameters
-        ----------
-        tree : ndarray of int, shape (L,)
-        score : ndarray, shape (L,)
-        protected : ndarray of bool, shape (L,)
-        is_new_tree : ndarray of bool, shape (T,)
-            Per tree of the window so far.
-        gain : ndarray, shape (L,)
-            Upper bound of what each node's path can still gain (0 for an ended node).
+def _canonical_leaves(
+    nodes: HypothesisNodes,
+    detections: WindowDetections,
+    tree_track_ids: Sequence[int],
+    num_carried: int,
+    num_scans: int,
+) -> tuple[IntArray, IntArray]:
+    """The window's leaves in canonical order, and the detections along each path.
 
-        Returns
-        -------
-        keep : ndarray of bool, shape (L,)
-        capped : int
-            Unprotected nodes that passed the score-ratio tests but not the cap.
-        """
-        ratio = self.prune_log_ratio
-        order = np.lexsort((np.arange(len(score)), -score, tree))
-        t_sorted = tree[order]
-        s_sorted = score[order]
-        new_group = np.r_[True, t_sorted[1:] != t_sorted[:-1]]
-        starts = np.flatnonzero(new_group)
-        group_id = np.cumsum(new_group) - 1
-        best = s_sorted[starts][group_id]
-        passes = s_sorted >= best - self.sibling_prune_log_ratio
-        passes &= ~is_new_tree[t_sorted] | (s_sorted + gain[order] >= -ratio)
-        # Rank among the nodes of the tree that pass (a node dropped by the bound takes
-        # no place under the cap).
-        passed_before = np.cumsum(passes) - passes
-        rank = passed_before - passed_before[starts][group_id]
-        ok = passes & (rank < self.max_hypotheses_per_tree)
-        keep = np.zeros(len(score), dtype=bool)
-        keep[order] = ok
-        cut_by_cap = np.zeros(len(score), dtype=bool)
-        cut_by_cap[order] = passes & ~ok
-        cut_by_cap &= ~protected
-        return keep | protected, int(np.count_nonzero(cut_by_cap))
-
-    @staticmethod
-    def _check_carried_have_leaves(leaf_trees: IntArray, num_carried: int) -> None:
-        """Every carried tree must keep a leaf (pruning protects one; only the model can fail)."""
-        if num_carried == 0:
-            return
-        present = np.zeros(num_carried, dtype=bool)
-        present[leaf_trees[leaf_trees < num_carried]] = True
-        if not np.all(present):
-            missing = np.flatnonzero(~present)
-            raise InputError(
-                f"carried track tree(s) {missing.tolist()} have no possible hypothesis: "
-                "detection probability x gate probability is 1 (a miss is impossible) and the "
-                "track cannot end (survival_probability 1 or zero time step); lower one of them"
-            )
+    Returns
+    -------
+    leaves : ndarray of int, shape (H,)
+    used : ndarray of int, shape (H, num_scans)
+        Window detection of each leaf's path at each scan, -1 for none.
+    """
+    last = num_scans - 1
+    is_leaf = (~nodes.alive) | (nodes.layer == last)
+    leaf_nodes = np.flatnonzero(is_leaf)
+    _check_carried_have_leaves(nodes.tree[leaf_nodes], num_carried)
+    # Canonical order, independent of the order of detections within a scan (so
+    # that ties between equal-scoring sets are broken the same way whatever the file
+    # order): carried trees by track id, then new trees by their birth detection's
+    # row; within a tree by the rows along the path (-1 for a miss, a shorter path
+    # first), alive last.  Paths are walked for all leaves at once, one layer a step.
+    row_of = detections.rows
+    n_leaves = leaf_nodes.size
+    path_rows = np.full((n_leaves, num_scans), -2, dtype=np.int64)  # -2: no node
+    path_dets = np.full((n_leaves, num_scans), -1, dtype=np.int64)
+    root = leaf_nodes.copy()
+    current = leaf_nodes.copy()
+    walking = np.arange(n_leaves)
+    while walking.size:
+        at = current[walking]
+        det = nodes.detection[at]
+        layer = nodes.layer[at]
+        path_dets[walking, layer] = det
+        rows_here = np.full(det.shape, -1, dtype=np.int64)
+        rows_here[det >= 0] = row_of[det[det >= 0]]
+        path_rows[walking, layer] = rows_here
+        root[walking] = at
+        current[walking] = nodes.parent[at]
+        walking = walking[current[walking] >= 0]
+    leaf_tree = nodes.tree[leaf_nodes]
+    is_new = leaf_tree >= num_carried
+    root_layer = nodes.layer[root]
+    ids = np.asarray(tree_track_ids, dtype=np.int64)
+    owner = np.where(is_new, path_rows[np.arange(n_leaves), root_layer], ids[leaf_tree])
+    order = np.lexsort(
+        (
+            nodes.alive[leaf_nodes],
+            *path_rows.T[::-1],
+            root_layer,
+            owner,
+            is_new,
+        )
+    )
+    return leaf_nodes[order], path_dets[order]
