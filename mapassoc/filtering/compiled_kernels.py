@@ -224,6 +224,38 @@ def _update_one(
 
 
 @njit(cache=True)
+def _predict_one(
+    x: FloatArray, P: FloatArray, F: FloatArray, Q: FloatArray,
+    x_tmp: FloatArray, P_tmp: FloatArray, FP: FloatArray,
+) -> None:  # fmt: skip
+    """``x = F x`` and ``P = F P F^T + Q`` (symmetrised), in place; ``x_tmp``, ``P_tmp``
+    and ``FP`` are work arrays."""
+    n = x.shape[0]
+    for a in range(n):
+        total = 0.0
+        for k in range(n):
+            total += F[a, k] * x[k]
+        x_tmp[a] = total
+    for a in range(n):
+        x[a] = x_tmp[a]
+    for a in range(n):
+        for b in range(n):
+            total = 0.0
+            for k in range(n):
+                total += F[a, k] * P[k, b]
+            FP[a, b] = total
+    for a in range(n):
+        for b in range(n):
+            total = Q[a, b]
+            for k in range(n):
+                total += FP[a, k] * F[b, k]
+            P_tmp[a, b] = total
+    for a in range(n):
+        for b in range(n):
+            P[a, b] = 0.5 * (P_tmp[a, b] + P_tmp[b, a])
+
+
+@njit(cache=True)
 def _step_to(
     xt: FloatArray,
     Pt: FloatArray,
@@ -242,49 +274,12 @@ def _step_to(
     place.  Returns the value with the step's terms added (``-inf`` outside the gate)
     and whether ``S`` was positive-definite.  ``x_tmp``, ``P_tmp``, ``FP`` and
     ``scratch`` are work arrays."""
-    moves, F, Q, H, R, dims = (
-        scan_model[0],
-        scan_model[1],
-        scan_model[2],
-        scan_model[3],
-        scan_model[4],
-        scan_model[5],
-    )
-    survival, miss, log_pd, log_clutter, thresholds = (
-        scan_model[6],
-        scan_model[7],
-        scan_model[8],
-        scan_model[9],
-        scan_model[10],
-    )
+    moves, F, Q, H, R, dims, survival, miss, log_pd, log_clutter, thresholds, _, _ = scan_model
     n = xt.shape[0]
     while cur < target:
         nxt = cur + 1
         if moves[nxt]:
-            Fm = F[nxt]
-            Qm = Q[nxt]
-            for a in range(n):
-                total = 0.0
-                for k in range(n):
-                    total += Fm[a, k] * xt[k]
-                x_tmp[a] = total
-            for a in range(n):
-                xt[a] = x_tmp[a]
-            for a in range(n):
-                for b in range(n):
-                    total = 0.0
-                    for k in range(n):
-                        total += Fm[a, k] * Pt[k, b]
-                    FP[a, b] = total
-            for a in range(n):
-                for b in range(n):
-                    total = Qm[a, b]
-                    for k in range(n):
-                        total += FP[a, k] * Fm[b, k]
-                    P_tmp[a, b] = total
-            for a in range(n):
-                for b in range(n):
-                    Pt[a, b] = 0.5 * (P_tmp[a, b] + P_tmp[b, a])
+            _predict_one(xt, Pt, F[nxt], Q[nxt], x_tmp, P_tmp, FP)
         if nxt < target:
             v += survival[nxt] + miss[nxt]
         cur = nxt
