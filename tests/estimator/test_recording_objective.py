@@ -4,7 +4,9 @@
   generative model without the library's filter: each track's detections scored by
   their joint Gaussian law (the state-space model stacked over the track's scans, not
   the Kalman recursion), the birth, miss, survival and best-ending terms enumerated;
-* J of a recording no longer than a window equals the window's best objective;
+* J of a recording no longer than a window equals the window's best objective, by
+  construction: along every kept hypothesis the trees' states are J's filter states bit
+  for bit (numpy backend; to rounding with the compiled kernels) and the scores its values;
 * refinement: never lowers J, returns feasible track sets, finds the global MAP when its
   window covers the recording, and leaves no single-window move that improves J.
 """
@@ -181,9 +183,7 @@ def _forward_config(config):
     """``config`` for the forward pass alone (no refinement) and no clock limit."""
     return dataclasses.replace(
         config,
-        estimator=dataclasses.replace(
-            config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT
-        ),
+        estimator=dataclasses.replace(config.estimator, refine_passes=0, time_limit=NO_TIME_LIMIT),
     )
 
 
@@ -199,6 +199,49 @@ def test_objective_of_one_window_equals_its_best_objective(name: str) -> None:
     objective = RecordingObjective(config=config, scans=scans)
     value = objective.value(paths_from_rows(objective, result.track_rows))
     assert value == pytest.approx(float(solution.table.best[tracks]), abs=1e-9)
+
+
+@pytest.mark.parametrize("switch", ["0", "1"])
+@pytest.mark.parametrize("name", ["crossing", "dense", "turning", "two_sensors"])
+def test_the_trees_and_j_take_the_same_filter_steps(
+    name: str, switch: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """J equals a window's objective by construction: along every kept hypothesis of a
+    window that starts the recording, the tree's state after each of its detections is
+    the state J's filter run reaches (the same predict, innovation, gate and update of
+    mapassoc.filtering.batch), bit for bit on the numpy backend and to rounding on the
+    compiled one, and the tree's score is the run's value (the same terms, summed in
+    another order where a track is missed)."""
+    if switch == "1":
+        pytest.importorskip("numba")
+    monkeypatch.setenv(COMPILED_SWITCH, switch)
+    scenario = build_scenario(name, seed=1)
+    config = _forward_config(scenario.config)
+    scans = scenario.scans[: config.estimator.window_length]
+    hypotheses = WindowEstimator(config=config).generator.generate(scans)
+    objective = RecordingObjective(config=config, scans=scans)
+    nodes, window = hypotheses.nodes, hypotheses.detections
+    checked = 0
+    for h in range(hypotheses.count):
+        if hypotheses.tree_track_ids[hypotheses.tree[h]] >= 0:
+            continue  # carried trees have no prior here (the window starts the recording)
+        along = [v for v in nodes.path(int(hypotheses.leaf[h])) if nodes.detection[v] >= 0]
+        path = tuple(
+            (int(window.scan_position[d]), int(window.index_in_scan[d]))
+            for d in nodes.detection[along]
+        )
+        run = objective.trajectory(path)
+        for k, v in enumerate(along):
+            mean, covariance = nodes.state(v)
+            if switch == "0":
+                np.testing.assert_array_equal(mean, run.means[k])
+                np.testing.assert_array_equal(covariance, run.covariances[k])
+            else:
+                np.testing.assert_allclose(mean, run.means[k], rtol=1e-9, atol=1e-9)
+                np.testing.assert_allclose(covariance, run.covariances[k], rtol=1e-9, atol=1e-9)
+            assert nodes.score[v] == pytest.approx(run.values[k], rel=1e-12, abs=1e-10)
+        checked += 1
+    assert checked >= 10
 
 
 def _feasible(tracks) -> bool:
@@ -217,9 +260,8 @@ def test_refinement_over_the_whole_recording_finds_the_global_map(seed: int) -> 
     best = max(objective.value(tracks) for tracks in _all_track_sets(scans))
     # Start from a poor set: every detection its own track.
     singles = {
-        i + 1: ((k, j),) for i, (k, j) in enumerate(
-            (k, j) for k, scan in enumerate(scans) for j in range(scan.size)
-        )
+        i + 1: ((k, j),)
+        for i, (k, j) in enumerate((k, j) for k, scan in enumerate(scans) for j in range(scan.size))
     }
     refiner = Refiner(
         config=config,
@@ -467,10 +509,15 @@ def test_batched_continuation_equals_one_request_at_a_time(
     # start, against continue_paths one detection at a time.
     tried = 0
     for start, _, _ in requests:
-        targets = [(m, j) for m in (start.scan + 1, start.scan + 2) if m < len(scans)
-                   for j in range(scans[m].size)]
-        for (m, j), (rows, state) in zip(targets, objective.continue_each(start, targets),
-                                          strict=True):
+        targets = [
+            (m, j)
+            for m in (start.scan + 1, start.scan + 2)
+            if m < len(scans)
+            for j in range(scans[m].size)
+        ]
+        for (m, j), (rows, state) in zip(
+            targets, objective.continue_each(start, targets), strict=True
+        ):
             one = objective.continue_paths(start, ((m, j),))
             expected = np.flatnonzero(np.isfinite(one.value))
             np.testing.assert_array_equal(rows, expected)

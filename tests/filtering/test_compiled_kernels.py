@@ -26,8 +26,8 @@ import pytest
 
 from mapassoc.accelerate import KERNEL_MODULES, compiled_module, load_kernels
 from mapassoc.estimator.objective import RecordingObjective, paths_from_rows
-from mapassoc.estimator.refiltering import Refiltering
 from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.estimator.refiltering import Refiltering
 from mapassoc.evaluation.scenarios import build_scenario
 from mapassoc.filtering import compiled
 from mapassoc.filtering.kalman import update

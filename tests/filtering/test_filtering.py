@@ -333,6 +333,8 @@ def test_gated_pairs_are_the_dense_gate_pairs(
     bad[3] = -np.eye(d)
     with pytest.raises(NotPositiveDefiniteError, match=r"\[3\]"):
         gated_pairs_and_loglik(z_hat, bad, Z, threshold)
-    for none in (gated_pairs_and_loglik(z_hat, S, Z[:0], threshold),
-                 gated_pairs_and_loglik(z_hat[:0], S[:0], Z, threshold)):
+    for none in (
+        gated_pairs_and_loglik(z_hat, S, Z[:0], threshold),
+        gated_pairs_and_loglik(z_hat[:0], S[:0], Z, threshold),
+    ):
         assert all(part.shape[0] == 0 for part in none)
