@@ -33,8 +33,11 @@ the best of the track's endings after its last detection (it ends in the gap aft
 The death time is thus part of ``omega`` and maximised over, as the windows' "ended"
 and "missed to the end" hypotheses are.  These are exactly the terms the hypothesis
 trees use (:mod:`mapassoc.estimator.hypotheses`), taken from the same table of terms
-(:class:`~mapassoc.estimator.terms.ScanTerms`) and computed with the same filter, so a
-recording no longer than one window gets J equal to its window's best objective.
+(:class:`~mapassoc.estimator.terms.ScanTerms`) and computed with the same filter steps:
+every prediction, innovation (the one ``S``), gate, log-likelihood and update here and in
+the trees is a call of the batched interface :mod:`mapassoc.filtering.batch`, so a
+recording no longer than one window gets J equal to its window's best objective by
+construction (the same states, bit for bit on the numpy backend).
 
 J is defined under the birth model (the default ``k_prior``); a named prior on K
 reweights each window's count of targets and has no whole-recording counterpart.
@@ -42,7 +45,11 @@ reweights each window's count of targets and has no whole-recording counterpart.
 Code that scores a track set found in any way (the forward pass, a refinement, another
 tracker's hard associations) calls :meth:`RecordingObjective.value`;
 :mod:`mapassoc.estimator.refinement` uses the batched continuation
-(:meth:`RecordingObjective.continue_paths`) to score joins exactly.
+(:meth:`RecordingObjective.continue_paths`) to score joins exactly.  Runs whose every
+step is linear (a track's tail in :meth:`RecordingObjective.trajectory`, the joins of
+:meth:`RecordingObjective.continue_converging_many`) go to the re-filtering engine
+:mod:`mapassoc.estimator.refiltering`, whose backend (compiled kernels or numpy) is
+chosen in :func:`mapassoc.filtering.compiled.filter_backend`.
 """
 
 from __future__ import annotations
@@ -191,10 +198,12 @@ class RecordingObjective:
 
         Returns, per detection, the tracks (positions in ``start``) whose gate it falls
         in and their states after it: what ``continue_paths(start, [(m, j)])`` gives,
-        restricted to its finite values.  With linear models the prediction to each scan
-        and the innovation covariances are computed once for all the detections of that
-        scan, and only the tracks in a detection's gate are updated (refinement tries the
-        first detection of every anchor after every leaf of a window this way).
+        restricted to its finite values.  For tracks in the motion model's space the
+        prediction to each scan and the innovation are computed once for all the
+        detections of that scan, the gate is the trees' (:meth:`Innovation.gate
+        <mapassoc.filtering.batch.Innovation.gate>`), and only the pairs inside it are
+        updated (refinement tries the first detection of every anchor after every leaf
+        of a window this way).
         """
         by_scan: dict[int, list[int]] = {}
         for i, (m, _) in enumerate(detections):

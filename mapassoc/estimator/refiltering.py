@@ -118,10 +118,12 @@ class Refiltering:
                     H[m, :d] = measurement.H
                     R[m, :d, :d] = measurement.noise_covariance
             t = self.terms
-            per_scan = [t.survival, t.miss, t.log_pd, t.log_clutter, t.thresholds]
+            survival, miss, log_pd, log_clutter, thresholds = (
+                np.ascontiguousarray(a, dtype=np.float64)
+                for a in (t.survival, t.miss, t.log_pd, t.log_clutter, t.thresholds)
+            )
             self._scan_model = (
-                moves, F, Q, H, R, dims,
-                *(np.ascontiguousarray(a, dtype=np.float64) for a in per_scan),
+                moves, F, Q, H, R, dims, survival, miss, log_pd, log_clutter, thresholds,
                 motion_code, sensor_code,
             )  # fmt: skip
         return self._scan_model
