@@ -31,6 +31,9 @@ ended over dt                         ``log(1 - Ps^dt)``
 
 Each term is computed by its function in :mod:`mapassoc.estimator.terms`, the one place
 the trees, the recording objective and the trackers that share the model take it from.
+Every Kalman step (prediction, the innovation and its ``S``, the gate with the
+log-likelihoods of the pairs in it, the update) is a call of the batched filter interface
+:mod:`mapassoc.filtering.batch`, which the recording objective calls too.
 
 Growth is bounded by a chi-square gate and by pruning, which compares like with like.
 At each scan a node is dropped
