@@ -158,6 +158,9 @@ def flight_states(flight: Flight, times: FloatArray) -> FloatArray:
     ndarray, shape (T, 4)
     """
     t = np.asarray(times, dtype=float) - flight.birth_time
+    # Scan times k T computed from a birth time on the scan grid may fall a rounding
+    # error before it.
+    t = np.where((t < 0) & (t > -1e-6 * max(1.0, abs(flight.birth_time))), 0.0, t)
     if np.any(t < 0):
         raise InputError(f"times must be >= the flight's birth_time {flight.birth_time}")
     position = np.zeros(t.shape, dtype=complex)
