@@ -342,7 +342,7 @@ def _scan_times(family: ManoeuvreFamily, flight: Flight, last: float) -> FloatAr
     first = max(0, math.ceil(flight.birth_time / family.interval - 1e-9))
     final = min(math.floor(last / family.interval + 1e-9),
                 math.floor(flight.death_time / family.interval + 1e-9))  # fmt: skip
-    return np.arange(first, final + 1) * family.interval
+    return np.asarray(np.arange(first, final + 1) * family.interval, dtype=np.float64)
 
 
 def _placed(family: ManoeuvreFamily, flight: Flight, offset: complex) -> Flight:
@@ -498,8 +498,9 @@ def _traffic(family: ManoeuvreFamily, rng: np.random.Generator, last: float) -> 
 def _config(family: ManoeuvreFamily, flights: Sequence[Flight], states: Sequence[FloatArray],
             count: int) -> Config:  # fmt: skip
     """The family's configuration: matched constant velocity, its radar, its birth model."""
-    motion = ConstantVelocity(ndim=2, noise_intensity=matched_noise_intensity(states,
-                                                                              family.interval))
+    motion = ConstantVelocity(
+        ndim=2, noise_intensity=matched_noise_intensity(states, family.interval)
+    )
     sensor = Sensor(
         name=_SENSOR,
         measurement=LinearMeasurement.position(motion, noise_std=family.noise_std),

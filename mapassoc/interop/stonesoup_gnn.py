@@ -209,9 +209,8 @@ def _track_table(tracks: list[Any], config: Config, sensor_at: dict[int, str]) -
     )
 
 
-def _detection_row(state: Any, update_type: type) -> int:
+def _detection_row(state: Any, update_type: Any) -> int:
     """The detection id an update used, -1 for a prediction (a miss)."""
     if not isinstance(state, update_type):
         return -1
     return int(state.hypothesis.measurement.metadata[_ROW_KEY])
-

@@ -15,8 +15,8 @@ from mapassoc.data.io import Origins, read_detections, read_origins, read_truth
 from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import InputError, NotPositiveDefiniteError
-from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.manoeuvres import MANOEUVRE_FAMILIES
+from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.scenarios import (
     DEFAULT_SCENARIO,
     build_scenario,
