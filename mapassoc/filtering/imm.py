@@ -177,15 +177,10 @@ class SwitchingLaw:
             return
         p = self.switch_probability
         top = (M - 1) / M
-        if (
-            isinstance(p, bool)
-            or not isinstance(p, (int, float))
-            or not 0.0 <= p < top
-            or (M == 1 and p != 0.0)
-        ):
-            raise InputError(
-                f"switch_probability must be a number in [0, {top:g}) for {M} models, got {p!r}"
-            )
+        number = not isinstance(p, bool) and isinstance(p, (int, float))
+        if not number or not (p == 0.0 if M == 1 else 0.0 <= p < top):
+            allowed = "0 for one model" if M == 1 else f"a number in [0, {top:g}) for {M} models"
+            raise InputError(f"switch_probability must be {allowed}, got {p!r}")
 
     def at(self, dt: float) -> FloatArray:
         """The switching matrix over a scan interval ``dt > 0``, shape ``(M, M)``."""
@@ -211,7 +206,10 @@ def _generator(Pi: FloatArray) -> FloatArray:
     """``logm(Pi)`` if it is a valid generator (off-diagonal >= 0, rows summing to 0)."""
     if np.allclose(Pi, np.eye(Pi.shape[0])):
         return np.zeros_like(Pi)
-    G = np.real(logm(Pi))
+    logarithm = np.asarray(logm(Pi))
+    G = np.real(logarithm)
+    if np.any(np.abs(np.imag(logarithm)) > 1e-9):
+        G = np.full_like(G, np.nan)  # a complex logarithm: no real generator
     off = G - np.diag(np.diag(G))
     if not (
         np.all(np.isfinite(G))
