@@ -432,7 +432,8 @@ def _crossing(
         if leg.turn_rate != 0.0 and birth + 0.2 * life < birth + starts[i] < birth + 0.7 * life
     ]
     meet = turns[0] if turns else birth + 0.5 * life
-    second_birth = birth + rng.uniform(0.0, 0.2) * life
+    meet = round(meet / family.interval) * family.interval  # at a scan: seen at one point
+    second_birth = min(birth + rng.uniform(0.0, 0.2) * life, meet)
     other = _single(family, rng, second_birth, life, last)[0]
     where, velocity = _state_at(first, meet)
     angle = math.atan2(velocity.imag, velocity.real)
