@@ -46,3 +46,12 @@ def test_a_bad_mht_option_stops_the_benchmark_before_it_runs() -> None:
             families=["crossing"], seeds=1, scans=12, out=out, mht_options={"nscan": 2}
         )
     assert "crossing " not in out.getvalue()  # no run line was printed
+
+
+def test_the_cutoff_is_ten_position_noise_standard_deviations() -> None:
+    from mapassoc.apps.bench_refinement import GOSPA_CUTOFF, _length_unit
+    from mapassoc.evaluation.scenarios import build_scenario
+
+    assert GOSPA_CUTOFF * _length_unit(build_scenario("crossing", 0).config) == 10.0
+    assert GOSPA_CUTOFF * _length_unit(build_scenario("aircraft", 0).config) == 500.0
+    assert GOSPA_CUTOFF * _length_unit(build_scenario("ships", 0).config) == 300.0

@@ -136,8 +136,8 @@ def test_the_configuration_matches_the_truth(built: tuple[str, list[Scenario]]) 
         assert config.motion.noise_intensity == pytest.approx(q)
         sensor = config.sensors["pos"]
         assert np.allclose(sensor.measurement.R, family.noise_std**2 * np.eye(2))
-        assert config.birth.velocity_std >= np.max(np.hypot(scenario.truth.states[:, 2],
-                                                            scenario.truth.states[:, 3]))  # fmt: skip
+        velocities = scenario.truth.states[:, 2:4]
+        assert config.birth.velocity_std >= np.max(np.hypot(velocities[:, 0], velocities[:, 1]))
         assert np.allclose(np.diff([s.time for s in scenario.scans]), family.interval)
 
 
