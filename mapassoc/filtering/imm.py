@@ -177,8 +177,11 @@ class SwitchingLaw:
             return
         p = self.switch_probability
         top = (M - 1) / M
-        number = not isinstance(p, bool) and isinstance(p, (int, float))
-        if not number or not (p == 0.0 if M == 1 else 0.0 <= p < top):
+        if (
+            isinstance(p, bool)
+            or not isinstance(p, (int, float))
+            or not (p == 0.0 if M == 1 else 0.0 <= p < top)
+        ):
             allowed = "0 for one model" if M == 1 else f"a number in [0, {top:g}) for {M} models"
             raise InputError(f"switch_probability must be {allowed}, got {p!r}")
 
