@@ -5,8 +5,8 @@ low and with a high process noise) by a Markov chain with switching matrix
 ``Pi[i, j] = P(model j at scan k | model i at scan k - 1)``.  The IMM filter (Blom and
 Bar-Shalom, "The interacting multiple model algorithm for systems with Markovian
 switching coefficients", IEEE Trans. Automatic Control 33(8), 1988; Bar-Shalom, Li and
-Kirubarajan, *Estimation with Applications to Tracking and Navigation*, 2001, section
-11.6.6) carries, per model j, a probability ``mu_j`` and a Gaussian ``(x_j, P_j)``; one
+Kirubarajan, *Estimation with Applications to Tracking and Navigation*, 2001, chapter
+11) carries, per model j, a probability ``mu_j`` and a Gaussian ``(x_j, P_j)``; one
 cycle is
 
 1. mixing (:func:`mix`): predicted model probabilities ``c_j = sum_i Pi_ij mu_i``,
