@@ -22,6 +22,9 @@ from mapassoc.evaluation.scenarios import (
     scenario_scan_period,
 )
 from mapassoc.evaluation.simulate import Scenario
+from mapassoc.filtering.imm import IMMState, SwitchingLaw, imm_filter, imm_predict
+from mapassoc.filtering.kalman import FilterStep, gate_threshold, innovation
+from mapassoc.models.motion import ConstantVelocity
 
 FAMILIES = sorted(MANOEUVRE_FAMILIES)
 
@@ -194,3 +197,48 @@ def test_families_are_registered_with_their_length_and_period() -> None:
     native = build_scenario("crossing_turns", 0)
     assert all(np.array_equal(a.detections, b.detections)
                for a, b in zip(shorter.scans, native.scans[:10], strict=True))  # fmt: skip
+
+
+def _outside_gate(scenario: Scenario, models: tuple, law: SwitchingLaw) -> tuple[int, int]:  # type: ignore[type-arg]
+    """True detections (from each target's third on) outside the 0.999 gate of every
+    model of an IMM run on the true associations, and their number."""
+    meas = scenario.config.sensors["pos"].measurement
+    threshold = gate_threshold(0.999, 2)
+    where = {int(r): (scan.time, scan.detections[j]) for scan in scenario.scans
+             for j, r in enumerate(scan.rows)}  # fmt: skip
+    outside = total = 0
+    for target in np.unique(scenario.origins.target_ids[scenario.origins.target_ids >= 0]):
+        rows = scenario.origins.rows[scenario.origins.target_ids == target]
+        detections = sorted((where[int(r)] for r in rows), key=lambda d: d[0])
+        if len(detections) < 3:
+            continue
+        x0 = np.array([*detections[0][1], 0.0, 0.0])
+        v2 = scenario.config.birth.velocity_std ** 2
+        P0 = np.diag([meas.R[0, 0], meas.R[1, 1], v2, v2])
+        steps = [FilterStep(time=t, measurement=meas, z=z) for t, z in detections]
+        run = imm_filter(models, law, x0, P0, steps)
+        for k in range(2, len(detections)):
+            dt = detections[k][0] - detections[k - 1][0]
+            previous = IMMState(run.log_filtered[k - 1], run.x_filtered[k - 1],
+                                run.P_filtered[k - 1])  # fmt: skip
+            prediction = imm_predict(previous, models, law.at(dt), dt)
+            nu, S, _ = innovation(meas, prediction.means, prediction.covariances, detections[k][1])
+            d2 = np.einsum("ji,ji->j", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+            outside += bool(np.all(d2 > threshold))
+            total += 1
+    return outside, total
+
+
+def test_aircraft_turns_break_the_constant_velocity_gate_and_not_an_imms() -> None:
+    """What the family is for: with the matched q, the constant-velocity filter on the
+    true associations gates out several per cent of the true detections (1 in 1,000
+    expected of a right model), an IMM of q / 20 and 5 q a few in 1,000."""
+    scenario = build_scenario("aircraft", 0)
+    q = scenario.config.motion.noise_intensity
+    single = SwitchingLaw(n_models=1, switch_probability=0.0)
+    out_cv, total = _outside_gate(scenario, (scenario.config.motion,), single)
+    pair = (ConstantVelocity(ndim=2, noise_intensity=q / 20), ConstantVelocity(ndim=2,
+            noise_intensity=5 * q))  # fmt: skip
+    out_imm, _ = _outside_gate(scenario, pair, SwitchingLaw(n_models=2, switch_probability=0.05))
+    assert out_cv > 0.02 * total
+    assert out_imm < 0.005 * total
