@@ -43,8 +43,14 @@ DEFAULT_REFINEMENT_FAMILIES = (
     "dense_radar",
     "staggered",
     "crossing",
+    "aircraft",
+    "ships",
+    "crossing_turns",
+    "converging_turns",
 )
 """Families of ``mapassoc bench-refinement``, as hard as users' data: targets that converge
 and travel closely spaced at Pd 0.7 in clutter, four targets meeting at one point,
 parallel lanes (at Pd 0.9 and 0.8), Pd 0.8 among dense clutter, births and deaths
-throughout, and crossing pairs."""
+throughout, crossing pairs, and targets that manoeuvre (aircraft-like turns and speed
+changes, ship-like slow turners, crossings in a turn, merges onto one track:
+:mod:`mapassoc.evaluation.manoeuvres`)."""

@@ -14,9 +14,16 @@ it runs
 * ``r>=0.5``: the refined tracks whose existence probability is at least
   :data:`MIN_EXISTENCE` (the extraction rule ``min_existence``);
 * ``mht``: the project's track-oriented MHT (:mod:`mapassoc.trackers.mht`);
+* ``ss_gnn``: Stone Soup's global-nearest-neighbour tracker
+  (:mod:`mapassoc.interop.stonesoup_gnn`; left out when Stone Soup, the ``stonesoup``
+  extra, is not installed or the motion model is not constant velocity), the speed
+  reference: its seconds stand beside mapassoc's whole run (forward pass plus
+  refinement) in the summary;
 * ``oracle``: the smoother on the true associations,
 
-and prints per run GOSPA (c = :data:`GOSPA_CUTOFF`, p = 2) with its localisation, missed
+and prints per run GOSPA (c = :data:`GOSPA_CUTOFF` position-noise standard deviations, p = 2:
+10 for the built-in families, whose length unit is that standard deviation, 500 m for a
+manoeuvring family with 50 m noise) with its localisation, missed
 and false parts, T-GOSPA (switching cost c), fragments per tracked target, identity
 switches, track ids per true target, seconds, and the recording objective J
 (:mod:`mapassoc.estimator.objective`) of every method's track set: J(refined) >=
@@ -69,7 +76,7 @@ GOSPA_CUTOFF = 10.0
 MIN_EXISTENCE = 0.5
 """The extraction rule measured beside the refined set: tracks of existence >= this."""
 RELIABILITY_BINS = 5
-METHODS = ("forward", "refined", f"r>={MIN_EXISTENCE:g}", "mht", "oracle")
+METHODS = ("forward", "refined", f"r>={MIN_EXISTENCE:g}", "mht", "ss_gnn", "oracle")
 
 
 @dataclass(frozen=True)
@@ -91,6 +98,8 @@ class RefinementRun:
         For ``refined``: the refinement alone (add the forward run's for the total).
     objective : float
         J of the method's track set (``nan`` for a method without hard associations).
+    cutoff : float
+        The GOSPA cut-off c of the family (and T-GOSPA's switching cost).
     """
 
     family: str
@@ -107,6 +116,7 @@ class RefinementRun:
     targets: int
     seconds: float
     objective: float
+    cutoff: float = GOSPA_CUTOFF
 
 
 def run_refinement_benchmark(
@@ -139,7 +149,8 @@ def run_refinement_benchmark(
 
     say(
         f"bench-refinement: {len(families)} families x {seeds} seeds, generic configuration, "
-        f"time limit {time_limit} s; GOSPA c = {GOSPA_CUTOFF:g}, p = 2"
+        f"time limit {time_limit} s; GOSPA c = {GOSPA_CUTOFF:g} position-noise standard "
+        "deviations, p = 2"
     )
     for family in families:
         for seed in range(seeds):
@@ -198,9 +209,10 @@ def _one_seed(
     existence = confidence.existence if confidence else {}
     reliability = _reliability(outputs.refined.track_rows, existence, scenario.origins)
     targets = len(np.unique(scenario.truth.target_ids))
+    cutoff = GOSPA_CUTOFF * _length_unit(config)
     runs = [
         _score(family, seed, run.method, scenario, run.tracks, targets, run.seconds,
-               run.objective)
+               run.objective, cutoff)
         for run in _method_runs(scenario, config, objective, outputs, existence)
     ]  # fmt: skip
     return runs, reliability
@@ -217,6 +229,38 @@ class _Outputs:
     refine_seconds: float
     mht: TrackerOutput
     mht_seconds: float
+    gnn: TrackTable | None
+    gnn_seconds: float
+
+
+def _length_unit(config: Config) -> float:
+    """The largest position-noise standard deviation of the linear sensors (1 if none).
+
+    The built-in families measure lengths in that unit; the manoeuvring ones in metres.
+    """
+    from mapassoc.models.measurement import LinearMeasurement
+
+    stds = [
+        float(np.sqrt(np.max(np.diag(sensor.measurement.R))))
+        for sensor in config.sensors.values()
+        if isinstance(sensor.measurement, LinearMeasurement)
+    ]
+    return max(stds) if stds else 1.0
+
+
+def _stonesoup_gnn(scenario: Scenario, config: Config) -> tuple[TrackTable | None, float]:
+    """Stone Soup's GNN's tracks and seconds, or ``(None, nan)`` where it cannot run."""
+    from mapassoc.interop.stonesoup_gnn import stonesoup_gnn_tracks
+    from mapassoc.models.motion import ConstantVelocity
+
+    if type(config.motion) is not ConstantVelocity:
+        return None, math.nan
+    started = time.perf_counter()
+    try:
+        tracks = stonesoup_gnn_tracks(scenario.scans, config)
+    except ImportError:
+        return None, math.nan
+    return tracks, time.perf_counter() - started
 
 
 def _run_methods(scenario: Scenario, config: Config) -> _Outputs:
@@ -247,9 +291,11 @@ def _run_methods(scenario: Scenario, config: Config) -> _Outputs:
     started = time.perf_counter()
     mht = build_tracker("mht", config=config).track(scenario.scans)
     mht_seconds = time.perf_counter() - started
+    gnn, gnn_seconds = _stonesoup_gnn(scenario, config)
     return _Outputs(
-        forward, forward_seconds, refined, refined_tracks, refine_seconds, mht, mht_seconds
-    )
+        forward, forward_seconds, refined, refined_tracks, refine_seconds, mht, mht_seconds,
+        gnn, gnn_seconds,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
@@ -282,6 +328,10 @@ def _method_runs(
     }
     oracle = oracle_tracks(scenario.scans, scenario.origins, config)
     forward, refine_seconds = outputs.forward, outputs.refine_seconds
+    gnn = []
+    if outputs.gnn is not None:
+        gnn_rows = _rows_of(outputs.gnn)
+        gnn = [_MethodRun("ss_gnn", outputs.gnn, outputs.gnn_seconds, _value(objective, gnn_rows))]
     return [
         _MethodRun("forward", forward.tracks, outputs.forward_seconds,
                    _value(objective, forward.track_rows)),
@@ -290,8 +340,20 @@ def _method_runs(
         _MethodRun(METHODS[2], _only(outputs.refined_tracks, sure_ids), refine_seconds,
                    _value(objective, sure_rows)),
         _MethodRun("mht", outputs.mht.tracks, outputs.mht_seconds, _value(objective, mht_rows)),
+        *gnn,
         _MethodRun("oracle", oracle, 0.0, _value(objective, _truth_rows(scenario.origins))),
     ]  # fmt: skip
+
+
+def _rows_of(tracks: TrackTable) -> dict[int, list[int]]:
+    """Each track's detection ids, in time order (misses left out)."""
+    out: dict[int, list[int]] = {}
+    order = np.lexsort((tracks.times, tracks.track_ids))
+    for tid, row in zip(tracks.track_ids[order].tolist(), tracks.detection_rows[order].tolist(),
+                        strict=True):  # fmt: skip
+        if row >= 0:
+            out.setdefault(int(tid), []).append(int(row))
+    return out
 
 
 def _truth_rows(origins: Origins) -> dict[int, list[int]]:
@@ -373,14 +435,15 @@ def _score(
     targets: int,
     seconds: float,
     objective: float,
+    cutoff: float,
 ) -> RefinementRun:
     from mapassoc.evaluation.tables import evaluate_tables
 
     ev = evaluate_tables(
         scenario.truth,  # type: ignore[attr-defined]
         tracks,  # type: ignore[arg-type]
-        c=GOSPA_CUTOFF,
-        switch_cost=GOSPA_CUTOFF,
+        c=cutoff,
+        switch_cost=cutoff,
     )
     g = ev.gospa
     frag = ev.fragmentation
@@ -400,6 +463,7 @@ def _score(
         targets=targets,
         seconds=seconds,
         objective=objective,
+        cutoff=cutoff,
     )
 
 
@@ -410,7 +474,29 @@ def _run_line(family: str, seed: int, runs: Sequence[RefinementRun]) -> str:
         f"idsw {r.id_switches} ids {r.tracks}/{r.targets} {r.seconds:.1f} s J {r.objective:.1f}"
         for r in runs
     ]
-    return f"  {family} seed {seed}:\n    " + "\n    ".join(parts)
+    return f"  {family} seed {seed} (c = {runs[0].cutoff:g}):\n    " + "\n    ".join(parts)
+
+
+def _speed_line(
+    family: str,
+    forward: Mapping[int, RefinementRun],
+    refined: Sequence[RefinementRun],
+    mine: Sequence[RefinementRun],
+) -> list[str]:
+    """mapassoc's whole run (forward pass plus refinement) against Stone Soup's GNN."""
+    gnn = {r.seed: r.seconds for r in mine if r.method == "ss_gnn"}
+    whole = {r.seed: r.seconds + forward[r.seed].seconds for r in refined}
+    seeds = [seed for seed in whole if seed in gnn]
+    if not seeds:
+        return []
+    ours = float(np.mean([whole[s] for s in seeds]))
+    theirs = float(np.mean([gnn[s] for s in seeds]))
+    faster = sum(whole[s] <= gnn[s] for s in seeds)
+    return [
+        f"{family:14s} whole run {ours:.1f} s (forward + refinement) vs Stone Soup GNN "
+        f"{theirs:.1f} s: ratio {ours / theirs:.2f} (goal <= 1; at least as fast in "
+        f"{faster}/{len(seeds)} runs)"
+    ]
 
 
 def _print_summary(rows: list[RefinementRun], families: Sequence[str], say: object) -> None:
@@ -456,5 +542,6 @@ def _print_summary(rows: list[RefinementRun], families: Sequence[str], say: obje
             "refinement / forward time: "
             f"{np.mean([r.seconds / forward[r.seed].seconds for r in refined]):.2f}"
         )
+        lines.extend(_speed_line(family, forward, refined, mine))
     for line in lines:
         say(line)  # type: ignore[operator]

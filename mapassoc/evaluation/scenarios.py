@@ -14,7 +14,10 @@ them as users' data does: ``"converging"`` (six targets closing to 1.5 apart, Pd
 ``"meeting"`` (four targets through one point), ``"parallel_pd08"`` (the ``"parallel"``
 lanes at Pd 0.8), ``"dense_radar"`` (10 targets, Pd 0.8, 50 false alarms over a 1 km
 square at 10 m noise, 100 scans) and ``"staggered"`` (births and deaths all through,
-crossings).  :func:`generic_config` gives the configuration the benchmark runs them with,
+crossings).  The manoeuvring families ``"aircraft"``, ``"ships"``, ``"crossing_turns"``
+and ``"converging_turns"`` (:mod:`mapassoc.evaluation.manoeuvres`) fly flight plans of
+straight legs, coordinated turns and speed changes, in metres and seconds, and draw their
+traffic from the seed.  :func:`generic_config` gives the configuration the benchmark runs them with,
 the same recipe for every family.
 
 Every scenario's configuration matches its simulation: the same motion model and noise,
@@ -50,6 +53,7 @@ from mapassoc.data.io import Origins, TruthTable, number_rows
 from mapassoc.data.scans import Scan
 from mapassoc.data.settings import CountSettings, EstimatorSettings
 from mapassoc.errors import InputError
+from mapassoc.evaluation.manoeuvres import MANOEUVRE_FAMILIES
 from mapassoc.evaluation.simulate import Scenario, TargetSpec, scan_plan_regular, simulate
 from mapassoc.models.measurement import LinearMeasurement, RangeBearing
 from mapassoc.models.motion import ConstantVelocity, CoordinatedTurn, MotionModel
@@ -1443,6 +1447,8 @@ SCENARIOS: dict[str, Callable[[int], Scenario]] = {
     "parallel_pd08": parallel_pd08,
     "dense_radar": dense_radar,
     "staggered": staggered,
+    # Manoeuvring traffic in metres and seconds (mapassoc.evaluation.manoeuvres).
+    **{name: family.build for name, family in MANOEUVRE_FAMILIES.items()},
 }
 
 _DESCRIPTIONS: dict[str, str] = {
@@ -1510,6 +1516,7 @@ _DESCRIPTIONS: dict[str, str] = {
         "8 constant-velocity targets born and dying all through the run, 3 crossing pairs; "
         "Pd 0.9, 10 false alarms/scan over 200x200, 80 scans"
     ),
+    **{name: family.description for name, family in MANOEUVRE_FAMILIES.items()},
 }
 
 
@@ -1559,7 +1566,11 @@ _LENGTHEN["burst"] = _lengthened_burst
 
 def lengthenable_scenarios() -> list[str]:
     """Names of the scenarios that ``build_scenario(..., scans=N)`` can make longer."""
-    return [name for name in SCENARIOS if name in _LENGTHEN and name in _GEOMETRIES]
+    return [
+        name
+        for name in SCENARIOS
+        if name in MANOEUVRE_FAMILIES or (name in _LENGTHEN and name in _GEOMETRIES)
+    ]
 
 
 def _geometry(name: str, purpose: str) -> _Geometry:
@@ -1580,6 +1591,8 @@ def native_scan_count(name: str) -> int:
         Unknown name.
     """
     _check_name(name)
+    if name in MANOEUVRE_FAMILIES:
+        return MANOEUVRE_FAMILIES[name].native_scans
     if name in _GEOMETRIES:
         geometry = _GEOMETRIES[name]()
         return geometry.scans_per_sensor * len(geometry.sensors)
@@ -1598,7 +1611,9 @@ def scenario_scan_period(name: str) -> float:
     InputError
         Unknown name, or a scenario without a fixed geometry.
     """
-    return _geometry(_check_name(name), "its scan period").scan_period
+    if _check_name(name) in MANOEUVRE_FAMILIES:
+        return MANOEUVRE_FAMILIES[name].scan_period
+    return _geometry(name, "its scan period").scan_period
 
 
 def scans_for_duration(name: str, duration: float) -> int:
@@ -1684,6 +1699,8 @@ def build_scenario(
         )
     seed = check_integer("seed", seed, minimum=0)
     _check_simulated_size(name, count)
+    if name in MANOEUVRE_FAMILIES:  # the same traffic process, run longer
+        return MANOEUVRE_FAMILIES[name].build(seed, count)
     return _LENGTHEN[name](name, _GEOMETRIES[name](), count, seed)
 
 

@@ -13,6 +13,7 @@ import pytest
 from mapassoc.data.config import load_config
 from mapassoc.data.scans import check_scan_order
 from mapassoc.data.settings import BirthModel, EstimatorSettings
+from mapassoc.evaluation.manoeuvres import MANOEUVRE_FAMILIES
 from mapassoc.evaluation.scenarios import (
     CONVERGING_SPACING,
     CONVERGING_TIME,
@@ -98,7 +99,10 @@ def _first_states(scenario: Scenario) -> np.ndarray:
 
 def test_realistic_families_are_registered_after_the_others() -> None:
     names = scenario_names()
-    assert names[-len(REALISTIC) :] == list(REALISTIC)
+    # The manoeuvring families (metres and seconds) are registered after these.
+    manoeuvring = len(MANOEUVRE_FAMILIES)
+    assert names[-manoeuvring:] == list(MANOEUVRE_FAMILIES)
+    assert names[-len(REALISTIC) - manoeuvring : -manoeuvring] == list(REALISTIC)
     assert set(REALISTIC) <= set(lengthenable_scenarios())
     for name in REALISTIC:
         description = describe_scenario(name)
