@@ -27,6 +27,10 @@ WIRING_MODULES = {
     "estimator/cluster_solving.py",
     "estimator/marginals.py",
     "estimator/refinement.py",
+    "estimator/window_program.py",
+    "estimator/bounded_tables.py",
+    "estimator/boundaries.py",
+    "estimator/confidence.py",
 }
 WIRING_FOLDERS = ("trackers", "apps")
 PACKAGE_FOLDERS = ("mapassoc", "formulations", "solvers")
