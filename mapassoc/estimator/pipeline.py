@@ -146,8 +146,7 @@ class WindowSolution:
         hypothesis anyway).  Its mass then depends on the clock, so the window's status
         is ``time_limit`` even where every cluster was solved exactly.
     clusters : tuple of WindowCluster
-        Each cluster's hypotheses, merge, bound-pruning mask and table (what
-        :func:`~mapassoc.estimator.marginals.window_marginals` needs).
+        Each cluster's hypotheses, merge, bound-pruning mask and table.
     """
 
     hypotheses: WindowHypotheses
