@@ -216,7 +216,7 @@ class SearchSettings:
         The mass bounds of the k no LP of a bounded cluster reached try cardinality
         multipliers evenly spaced over [-limit, limit] (> 0) ...
     mass_bound_multipliers : int
-        ... this many of them (>= 1); the best of them bounds each k.
+        ... this many of them (>= 1; one alone is 0); the best of them bounds each k.
     """
 
     solver: str = "highs"

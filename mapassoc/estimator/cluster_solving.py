@@ -179,8 +179,11 @@ DEFAULT_BEAM_ENTRY_MARGIN = SearchSettings().beam_entry_margin
 def count_multiplier_grid(search: SearchSettings) -> FloatArray:
     """The cardinality multipliers tried for the mass bound of the k no LP reached:
     ``search.mass_bound_multipliers`` values evenly spaced over
-    [-``mass_bound_multiplier_limit``, ``mass_bound_multiplier_limit``]."""
+    [-``mass_bound_multiplier_limit``, ``mass_bound_multiplier_limit``] (one of them:
+    0, the grid's centre, so the grid is symmetric whatever its size)."""
     limit = search.mass_bound_multiplier_limit
+    if search.mass_bound_multipliers == 1:
+        return np.zeros(1)
     return np.linspace(-limit, limit, search.mass_bound_multipliers)
 
 
@@ -190,7 +193,7 @@ costs less than the bounds); larger ones go straight to the narrow beam."""
 
 BOUND_PRUNE_MIN_HYPOTHESES = 100
 """Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of
-such a cluster costs about as much as the LP (a few milliseconds)."""
+such a cluster costs about as much as the LP."""
 
 def default_lp_solver(solver: ProgramSolver) -> RelaxationSolver:
     """The LP-relaxation backend that goes with an integer-program backend.
