@@ -483,14 +483,7 @@ def _forward_backward(
     S, width = seeds.shape
     kmax = width - 1
     R = order.size
-    spans = hypothesis_spans(problem, order)
-    _, _, first, last = spans
-    if max_frontiers is not None and H and np.any(last - first >= _WORD_BITS):
-        # A beam keeps few frontiers, each covering few positions ahead: rows of them
-        # cost less than Python integers as wide as the hypotheses' spans.
-        words: _Words = _PositionRows(problem, spans)
-    else:
-        words = _Words(problem, spans)
+    words = _frontier_words(problem, order, max_frontiers)
     counts = problem.counts.astype(np.int64)
     weights = problem.weights
     by_start = np.argsort(words.first, kind="stable")
@@ -502,13 +495,6 @@ def _forward_backward(
     mass = np.zeros((1, 1))
     steps: list[_Step] = []
     work = 0
-    empty = FrontierMarginals(
-        log_mass=np.full(width, _NEG_INF),
-        log_total=np.full(S, _NEG_INF),
-        log_containing=np.full((S, H), _NEG_INF),
-        exact=True,
-        work=0,
-    )
     for step in range(R):
         covered = words.covered(covers, step)
         keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(len(covers))
@@ -527,17 +513,13 @@ def _forward_backward(
         )
         if source.size == 0:  # an exactly-once resource no frontier can satisfy
             return FrontierMarginals(
-                empty.log_mass, empty.log_total, empty.log_containing, exact, work
+                np.full(width, _NEG_INF),
+                np.full(S, _NEG_INF),
+                np.full((S, H), _NEG_INF),
+                exact,
+                work,
             )
-        cand = np.full((source.size, cols), _NEG_INF)
-        cand[: keep.size, : reach + 1] = mass[keep]
-        taken = keep.size + np.arange(pair_h.size)
-        for c in (0, 1):
-            sel = counts[pair_h] == c
-            if not np.any(sel):
-                continue
-            span = min(reach + 1, cols - c)
-            cand[taken[sel], c : c + span] = mass[pair_row[sel], :span] + weights[pair_h[sel], None]
+        cand = _candidate_masses(mass, keep, pair_row, pair_h, counts, weights, cols)
         cand_covers = words.candidates(covers, keep, pair_row, pair_h, step)
         decision = np.concatenate([np.full(keep.size, -1, dtype=np.int64), pair_h])
         ranked, new_frontier = words.grouped(cand_covers)
@@ -546,19 +528,10 @@ def _forward_backward(
         target[ranked] = np.cumsum(new_frontier) - 1
         new_mass = np.logaddexp.reduceat(cand[ranked], starts, axis=0)
         new_covers = cand_covers[ranked[starts]]
-        if entry_margin is not None:
-            light = new_mass < new_mass.max(axis=1, keepdims=True) - entry_margin
-            if np.any(light):
-                new_mass[light] = _NEG_INF
-                exact = False
-        if max_frontiers is not None and len(new_covers) > max_frontiers:
-            heaviest = new_mass.max(axis=1)
-            kept = np.sort(np.argsort(-heaviest, kind="stable")[:max_frontiers])
-            renumber = np.full(len(new_covers), -1, dtype=np.int64)
-            renumber[kept] = np.arange(kept.size)
-            target = renumber[target]
-            new_covers, new_mass = new_covers[kept], new_mass[kept]
-            exact = False
+        new_covers, new_mass, target, whole = _beam_cut(
+            new_covers, new_mass, target, entry_margin, max_frontiers
+        )
+        exact = exact and whole
         # Only the candidates that reach a kept frontier carry anything backward.
         live = np.flatnonzero(target >= 0)
         steps.append(_Step(mass, source[live], decision[live], target[live]))
@@ -573,6 +546,73 @@ def _forward_backward(
     for s, seed in enumerate(seeds):
         containing[s] = _backward(steps, mass, seed, counts, weights, H)
     return FrontierMarginals(log_mass, total, containing, exact, work)
+
+
+def _frontier_words(
+    problem: PackingProblem, order: NDArray[np.int64], max_frontiers: int | None
+) -> _Words:
+    """The frontier words of a forward pass over ``problem`` in ``order``."""
+    spans = hypothesis_spans(problem, order)
+    _, _, first, last = spans
+    if max_frontiers is not None and problem.num_hypotheses and np.any(
+        last - first >= _WORD_BITS
+    ):
+        # A beam keeps few frontiers, each covering few positions ahead: rows of them
+        # cost less than Python integers as wide as the hypotheses' spans.
+        return _PositionRows(problem, spans)
+    return _Words(problem, spans)
+
+
+def _candidate_masses(
+    mass: NDArray[np.float64],
+    keep: NDArray[np.int64],
+    pair_row: NDArray[np.int64],
+    pair_h: NDArray[np.int64],
+    counts: NDArray[np.int64],
+    weights: NDArray[np.float64],
+    cols: int,
+) -> NDArray[np.float64]:
+    """Per-k log-masses of one step's candidates, shape ``(keep + pairs, cols)``: the
+    frontiers ``keep`` passed on as they are, then each (frontier, hypothesis) pair with
+    the hypothesis' weight added and its count shifting k."""
+    reach = mass.shape[1] - 1
+    cand = np.full((keep.size + pair_row.size, cols), _NEG_INF)
+    cand[: keep.size, : reach + 1] = mass[keep]
+    taken = keep.size + np.arange(pair_h.size)
+    for c in (0, 1):
+        sel = counts[pair_h] == c
+        if not np.any(sel):
+            continue
+        span = min(reach + 1, cols - c)
+        cand[taken[sel], c : c + span] = mass[pair_row[sel], :span] + weights[pair_h[sel], None]
+    return cand
+
+
+def _beam_cut(
+    covers: NDArray[Any],
+    mass: NDArray[np.float64],
+    target: NDArray[np.int64],
+    entry_margin: float | None,
+    max_frontiers: int | None,
+) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.int64], bool]:
+    """The beam's cut of one step's new frontiers: entries ``entry_margin`` below their
+    frontier's heaviest dropped, then only the ``max_frontiers`` heaviest frontiers kept
+    (candidates reaching a dropped one get target -1); and whether nothing was cut."""
+    whole = True
+    if entry_margin is not None:
+        light = mass < mass.max(axis=1, keepdims=True) - entry_margin
+        if np.any(light):
+            mass[light] = _NEG_INF
+            whole = False
+    if max_frontiers is not None and len(covers) > max_frontiers:
+        heaviest = mass.max(axis=1)
+        kept = np.sort(np.argsort(-heaviest, kind="stable")[:max_frontiers])
+        renumber = np.full(len(covers), -1, dtype=np.int64)
+        renumber[kept] = np.arange(kept.size)
+        target = renumber[target]
+        covers, mass = covers[kept], mass[kept]
+        whole = False
+    return covers, mass, target, whole
 
 
 def _lse(values: NDArray[np.float64]) -> float:
@@ -638,10 +678,10 @@ def _check(work: int, work_limit: int | None, deadline: float | None) -> None:
 
 
 ENUMERATION_MAX_HYPOTHESES = 12
-"""Most hypotheses :func:`enumerated_marginals` takes: at most 4,096 subsets.  Below
-this the listing is the faster (random problems, one seed: 0.13 against 2.1 ms at 6
-hypotheses, 0.32 against 3.3 ms at 10, 1.1 against 3.7 ms at 12, even at 14); a
-refinement's confidence pass had 1,524 of 1,795 clusters of 2 to 5 hypotheses."""
+"""Most hypotheses :func:`enumerated_marginals` takes: at most 4,096 subsets.  Up to
+this size listing every subset costs less than the frontier search forward and backward
+(one vectorised pass against a step per position), and most clusters of a confidence
+pass are this small."""
 
 
 def enumerated_marginals(problem: PackingProblem, seeds: NDArray[np.float64]) -> FrontierMarginals:

@@ -25,8 +25,11 @@ SOLVER_LIBRARIES = ("cvxpy", "clarabel", "highspy", "networkx", "scipy.optimize"
 WIRING_MODULES = {
     "estimator/pipeline.py",
     "estimator/cluster_solving.py",
-    "estimator/marginals.py",
     "estimator/refinement.py",
+    "estimator/window_program.py",
+    "estimator/bounded_tables.py",
+    "estimator/boundaries.py",
+    "estimator/confidence.py",
 }
 WIRING_FOLDERS = ("trackers", "apps")
 PACKAGE_FOLDERS = ("mapassoc", "formulations", "solvers")

@@ -205,9 +205,18 @@ class SearchSettings:
         Clusters drop the hypotheses whose LP bound is more than this below the
         cluster's best set (a proven rule; >= 0, ``inf`` disables).
     program_time_limit : float
-        Seconds an integer program solved on its own may take: those of the
-        refinement's re-solves (the forward pass's programs share their window's
+        Seconds a window solve of the refinement may take (its re-solves' best sets,
+        integer programs included; the forward pass's windows have
         ``WindowSettings.time_limit`` instead).
+    beam_entry_margin : float
+        Every beam (a bounded cluster's tables, the confidence pass's marginals) drops
+        a frontier's entries this many nats below the frontier's heaviest one (> 0):
+        e^-40 of the mass, below double precision's share of a sum.
+    mass_bound_multiplier_limit : float
+        The mass bounds of the k no LP of a bounded cluster reached try cardinality
+        multipliers evenly spaced over [-limit, limit] (> 0) ...
+    mass_bound_multipliers : int
+        ... this many of them (>= 1; one alone is 0); the best of them bounds each k.
     """
 
     solver: str = "highs"
@@ -215,6 +224,9 @@ class SearchSettings:
     beam_width: int = 200
     bound_prune_log_ratio: float = DEFAULT_PRUNE_LOG_RATIO
     program_time_limit: float = DEFAULT_TIME_LIMIT
+    beam_entry_margin: float = 40.0
+    mass_bound_multiplier_limit: float = 30.0
+    mass_bound_multipliers: int = 25
 
     def __post_init__(self) -> None:
         if not isinstance(self.solver, str) or not self.solver:
@@ -223,6 +235,13 @@ class SearchSettings:
         _set_int(self, "beam_width", minimum=1)
         _check_width(self, "bound_prune_log_ratio")
         check_positive("program_time_limit", self.program_time_limit, key="program_time_limit")
+        check_positive("beam_entry_margin", self.beam_entry_margin, key="beam_entry_margin")
+        check_positive(
+            "mass_bound_multiplier_limit",
+            self.mass_bound_multiplier_limit,
+            key="mass_bound_multiplier_limit",
+        )
+        _set_int(self, "mass_bound_multipliers", minimum=1)
 
 
 @dataclass(frozen=True)
@@ -336,16 +355,16 @@ class RefinementSettings:
         Pruning width of the re-solved short windows' trees (sibling and new-tree rules)
         and of the joins to one anchor (>= 0, ``inf`` disables).  Wider than the forward
         pass's by default: a re-solve must see alternatives the forward pass dropped
-        (``mapassoc bench-refinement``, 2 seeds: twice the width takes parallel lanes
-        from 4.6x to 2.2x the oracle's GOSPA, converging targets from 6.0x to 4.8x,
-        dense_radar from 2.2x to 1.75x, for 1.1-1.9x the refinement's time).
+        (``mapassoc bench-refinement``: twice the width brings the GOSPA of parallel
+        lanes, converging targets and dense_radar markedly closer to the oracle's, for
+        a longer refinement).
     long_prune_log_ratio : float or None
         The same for the long windows; ``None``: ``prune_log_ratio``.  The estimator's
         default (``EstimatorSettings().refinement``) is the forward pass's width, 9:
         long windows are there to start tracks and join fragments no short window can,
-        and at the wide width a long window's trees cost about four short ones' (14 runs
-        over the 8 bench families: the same J on 12, the other two 0.3 and 0.1 nats
-        lower, in 0.66-0.90x the refinement's time).
+        and at the wide width a long window's trees cost about four short ones' (over
+        the bench families the narrower width found the same J on most runs and a
+        fraction of a nat less on the others, in less of the refinement's time).
     min_existence : float
         After the refinement, report only the tracks whose existence probability
         (:meth:`mapassoc.estimator.refinement.Refiner.confidence`) is at least this, in

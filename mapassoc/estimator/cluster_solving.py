@@ -41,21 +41,22 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from enum import StrEnum
 
 import numpy as np
 from numpy.typing import NDArray
 
-from mapassoc.array_types import IntArray
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.settings import SearchSettings
 from mapassoc.errors import InputError
-from mapassoc.formulations.bounds import (
-    exclusive_groups,
-    fixed_variable_bounds,
-    greedy_packing,
-    log_mass_upper_bounds,
-    relaxed_problem,
+from mapassoc.estimator.bounded_tables import (
+    CLUSTER_STATUSES,
+    BoundedSearch,
+    ClusterReport,
+    ClusterStatus,
+    lp_duals,
+    remaining,
 )
+from mapassoc.formulations.bounds import fixed_variable_bounds, greedy_packing
 from mapassoc.formulations.cardinality import (
     CardinalityTable,
     ClusterTable,
@@ -67,26 +68,25 @@ from mapassoc.formulations.cardinality import (
     single_hypothesis_table,
 )
 from mapassoc.formulations.clusters import cluster_hypotheses
-from mapassoc.formulations.frontier import FrontierResult, frontier_search
+from mapassoc.formulations.frontier import frontier_search
+from mapassoc.formulations.marginals import (
+    ENUMERATION_MAX_HYPOTHESES,
+    enumerated_marginals,
+    frontier_marginals,
+)
 from mapassoc.formulations.packing import (
     MergedProblem,
     PackingProblem,
     decode_selection,
     merge_interchangeable,
-    resource_multipliers,
     set_packing_program,
 )
-from mapassoc.log_space import log_sum_exp
 from mapassoc.solvers import (
     HighsSolver,
-    LPResult,
     ProgramSolver,
-    RelaxationSequence,
     RelaxationSolver,
-    SolverError,
     SolveStatus,
     get_integer_solver,
-    relaxation_sequence,
 )
 
 __all__ = [
@@ -99,23 +99,6 @@ __all__ = [
     "best_set_by_fixing",
     "default_lp_solver",
 ]
-
-
-class ClusterStatus(StrEnum):
-    """How a cluster's tables were obtained, from best to worst (a window reports the
-    worst of its clusters).  Members are strings, so they compare with and serialise as
-    ``"exact"``, ``"bounded"`` and ``"time_limit"``."""
-
-    EXACT = "exact"
-    """Exact tables (the frontier search within ``exact_work_limit``)."""
-    BOUNDED = "bounded"
-    """Certified bounds: beam lower bounds, LP / Lagrangian upper bounds."""
-    TIME_LIMIT = "time_limit"
-    """The window's deadline changed the answer: what was certified by then."""
-
-
-CLUSTER_STATUSES = tuple(ClusterStatus)
-"""From best to worst."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,80 +164,36 @@ class WindowTables:
 WORK_PROJECTION = 8.0
 """The exact search of a cluster also stops when on course for more than this many times
 its work limit (``work_projection`` of
-:func:`~mapassoc.formulations.frontier.frontier_search`).  Measured on the forward passes
-of converging, dense_radar, parallel and dense_pd08 (seeds 0 and 1, 1,093 exact searches,
-52 of them failing at the limit after up to 0.9 s each): 8 stops 33 of the failing ones
-early and 1 that would have finished; 4 would stop 50 of them, and 11 that finish.
-Since, the exact search of a cluster of
+:func:`~mapassoc.formulations.frontier.frontier_search`): a search that fails at the
+limit would spend all of it first, and the projection stops most of those early while
+stopping almost none that would finish (a higher multiple stops fewer that would finish,
+a lower one more).  The exact search of a cluster of
 :data:`~mapassoc.formulations.frontier.WORK_COUNT_MIN_HYPOTHESES` hypotheses or more counts
 its work beforehand and needs no projection (it stops at once or runs whole); the
 projection still applies to smaller clusters and to the window marginals."""
 
-BOUND_PRUNE_MIN_HYPOTHESES = 100
-"""Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of
-such a cluster costs about as much as the LP (a few milliseconds)."""
+DEFAULT_BEAM_ENTRY_MARGIN = SearchSettings().beam_entry_margin
+"""The beam's entry margin when none is given (``SearchSettings.beam_entry_margin``)."""
+
+
+def count_multiplier_grid(search: SearchSettings) -> FloatArray:
+    """The cardinality multipliers tried for the mass bound of the k no LP reached:
+    ``search.mass_bound_multipliers`` values evenly spaced over
+    [-``mass_bound_multiplier_limit``, ``mass_bound_multiplier_limit``] (one of them:
+    0, the grid's centre, so the grid is symmetric whatever its size)."""
+    limit = search.mass_bound_multiplier_limit
+    if search.mass_bound_multipliers == 1:
+        return np.zeros(1)
+    return np.linspace(-limit, limit, search.mass_bound_multipliers)
+
 
 _SMALL_AFTER_DEADLINE = 40
 """Past the deadline, clusters with fewer hypotheses still get the exact search (it
 costs less than the bounds); larger ones go straight to the narrow beam."""
 
-_EMERGENCY_BEAM = 2
-"""Beam width once the deadline has passed: feasible sets at little cost."""
-
-_EMERGENCY_ENTRY_MARGIN = 10.0
-"""Entry margin of that beam: only the k near each frontier's heaviest are followed."""
-
-_BEAM_ENTRY_MARGIN = 40.0
-"""The beam drops a frontier's k-entries this many nats below its heaviest one."""
-
-_NEGLIGIBLE_LOG_MASS = 50.0
-"""A k whose mass bound is this far below the mass found holds < e^-50 of it."""
-
-_INTEGRAL_VERTEX = 1e-9
-"""An LP optimum whose every variable is this close to an integer is taken as integral
-(:meth:`ClusterSolver._take_integral_vertex`; the HiGHS backend's relaxation-first test)."""
-
-_MU_GRID = np.linspace(-30.0, 30.0, 25)
-"""Cardinality multipliers tried for the mass bound of k values no LP reached."""
-
-
-@dataclass(frozen=True)
-class ClusterReport:
-    """How one cluster was solved.
-
-    Attributes
-    ----------
-    size : int
-        Merged hypotheses in the cluster (after bound pruning).
-    status : ClusterStatus
-    work : int
-        Transitions of the frontier searches.
-    solves : int
-        Linear and integer programs solved.
-    log_captured : float
-        Lower bound on log(mass summed / mass of all sets): 0 when exact.
-    seconds : float
-    """
-
-    size: int
-    status: ClusterStatus
-    work: int
-    solves: int
-    log_captured: float
-    seconds: float
-
-
-def _remaining(deadline: float) -> float | None:
-    """Seconds left before ``deadline`` for a solver's time limit (``None``: no limit)."""
-    return None if math.isinf(deadline) else max(deadline - time.perf_counter(), 1e-3)
-
-
-def _duals(lp: LPResult) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The duals of an OPTIMAL relaxation (a backend that gives none is broken)."""
-    if lp.ineq_duals is None or lp.eq_duals is None:
-        raise SolverError(f"{lp.solver}: an OPTIMAL LP relaxation came without its duals")
-    return lp.ineq_duals, lp.eq_duals
-
+BOUND_PRUNE_MIN_HYPOTHESES = 100
+"""Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of
+such a cluster costs about as much as the LP."""
 
 def default_lp_solver(solver: ProgramSolver) -> RelaxationSolver:
     """The LP-relaxation backend that goes with an integer-program backend.
@@ -309,7 +248,7 @@ def best_set_by_fixing(
     program = set_packing_program(problem, None)
     if program.num_variables == 0:
         return np.zeros(0, dtype=np.int64), True
-    lp = lp_solver.solve_relaxation(program, time_limit=_remaining(deadline))
+    lp = lp_solver.solve_relaxation(program, time_limit=remaining(deadline))
     if lp.status is SolveStatus.INFEASIBLE:
         return None, True
     kept = np.arange(problem.num_hypotheses)
@@ -320,11 +259,11 @@ def best_set_by_fixing(
             return decode_selection(rounded), True
         incumbent = greedy_packing(problem, x)
         if incumbent is not None:
-            bounds = fixed_variable_bounds(program, *_duals(lp))
+            bounds = fixed_variable_bounds(program, *lp_duals(lp))
             floor = float(np.sum(problem.scores[incumbent]))
             kept = np.flatnonzero(bounds >= floor - 1e-7 * (1.0 + abs(floor)))
     result = solver.solve(
-        set_packing_program(problem.subproblem(kept), None), time_limit=_remaining(deadline)
+        set_packing_program(problem.subproblem(kept), None), time_limit=remaining(deadline)
     )
     proven = result.is_optimal or result.status is SolveStatus.INFEASIBLE
     if result.solution is None:
@@ -332,20 +271,76 @@ def best_set_by_fixing(
     return kept[decode_selection(result.solution)], proven
 
 
-@dataclass
-class _BoundedTables:
-    """What the bounded path knows of one cluster so far, per k: the best set found and
-    its score, the mass found, and proven upper bounds of both; filled in place, step by
-    step, by :meth:`ClusterSolver._bounded`."""
+def uncounted(problem: PackingProblem) -> PackingProblem:
+    """``problem`` with no hypothesis counted: its per-k tables have one entry, k = 0,
+    the best set and the mass over every size (questions asked with K free)."""
+    return PackingProblem.derived(
+        scores=problem.scores,
+        resource_indptr=problem.resource_indptr,
+        resource_indices=problem.resource_indices,
+        exactly_one=problem.exactly_one,
+        counts=np.zeros(problem.num_hypotheses, dtype=bool),
+        log_weights=problem.weights,
+    )
 
-    best: NDArray[np.float64]
-    sets: list[tuple[int, ...] | None]
-    log_mass: NDArray[np.float64]
-    best_upper: NDArray[np.float64]
-    mass_upper: NDArray[np.float64]
-    spent: int
-    limited: bool
-    solves: int = 0
+
+def _probability(total: float) -> float:
+    """A sum of the probabilities of exclusive events, rounded into [0, 1].
+
+    The hypotheses of one tree are exclusive, so the sum is at most 1 but for rounding
+    (a few ulps); more than 1e-9 over is a fault, not rounding, and raises.
+    """
+    if not -1e-9 <= total <= 1.0 + 1e-9:
+        raise RuntimeError(f"a sum of exclusive probabilities came out {total!r}")
+    return min(1.0, max(0.0, total))
+
+
+@dataclass(frozen=True, eq=False)
+class BestSet:
+    """The best feasible set of a window's problem with K free (:meth:`ClusterSolver.best_set`).
+
+    Attributes
+    ----------
+    selection : ndarray of int or None
+        The chosen hypotheses in increasing order; ``None`` when no feasible set was
+        found (the problem is infeasible, or the deadline came first).
+    status : ClusterStatus
+        ``exact``: proven best; ``bounded``: a backend's own deterministic limit left
+        its incumbent; ``time_limit``: the deadline stopped a solve.
+    """
+
+    selection: IntArray | None
+    status: ClusterStatus
+
+
+@dataclass(frozen=True, eq=False)
+class WindowMarginals:
+    """Posterior marginals of a window's hypotheses with K free (:meth:`ClusterSolver.marginals`).
+
+    Attributes
+    ----------
+    probabilities : ndarray, shape (H,)
+        P(h in the set) under the weights ``exp(log_weights)``.
+    status : ClusterStatus
+        ``exact`` over the hypotheses kept, or ``bounded``: a cluster past the work
+        limit had the beam's marginals (its probabilities are among the sets it kept).
+    clusters : tuple of (ndarray of int, float)
+        Each cluster's members and log-mass (``nan`` where the beam gave only a part).
+    cluster_of : ndarray of int, shape (H,)
+        The cluster of every hypothesis.
+    problem : PackingProblem
+        The problem with no hypothesis counted (what the masses are sums over).
+    """
+
+    probabilities: FloatArray
+    status: ClusterStatus
+    clusters: tuple[tuple[IntArray, float], ...]
+    cluster_of: IntArray
+    problem: PackingProblem
+
+    @property
+    def exact(self) -> bool:
+        return self.status is ClusterStatus.EXACT
 
 
 class ClusterSolver:
@@ -389,6 +384,8 @@ class ClusterSolver:
         map_margin: float = 30.0,
         bound_prune_min_hypotheses: int = BOUND_PRUNE_MIN_HYPOTHESES,
         work_projection: float | None = WORK_PROJECTION,
+        beam_entry_margin: float = DEFAULT_BEAM_ENTRY_MARGIN,
+        count_multipliers: FloatArray | None = None,
     ) -> None:
         self.solver = solver
         self.lp_solver = default_lp_solver(solver) if lp_solver is None else lp_solver
@@ -398,6 +395,12 @@ class ClusterSolver:
         self.map_margin = float(map_margin)
         self.bound_prune_min_hypotheses = int(bound_prune_min_hypotheses)
         self.work_projection = None if work_projection is None else float(work_projection)
+        self.beam_entry_margin = float(beam_entry_margin)
+        self.count_multipliers = (
+            count_multiplier_grid(SearchSettings())
+            if count_multipliers is None
+            else np.asarray(count_multipliers, dtype=float)
+        )
 
     @classmethod
     def from_settings(cls, search: SearchSettings) -> ClusterSolver:
@@ -417,6 +420,20 @@ class ClusterSolver:
             exact_work_limit=search.exact_work_limit,
             beam_width=search.beam_width,
             prune_log_ratio=search.bound_prune_log_ratio,
+            beam_entry_margin=search.beam_entry_margin,
+            count_multipliers=count_multiplier_grid(search),
+        )
+
+    def _bounded_search(self) -> BoundedSearch:
+        """The bounded path, configured as this solver is now."""
+        return BoundedSearch(
+            solver=self.solver,
+            lp_solver=self.lp_solver,
+            exact_work_limit=self.exact_work_limit,
+            beam_width=self.beam_width,
+            map_margin=self.map_margin,
+            beam_entry_margin=self.beam_entry_margin,
+            count_multipliers=self.count_multipliers,
         )
 
     # -- the window -------------------------------------------------------------------
@@ -511,7 +528,7 @@ class ClusterSolver:
         if time.perf_counter() >= deadline:
             return None
         program = set_packing_program(problem, None)
-        lp = self.lp_solver.solve_relaxation(program, time_limit=_remaining(deadline))
+        lp = self.lp_solver.solve_relaxation(program, time_limit=remaining(deadline))
         if lp.status is not SolveStatus.OPTIMAL or lp.solution is None:
             return None
         x = lp.solution
@@ -520,7 +537,7 @@ class ClusterSolver:
         else:
             if time.perf_counter() >= deadline:
                 return None
-            best = self.solver.solve(program, time_limit=_remaining(deadline))
+            best = self.solver.solve(program, time_limit=remaining(deadline))
             if best.solution is None:
                 return None
             incumbent = best.objective
@@ -546,7 +563,7 @@ class ClusterSolver:
             problem.num_hypotheses >= _SMALL_AFTER_DEADLINE
             and time.perf_counter() >= deadline
         ):
-            return self._bounded(problem, kmax, deadline, 0, started)
+            return self._bounded_search().tables(problem, kmax, deadline, 0, started)
         try:
             table = exact_cardinality_table(
                 problem,
@@ -556,7 +573,7 @@ class ClusterSolver:
                 work_projection=self.work_projection,
             )
         except SearchLimitExceeded as stop:
-            return self._bounded(problem, kmax, deadline, stop.work, started)
+            return self._bounded_search().tables(problem, kmax, deadline, stop.work, started)
         return table, ClusterReport(
             size=problem.num_hypotheses,
             status=ClusterStatus.EXACT,
@@ -566,298 +583,133 @@ class ClusterSolver:
             seconds=time.perf_counter() - started,
         )
 
-    def _bounded(
-        self, problem: PackingProblem, kmax: int, deadline: float, spent: int, started: float
-    ) -> tuple[CardinalityTable, ClusterReport]:
-        """The bounded path (module docstring), in four steps: the beam's feasible sets
-        (lower bounds), bounds that need no LP, the LP of the relaxed cluster, then the
-        walk over k outward from the best one (:meth:`_walk_k`)."""
-        top = min(kmax, int(np.count_nonzero(problem.counts)))
-        beam, spent, limited = self._beam(problem, top, deadline, spent)
-        if beam.exact:  # the beam never had to drop a frontier: it was the exact search
-            table = CardinalityTable(beam.best, beam.log_mass, beam.best_sets, True)
-            return table, ClusterReport(
-                size=problem.num_hypotheses,
-                status=ClusterStatus.TIME_LIMIT if limited else ClusterStatus.EXACT,
-                work=spent,
-                solves=0,
-                log_captured=0.0,
-                seconds=time.perf_counter() - started,
-            )
-        groups = exclusive_groups(problem)
-        # Upper bounds valid without any LP: zero resource multipliers, a grid of mu;
-        # best(k) <= log-mass(k), since log-weights >= scores.
-        zeros = np.zeros(problem.num_resources)
-        ks = np.arange(top + 1)
-        mass_upper = np.min(
-            [log_mass_upper_bounds(problem, zeros, mu, ks, groups) for mu in _MU_GRID], axis=0
-        )
-        tables = _BoundedTables(
-            best=beam.best.copy(),
-            sets=list(beam.best_sets),
-            log_mass=beam.log_mass.copy(),
-            best_upper=mass_upper.copy(),
-            mass_upper=mass_upper,
-            spent=spent,
-            limited=limited,
-        )
-        if not tables.limited:
-            relaxed = self._relaxed_bounds(problem, top, deadline)
-            tables.solves += 1
-            if relaxed is None:
-                tables.limited = time.perf_counter() >= deadline
-            else:
-                relaxed_best, relaxed_mass, work = relaxed
-                tables.spent += work
-                tables.best_upper = np.minimum(tables.best_upper, relaxed_best)
-                tables.mass_upper = np.minimum(tables.mass_upper, relaxed_mass)
-        start_k = int(np.argmax(tables.best))
-        # One LP kept over the walk: only the cardinality row's right-hand side changes.
-        lps = relaxation_sequence(self.lp_solver, set_packing_program(problem, start_k))
-        for step, k in ((-1, start_k), (1, start_k + 1)):
-            self._walk_k(problem, groups, tables, lps, k, step, top, deadline)
-        return self._bounded_result(problem, tables, started)
+    # -- K free: the best set and the marginals ------------------------------------------
+    def best_set(
+        self, problem: PackingProblem, deadline: float, *, small_cluster: int = 12
+    ) -> BestSet:
+        """The best feasible set of ``problem`` over every size (the refinement's
+        re-solves: their program has no cardinality row).
 
-    def _beam(
-        self, problem: PackingProblem, top: int, deadline: float, spent: int
-    ) -> tuple[FrontierResult, int, bool]:
-        """The beam frontier search of ``beam_width`` frontiers (the emergency beam of
-        :data:`_EMERGENCY_BEAM` once the deadline has passed), the work spent so far and
-        whether the deadline cut something short."""
-        limited = time.perf_counter() >= deadline
-        beam = None
-        if not limited:
-            try:
-                beam = frontier_search(
-                    problem,
-                    top,
-                    max_frontiers=self.beam_width,
-                    deadline=deadline,
-                    entry_margin=_BEAM_ENTRY_MARGIN,
-                )
-            except SearchLimitExceeded as stop:
-                spent += stop.work
-                limited = True
-        if beam is None:
-            beam = frontier_search(
-                problem,
-                top,
-                max_frontiers=_EMERGENCY_BEAM,
-                entry_margin=_EMERGENCY_ENTRY_MARGIN,
-            )
-        return beam, spent + beam.work, limited
-
-    def _walk_k(
-        self,
-        problem: PackingProblem,
-        groups: tuple[NDArray[np.int64], NDArray[np.bool_]],
-        tables: _BoundedTables,
-        lps: RelaxationSequence,
-        k: int,
-        step: int,
-        top: int,
-        deadline: float,
-    ) -> None:
-        """LP relaxations with the cardinality row at k, k + step, ... (one direction),
-        tightening ``tables`` in place.  ``lps`` holds the relaxation (its last row the
-        cardinality row), warm-started from one k to the next.
-
-        At each k: the LP value bounds best(k) (and proves the beam's set optimal where
-        they meet), its duals bound the mass; where the beam's set falls short of a
-        bound that can matter (within ``map_margin`` of the best set found) the integer
-        program is solved.  The walk stops once the supporting line of the concave LP
-        value, and the mass bound with this LP's multipliers, show every further k
-        negligible; those bounds of the last LP are then applied to every k beyond it.
+        The problem splits into independent clusters; a lone hypothesis is taken when
+        it must be (it alone holds an exactly-once resource) or when it adds (score > 0,
+        as the frontier search breaks the tie at 0 towards the empty set); a cluster of
+        at most ``small_cluster`` hypotheses is searched exactly by the frontier search
+        (within ``exact_work_limit`` and the deadline); the others go to one integer
+        program together (a solver call costs about as much whatever its size),
+        reduced by :func:`best_set_by_fixing`.
         """
-        size = top + 1
-        line: tuple[int, float, float, NDArray[np.float64]] | None = None
-        right_hand_sides = np.array(lps.program.b_eq, dtype=float)
-        while 0 <= k <= top:
-            if time.perf_counter() >= deadline:
-                tables.limited = True
-                break
-            right_hand_sides[-1] = k
-            lp = lps.solve(right_hand_sides, time_limit=_remaining(deadline))
-            tables.solves += 1
-            if lp.status is SolveStatus.INFEASIBLE:
-                tables.best_upper[k] = tables.mass_upper[k] = -math.inf
-                tables.best[k], tables.log_mass[k], tables.sets[k] = -math.inf, -math.inf, None
-                k += step
+        free = uncounted(problem)
+        chosen: list[IntArray] = []
+        large: list[IntArray] = []
+        clusters = cluster_hypotheses(free)
+        lone = np.array([int(m[0]) for m in clusters if len(m) == 1], dtype=np.int64)
+        if lone.size:
+            required = problem.uses_any(problem.exactly_one)
+            chosen.append(lone[required[lone] | (problem.scores[lone] > 0)])
+        for members in clusters:
+            if len(members) == 1:
                 continue
-            if lp.status is not SolveStatus.OPTIMAL:
-                tables.limited = True
-                break
-            multipliers, mu = resource_multipliers(problem, *_duals(lp))
-            tables.best_upper[k] = min(tables.best_upper[k], lp.objective)
-            self._take_integral_vertex(problem, k, lp, tables)
-            upper = tables.best_upper[k]
-            if tables.best[k] >= upper - 1e-9 * (1.0 + abs(upper)):
-                tables.best_upper[k] = tables.best[k]  # the beam's set meets the LP bound
-            at_k = log_mass_upper_bounds(problem, multipliers, mu, np.array([k]), groups)
-            tables.mass_upper[k] = min(tables.mass_upper[k], float(at_k[0]))
-            line = (k, lp.objective, mu, multipliers)
-            found_best = float(np.max(tables.best))
-            if (
-                tables.best[k] < tables.best_upper[k] - 1e-9
-                and tables.best_upper[k] >= found_best - self.map_margin
-            ):
-                self._tighten_by_integer_program(problem, k, deadline, tables)
-                found_best = float(np.max(tables.best))
-            ahead = np.arange(k + step, -1 if step < 0 else size, step)
-            if ahead.size == 0:
-                break
-            if np.all(lp.objective + mu * (ahead - k) < found_best - self.map_margin) and (
-                np.all(
-                    log_mass_upper_bounds(problem, multipliers, mu, ahead, groups)
-                    < float(log_sum_exp(tables.log_mass)) - _NEGLIGIBLE_LOG_MASS
-                )
-            ):
-                break
-            k += step
-        if line is not None:
-            # Bounds from the last LP in this direction hold for every k beyond it.
-            k_last, value, mu, multipliers = line
-            ahead = np.arange(k_last + step, -1 if step < 0 else size, step)
-            if ahead.size:
-                tables.best_upper[ahead] = np.minimum(
-                    tables.best_upper[ahead], value + mu * (ahead - k_last)
-                )
-                tables.mass_upper[ahead] = np.minimum(
-                    tables.mass_upper[ahead],
-                    log_mass_upper_bounds(problem, multipliers, mu, ahead, groups),
-                )
-
-    @staticmethod
-    def _take_integral_vertex(
-        problem: PackingProblem, k: int, lp: LPResult, tables: _BoundedTables
-    ) -> None:
-        """An integral LP optimum at k is a best set of k (no set beats the relaxation):
-        it becomes the table's set when it beats the beam's, and the LP bound is met."""
-        x = lp.solution
-        if x is None or np.any(np.abs(x - np.round(x)) > _INTEGRAL_VERTEX):
-            return
-        chosen = decode_selection(np.round(x))
-        if not problem.is_feasible(chosen, k):
-            return
-        score = problem.value(chosen)
-        if score > tables.best[k] or tables.sets[k] is None:
-            tables.best[k], tables.sets[k] = score, tuple(int(h) for h in chosen)
-
-    def _tighten_by_integer_program(
-        self, problem: PackingProblem, k: int, deadline: float, tables: _BoundedTables
-    ) -> None:
-        """Solve the integer program at k: its optimum closes the gap at k; a backend's
-        own deterministic limit (a node limit, say) leaves its proven dual bound; the
-        clock leaves ``tables.limited``."""
-        status, bound = self._solve_integer(problem, k, deadline, tables.best, tables.sets)
-        tables.solves += 1
-        if status is SolveStatus.OPTIMAL:
-            tables.best_upper[k] = tables.best[k]
-        elif status is SolveStatus.WORK_LIMIT:
-            if math.isfinite(bound):
-                tables.best_upper[k] = min(tables.best_upper[k], bound)
-        elif status is not SolveStatus.INFEASIBLE:
-            tables.limited = True
-
-    def _bounded_result(
-        self, problem: PackingProblem, tables: _BoundedTables, started: float
-    ) -> tuple[CardinalityTable, ClusterReport]:
-        """The bounded table and its report, after checking that no bound claims less
-        than a set that exists (beyond LP round-off: that would be a broken backend)."""
-        best, log_mass = tables.best, tables.log_mass
-        slack = 1e-7 * (1.0 + np.abs(best))
-        if np.any(np.isfinite(best) & (tables.best_upper < best - slack)):
-            raise SolverError(
-                f"{self.lp_solver.name}: an LP upper bound fell below a feasible set's score"
-            )
-        best_upper = np.maximum(tables.best_upper, best)
-        mass_upper = np.maximum(tables.mass_upper, log_mass)
-        table = CardinalityTable(
-            best, log_mass, tuple(tables.sets), False, best_upper, mass_upper
-        )
-        found, bound = float(log_sum_exp(log_mass)), float(log_sum_exp(mass_upper))
-        return table, ClusterReport(
-            size=problem.num_hypotheses,
-            status=ClusterStatus.TIME_LIMIT if tables.limited else ClusterStatus.BOUNDED,
-            work=tables.spent,
-            solves=tables.solves,
-            log_captured=found - bound if math.isfinite(bound) else 0.0,
-            seconds=time.perf_counter() - started,
-        )
-
-    def _solve_integer(
-        self,
-        problem: PackingProblem,
-        k: int,
-        deadline: float,
-        best: NDArray[np.float64],
-        sets: list[tuple[int, ...] | None],
-    ) -> tuple[SolveStatus, float]:
-        """Solve the integer program of k; keep its set if it beats the beam's.
-
-        Returns the solver's status and its proven upper bound on the best score of k
-        (``nan`` when it has none).
-        """
-        if time.perf_counter() >= deadline:
-            return SolveStatus.TIME_LIMIT, math.nan
-        result = self.solver.solve(set_packing_program(problem, k), time_limit=_remaining(deadline))
-        if result.solution is not None and result.status in (
-            SolveStatus.OPTIMAL,
-            SolveStatus.TIME_LIMIT,
-            SolveStatus.WORK_LIMIT,
-        ):
-            chosen = decode_selection(result.solution)
-            if not problem.is_feasible(chosen, k):
-                raise RuntimeError(
-                    f"solver {result.solver!r} returned an infeasible set for k={k}"
-                )
-            score = problem.value(chosen)
-            if score > best[k] or sets[k] is None:
-                best[k], sets[k] = score, tuple(int(h) for h in chosen)
-        return result.status, result.bound
-
-    def _relaxed_bounds(
-        self, problem: PackingProblem, top: int, deadline: float
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], int] | None:
-        """Upper bounds per k from a Lagrangian relaxation solved by the frontier search.
-
-        The at-most-once resources with the most users are relaxed, priced by the duals
-        of the LP relaxation with K free
-        (:func:`~mapassoc.formulations.bounds.relaxed_problem`): a quarter of them
-        first, twice as many each time the search of the relaxed problem exceeds an
-        eighth of ``exact_work_limit``.  Returns (best upper bounds, log-mass upper bounds,
-        work), or ``None`` if no relaxation fitted or the deadline passed.
-        """
-        lp = self.lp_solver.solve_relaxation(
-            set_packing_program(problem, None), time_limit=_remaining(deadline)
-        )
-        if lp.status is not SolveStatus.OPTIMAL:
-            return None
-        multipliers, _ = resource_multipliers(problem, *_duals(lp))
-        usage = np.bincount(problem.resource_indices, minlength=problem.num_resources)
-        shared = np.flatnonzero((usage > 1) & ~problem.exactly_one)
-        candidates = shared[np.lexsort((shared, -usage[shared]))]
-        count = max(1, candidates.size // 4)
-        work = 0
-        while candidates.size:
-            mask = np.zeros(problem.num_resources, dtype=bool)
-            mask[candidates[:count]] = True
-            relaxed, constant = relaxed_problem(problem, mask, multipliers)
+            if len(members) > small_cluster:
+                large.append(members)
+                continue
             try:
                 found = frontier_search(
-                    relaxed, top, work_limit=max(1, self.exact_work_limit // 8), deadline=deadline
+                    free.subproblem(members), 0, work_limit=self.exact_work_limit,
+                    deadline=deadline,
                 )
-            except SearchLimitExceeded as stop:
-                work += stop.work
-                if stop.reason == "deadline" or count >= candidates.size:
-                    return None
-                count = min(2 * count, candidates.size)
+            except SearchLimitExceeded:
+                large.append(members)
                 continue
-            size = top + 1
-            best = np.full(size, -math.inf)
-            mass = np.full(size, -math.inf)
-            n = found.best.shape[0]
-            best[:n], mass[:n] = found.best + constant, found.log_mass + constant
-            return best, mass, work + found.work
-        return None
+            if found.best_sets[0] is None:
+                return BestSet(None, ClusterStatus.EXACT)
+            chosen.append(members[np.asarray(found.best_sets[0], dtype=np.int64)])
+        status = ClusterStatus.EXACT
+        if large:
+            members = np.concatenate(large)
+            selection, optimal = best_set_by_fixing(
+                problem.subproblem(members),
+                solver=self.solver,
+                lp_solver=self.lp_solver,
+                time_limit=remaining(deadline),
+            )
+            if not optimal:
+                late = time.perf_counter() >= deadline
+                status = ClusterStatus.TIME_LIMIT if late else ClusterStatus.BOUNDED
+            if selection is None:
+                return BestSet(None, status)
+            chosen.append(members[selection])
+        if not chosen:
+            return BestSet(np.zeros(0, dtype=np.int64), status)
+        return BestSet(np.sort(np.concatenate(chosen)), status)
 
+    def marginals(
+        self, problem: PackingProblem, *, work_limit: int, beam_width: int
+    ) -> WindowMarginals:
+        """P(h in the set) of every hypothesis over sets of every size, by cluster.
+
+        A lone hypothesis in closed form (the sets {h} and, unless it alone holds an
+        exactly-once resource, {}); a cluster of at most
+        :data:`~mapassoc.formulations.marginals.ENUMERATION_MAX_HYPOTHESES` lists its
+        subsets; the others run the frontier search forward and backward within
+        ``work_limit`` transitions (and :data:`WORK_PROJECTION`), else a beam of
+        ``beam_width`` frontiers at ``beam_entry_margin`` (status ``bounded``).
+        """
+        free = uncounted(problem)
+        out = np.zeros(problem.num_hypotheses)
+        status = ClusterStatus.EXACT
+        seed = np.zeros(1)
+        clusters: list[tuple[IntArray, float]] = []
+        cluster_of = np.full(problem.num_hypotheses, -1, dtype=np.int64)
+        required = free.uses_any(free.exactly_one)
+        for members in cluster_hypotheses(free):
+            cluster_of[members] = len(clusters)
+            if len(members) == 1:
+                h = int(members[0])
+                weight = float(free.weights[h])
+                total = weight if required[h] else float(np.logaddexp(0.0, weight))
+                out[h] = math.exp(weight - total)
+                clusters.append((members, total))
+                continue
+            sub = free.subproblem(members)
+            try:
+                if len(members) <= ENUMERATION_MAX_HYPOTHESES:
+                    found = enumerated_marginals(sub, seed)  # every subset listed
+                else:
+                    found = frontier_marginals(
+                        sub, seed, work_limit=work_limit, work_projection=WORK_PROJECTION
+                    )
+            except SearchLimitExceeded:
+                found = frontier_marginals(
+                    sub, seed, max_frontiers=beam_width, entry_margin=self.beam_entry_margin
+                )
+            if not found.exact:
+                status = ClusterStatus.BOUNDED
+            out[members] = np.exp(found.log_containing[0] - found.log_total[0])
+            clusters.append((members, float(found.log_total[0]) if found.exact else math.nan))
+        return WindowMarginals(out, status, tuple(clusters), cluster_of, free)
+
+    @staticmethod
+    def any_of(marginals: WindowMarginals, chosen: IntArray, *, work_limit: int) -> float:
+        """P(at least one of the hypotheses ``chosen`` is in the set): one minus the mass
+        of the sets without any of them over the total, cluster by cluster (only the
+        clusters holding one of them); ``nan`` where a cluster had only the beam's part
+        of the mass, or the search of the rest passed ``work_limit``."""
+        if chosen.size == 0:
+            return 0.0
+        log_none = 0.0
+        for c in np.unique(marginals.cluster_of[chosen]).tolist():
+            members, log_total = marginals.clusters[c]
+            if math.isnan(log_total):
+                return math.nan  # the beam's part of the mass: no ratio to take
+            rest = members[~np.isin(members, chosen)]
+            if rest.size == 0:
+                log_none += -log_total  # only the empty set is left: weight 1
+                continue
+            try:
+                found = frontier_search(
+                    marginals.problem.subproblem(rest), 0, work_limit=work_limit
+                )
+            except SearchLimitExceeded:
+                return math.nan  # (its order differs from the whole cluster's)
+            log_none += float(found.log_mass[0]) - log_total
+        return _probability(-math.expm1(min(0.0, log_none)))

@@ -56,9 +56,10 @@ from mapassoc.estimator.cluster_solving import (
 from mapassoc.estimator.hypotheses import CarriedTrack, HypothesisGenerator, WindowHypotheses
 from mapassoc.estimator.posterior import FULL_LENGTH_KMAX, KPosterior, k_posterior
 from mapassoc.estimator.refinement import RefinementReport, TrackConfidence, refine_track_rows
+from mapassoc.estimator.window_program import packing_problem
 from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.formulations.cardinality import CombinedTable
-from mapassoc.formulations.packing import PackingProblem, gather_rows
+from mapassoc.formulations.packing import PackingProblem
 from mapassoc.models.population import UndetectedTargets, WindowPopulation
 from mapassoc.models.target_count import CountPrior, KEstimator
 from mapassoc.validation import check_callback, check_instance, check_integer, shown
@@ -115,30 +116,6 @@ it returns hypothesis indices of ``solution.hypotheses`` forming a feasible set 
 exactly as its own (``solution.selection(chosen_tracks)``, the default)."""
 
 
-def packing_problem(hypotheses: WindowHypotheses) -> PackingProblem:
-    """The packing problem of a window's hypotheses.
-
-    Resources ``0..D-1`` are the window's detections (at most once); resource ``D + t``
-    is carried tree ``t`` (exactly once).
-    """
-    D = hypotheses.detections.count
-    carried = int(np.count_nonzero(hypotheses.tree_track_ids >= 0))
-    tree = hypotheses.tree
-    indptr, indices = gather_rows(
-        hypotheses.detection_indptr,
-        hypotheses.detection_indices,
-        np.arange(hypotheses.count),
-        np.where(tree < carried, D + tree, -1),
-    )
-    return PackingProblem(
-        scores=hypotheses.scores,
-        resource_indptr=indptr,
-        resource_indices=indices,
-        exactly_one=np.r_[np.zeros(D, dtype=bool), np.ones(carried, dtype=bool)],
-        counts=hypotheses.counts_toward_k,
-    )
-
-
 @dataclass(frozen=True, eq=False)
 class WindowSolution:
     """Everything computed for one window (for notebooks and tests).
@@ -169,8 +146,7 @@ class WindowSolution:
         hypothesis anyway).  Its mass then depends on the clock, so the window's status
         is ``time_limit`` even where every cluster was solved exactly.
     clusters : tuple of WindowCluster
-        Each cluster's hypotheses, merge, bound-pruning mask and table (what
-        :func:`~mapassoc.estimator.marginals.window_marginals` needs).
+        Each cluster's hypotheses, merge, bound-pruning mask and table.
     """
 
     hypotheses: WindowHypotheses

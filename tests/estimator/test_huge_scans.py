@@ -148,7 +148,7 @@ def test_the_confidence_pass_memory_grows_with_the_kept_hypotheses() -> None:
     refiner = refiner_of(n)
     tracks = {t: ((0, t), (1, t)) for t in range(0, n, 100)}
     values = refiner._exact_values(tracks)
-    hyps = refiner._window_hypotheses(tracks, values, 0, 2, refiner.generator)[0]
+    hyps = refiner.boundaries.hypotheses(tracks, values, 0, 2, refiner.generator)[0]
     assert hyps.detections.count == 2 * n and hyps.count >= 2 * n
     tracemalloc.start()
     try:

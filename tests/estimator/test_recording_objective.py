@@ -30,6 +30,7 @@ from support import (
 
 from mapassoc.errors import InputError
 from mapassoc.estimator import refinement
+from mapassoc.estimator.cluster_solving import ClusterStatus, uncounted
 from mapassoc.estimator.objective import PathState, RecordingObjective, paths_from_rows
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.estimator.refinement import RefinementSettings, Refiner, refine_track_rows
@@ -279,17 +280,19 @@ def test_refinement_over_the_whole_recording_finds_the_global_map(seed: int) -> 
 
 @pytest.mark.parametrize("seed", range(16))
 def test_a_resolve_programs_best_set_equals_enumeration(seed: int) -> None:
-    """Refiner._best_set (lone hypotheses in closed form, small clusters by the frontier
-    search, large ones by the integer program) against every subset, sizes uncounted."""
+    """The window solver's best set with K free, as the refinement asks it (lone
+    hypotheses in closed form, small clusters by the frontier search, large ones by the
+    integer program) against every subset, sizes uncounted."""
     config, scans = _tiny_recording(0)
     refiner = Refiner(config=config, scans=scans, settings=RefinementSettings())
     rng = np.random.default_rng(seed)
     H = int(rng.integers(1, 15))
     groups = min(H, int(rng.integers(0, 3)))  # every exactly-once resource has a member
     problem = random_problem(rng, H, int(rng.integers(H, 3 * H + 1)), groups)
-    selection, limited = refiner._best_set(problem)
-    best, _ = brute_force_tables(refinement._uncounted(problem), 0)
-    assert not limited
+    solved = refiner.window_solver.best_set(problem, math.inf)
+    selection = solved.selection
+    best, _ = brute_force_tables(uncounted(problem), 0)
+    assert solved.status is ClusterStatus.EXACT
     if not math.isfinite(best[0]):
         assert selection is None
         return
@@ -299,15 +302,17 @@ def test_a_resolve_programs_best_set_equals_enumeration(seed: int) -> None:
 
 @pytest.mark.parametrize("seed", range(12))
 def test_a_windows_marginals_equal_enumeration(seed: int) -> None:
-    """Refiner._marginals (lone hypotheses in closed form, the other clusters by the
-    frontier search forward and backward) against a sum over every feasible set."""
+    """The window solver's marginals with K free, as the confidence pass asks them (lone
+    hypotheses in closed form, the other clusters by the frontier search forward and
+    backward) against a sum over every feasible set."""
     config, scans = _tiny_recording(0)
     refiner = Refiner(config=config, scans=scans, settings=RefinementSettings())
     rng = np.random.default_rng(50 + seed)
     H = int(rng.integers(1, 11))
     groups = min(H, int(rng.integers(0, 3)))  # every exactly-once resource has a member
     problem = random_problem(rng, H, int(rng.integers(H, 3 * H + 1)), groups)
-    probabilities, exact, clusters = refiner._marginals(problem)
+    found = refiner.window_solver.marginals(problem, work_limit=50_000, beam_width=32)
+    probabilities, exact, clusters = found.probabilities, found.exact, found.clusters
     masses = []
     for r in range(H + 1):
         for chosen in itertools.combinations(range(H), r):
