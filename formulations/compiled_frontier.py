@@ -478,6 +478,8 @@ def exact_search(
     H = relative.shape[0]
     R = bounds.shape[0] - 1
     width = kmax + 1
+    problem = (relative, by_start, bounds, exactly_one, counts)
+    limits = (work_limit, projected_limit, entries_per_transition, pair_block_entries)
     covers = np.zeros(1, dtype=np.uint64)
     best = np.zeros((1, 1))
     mass = np.zeros((1, 1))
@@ -491,33 +493,11 @@ def exact_search(
     back_source = [np.zeros(0, dtype=np.int64)]
     back_decision = [np.zeros(0, dtype=np.int64)]
     for step in range(R):
-        status, work, _, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
-            covers,
-            relative,
-            by_start,
-            bounds,
-            exactly_one,
-            counts,
-            step,
-            best.shape[1],
-            kmax,
-            work,
-            work_limit,
-            projected_limit,
-            entries_per_transition,
-            pair_block_entries,
+        status, work, covers, best, mass, winner, source, decision = _exact_step(
+            covers, best, mass, problem, limits, scores, weights, step, kmax, work
         )
         if status != FOUND:
             return status, work, widest, final_best, final_mass, sets, set_sizes
-        covers, source, decision, ranked, target = _candidates(
-            covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
-        )
-        cand_best, cand_mass = _carried_best_and_mass(
-            best, mass, scores, weights, source, decision, counts, cols
-        )
-        best, mass, winner = _merged_best_and_mass(
-            cand_best, cand_mass, ranked, target, covers.shape[0]
-        )
         widest = max(widest, covers.shape[0])
         back_winner.append(winner)
         back_source.append(source)
@@ -530,6 +510,60 @@ def exact_search(
         back_winner, back_source, back_decision, counts, final_best, R, sets, set_sizes
     )
     return FOUND, work, widest, final_best, final_mass, sets, set_sizes
+
+
+@njit(cache=True)
+def _exact_step(
+    covers: NDArray[np.uint64],
+    best: FloatArray,
+    mass: FloatArray,
+    problem: tuple[NDArray[np.uint64], IntArray, IntArray, NDArray[np.bool_], IntArray],
+    limits: tuple[int, float, int, int],
+    scores: FloatArray,
+    weights: FloatArray,
+    step: int,
+    kmax: int,
+    work: int,
+) -> tuple[
+    int, int, NDArray[np.uint64], FloatArray, FloatArray, NDArray[np.int32], IntArray, IntArray
+]:
+    """One step of :func:`exact_search` from the frontiers ``covers`` with their best
+    scores and masses (``problem``: its ``relative, by_start, bounds, exactly_one,
+    counts``; ``limits``: its ``work_limit, projected_limit, entries_per_transition,
+    pair_block_entries``): the status and work, then the frontiers, best scores, masses
+    and winning candidates after the step with the candidates' previous frontiers and
+    decisions (for a stop: the frontiers as they were and empty back-pointers)."""
+    relative, by_start, bounds, exactly_one, counts = problem
+    work_limit, projected_limit, entries_per_transition, pair_block_entries = limits
+    status, work, _, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
+        covers,
+        relative,
+        by_start,
+        bounds,
+        exactly_one,
+        counts,
+        step,
+        best.shape[1],
+        kmax,
+        work,
+        work_limit,
+        projected_limit,
+        entries_per_transition,
+        pair_block_entries,
+    )
+    if status != FOUND:
+        none = np.zeros(0, dtype=np.int64)
+        return status, work, covers, best, mass, np.zeros((0, 0), dtype=np.int32), none, none
+    covers, source, decision, ranked, target = _candidates(
+        covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
+    )
+    cand_best, cand_mass = _carried_best_and_mass(
+        best, mass, scores, weights, source, decision, counts, cols
+    )
+    best, mass, winner = _merged_best_and_mass(
+        cand_best, cand_mass, ranked, target, covers.shape[0]
+    )
+    return FOUND, work, covers, best, mass, winner, source, decision
 
 
 @njit(cache=True)
@@ -669,6 +703,9 @@ def _forward_pass(
         frontiers before and after the step and hypotheses (entry 0: a placeholder).
     """
     R = bounds.shape[0] - 1
+    problem = (relative, by_start, bounds, exactly_one, counts)
+    limits = (work_limit, projected_limit, entries_per_transition, pair_block_entries)
+    beam = (entry_margin, max_frontiers)
     covers = np.zeros(1, dtype=np.uint64)
     mass = np.zeros((1, 1))
     work = 0
@@ -678,21 +715,8 @@ def _forward_pass(
     decisions = [np.zeros(0, dtype=np.int64)]
     targets = [np.zeros(0, dtype=np.int64)]
     for step in range(R):
-        status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
-            covers,
-            relative,
-            by_start,
-            bounds,
-            exactly_one,
-            counts,
-            step,
-            mass.shape[1],
-            kmax,
-            work,
-            work_limit,
-            projected_limit,
-            entries_per_transition,
-            pair_block_entries,
+        status, work, step_work, new_covers, new_mass, inexact, source, decision, target = (
+            _forward_step(covers, mass, problem, limits, beam, weights, step, kmax, work)
         )
         if status != FOUND:
             remaining = R - 1 - step
@@ -709,13 +733,6 @@ def _forward_pass(
                 decisions,
                 targets,
             )
-        new_covers, source, decision, ranked, target = _candidates(
-            covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
-        )
-        candidates = (source, decision, ranked, target)
-        new_covers, new_mass, inexact = _forward_masses(
-            new_covers, mass, weights, counts, candidates, cols, entry_margin, max_frontiers
-        )
         exact = exact and not inexact
         alphas.append(mass)
         sources.append(source)
@@ -725,6 +742,56 @@ def _forward_pass(
         mass = new_mass
     frontiers = covers.shape[0]
     return FOUND, work, 0, 0, exact, frontiers, mass, alphas, sources, decisions, targets
+
+
+@njit(cache=True)
+def _forward_step(
+    covers: NDArray[np.uint64],
+    mass: FloatArray,
+    problem: tuple[NDArray[np.uint64], IntArray, IntArray, NDArray[np.bool_], IntArray],
+    limits: tuple[int, float, int, int],
+    beam: tuple[float, int],
+    weights: FloatArray,
+    step: int,
+    kmax: int,
+    work: int,
+) -> tuple[int, int, int, NDArray[np.uint64], FloatArray, bool, IntArray, IntArray, IntArray]:
+    """One step of :func:`_forward_pass` from the frontiers ``covers`` with their masses
+    (``problem`` and ``limits`` as :func:`_exact_step` takes them; ``beam``: the
+    ``entry_margin, max_frontiers`` of :func:`forward_backward`): the status, work and
+    step's work, then the frontiers and masses after the step, whether the beam dropped
+    anything, and the candidates' frontiers before the step, hypotheses and frontiers
+    after it (for a stop: the frontiers as they were and no candidates)."""
+    relative, by_start, bounds, exactly_one, counts = problem
+    work_limit, projected_limit, entries_per_transition, pair_block_entries = limits
+    entry_margin, max_frontiers = beam
+    status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
+        covers,
+        relative,
+        by_start,
+        bounds,
+        exactly_one,
+        counts,
+        step,
+        mass.shape[1],
+        kmax,
+        work,
+        work_limit,
+        projected_limit,
+        entries_per_transition,
+        pair_block_entries,
+    )
+    if status != FOUND:
+        none = np.zeros(0, dtype=np.int64)
+        return status, work, step_work, covers, mass, False, none, none, none
+    new_covers, source, decision, ranked, target = _candidates(
+        covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
+    )
+    candidates = (source, decision, ranked, target)
+    new_covers, new_mass, inexact = _forward_masses(
+        new_covers, mass, weights, counts, candidates, cols, entry_margin, max_frontiers
+    )
+    return FOUND, work, step_work, new_covers, new_mass, inexact, source, decision, target
 
 
 @njit(cache=True)
