@@ -838,20 +838,60 @@ def _vectorised_search(
         )
         covers, best, mass, winner = _vector_merged(cand_covers, cand_best, cand_mass)
         widest = max(widest, covers.size)
-        if entry_margin is not None:
-            best, mass, winner, lo, dropped = _vector_entry_margin(best, mass, winner, entry_margin)
-            low += lo
-            exact = exact and not dropped
-        if max_frontiers is not None and covers.size > max_frontiers:
-            covers, best, mass, winner = _vector_beam(covers, best, mass, winner, max_frontiers)
-            exact = False
+        covers, best, mass, winner, lo, kept_all = _vector_pruned(
+            covers, best, mass, winner, entry_margin, max_frontiers
+        )
+        low += lo
+        exact = exact and kept_all
         decision = np.concatenate([np.full(keep.size, -1, dtype=np.int64), pair_h])
         back.append((winner.astype(np.int32), np.concatenate([keep, pair_row]), decision, low))
     # Every frontier word is 0 after the last position: one state remains.
+    return _final_vector_result(problem, back, best[0], mass[0], low, width, work, widest, exact)
+
+
+def _vector_pruned(
+    covers: NDArray[np.uint64],
+    best: NDArray[np.float64],
+    mass: NDArray[np.float64],
+    winner: NDArray[np.int64],
+    entry_margin: float | None,
+    max_frontiers: int | None,
+) -> tuple[
+    NDArray[np.uint64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64], int, bool
+]:
+    """A step's merged frontiers after the beam (:func:`_vector_entry_margin`, then
+    :func:`_vector_beam`; ``None``: that part off): the tables, the columns dropped on
+    the left and whether nothing was dropped."""
+    low_rise = 0
+    kept_all = True
+    if entry_margin is not None:
+        best, mass, winner, low_rise, dropped = _vector_entry_margin(
+            best, mass, winner, entry_margin
+        )
+        kept_all = not dropped
+    if max_frontiers is not None and covers.size > max_frontiers:
+        covers, best, mass, winner = _vector_beam(covers, best, mass, winner, max_frontiers)
+        kept_all = False
+    return covers, best, mass, winner, low_rise, kept_all
+
+
+def _final_vector_result(
+    problem: PackingProblem,
+    back: list[_Back],
+    best: NDArray[np.float64],
+    mass: NDArray[np.float64],
+    low: int,
+    width: int,
+    work: int,
+    widest: int,
+    exact: bool,
+) -> FrontierResult:
+    """The result from the last frontier's best scores and masses (shape (columns,),
+    for k = low..) and the steps ``back``."""
     final_best = np.full(width, _NEG_INF)
     final_mass = np.full(width, _NEG_INF)
-    final_best[low : low + best.shape[1]] = best[0]
-    final_mass[low : low + mass.shape[1]] = mass[0]
+    final_best[low : low + best.shape[0]] = best
+    final_mass[low : low + mass.shape[0]] = mass
     sets = _traced_vector_sets(back, problem.counts.astype(np.int64), final_best, low)
     return _result(final_best, final_mass, sets, work, widest, exact)
 
