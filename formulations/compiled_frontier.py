@@ -59,9 +59,8 @@ _INSERTION_SORT_BELOW = 32
 def _stable_order(keys: NDArray[np.uint64]) -> IntArray:
     """``np.argsort(keys, kind="stable")``: insertion sort for a few keys, else a
     least-significant-digit radix sort by bytes (each pass stable, so the whole is; bytes
-    on which all keys agree are skipped).  numba's own sorts cost seconds to compile; a
-    merge sort here made a search of 708 hypotheses (1.06 million transitions) take
-    0.29 s against 0.22 s."""
+    on which all keys agree are skipped).  numba's own sorts cost seconds to compile,
+    and a merge sort made large searches slower than these passes."""
     n = keys.shape[0]
     order = np.arange(n)
     if n < _INSERTION_SORT_BELOW:
@@ -326,6 +325,112 @@ def _log_sum_exp(a: FloatArray, b: FloatArray) -> float:
 
 
 @njit(cache=True)
+def _carried_best_and_mass(
+    best: FloatArray,
+    mass: FloatArray,
+    scores: FloatArray,
+    weights: FloatArray,
+    source: IntArray,
+    decision: IntArray,
+    counts: IntArray,
+    cols: int,
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`_carried` of the best scores (plus ``scores``) and of the masses (plus
+    ``weights``) in one pass over the candidates: two passes made the exact search
+    slower, for the same entries."""
+    C = source.shape[0]
+    span_now = best.shape[1]
+    cand_best = np.full((C, cols), -np.inf)
+    cand_mass = np.full((C, cols), -np.inf)
+    for c in range(C):
+        row = source[c]
+        h = decision[c]
+        if h < 0:
+            for k in range(span_now):
+                cand_best[c, k] = best[row, k]
+                cand_mass[c, k] = mass[row, k]
+            continue
+        shift = counts[h]
+        for k in range(min(span_now, cols - shift)):
+            cand_best[c, k + shift] = best[row, k] + scores[h]
+            cand_mass[c, k + shift] = mass[row, k] + weights[h]
+    return cand_best, cand_mass
+
+
+@njit(cache=True)
+def _merged_best_and_mass(
+    cand_best: FloatArray, cand_mass: FloatArray, ranked: IntArray, target: IntArray, n_new: int
+) -> tuple[FloatArray, FloatArray, NDArray[np.int32]]:
+    """Each frontier's best scores, masses and winning candidates after the step, in one
+    pass in the stable order by word: masses summed as :func:`_summed` sums them, and
+    the best score of each k taken by the first candidate in that order reaching the
+    maximum (``np.maximum.reduceat`` and the first hit, as the numpy search takes it)."""
+    cols = cand_best.shape[1]
+    new_best = np.empty((n_new, cols))
+    new_mass = np.empty((n_new, cols))
+    winner = np.empty((n_new, cols), dtype=np.int32)
+    for i in range(ranked.shape[0]):
+        c = ranked[i]
+        g = target[c]
+        if i == 0 or g != target[ranked[i - 1]]:
+            for k in range(cols):
+                new_best[g, k] = cand_best[c, k]
+                new_mass[g, k] = cand_mass[c, k]
+                winner[g, k] = c
+        else:
+            for k in range(cols):
+                new_mass[g, k] = _log_add(new_mass[g, k], cand_mass[c, k])
+                if cand_best[c, k] > new_best[g, k]:
+                    new_best[g, k] = cand_best[c, k]
+                    winner[g, k] = c
+    return new_best, new_mass, winner
+
+
+@njit(cache=True)
+def _sort_prefix(sets: IntArray, k: int, size: int) -> None:
+    """Sort ``sets[k, :size]`` in place by insertion (a set has a few members)."""
+    for i in range(1, size):
+        member = sets[k, i]
+        j = i - 1
+        while j >= 0 and sets[k, j] > member:
+            sets[k, j + 1] = sets[k, j]
+            j -= 1
+        sets[k, j + 1] = member
+
+
+@njit(cache=True)
+def _trace_best_sets(
+    back_winner: list[NDArray[np.int32]],
+    back_source: list[IntArray],
+    back_decision: list[IntArray],
+    counts: IntArray,
+    final_best: FloatArray,
+    steps: int,
+    sets: IntArray,
+    set_sizes: IntArray,
+) -> None:
+    """Fill ``sets`` and ``set_sizes`` in place: each k with a finite best score follows
+    the winners back from the last of ``steps`` steps to the first (entry 0 of each list
+    is a placeholder), collecting the hypotheses taken, in increasing order."""
+    for k in range(final_best.shape[0]):
+        if not np.isfinite(final_best[k]):
+            continue
+        size = 0
+        state = 0
+        remaining = k
+        for s in range(steps, 0, -1):
+            candidate = back_winner[s][state, remaining]
+            h = back_decision[s][candidate]
+            state = back_source[s][candidate]
+            if h >= 0:
+                sets[k, size] = h
+                size += 1
+                remaining -= counts[h]
+        _sort_prefix(sets, k, size)
+        set_sizes[k] = size
+
+
+@njit(cache=True)
 def exact_search(
     relative: NDArray[np.uint64],
     by_start: IntArray,
@@ -373,6 +478,8 @@ def exact_search(
     H = relative.shape[0]
     R = bounds.shape[0] - 1
     width = kmax + 1
+    problem = (relative, by_start, bounds, exactly_one, counts)
+    limits = (work_limit, projected_limit, entries_per_transition, pair_block_entries)
     covers = np.zeros(1, dtype=np.uint64)
     best = np.zeros((1, 1))
     mass = np.zeros((1, 1))
@@ -386,68 +493,12 @@ def exact_search(
     back_source = [np.zeros(0, dtype=np.int64)]
     back_decision = [np.zeros(0, dtype=np.int64)]
     for step in range(R):
-        span_now = best.shape[1]
-        status, work, _, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
-            covers,
-            relative,
-            by_start,
-            bounds,
-            exactly_one,
-            counts,
-            step,
-            span_now,
-            kmax,
-            work,
-            work_limit,
-            projected_limit,
-            entries_per_transition,
-            pair_block_entries,
+        status, work, covers, best, mass, winner, source, decision = _exact_step(
+            covers, best, mass, problem, limits, scores, weights, step, kmax, work
         )
         if status != FOUND:
             return status, work, widest, final_best, final_mass, sets, set_sizes
-        new_covers, source, decision, ranked, target = _candidates(
-            covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
-        )
-        n_new = new_covers.shape[0]
-        # Best scores and masses in one pass each (two passes through _carried and
-        # _summed made this search 12-15% slower); the same steps as theirs, plus the
-        # best score, where the first candidate in the order reaching the maximum wins.
-        C = source.shape[0]
-        cand_best = np.full((C, cols), -np.inf)
-        cand_mass = np.full((C, cols), -np.inf)
-        for c in range(C):
-            row = source[c]
-            h = decision[c]
-            if h < 0:
-                for k in range(span_now):
-                    cand_best[c, k] = best[row, k]
-                    cand_mass[c, k] = mass[row, k]
-                continue
-            shift = counts[h]
-            for k in range(min(span_now, cols - shift)):
-                cand_best[c, k + shift] = best[row, k] + scores[h]
-                cand_mass[c, k + shift] = mass[row, k] + weights[h]
-        new_best = np.empty((n_new, cols))
-        new_mass = np.empty((n_new, cols))
-        winner = np.empty((n_new, cols), dtype=np.int32)
-        for i in range(C):
-            c = ranked[i]
-            g = target[c]
-            if i == 0 or g != target[ranked[i - 1]]:
-                for k in range(cols):
-                    new_best[g, k] = cand_best[c, k]
-                    new_mass[g, k] = cand_mass[c, k]
-                    winner[g, k] = c
-            else:
-                for k in range(cols):
-                    new_mass[g, k] = _log_add(new_mass[g, k], cand_mass[c, k])
-                    if cand_best[c, k] > new_best[g, k]:
-                        new_best[g, k] = cand_best[c, k]
-                        winner[g, k] = c
-        covers = new_covers
-        best = new_best
-        mass = new_mass
-        widest = max(widest, n_new)
+        widest = max(widest, covers.shape[0])
         back_winner.append(winner)
         back_source.append(source)
         back_decision.append(decision)
@@ -455,29 +506,64 @@ def exact_search(
     for k in range(best.shape[1]):
         final_best[k] = best[0, k]
         final_mass[k] = mass[0, k]
-    for k in range(best.shape[1]):
-        if not np.isfinite(final_best[k]):
-            continue
-        size = 0
-        state = 0
-        remaining = k
-        for s in range(R, 0, -1):
-            candidate = back_winner[s][state, remaining]
-            h = back_decision[s][candidate]
-            state = back_source[s][candidate]
-            if h >= 0:
-                sets[k, size] = h
-                size += 1
-                remaining -= counts[h]
-        for i in range(1, size):  # insertion sort: a set has a few members
-            member = sets[k, i]
-            j = i - 1
-            while j >= 0 and sets[k, j] > member:
-                sets[k, j + 1] = sets[k, j]
-                j -= 1
-            sets[k, j + 1] = member
-        set_sizes[k] = size
+    _trace_best_sets(
+        back_winner, back_source, back_decision, counts, final_best, R, sets, set_sizes
+    )
     return FOUND, work, widest, final_best, final_mass, sets, set_sizes
+
+
+@njit(cache=True)
+def _exact_step(
+    covers: NDArray[np.uint64],
+    best: FloatArray,
+    mass: FloatArray,
+    problem: tuple[NDArray[np.uint64], IntArray, IntArray, NDArray[np.bool_], IntArray],
+    limits: tuple[int, float, int, int],
+    scores: FloatArray,
+    weights: FloatArray,
+    step: int,
+    kmax: int,
+    work: int,
+) -> tuple[
+    int, int, NDArray[np.uint64], FloatArray, FloatArray, NDArray[np.int32], IntArray, IntArray
+]:
+    """One step of :func:`exact_search` from the frontiers ``covers`` with their best
+    scores and masses (``problem``: its ``relative, by_start, bounds, exactly_one,
+    counts``; ``limits``: its ``work_limit, projected_limit, entries_per_transition,
+    pair_block_entries``): the status and work, then the frontiers, best scores, masses
+    and winning candidates after the step with the candidates' previous frontiers and
+    decisions (for a stop: the frontiers as they were and empty back-pointers)."""
+    relative, by_start, bounds, exactly_one, counts = problem
+    work_limit, projected_limit, entries_per_transition, pair_block_entries = limits
+    status, work, _, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
+        covers,
+        relative,
+        by_start,
+        bounds,
+        exactly_one,
+        counts,
+        step,
+        best.shape[1],
+        kmax,
+        work,
+        work_limit,
+        projected_limit,
+        entries_per_transition,
+        pair_block_entries,
+    )
+    if status != FOUND:
+        none = np.zeros(0, dtype=np.int64)
+        return status, work, covers, best, mass, np.zeros((0, 0), dtype=np.int32), none, none
+    covers, source, decision, ranked, target = _candidates(
+        covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
+    )
+    cand_best, cand_mass = _carried_best_and_mass(
+        best, mass, scores, weights, source, decision, counts, cols
+    )
+    best, mass, winner = _merged_best_and_mass(
+        cand_best, cand_mass, ranked, target, covers.shape[0]
+    )
+    return FOUND, work, covers, best, mass, winner, source, decision
 
 
 @njit(cache=True)
@@ -487,6 +573,298 @@ def _float_key(x: float) -> np.uint64:
     if bits >> np.uint64(63):
         return ~bits
     return bits | (np.uint64(1) << np.uint64(63))
+
+
+@njit(cache=True)
+def _apply_entry_margin(mass: FloatArray, entry_margin: float) -> tuple[FloatArray, bool]:
+    """Each frontier's heaviest entry of ``mass`` (shape (F, cols)), after setting to
+    ``-inf`` in place the entries more than ``entry_margin`` below it (``inf``: none);
+    and whether any entry was dropped."""
+    n_new, cols = mass.shape
+    heaviest = np.empty(n_new)
+    dropped = False
+    for g in range(n_new):
+        top = -np.inf
+        for k in range(cols):
+            if mass[g, k] > top:
+                top = mass[g, k]
+        heaviest[g] = top
+        if entry_margin < np.inf:
+            for k in range(cols):
+                if mass[g, k] < top - entry_margin:
+                    mass[g, k] = -np.inf
+                    dropped = True
+    return heaviest, dropped
+
+
+@njit(cache=True)
+def _apply_beam(
+    covers: NDArray[np.uint64],
+    mass: FloatArray,
+    target: IntArray,
+    heaviest: FloatArray,
+    max_frontiers: int,
+) -> tuple[NDArray[np.uint64], FloatArray]:
+    """The ``max_frontiers`` frontiers of heaviest entry (ties: the earlier word), in
+    their order: their words and masses, with ``target`` renumbered in place (``-1``:
+    a candidate whose frontier was dropped)."""
+    n_new, cols = mass.shape
+    keys = np.empty(n_new, dtype=np.uint64)
+    for g in range(n_new):
+        keys[g] = _float_key(-heaviest[g])
+    chosen = _stable_order(keys)
+    kept = np.zeros(n_new, dtype=np.bool_)
+    for i in range(max_frontiers):
+        kept[chosen[i]] = True
+    renumber = np.full(n_new, -1, dtype=np.int64)
+    n_kept = 0
+    for g in range(n_new):
+        if kept[g]:
+            renumber[g] = n_kept
+            covers[n_kept] = covers[g]
+            for k in range(cols):
+                mass[n_kept, k] = mass[g, k]
+            n_kept += 1
+    for c in range(target.shape[0]):
+        target[c] = renumber[target[c]]
+    return covers[:n_kept].copy(), mass[:n_kept].copy()
+
+
+@njit(cache=True)
+def _forward_masses(
+    covers: NDArray[np.uint64],
+    mass: FloatArray,
+    weights: FloatArray,
+    counts: IntArray,
+    candidates: tuple[IntArray, IntArray, IntArray, IntArray],
+    cols: int,
+    entry_margin: float,
+    max_frontiers: int,
+) -> tuple[NDArray[np.uint64], FloatArray, bool]:
+    """The frontiers after a step (words ``covers``, from :func:`_candidates`) and their
+    masses, from the masses before it and the step's ``candidates`` (source, decision,
+    ranked, target), with the entry margin and the beam applied (``target`` renumbered
+    in place); and whether they dropped anything."""
+    source, decision, ranked, target = candidates
+    cand = _carried(mass, weights, source, decision, counts, cols)
+    new_mass = _summed(cand, ranked, target, covers.shape[0])
+    heaviest, inexact = _apply_entry_margin(new_mass, entry_margin)
+    if max_frontiers >= 0 and covers.shape[0] > max_frontiers:
+        covers, new_mass = _apply_beam(covers, new_mass, target, heaviest, max_frontiers)
+        inexact = True
+    return covers, new_mass, inexact
+
+
+_ForwardPass = tuple[
+    int,
+    int,
+    int,
+    int,
+    bool,
+    int,
+    FloatArray,
+    list[FloatArray],
+    list[IntArray],
+    list[IntArray],
+    list[IntArray],
+]
+"""What :func:`_forward_pass` returns (its docstring)."""
+
+
+@njit(cache=True)
+def _forward_pass(
+    relative: NDArray[np.uint64],
+    by_start: IntArray,
+    bounds: IntArray,
+    exactly_one: NDArray[np.bool_],
+    counts: IntArray,
+    weights: FloatArray,
+    kmax: int,
+    max_frontiers: int,
+    entry_margin: float,
+    work_limit: int,
+    projected_limit: float,
+    entries_per_transition: int,
+    pair_block_entries: int,
+) -> _ForwardPass:
+    """The forward pass of :func:`forward_backward` (arguments as there).
+
+    Returns
+    -------
+    status, work, step_work, remaining, exact
+        As :func:`forward_backward` returns them (``step_work`` and ``remaining`` of
+        the stopping step; 0 for a pass that ran to the end).
+    frontiers : int
+        Frontiers after the last position (0 or 1).
+    mass : ndarray, shape (frontiers, k columns)
+        Their masses.
+    alphas, sources, decisions, targets : list of ndarray
+        Entry ``r`` (from 1): the masses before step ``r - 1`` and its candidates'
+        frontiers before and after the step and hypotheses (entry 0: a placeholder).
+    """
+    R = bounds.shape[0] - 1
+    problem = (relative, by_start, bounds, exactly_one, counts)
+    limits = (work_limit, projected_limit, entries_per_transition, pair_block_entries)
+    beam = (entry_margin, max_frontiers)
+    covers = np.zeros(1, dtype=np.uint64)
+    mass = np.zeros((1, 1))
+    work = 0
+    exact = True
+    alphas = [np.zeros((0, 0))]
+    sources = [np.zeros(0, dtype=np.int64)]
+    decisions = [np.zeros(0, dtype=np.int64)]
+    targets = [np.zeros(0, dtype=np.int64)]
+    for step in range(R):
+        status, work, step_work, new_covers, new_mass, inexact, source, decision, target = (
+            _forward_step(covers, mass, problem, limits, beam, weights, step, kmax, work)
+        )
+        if status != FOUND:
+            remaining = R - 1 - step
+            return (
+                status,
+                work,
+                step_work,
+                remaining,
+                exact,
+                0,
+                mass,
+                alphas,
+                sources,
+                decisions,
+                targets,
+            )
+        exact = exact and not inexact
+        alphas.append(mass)
+        sources.append(source)
+        decisions.append(decision)
+        targets.append(target)
+        covers = new_covers
+        mass = new_mass
+    frontiers = covers.shape[0]
+    return FOUND, work, 0, 0, exact, frontiers, mass, alphas, sources, decisions, targets
+
+
+@njit(cache=True)
+def _forward_step(
+    covers: NDArray[np.uint64],
+    mass: FloatArray,
+    problem: tuple[NDArray[np.uint64], IntArray, IntArray, NDArray[np.bool_], IntArray],
+    limits: tuple[int, float, int, int],
+    beam: tuple[float, int],
+    weights: FloatArray,
+    step: int,
+    kmax: int,
+    work: int,
+) -> tuple[int, int, int, NDArray[np.uint64], FloatArray, bool, IntArray, IntArray, IntArray]:
+    """One step of :func:`_forward_pass` from the frontiers ``covers`` with their masses
+    (``problem`` and ``limits`` as :func:`_exact_step` takes them; ``beam``: the
+    ``entry_margin, max_frontiers`` of :func:`forward_backward`): the status, work and
+    step's work, then the frontiers and masses after the step, whether the beam dropped
+    anything, and the candidates' frontiers before the step, hypotheses and frontiers
+    after it (for a stop: the frontiers as they were and no candidates)."""
+    relative, by_start, bounds, exactly_one, counts = problem
+    work_limit, projected_limit, entries_per_transition, pair_block_entries = limits
+    entry_margin, max_frontiers = beam
+    status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
+        covers,
+        relative,
+        by_start,
+        bounds,
+        exactly_one,
+        counts,
+        step,
+        mass.shape[1],
+        kmax,
+        work,
+        work_limit,
+        projected_limit,
+        entries_per_transition,
+        pair_block_entries,
+    )
+    if status != FOUND:
+        none = np.zeros(0, dtype=np.int64)
+        return status, work, step_work, covers, mass, False, none, none, none
+    new_covers, source, decision, ranked, target = _candidates(
+        covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
+    )
+    candidates = (source, decision, ranked, target)
+    new_covers, new_mass, inexact = _forward_masses(
+        new_covers, mass, weights, counts, candidates, cols, entry_margin, max_frontiers
+    )
+    return FOUND, work, step_work, new_covers, new_mass, inexact, source, decision, target
+
+
+@njit(cache=True)
+def _backward_step(
+    beta: FloatArray,
+    alpha: FloatArray,
+    candidates: tuple[IntArray, IntArray, IntArray],
+    counts: IntArray,
+    weights: FloatArray,
+    containing: FloatArray,
+) -> FloatArray:
+    """The completions' weights ``beta`` (shape (F after, j columns)) one step back, to
+    the frontiers before it (masses ``alpha``, shape (F before, k columns)), adding in
+    place to ``containing`` (shape (H,)) the weight of the sets through each
+    candidate's hypothesis; ``candidates`` are the step's (source, decision, target)."""
+    source, decision, target = candidates
+    frontiers, w_before = alpha.shape
+    n = min(beta.shape[1], w_before + 1)
+    new_beta = np.full((frontiers, w_before), -np.inf)
+    row = np.empty(w_before)
+    for c in range(source.shape[0]):
+        t = target[c]
+        if t < 0:
+            continue
+        h = decision[c]
+        shift = 0
+        add = 0.0
+        if h >= 0:
+            shift = counts[h]
+            add = weights[h]
+        for k in range(w_before):
+            j = k + shift
+            row[k] = beta[t, j] + add if j < n else -np.inf
+        f = source[c]
+        for k in range(w_before):
+            new_beta[f, k] = _log_add(new_beta[f, k], row[k])
+        if h >= 0:
+            through = _log_sum_exp(alpha[f], row)
+            if through > -np.inf:
+                containing[h] = _log_add(containing[h], through)
+    return new_beta
+
+
+@njit(cache=True)
+def _backward_pass(
+    mass: FloatArray,
+    seed: FloatArray,
+    alphas: list[FloatArray],
+    sources: list[IntArray],
+    decisions: list[IntArray],
+    targets: list[IntArray],
+    counts: IntArray,
+    weights: FloatArray,
+    containing: FloatArray,
+) -> None:
+    """The backward pass of :func:`forward_backward` for one ``seed`` (shape
+    (kmax + 1,)): ``beta[frontier, j]``, the completions' weight from each frontier,
+    from the last position (final masses ``mass``) back to the first (the forward
+    pass's lists), adding to ``containing`` (shape (H,)) in place.  A completion counts
+    only where its frontier's forward mass is finite."""
+    final_cols = mass.shape[1]
+    beta = np.full((1, final_cols), -np.inf)
+    for k in range(final_cols):
+        beta[0, k] = seed[k]
+    after = mass
+    for r in range(len(alphas) - 1, 0, -1):
+        for f in range(beta.shape[0]):
+            for k in range(beta.shape[1]):
+                if not np.isfinite(after[f, k]):
+                    beta[f, k] = -np.inf
+        candidates = (sources[r], decisions[r], targets[r])
+        beta = _backward_step(beta, alphas[r], candidates, counts, weights, containing)
+        after = alphas[r]
 
 
 @njit(cache=True)
@@ -542,134 +920,38 @@ def forward_backward(
     log_containing : ndarray, shape (S, H)
     """
     H = relative.shape[0]
-    R = bounds.shape[0] - 1
     S, width = seeds.shape
-    kmax = width - 1
     log_mass = np.full(width, -np.inf)
     log_total = np.full(S, -np.inf)
     containing = np.full((S, H), -np.inf)
-    covers = np.zeros(1, dtype=np.uint64)
-    mass = np.zeros((1, 1))
-    work = 0
-    exact = True
-    alphas = [np.zeros((0, 0))]
-    sources = [np.zeros(0, dtype=np.int64)]
-    decisions = [np.zeros(0, dtype=np.int64)]
-    targets = [np.zeros(0, dtype=np.int64)]
-    for step in range(R):
-        reach = mass.shape[1] - 1
-        status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
-            covers,
-            relative,
-            by_start,
-            bounds,
-            exactly_one,
-            counts,
-            step,
-            reach + 1,
-            kmax,
-            work,
-            work_limit,
-            projected_limit,
-            entries_per_transition,
-            pair_block_entries,
-        )
-        if status != FOUND:
-            return status, work, step_work, R - 1 - step, exact, log_mass, log_total, containing
-        new_covers, source, decision, ranked, target = _candidates(
-            covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
-        )
-        n_new = new_covers.shape[0]
-        C = source.shape[0]
-        cand = _carried(mass, weights, source, decision, counts, cols)
-        new_mass = _summed(cand, ranked, target, n_new)
-        heaviest = np.empty(n_new)
-        for g in range(n_new):
-            top = -np.inf
-            for k in range(cols):
-                if new_mass[g, k] > top:
-                    top = new_mass[g, k]
-            heaviest[g] = top
-            if entry_margin < np.inf:
-                for k in range(cols):
-                    if new_mass[g, k] < top - entry_margin:
-                        new_mass[g, k] = -np.inf
-                        exact = False
-        if max_frontiers >= 0 and n_new > max_frontiers:
-            keys = np.empty(n_new, dtype=np.uint64)
-            for g in range(n_new):
-                keys[g] = _float_key(-heaviest[g])
-            chosen = _stable_order(keys)
-            kept = np.zeros(n_new, dtype=np.bool_)
-            for i in range(max_frontiers):
-                kept[chosen[i]] = True
-            renumber = np.full(n_new, -1, dtype=np.int64)
-            n_kept = 0
-            for g in range(n_new):
-                if kept[g]:
-                    renumber[g] = n_kept
-                    new_covers[n_kept] = new_covers[g]
-                    for k in range(cols):
-                        new_mass[n_kept, k] = new_mass[g, k]
-                    n_kept += 1
-            for c in range(C):
-                target[c] = renumber[target[c]]
-            new_covers = new_covers[:n_kept].copy()
-            new_mass = new_mass[:n_kept].copy()
-            exact = False
-        alphas.append(mass)
-        sources.append(source)
-        decisions.append(decision)
-        targets.append(target)
-        covers = new_covers
-        mass = new_mass
+    forward = _forward_pass(
+        relative,
+        by_start,
+        bounds,
+        exactly_one,
+        counts,
+        weights,
+        width - 1,
+        max_frontiers,
+        entry_margin,
+        work_limit,
+        projected_limit,
+        entries_per_transition,
+        pair_block_entries,
+    )
+    status, work, step_work, remaining, exact, frontiers, mass = forward[:7]
+    if status != FOUND:
+        return status, work, step_work, remaining, exact, log_mass, log_total, containing
+    alphas, sources, decisions, targets = forward[7:]
     # Every frontier word is 0 after the last position: one frontier remains.
-    final_cols = mass.shape[1]
-    if covers.shape[0]:
-        for k in range(final_cols):
+    if frontiers:
+        for k in range(mass.shape[1]):
             log_mass[k] = mass[0, k]
     for s in range(S):
         log_total[s] = _log_sum_exp(log_mass, seeds[s])
-        # Backward: beta[frontier, j], the completions' weight from each frontier.
-        beta = np.full((1, final_cols), -np.inf)
-        for k in range(final_cols):
-            beta[0, k] = seeds[s, k]
-        after = mass
-        for r in range(R, 0, -1):
-            alpha = alphas[r]
-            source = sources[r]
-            decision = decisions[r]
-            target = targets[r]
-            for f in range(beta.shape[0]):
-                for k in range(beta.shape[1]):
-                    if not np.isfinite(after[f, k]):
-                        beta[f, k] = -np.inf
-            frontiers, w_before = alpha.shape
-            n = min(beta.shape[1], w_before + 1)
-            new_beta = np.full((frontiers, w_before), -np.inf)
-            row = np.empty(w_before)
-            for c in range(source.shape[0]):
-                t = target[c]
-                if t < 0:
-                    continue
-                h = decision[c]
-                shift = 0
-                add = 0.0
-                if h >= 0:
-                    shift = counts[h]
-                    add = weights[h]
-                for k in range(w_before):
-                    j = k + shift
-                    row[k] = beta[t, j] + add if j < n else -np.inf
-                f = source[c]
-                for k in range(w_before):
-                    new_beta[f, k] = _log_add(new_beta[f, k], row[k])
-                if h >= 0:
-                    through = _log_sum_exp(alpha[f], row)
-                    if through > -np.inf:
-                        containing[s, h] = _log_add(containing[s, h], through)
-            beta = new_beta
-            after = alpha
+        _backward_pass(
+            mass, seeds[s], alphas, sources, decisions, targets, counts, weights, containing[s]
+        )
     return FOUND, work, 0, 0, exact, log_mass, log_total, containing
 
 

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
@@ -406,22 +407,7 @@ def _dictionary_search(
 ) -> FrontierResult:
     """The frontier search with one dictionary of k-entries per frontier (any problem
     whose hypotheses all use a resource; the general path behind the vectorised one)."""
-    H = problem.num_hypotheses
-    position = np.empty(problem.num_resources, dtype=np.int64)
-    position[order] = np.arange(order.size)
-    scores = problem.scores.tolist()
-    weights = problem.weights.tolist()
-    counts = problem.counts.astype(np.int64).tolist()
-    exactly_one = problem.exactly_one[order].tolist()
-    codes = [1 << (H - 1 - h) for h in range(H)]
-    starting: list[list[tuple[int, int]]] = [[] for _ in range(order.size)]
-    for h in range(H):
-        spots = position[problem.resources_of(h)]
-        mask = 0
-        for p in spots.tolist():
-            mask |= 1 << p
-        starting[int(spots.min())].append((h, mask))
-
+    layout = _DictionaryLayout.of(problem, order)
     work = 0
     next_check = _DEADLINE_CHECK_EVERY
     exact = True
@@ -438,37 +424,9 @@ def _dictionary_search(
     # frontier (bit mask of later resources already covered) -> {k: entry}
     states: dict[int, dict[int, _Entry]] = {0: {0: (0.0, 0, 0.0)}}
     for step in range(order.size):
-        bit = 1 << step
-        new: dict[int, dict[int, _Entry]] = {}
-        shared: set[int] = set()  # keys whose dict is still another frontier's (copy on write)
-
-        for cover, entries in states.items():
-            spend(len(entries))
-            if cover & bit:
-                _carry(new, shared, cover ^ bit, entries)
-                continue
-            if not exactly_one[step]:
-                _carry(new, shared, cover, entries)
-            for h, mask in starting[step]:
-                if mask & cover:
-                    continue
-                c, score, weight, member = counts[h], scores[h], weights[h], codes[h]
-                shifted = {
-                    k + c: (b + score, s | member, m + weight)
-                    for k, (b, s, m) in entries.items()
-                    if k + c <= kmax
-                }
-                if shifted:
-                    spend(len(shifted))
-                    _carry(new, shared, (cover | mask) ^ bit, shifted)
-        states = new
-        if entry_margin is not None:
-            for key, entries in states.items():
-                heaviest = max(m for _, _, m in entries.values())
-                light = [k for k, (_, _, m) in entries.items() if m < heaviest - entry_margin]
-                if light:
-                    states[key] = {k: e for k, e in entries.items() if k not in light}
-                    exact = False
+        states = layout.step(states, step, kmax, spend)
+        if entry_margin is not None and _drop_light_entries(states, entry_margin):
+            exact = False
         if max_frontiers is not None and len(states) > max_frontiers:
             ranked = sorted(
                 states.items(),
@@ -477,13 +435,12 @@ def _dictionary_search(
             states = dict(ranked[:max_frontiers])
             exact = False
         widest = max(widest, len(states))
-
     final = states.get(0, {})
     best = np.full(kmax + 1, _NEG_INF)
     mass = np.full(kmax + 1, _NEG_INF)
     sets: list[tuple[int, ...] | None] = [None] * (kmax + 1)
     for k, (b, s, m) in final.items():
-        best[k], mass[k], sets[k] = b, m, _members(s, H)
+        best[k], mass[k], sets[k] = b, m, _members(s, problem.num_hypotheses)
     return FrontierResult(
         best=best,
         best_sets=tuple(sets),
@@ -492,6 +449,94 @@ def _dictionary_search(
         work=work,
         max_frontiers=widest,
     )
+
+
+@dataclass(frozen=True)
+class _DictionaryLayout:
+    """What the dictionary search needs of a problem in the resource order, as Python
+    lists: each hypothesis's score, log-weight, count and member code (a bit, the first
+    hypothesis the highest), which positions are exactly-once, and the hypotheses
+    starting at each position with the bit mask of the positions they use."""
+
+    scores: list[float]
+    weights: list[float]
+    counts: list[int]
+    codes: list[int]
+    exactly_one: list[bool]
+    starting: list[list[tuple[int, int]]]
+
+    @classmethod
+    def of(cls, problem: PackingProblem, order: NDArray[np.int64]) -> _DictionaryLayout:
+        H = problem.num_hypotheses
+        position = np.empty(problem.num_resources, dtype=np.int64)
+        position[order] = np.arange(order.size)
+        starting: list[list[tuple[int, int]]] = [[] for _ in range(order.size)]
+        for h in range(H):
+            spots = position[problem.resources_of(h)]
+            mask = 0
+            for p in spots.tolist():
+                mask |= 1 << p
+            starting[int(spots.min())].append((h, mask))
+        return cls(
+            scores=problem.scores.tolist(),
+            weights=problem.weights.tolist(),
+            counts=problem.counts.astype(np.int64).tolist(),
+            codes=[1 << (H - 1 - h) for h in range(H)],
+            exactly_one=problem.exactly_one[order].tolist(),
+            starting=starting,
+        )
+
+    def step(
+        self,
+        states: dict[int, dict[int, _Entry]],
+        step: int,
+        kmax: int,
+        spend: Callable[[int], None],
+    ) -> dict[int, dict[int, _Entry]]:
+        """The frontiers after position ``step``: each frontier's entries carried when
+        the position is covered or may stay unused, and shifted through every
+        hypothesis starting here that fits it; ``spend`` charges the work."""
+        bit = 1 << step
+        new: dict[int, dict[int, _Entry]] = {}
+        shared: set[int] = set()  # keys whose dict is still another frontier's (copy on write)
+        for cover, entries in states.items():
+            spend(len(entries))
+            if cover & bit:
+                _carry(new, shared, cover ^ bit, entries)
+                continue
+            if not self.exactly_one[step]:
+                _carry(new, shared, cover, entries)
+            for h, mask in self.starting[step]:
+                if mask & cover:
+                    continue
+                c, score, weight, member = (
+                    self.counts[h],
+                    self.scores[h],
+                    self.weights[h],
+                    self.codes[h],
+                )
+                shifted = {
+                    k + c: (b + score, s | member, m + weight)
+                    for k, (b, s, m) in entries.items()
+                    if k + c <= kmax
+                }
+                if shifted:
+                    spend(len(shifted))
+                    _carry(new, shared, (cover | mask) ^ bit, shifted)
+        return new
+
+
+def _drop_light_entries(states: dict[int, dict[int, _Entry]], entry_margin: float) -> bool:
+    """Drop, in place, each frontier's k-entries whose mass is more than
+    ``entry_margin`` below its heaviest; whether any was dropped."""
+    dropped = False
+    for key, entries in states.items():
+        heaviest = max(m for _, _, m in entries.values())
+        light = [k for k, (_, _, m) in entries.items() if m < heaviest - entry_margin]
+        if light:
+            states[key] = {k: e for k, e in entries.items() if k not in light}
+            dropped = True
+    return dropped
 
 
 FRONTIER_KERNELS = "mapassoc.formulations.compiled_frontier"
@@ -512,10 +557,10 @@ _VECTORISE_MIN_HYPOTHESES = 40
 WORK_COUNT_MIN_HYPOTHESES = 200
 """Exact searches with a work limit of at least this many hypotheses count their work on
 the frontier words first (:func:`exact_search_work`, about a tenth of the search's
-cost).  Measured on 80 clusters of converging, dense_radar, parallel and dense_pd08: the
-20 that pass the default limit all have 200 hypotheses or more (the count: 0.35 s; the
-searches up to the limit: 3.4 s), and on the 23 of that size that fit the count adds
-a fifth (0.29 s to 1.42 s); below 200 the count is never needed."""
+cost).  On the clusters of the converging, dense_radar, parallel and dense_pd08
+families, those that pass the default limit all have 200 hypotheses or more, so a
+smaller search never needs the count; on a larger one, the count costs far less than
+running the search up to the limit, and adds a small share to a search that fits."""
 
 
 def hypothesis_spans(
@@ -715,6 +760,14 @@ def fits_counted_work(
     return True
 
 
+_ONE = np.uint64(1)
+
+_Back = tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], int]
+"""One step of the vectorised search, for tracing the best sets back: the winning
+candidate of each (frontier, k) (int32, the big array), each candidate's previous
+frontier and decision, and the k of the winners' column 0."""
+
+
 def _vectorised_search(
     problem: PackingProblem,
     kmax: int,
@@ -756,13 +809,7 @@ def _vectorised_search(
             _check_limits(0, None, deadline)
             return _compiled_search(kernel, problem, kmax, layout, work_limit, projected_limit)
     R = order.size
-    relative, by_start, bounds, exactly_one = layout
-    counts = problem.counts.astype(np.int64)
-    scores = problem.scores
-    weights = problem.weights
     width = kmax + 1
-    one = np.uint64(1)
-
     exact = True
     covers = np.zeros(1, dtype=np.uint64)
     # Columns: k = low..reach, reach growing with the sets; low rises when every
@@ -770,90 +817,219 @@ def _vectorised_search(
     best = np.zeros((1, 1))
     mass = np.zeros((1, 1))
     low = 0
-    # Per step: the winning candidate of each (frontier, k) (int32, the big array), each
-    # candidate's previous frontier and decision, and the k of the winners' column 0.
-    back: list[tuple[NDArray[np.int32], NDArray[np.int64], NDArray[np.int64], int]] = []
+    back: list[_Back] = []
     work = 0
     widest = 1
     for step in range(R):
-        covered = (covers & one).astype(bool)
-        keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(covers.size)
-        starting = by_start[bounds[step] : bounds[step + 1]]
-        span_now = best.shape[1]  # columns k = low..low + span_now - 1
-        most = pair_budget(work_limit, work, span_now, keep.size, _VECTOR_ENTRIES_PER_TRANSITION)
-        pair_row, pair_h = open_pairs(covers, covered, relative, starting, most)
-        grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and low + span_now <= kmax)
-        cols = span_now + grow
-        source = np.concatenate([keep, pair_row])
-        # Charged before the step's arrays are built, so a limit never overshoots.
-        step_work = -(-source.size * cols // _VECTOR_ENTRIES_PER_TRANSITION)
+        keep, pair_row, pair_h, cols, step_work = _vector_step_rows(
+            problem, layout, covers, step, best.shape[1], low, kmax, work, work_limit
+        )
         work += step_work
         _check_limits(work, work_limit, deadline)
         check_projection(
             "frontier search", work, step_work, R - 1 - step, projected_limit, work_limit
         )
-        if source.size == 0:  # an exactly-once resource no frontier can satisfy
+        if keep.size + pair_row.size == 0:  # an exactly-once resource no frontier meets
             infeasible = np.full(width, _NEG_INF)
             return _result(infeasible, infeasible, [None] * width, work, widest, exact)
-        cand_best = np.full((source.size, cols), _NEG_INF)
-        cand_mass = np.full((source.size, cols), _NEG_INF)
-        cand_best[: keep.size, :span_now] = best[keep]
-        cand_mass[: keep.size, :span_now] = mass[keep]
-        taken = keep.size + np.arange(pair_h.size)
-        for c in (0, 1):
-            sel = counts[pair_h] == c
-            if not np.any(sel):
-                continue
-            rows_in, rows_out = pair_row[sel], taken[sel]
-            span = min(span_now, cols - c)
-            cand_best[rows_out, c : c + span] = best[rows_in, :span] + scores[pair_h[sel], None]
-            cand_mass[rows_out, c : c + span] = mass[rows_in, :span] + weights[pair_h[sel], None]
+        cand_best, cand_mass = _vector_candidates(problem, best, mass, keep, pair_row, pair_h, cols)
         cand_covers = np.concatenate(
-            [covers[keep] >> one, (covers[pair_row] | relative[pair_h]) >> one]
+            [covers[keep] >> _ONE, (covers[pair_row] | layout[0][pair_h]) >> _ONE]
         )
-        cand_decision = np.concatenate([np.full(keep.size, -1, dtype=np.int64), pair_h])
-        # One stable sort by frontier word: the candidates of a frontier stay in order.
-        ranked = np.argsort(cand_covers, kind="stable")
-        sorted_covers = cand_covers[ranked]
-        new_frontier = np.r_[True, sorted_covers[1:] != sorted_covers[:-1]]
-        starts = np.flatnonzero(new_frontier)
-        group_sorted = np.cumsum(new_frontier) - 1
-        unique = sorted_covers[starts]
-        sorted_best = cand_best[ranked]
-        with np.errstate(invalid="ignore"):
-            mass = np.logaddexp.reduceat(cand_mass[ranked], starts, axis=0)
-        best = np.maximum.reduceat(sorted_best, starts, axis=0)
-        hits = np.where(
-            sorted_best == best[group_sorted], np.arange(ranked.size)[:, None], ranked.size
-        )
-        winner = ranked[np.minimum.reduceat(hits, starts, axis=0)]
-        covers = unique
+        covers, best, mass, winner = _vector_merged(cand_covers, cand_best, cand_mass)
         widest = max(widest, covers.size)
-        if entry_margin is not None:
-            light = mass < mass.max(axis=1, keepdims=True) - entry_margin
-            if np.any(light):
-                mass[light] = best[light] = _NEG_INF
-                exact = False
-                # Columns empty in every frontier go (the next steps' work shrinks).
-                live = np.flatnonzero(np.isfinite(mass).any(axis=0))
-                if live.size and (live[0] > 0 or live[-1] < mass.shape[1] - 1):
-                    lo, hi = int(live[0]), int(live[-1]) + 1
-                    best, mass = best[:, lo:hi], mass[:, lo:hi]
-                    winner = winner[:, lo:hi]
-                    low += lo
-        if max_frontiers is not None and covers.size > max_frontiers:
-            heaviest = mass.max(axis=1)
-            kept = np.sort(np.argsort(-heaviest, kind="stable")[:max_frontiers])
-            covers, best, mass, winner = covers[kept], best[kept], mass[kept], winner[kept]
-            exact = False
-        back.append((winner.astype(np.int32), source, cand_decision, low))
+        covers, best, mass, winner, lo, kept_all = _vector_pruned(
+            covers, best, mass, winner, entry_margin, max_frontiers
+        )
+        low += lo
+        exact = exact and kept_all
+        decision = np.concatenate([np.full(keep.size, -1, dtype=np.int64), pair_h])
+        back.append((winner.astype(np.int32), np.concatenate([keep, pair_row]), decision, low))
     # Every frontier word is 0 after the last position: one state remains.
+    return _final_vector_result(problem, back, best[0], mass[0], low, width, work, widest, exact)
+
+
+def _vector_pruned(
+    covers: NDArray[np.uint64],
+    best: NDArray[np.float64],
+    mass: NDArray[np.float64],
+    winner: NDArray[np.int64],
+    entry_margin: float | None,
+    max_frontiers: int | None,
+) -> tuple[
+    NDArray[np.uint64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64], int, bool
+]:
+    """A step's merged frontiers after the beam (:func:`_vector_entry_margin`, then
+    :func:`_vector_beam`; ``None``: that part off): the tables, the columns dropped on
+    the left and whether nothing was dropped."""
+    low_rise = 0
+    kept_all = True
+    if entry_margin is not None:
+        best, mass, winner, low_rise, dropped = _vector_entry_margin(
+            best, mass, winner, entry_margin
+        )
+        kept_all = not dropped
+    if max_frontiers is not None and covers.size > max_frontiers:
+        covers, best, mass, winner = _vector_beam(covers, best, mass, winner, max_frontiers)
+        kept_all = False
+    return covers, best, mass, winner, low_rise, kept_all
+
+
+def _final_vector_result(
+    problem: PackingProblem,
+    back: list[_Back],
+    best: NDArray[np.float64],
+    mass: NDArray[np.float64],
+    low: int,
+    width: int,
+    work: int,
+    widest: int,
+    exact: bool,
+) -> FrontierResult:
+    """The result from the last frontier's best scores and masses (shape (columns,),
+    for k = low..) and the steps ``back``."""
     final_best = np.full(width, _NEG_INF)
     final_mass = np.full(width, _NEG_INF)
-    final_best[low : low + best.shape[1]] = best[0]
-    final_mass[low : low + mass.shape[1]] = mass[0]
-    sets: list[tuple[int, ...] | None] = [None] * width
-    for k in range(low, low + best.shape[1]):
+    final_best[low : low + best.shape[0]] = best
+    final_mass[low : low + mass.shape[0]] = mass
+    sets = _traced_vector_sets(back, problem.counts.astype(np.int64), final_best, low)
+    return _result(final_best, final_mass, sets, work, widest, exact)
+
+
+def _vector_step_rows(
+    problem: PackingProblem,
+    layout: _WordLayout,
+    covers: NDArray[np.uint64],
+    step: int,
+    span_now: int,
+    low: int,
+    kmax: int,
+    work: int,
+    work_limit: int | None,
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], int, int]:
+    """A step's candidate rows: the frontiers kept (all, or those covering an
+    exactly-once position), then the open (frontier, hypothesis) pairs
+    (:func:`open_pairs`, within what ``work_limit`` leaves); the k columns after the
+    step (the ``span_now`` columns k = low..low + span_now - 1, one more where a
+    counted hypothesis is taken and ``low + span_now`` is at most ``kmax``) and the
+    step's work, charged before the step's arrays are built so that a limit never
+    overshoots.
+
+    Returns
+    -------
+    keep, pair_row, pair_h : ndarray of int
+    cols, step_work : int
+    """
+    relative, by_start, bounds, exactly_one = layout
+    counts = problem.counts.astype(np.int64)
+    covered = (covers & _ONE).astype(bool)
+    keep = np.flatnonzero(covered) if exactly_one[step] else np.arange(covers.size)
+    starting = by_start[bounds[step] : bounds[step + 1]]
+    most = pair_budget(work_limit, work, span_now, keep.size, _VECTOR_ENTRIES_PER_TRANSITION)
+    pair_row, pair_h = open_pairs(covers, covered, relative, starting, most)
+    grow = int(pair_h.size > 0 and counts[pair_h].max() > 0 and low + span_now <= kmax)
+    cols = span_now + grow
+    step_work = -(-(keep.size + pair_row.size) * cols // _VECTOR_ENTRIES_PER_TRANSITION)
+    return keep, pair_row, pair_h, cols, step_work
+
+
+def _vector_candidates(
+    problem: PackingProblem,
+    best: NDArray[np.float64],
+    mass: NDArray[np.float64],
+    keep: NDArray[np.int64],
+    pair_row: NDArray[np.int64],
+    pair_h: NDArray[np.int64],
+    cols: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each candidate row's best scores and masses after the step, shape (C, cols): a
+    kept frontier's entries as they were, a pair's frontier's entries shifted by the
+    hypothesis's count and plus its score and log-weight; ``-inf`` elsewhere."""
+    counts = problem.counts.astype(np.int64)
+    span_now = best.shape[1]
+    size = keep.size + pair_row.size
+    cand_best = np.full((size, cols), _NEG_INF)
+    cand_mass = np.full((size, cols), _NEG_INF)
+    cand_best[: keep.size, :span_now] = best[keep]
+    cand_mass[: keep.size, :span_now] = mass[keep]
+    taken = keep.size + np.arange(pair_h.size)
+    for c in (0, 1):
+        sel = counts[pair_h] == c
+        if not np.any(sel):
+            continue
+        rows_in, rows_out = pair_row[sel], taken[sel]
+        span = min(span_now, cols - c)
+        scores, weights = problem.scores[pair_h[sel], None], problem.weights[pair_h[sel], None]
+        cand_best[rows_out, c : c + span] = best[rows_in, :span] + scores
+        cand_mass[rows_out, c : c + span] = mass[rows_in, :span] + weights
+    return cand_best, cand_mass
+
+
+def _vector_merged(
+    cand_covers: NDArray[np.uint64],
+    cand_best: NDArray[np.float64],
+    cand_mass: NDArray[np.float64],
+) -> tuple[NDArray[np.uint64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """The frontiers the candidates reach (sorted distinct words), their best scores and
+    masses, and each (frontier, k)'s winning candidate: one stable sort by word keeps a
+    frontier's candidates in order, masses are summed by ``logaddexp.reduceat`` and the
+    first candidate reaching the maximum wins."""
+    ranked = np.argsort(cand_covers, kind="stable")
+    sorted_covers = cand_covers[ranked]
+    new_frontier = np.r_[True, sorted_covers[1:] != sorted_covers[:-1]]
+    starts = np.flatnonzero(new_frontier)
+    group_sorted = np.cumsum(new_frontier) - 1
+    sorted_best = cand_best[ranked]
+    with np.errstate(invalid="ignore"):
+        mass = np.logaddexp.reduceat(cand_mass[ranked], starts, axis=0)
+    best = np.maximum.reduceat(sorted_best, starts, axis=0)
+    hits = np.where(sorted_best == best[group_sorted], np.arange(ranked.size)[:, None], ranked.size)
+    winner = ranked[np.minimum.reduceat(hits, starts, axis=0)]
+    return sorted_covers[starts], best, mass, winner
+
+
+def _vector_entry_margin(
+    best: NDArray[np.float64],
+    mass: NDArray[np.float64],
+    winner: NDArray[np.int64],
+    entry_margin: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64], int, bool]:
+    """Drop each frontier's k-entries more than ``entry_margin`` below its heaviest, and
+    the columns then empty in every frontier at either end (the next steps' work
+    shrinks).  Returns the tables, the columns dropped on the left (``low`` rises by
+    them) and whether anything was dropped."""
+    light = mass < mass.max(axis=1, keepdims=True) - entry_margin
+    if not np.any(light):
+        return best, mass, winner, 0, False
+    mass[light] = best[light] = _NEG_INF
+    live = np.flatnonzero(np.isfinite(mass).any(axis=0))
+    if live.size and (live[0] > 0 or live[-1] < mass.shape[1] - 1):
+        lo, hi = int(live[0]), int(live[-1]) + 1
+        return best[:, lo:hi], mass[:, lo:hi], winner[:, lo:hi], lo, True
+    return best, mass, winner, 0, True
+
+
+def _vector_beam(
+    covers: NDArray[np.uint64],
+    best: NDArray[np.float64],
+    mass: NDArray[np.float64],
+    winner: NDArray[np.int64],
+    max_frontiers: int,
+) -> tuple[NDArray[np.uint64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """The ``max_frontiers`` frontiers of heaviest entry (ties: the earlier word), in
+    their order."""
+    heaviest = mass.max(axis=1)
+    kept = np.sort(np.argsort(-heaviest, kind="stable")[:max_frontiers])
+    return covers[kept], best[kept], mass[kept], winner[kept]
+
+
+def _traced_vector_sets(
+    back: list[_Back], counts: NDArray[np.int64], final_best: NDArray[np.float64], low: int
+) -> list[tuple[int, ...] | None]:
+    """Each k's best set (``None`` where the best score is not finite), by following
+    the winners of the steps ``back`` from the last frontier to the first."""
+    sets: list[tuple[int, ...] | None] = [None] * final_best.shape[0]
+    for k in range(low, final_best.shape[0]):
         if not np.isfinite(final_best[k]):
             continue
         chosen = []
@@ -866,7 +1042,7 @@ def _vectorised_search(
                 chosen.append(h)
                 remaining -= int(counts[h])
         sets[k] = tuple(sorted(chosen))
-    return _result(final_best, final_mass, sets, work, widest, exact)
+    return sets
 
 
 def _compiled_search(

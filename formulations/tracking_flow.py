@@ -274,34 +274,12 @@ def tracking_flow_program(
     entry = _check_items("entry_costs", entry_costs, n, allow_inf=True)
     exits = _check_items("exit_costs", exit_costs, n, allow_inf=True)
     tails, heads, costs = _check_links(n, link_tails, link_heads, link_costs)
-    must = np.zeros(n, dtype=bool) if forced is None else np.asarray(forced, dtype=bool)
-    if must.shape != (n,):
-        raise ValueError(f"forced must have shape ({n},), got {must.shape}")
-    if np.any(must & ~np.isfinite(entry)):
-        i = int(np.flatnonzero(must & ~np.isfinite(entry))[0])
-        raise ValueError(
-            f"forced[{i}] is set but entry_costs[{i}] = {float(entry[i])!r}; every forced item "
-            "needs a finite entry cost"
-        )
+    must = _check_forced(forced, entry, n)
     if isinstance(max_flow, bool) or not isinstance(max_flow, (int, np.integer)) or max_flow < 0:
         raise ValueError(f"max_flow must be an integer >= 0, got {max_flow!r}")
-
-    items = np.arange(n, dtype=np.int64)
-    has_entry = np.flatnonzero(np.isfinite(entry))
-    has_exit = np.flatnonzero(np.isfinite(exits))
-    parts = [
-        (EDGE_ENTRY, has_entry, np.full(has_entry.size, SOURCE), _in_node(has_entry),
-         entry[has_entry]),
-        (EDGE_OBSERVATION, items, _in_node(items), _out_node(items), observation),
-        (EDGE_LINK, tails, _out_node(tails), _in_node(heads), costs),
-        (EDGE_EXIT, has_exit, _out_node(has_exit), np.full(has_exit.size, SINK),
-         exits[has_exit]),
-    ]
-    kind = np.concatenate([np.full(p[1].size, p[0], dtype=np.int64) for p in parts])
-    edge_item = np.concatenate([p[1] for p in parts]).astype(np.int64)
-    edge_tail = np.concatenate([p[2] for p in parts]).astype(np.int64)
-    edge_head = np.concatenate([p[3] for p in parts]).astype(np.int64)
-    edge_cost = np.concatenate([p[4] for p in parts]).astype(float)
+    kind, edge_item, edge_tail, edge_head, edge_cost = _tracking_edges(
+        entry, observation, exits, tails, heads, costs
+    )
     bonus = 0.0
     if np.any(must):
         bonus = 1.0 + 2.0 * math.fsum(np.abs(edge_cost).tolist())
@@ -326,6 +304,52 @@ def tracking_flow_program(
         forced=must,
         bonus=bonus,
     )
+
+
+def _check_forced(forced: NDArray[np.bool_] | None, entry: FloatArray, n: int) -> NDArray[np.bool_]:
+    """``forced`` as a bool array of shape (n,) (``None``: none), refused where a forced
+    item has no finite entry cost."""
+    must = np.zeros(n, dtype=bool) if forced is None else np.asarray(forced, dtype=bool)
+    if must.shape != (n,):
+        raise ValueError(f"forced must have shape ({n},), got {must.shape}")
+    if np.any(must & ~np.isfinite(entry)):
+        i = int(np.flatnonzero(must & ~np.isfinite(entry))[0])
+        raise ValueError(
+            f"forced[{i}] is set but entry_costs[{i}] = {float(entry[i])!r}; every forced item "
+            "needs a finite entry cost"
+        )
+    return must
+
+
+def _tracking_edges(
+    entry: FloatArray,
+    observation: FloatArray,
+    exits: FloatArray,
+    tails: IntArray,
+    heads: IntArray,
+    costs: FloatArray,
+) -> tuple[IntArray, IntArray, IntArray, IntArray, FloatArray]:
+    """The program's edges, entries (finite ones, by item), observations, links, then
+    exits (finite ones, by item): each edge's kind, item (a link's: its tail), tail
+    node, head node and cost."""
+    n = observation.shape[0]
+    items = np.arange(n, dtype=np.int64)
+    has_entry = np.flatnonzero(np.isfinite(entry))
+    has_exit = np.flatnonzero(np.isfinite(exits))
+    parts = [
+        (EDGE_ENTRY, has_entry, np.full(has_entry.size, SOURCE), _in_node(has_entry),
+         entry[has_entry]),
+        (EDGE_OBSERVATION, items, _in_node(items), _out_node(items), observation),
+        (EDGE_LINK, tails, _out_node(tails), _in_node(heads), costs),
+        (EDGE_EXIT, has_exit, _out_node(has_exit), np.full(has_exit.size, SINK),
+         exits[has_exit]),
+    ]
+    kind = np.concatenate([np.full(p[1].size, p[0], dtype=np.int64) for p in parts])
+    edge_item = np.concatenate([p[1] for p in parts]).astype(np.int64)
+    edge_tail = np.concatenate([p[2] for p in parts]).astype(np.int64)
+    edge_head = np.concatenate([p[3] for p in parts]).astype(np.int64)
+    edge_cost = np.concatenate([p[4] for p in parts]).astype(float)
+    return kind, edge_item, edge_tail, edge_head, edge_cost
 
 
 def through_costs(
@@ -525,79 +549,128 @@ def successive_shortest_paths(flow: TrackingFlow) -> Iterator[tuple[float, IntAr
     Stops after ``program.max_flow`` or when no further unit of flow is feasible.
     """
     prog = flow.program
-    tails = prog.tails.tolist()
-    heads = prog.heads.tolist()
-    costs = prog.costs.tolist()
-    num_nodes, num_edges = prog.num_nodes, prog.num_edges
-    out_edges: list[list[int]] = [[] for _ in range(num_nodes)]
-    in_edges: list[list[int]] = [[] for _ in range(num_nodes)]
-    for e in range(num_edges):
-        out_edges[tails[e]].append(e)
-        in_edges[heads[e]].append(e)
-    # Shortest distances from the source: nodes in a topological order (source, then the
-    # in and out node of each item in item order, then the sink).
+    graph = _ResidualGraph.of(prog)
+    potential = _dag_distances(graph)
+    used = [0] * prog.num_edges
+    yield 0.0, np.zeros(prog.num_edges, dtype=np.int64)
+    for _ in range(prog.max_flow):
+        if potential[SINK] == math.inf:
+            return
+        dist, via, done = _residual_dijkstra(graph, potential, used)
+        if not done[SINK]:
+            return
+        _augment(graph, via, used)
+        # Nodes not reached stay unreachable (new residual edges join reached nodes only).
+        for node in range(prog.num_nodes):
+            potential[node] = potential[node] + dist[node] if done[node] else math.inf
+        total = math.fsum(graph.costs[e] for e in range(prog.num_edges) if used[e])
+        yield total, np.array(used, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class _ResidualGraph:
+    """A flow program's edges as Python lists (tails, heads, costs) with each node's
+    outgoing and incoming edges, for :func:`successive_shortest_paths`."""
+
+    tails: list[int]
+    heads: list[int]
+    costs: list[float]
+    out_edges: list[list[int]]
+    in_edges: list[list[int]]
+
+    @classmethod
+    def of(cls, prog: FlowProgram) -> _ResidualGraph:
+        tails = prog.tails.tolist()
+        heads = prog.heads.tolist()
+        out_edges: list[list[int]] = [[] for _ in range(prog.num_nodes)]
+        in_edges: list[list[int]] = [[] for _ in range(prog.num_nodes)]
+        for e in range(prog.num_edges):
+            out_edges[tails[e]].append(e)
+            in_edges[heads[e]].append(e)
+        return cls(tails, heads, prog.costs.tolist(), out_edges, in_edges)
+
+
+def _dag_distances(graph: _ResidualGraph) -> list[float]:
+    """Shortest distances from the source (``inf``: unreachable), by one pass over the
+    nodes in a topological order: the source, then the in and out node of each item in
+    item order, then the sink."""
+    num_nodes = len(graph.out_edges)
     potential = [math.inf] * num_nodes
     potential[SOURCE] = 0.0
     for node in [SOURCE, *range(2, num_nodes), SINK]:
         here = potential[node]
         if here == math.inf:
             continue
-        for e in out_edges[node]:
-            there = here + costs[e]
-            if there < potential[heads[e]]:
-                potential[heads[e]] = there
-    used = [0] * num_edges
-    yield 0.0, np.zeros(num_edges, dtype=np.int64)
-    for _ in range(prog.max_flow):
-        if potential[SINK] == math.inf:
-            return
-        # Dijkstra on the residual graph: forward edges without flow, backward edges with.
-        dist = [math.inf] * num_nodes
-        via = [-1] * num_nodes  # edge reaching the node: e forward, ~e backward
-        dist[SOURCE] = 0.0
-        heap = [(0.0, SOURCE)]
-        done = [False] * num_nodes
-        while heap:
-            d, node = heapq.heappop(heap)
-            if done[node]:
+        for e in graph.out_edges[node]:
+            there = here + graph.costs[e]
+            if there < potential[graph.heads[e]]:
+                potential[graph.heads[e]] = there
+    return potential
+
+
+def _residual_dijkstra(
+    graph: _ResidualGraph, potential: list[float], used: list[int]
+) -> tuple[list[float], list[int], list[bool]]:
+    """Dijkstra on the residual graph of the flow ``used`` (forward edges without flow,
+    backward edges with) under the costs reduced by ``potential``, negative reduced
+    costs (float error) clamped at 0.
+
+    Returns
+    -------
+    dist : list of float
+        Each node's reduced distance from the source.
+    via : list of int
+        The edge reaching each node: ``e`` forward, ``~e`` backward (``-1``: none).
+    done : list of bool
+        Which nodes were reached.
+    """
+    num_nodes = len(graph.out_edges)
+    tails, heads, costs = graph.tails, graph.heads, graph.costs
+    dist = [math.inf] * num_nodes
+    via = [-1] * num_nodes
+    dist[SOURCE] = 0.0
+    heap = [(0.0, SOURCE)]
+    done = [False] * num_nodes
+    while heap:
+        d, node = heapq.heappop(heap)
+        if done[node]:
+            continue
+        done[node] = True
+        pu = potential[node]
+        for e in graph.out_edges[node]:
+            if used[e]:
                 continue
-            done[node] = True
-            pu = potential[node]
-            for e in out_edges[node]:
-                if used[e]:
-                    continue
-                v = heads[e]
-                if done[v]:
-                    continue
-                nd = d + max(costs[e] + pu - potential[v], 0.0)
-                if nd < dist[v]:
-                    dist[v] = nd
-                    via[v] = e
-                    heapq.heappush(heap, (nd, v))
-            for e in in_edges[node]:
-                if not used[e]:
-                    continue
-                v = tails[e]
-                if done[v]:
-                    continue
-                nd = d + max(-costs[e] + pu - potential[v], 0.0)
-                if nd < dist[v]:
-                    dist[v] = nd
-                    via[v] = ~e
-                    heapq.heappush(heap, (nd, v))
-        if not done[SINK]:
-            return
-        node = SINK
-        while node != SOURCE:
-            e = via[node]
-            if e >= 0:
-                used[e] = 1
-                node = tails[e]
-            else:
-                used[~e] = 0
-                node = heads[~e]
-        # Nodes not reached stay unreachable (new residual edges join reached nodes only).
-        for node in range(num_nodes):
-            potential[node] = potential[node] + dist[node] if done[node] else math.inf
-        total = math.fsum(costs[e] for e in range(num_edges) if used[e])
-        yield total, np.array(used, dtype=np.int64)
+            v = heads[e]
+            if done[v]:
+                continue
+            nd = d + max(costs[e] + pu - potential[v], 0.0)
+            if nd < dist[v]:
+                dist[v] = nd
+                via[v] = e
+                heapq.heappush(heap, (nd, v))
+        for e in graph.in_edges[node]:
+            if not used[e]:
+                continue
+            v = tails[e]
+            if done[v]:
+                continue
+            nd = d + max(-costs[e] + pu - potential[v], 0.0)
+            if nd < dist[v]:
+                dist[v] = nd
+                via[v] = ~e
+                heapq.heappush(heap, (nd, v))
+    return dist, via, done
+
+
+def _augment(graph: _ResidualGraph, via: list[int], used: list[int]) -> None:
+    """Push one unit of flow along the path ``via`` from the sink back to the source,
+    in place in ``used`` (a backward edge cancels its flow)."""
+    node = SINK
+    while node != SOURCE:
+        e = via[node]
+        if e >= 0:
+            used[e] = 1
+            node = graph.tails[e]
+        else:
+            used[~e] = 0
+            node = graph.heads[~e]

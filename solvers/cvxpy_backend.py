@@ -71,6 +71,39 @@ def _selection(indices: NDArray[np.intp], n: int) -> sp.csr_matrix:
     return sp.csr_matrix((np.ones(k), (indices, np.arange(k))), shape=(n, k))
 
 
+def _cvxpy_problem(
+    cp: Any, program: Program
+) -> tuple[Any, list[tuple[NDArray[np.intp], cvxpy.Variable]], Any, Any]:
+    """``program`` as a cvxpy maximisation: the problem, its variable blocks (the
+    integer then the continuous variables, each with the indices it places), and its
+    inequality and equality rows (``None`` where the program has none) for the duals."""
+    n = program.num_variables
+    integer_idx = np.flatnonzero(program.integrality)
+    continuous_idx = np.flatnonzero(~program.integrality)
+    blocks: list[tuple[NDArray[np.intp], cvxpy.Variable]] = []
+    if integer_idx.size:
+        blocks.append((integer_idx, cp.Variable(integer_idx.size, integer=True)))
+    if continuous_idx.size:
+        blocks.append((continuous_idx, cp.Variable(continuous_idx.size)))
+    x = sum(_selection(idx, n) @ var for idx, var in blocks)
+
+    ub_rows = eq_rows = None
+    constraints = []
+    if program.A_ub.shape[0]:
+        ub_rows = sp.csr_matrix(program.A_ub) @ x <= program.b_ub
+        constraints.append(ub_rows)
+    if program.A_eq.shape[0]:
+        eq_rows = sp.csr_matrix(program.A_eq) @ x == program.b_eq
+        constraints.append(eq_rows)
+    for values, is_lower in ((program.lower, True), (program.upper, False)):
+        finite = np.flatnonzero(np.isfinite(values))
+        if finite.size:
+            picked = _selection(finite, n).T @ x
+            constraints.append(picked >= values[finite] if is_lower else picked <= values[finite])
+    problem = cp.Problem(cp.Maximize(program.objective @ x), constraints)
+    return problem, blocks, ub_rows, eq_rows
+
+
 class CvxpySolver:
     """Program backend through cvxpy.
 
@@ -150,31 +183,7 @@ class CvxpySolver:
             return self._empty(program, time.perf_counter() - started)
         cp = self._cvxpy()
         n = program.num_variables
-        integer_idx = np.flatnonzero(program.integrality)
-        continuous_idx = np.flatnonzero(~program.integrality)
-        blocks: list[tuple[NDArray[np.intp], cvxpy.Variable]] = []
-        if integer_idx.size:
-            blocks.append((integer_idx, cp.Variable(integer_idx.size, integer=True)))
-        if continuous_idx.size:
-            blocks.append((continuous_idx, cp.Variable(continuous_idx.size)))
-        x = sum(_selection(idx, n) @ var for idx, var in blocks)
-
-        ub_rows = eq_rows = None
-        constraints = []
-        if program.A_ub.shape[0]:
-            ub_rows = sp.csr_matrix(program.A_ub) @ x <= program.b_ub
-            constraints.append(ub_rows)
-        if program.A_eq.shape[0]:
-            eq_rows = sp.csr_matrix(program.A_eq) @ x == program.b_eq
-            constraints.append(eq_rows)
-        for values, is_lower in ((program.lower, True), (program.upper, False)):
-            finite = np.flatnonzero(np.isfinite(values))
-            if finite.size:
-                picked = _selection(finite, n).T @ x
-                constraints.append(
-                    picked >= values[finite] if is_lower else picked <= values[finite]
-                )
-        problem = cp.Problem(cp.Maximize(program.objective @ x), constraints)
+        problem, blocks, ub_rows, eq_rows = _cvxpy_problem(cp, program)
 
         options: dict[str, float] = {}
         if limit is not None:

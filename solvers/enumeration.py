@@ -293,28 +293,8 @@ class EnumerationSolver:
             node_limit=self.node_limit,
             deadline=None if limit is None else started + limit,
         )
-        coefficients = [float(c) for c in program.objective]
-        constant = program.constant
-        best_value = -math.inf
-        best_point: tuple[int, ...] | None = None
-        running_max = -math.inf
-        scaled_terms: list[float] = []  # exp(value - running_max)
-        count = 0
-        for leaf in search.leaves():
-            value = math.fsum([constant, *(c for c, v in zip(coefficients, leaf, strict=True)
-                                            if v)])
-            count += 1
-            if value > best_value:  # strict: the first (lexicographically smallest) optimum
-                best_value, best_point = value, leaf
-            if value > running_max:
-                if scaled_terms:
-                    scaled_terms = [math.fsum(scaled_terms) * math.exp(running_max - value)]
-                running_max = value
-            scaled_terms.append(math.exp(value - running_max))
+        best_value, best_point, log_sum_exp, count = _enumerated(search, program)
         seconds = time.perf_counter() - started
-        log_sum_exp = (
-            running_max + math.log(math.fsum(scaled_terms)) if scaled_terms else -math.inf
-        )
         solution = None if best_point is None else np.array(best_point, dtype=float)
         objective = math.nan if best_point is None else best_value
         stats = f"{count} feasible points, {search.nodes} search nodes"
@@ -338,3 +318,32 @@ class EnumerationSolver:
             message=f"complete enumeration: {stats}",
             log_sum_exp=log_sum_exp, num_feasible=count,
         )
+
+
+def _enumerated(
+    search: _BinarySearch, program: Program
+) -> tuple[float, tuple[int, ...] | None, float, int]:
+    """Every leaf of ``search`` valued by ``program``'s objective (plus its constant,
+    summed exactly): the best value and its first (lexicographically smallest) point
+    (``-inf``, ``None``: no leaf), the log of the sum of exp(value) (``-inf``: no leaf)
+    and the number of leaves.  The exponentials are kept relative to the running
+    maximum, so that none overflows."""
+    coefficients = [float(c) for c in program.objective]
+    constant = program.constant
+    best_value = -math.inf
+    best_point: tuple[int, ...] | None = None
+    running_max = -math.inf
+    scaled_terms: list[float] = []  # exp(value - running_max)
+    count = 0
+    for leaf in search.leaves():
+        value = math.fsum([constant, *(c for c, v in zip(coefficients, leaf, strict=True) if v)])
+        count += 1
+        if value > best_value:  # strict: the first (lexicographically smallest) optimum
+            best_value, best_point = value, leaf
+        if value > running_max:
+            if scaled_terms:
+                scaled_terms = [math.fsum(scaled_terms) * math.exp(running_max - value)]
+            running_max = value
+        scaled_terms.append(math.exp(value - running_max))
+    log_sum_exp = running_max + math.log(math.fsum(scaled_terms)) if scaled_terms else -math.inf
+    return best_value, best_point, log_sum_exp, count

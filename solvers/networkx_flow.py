@@ -117,12 +117,7 @@ class NetworkxFlowSolver:
         num_edges = flow_program.num_edges
         tails = flow_program.tails.tolist()
         heads = flow_program.heads.tolist()
-        capacities = flow_program.capacities.tolist()
-
-        graph = nx.MultiDiGraph()
-        graph.add_nodes_from(range(flow_program.num_nodes), demand=0)
-        for e in range(num_edges):
-            graph.add_edge(tails[e], heads[e], key=e, capacity=capacities[e], weight=scaled[e])
+        graph = _flow_graph(nx, flow_program, scaled)
         largest_flow = _maximum_flow_value(flow_program)
 
         count = flow_program.max_flow + 1
@@ -187,3 +182,17 @@ def _maximum_flow_value(flow_program: FlowProgram) -> int:
         else:
             merged.add_edge(tail, head, capacity=capacity)
     return int(nx.maximum_flow_value(merged, flow_program.source, flow_program.sink))
+
+
+def _flow_graph(nx: Any, flow_program: FlowProgram, scaled: list[int]) -> Any:
+    """``flow_program`` as a networkx MultiDiGraph for network simplex: its nodes with
+    demand 0, and edge ``e`` keyed ``e`` with its capacity and integer cost
+    ``scaled[e]``."""
+    tails = flow_program.tails.tolist()
+    heads = flow_program.heads.tolist()
+    capacities = flow_program.capacities.tolist()
+    graph = nx.MultiDiGraph()
+    graph.add_nodes_from(range(flow_program.num_nodes), demand=0)
+    for e in range(flow_program.num_edges):
+        graph.add_edge(tails[e], heads[e], key=e, capacity=capacities[e], weight=scaled[e])
+    return graph

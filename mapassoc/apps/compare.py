@@ -183,21 +183,8 @@ def compare(
     """
     names = _check_names("trackers", trackers, list(TRACKERS))
     families = _check_names("scenarios", scenarios, scenario_names())
-    if isinstance(seeds, (str, int)) or not isinstance(seeds, Iterable):
-        raise InputError(f"seeds must be a sequence of integers >= 0, got {seeds!r}")
-    seeds = list(seeds)  # a generator or an array is read once, here
-    if not all(_is_int(s) and s >= 0 for s in seeds):
-        raise InputError(f"seeds must be a sequence of integers >= 0, got {seeds!r}")
-    if not seeds:
-        raise InputError("seeds is empty: give at least one seed")
-    if isinstance(c, bool) or not (isinstance(c, (int, float)) and np.isfinite(c) and c > 0):
-        raise InputError(f"c must be a finite cut-off > 0, got {c!r}")
-    if config not in ("scenario", "generic"):
-        raise InputError(f"config must be 'scenario' or 'generic', got {config!r}")
-    if scans is not None and (not _is_int(scans) or scans < 1):
-        raise InputError(f"scans must be an integer >= 1, got {scans!r}")
-    if window_length is not None and (not _is_int(window_length) or window_length < 1):
-        raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
+    seeds = _checked_seeds(seeds)
+    _check_run_choices(c=c, config=config, scans=scans, window_length=window_length)
     if time_limit is not None:
         time_limit = check_positive("time_limit", time_limit, key="time_limit")
     if ospa2_window is not None and (not _is_int(ospa2_window) or ospa2_window < 1):
@@ -206,59 +193,132 @@ def compare(
     # CLEAR-MOT needs the optional motmetrics; without it its columns are empty instead of
     # every run failing on it.
     with_clear_mot = motmetrics_available()
-
     rows: list[dict[str, object]] = []
     for family in families:
         for seed in seeds:
             scenario = build_scenario(family, int(seed))
             if scans is not None:
                 scenario = truncate_scenario(scenario, int(scans))
-            run_config = _config_for(scenario, config)
-            estimator = run_config.estimator
-            if window_length is not None:
-                estimator = estimator.with_window_length(int(window_length))
-            if time_limit is not None:
-                estimator = estimator.with_time_limit(float(time_limit))
-            run_config = replace(run_config, estimator=estimator)
-            if options:
-                run_config = replace(run_config, trackers={**run_config.trackers, **options})
+            run_config = _run_config(
+                scenario,
+                config,
+                window_length=window_length,
+                time_limit=time_limit,
+                options=options,
+            )
             for name in names:
-                row: dict[str, object] = {
-                    "scenario": family,
-                    "seed": int(seed),
-                    "tracker": name,
-                    "status": "ok",
-                    "seconds": float("nan"),
-                    "scans_per_second": float("nan"),
-                }
-                try:
-                    tracker = build_tracker(
-                        name, config=run_config, origins=scenario.origins
-                    )
-                    start = time.perf_counter()
-                    output = tracker.track(scenario.scans)
-                    seconds = time.perf_counter() - start
-                    scores = score_tracks(
-                        scenario.truth,
-                        output,
-                        c=float(c),
-                        clear_mot_scores=with_clear_mot,
-                        ospa2_window=None if ospa2_window is None else int(ospa2_window),
-                    )
-                except MapassocError as exc:
-                    row["status"] = f"{type(exc).__name__}: {exc}"
-                else:
-                    row["seconds"] = seconds
-                    row["scans_per_second"] = (
-                        len(scenario.scans) / seconds if seconds > 0 else float("nan")
-                    )
-                    scored = scores.as_row()
-                    del scored["seconds"]  # the tracker's own timing; the row keeps ours
-                    row.update(scored)
+                row = _compare_row(
+                    family,
+                    int(seed),
+                    name,
+                    scenario,
+                    run_config,
+                    c=float(c),
+                    clear_mot_scores=with_clear_mot,
+                    ospa2_window=None if ospa2_window is None else int(ospa2_window),
+                )
                 rows.append(row)
                 if on_row is not None:
                     on_row(row)
     return pd.DataFrame(rows)
+
+
+def _checked_seeds(seeds: Sequence[int]) -> list[int]:
+    """``seeds`` as a list (a generator or an array is read once, here), refused unless
+    a non-empty sequence of integers >= 0."""
+    if isinstance(seeds, (str, int)) or not isinstance(seeds, Iterable):
+        raise InputError(f"seeds must be a sequence of integers >= 0, got {seeds!r}")
+    seeds = list(seeds)
+    if not all(_is_int(s) and s >= 0 for s in seeds):
+        raise InputError(f"seeds must be a sequence of integers >= 0, got {seeds!r}")
+    if not seeds:
+        raise InputError("seeds is empty: give at least one seed")
+    return seeds
+
+
+def _check_run_choices(
+    *, c: float, config: str, scans: int | None, window_length: int | None
+) -> None:
+    """Refuse a cut-off ``c`` that is not finite and > 0, a ``config`` choice other than
+    ``"scenario"`` or ``"generic"``, and ``scans`` or ``window_length`` not integers
+    >= 1 (``None``: not given)."""
+    if isinstance(c, bool) or not (isinstance(c, (int, float)) and np.isfinite(c) and c > 0):
+        raise InputError(f"c must be a finite cut-off > 0, got {c!r}")
+    if config not in ("scenario", "generic"):
+        raise InputError(f"config must be 'scenario' or 'generic', got {config!r}")
+    if scans is not None and (not _is_int(scans) or scans < 1):
+        raise InputError(f"scans must be an integer >= 1, got {scans!r}")
+    if window_length is not None and (not _is_int(window_length) or window_length < 1):
+        raise InputError(f"window_length must be an integer >= 1, got {window_length!r}")
+
+
+def _run_config(
+    scenario: Scenario,
+    config: str,
+    *,
+    window_length: int | None,
+    time_limit: float | None,
+    options: Mapping[str, Mapping[str, TrackerOption]],
+) -> Config:
+    """The configuration every tracker gets on ``scenario``: its own or the generic one,
+    with the window length, time limit and tracker tables given (``None``, empty: the
+    configuration's)."""
+    run_config = _config_for(scenario, config)
+    estimator = run_config.estimator
+    if window_length is not None:
+        estimator = estimator.with_window_length(int(window_length))
+    if time_limit is not None:
+        estimator = estimator.with_time_limit(float(time_limit))
+    run_config = replace(run_config, estimator=estimator)
+    if options:
+        run_config = replace(run_config, trackers={**run_config.trackers, **options})
+    return run_config
+
+
+def _compare_row(
+    family: str,
+    seed: int,
+    name: str,
+    scenario: Scenario,
+    run_config: Config,
+    *,
+    c: float,
+    clear_mot_scores: bool,
+    ospa2_window: int | None,
+) -> dict[str, object]:
+    """One row of the comparison: tracker ``name`` built on ``run_config``, run on the
+    scenario's scans (timed here, the same for every method) and scored against its
+    truth; a tracker that refuses the data gets its one-line error as ``status`` and no
+    scores."""
+    row: dict[str, object] = {
+        "scenario": family,
+        "seed": seed,
+        "tracker": name,
+        "status": "ok",
+        "seconds": float("nan"),
+        "scans_per_second": float("nan"),
+    }
+    try:
+        tracker = build_tracker(name, config=run_config, origins=scenario.origins)
+        start = time.perf_counter()
+        output = tracker.track(scenario.scans)
+        seconds = time.perf_counter() - start
+        scores = score_tracks(
+            scenario.truth,
+            output,
+            c=c,
+            clear_mot_scores=clear_mot_scores,
+            ospa2_window=ospa2_window,
+        )
+    except MapassocError as exc:
+        row["status"] = f"{type(exc).__name__}: {exc}"
+    else:
+        row["seconds"] = seconds
+        row["scans_per_second"] = len(scenario.scans) / seconds if seconds > 0 else float("nan")
+        scored = scores.as_row()
+        del scored["seconds"]  # the tracker's own timing; the row keeps ours
+        row.update(scored)
+    return row
 
 
 def summarize(table: pd.DataFrame) -> pd.DataFrame:
@@ -272,7 +332,8 @@ def summarize(table: pd.DataFrame) -> pd.DataFrame:
         raise InputError(f"table lacks the columns {missing}: pass the result of compare()")
     ok = table[table["status"] == "ok"]
     numeric = [
-        col for col in ok.columns
+        col
+        for col in ok.columns
         if col not in (*_SUMMARY_KEYS, "seed", "status") and pd.api.types.is_numeric_dtype(ok[col])
     ]
     means = ok.groupby(list(_SUMMARY_KEYS), sort=False)[numeric].mean()

@@ -80,6 +80,7 @@ __all__ = [
     "time_scale_warning",
 ]
 
+
 class WindowStatus(StrEnum):
     """A window's status, from best to worst.  Members are strings: they compare with
     and serialise as their values (``windows.jsonl``, ``summary.json``)."""
@@ -552,8 +553,7 @@ def _check_carried(carried: object, undetected: object) -> list[CarriedTrack]:
     checking it and ``undetected`` (None or an UndetectedTargets)."""
     if isinstance(carried, (str, bytes)) or not isinstance(carried, Sequence):
         raise InputError(
-            f"carried must be a sequence of CarriedTrack (RunState.carried), "
-            f"got {shown(carried)}"
+            f"carried must be a sequence of CarriedTrack (RunState.carried), got {shown(carried)}"
         )
     for i, track in enumerate(carried):
         check_instance(f"carried[{i}]", track, CarriedTrack)
@@ -594,6 +594,70 @@ def default_generator(config: Config) -> HypothesisGenerator:
         max_hypotheses_per_tree=pruning.max_hypotheses_per_tree,
         prune_log_ratio=pruning.prune_log_ratio,
         sibling_prune_log_ratio=pruning.sibling_log_ratio,
+    )
+
+
+def _window_report(
+    solution: WindowSolution,
+    *,
+    window: int,
+    scans: Sequence[Scan],
+    first: int,
+    end: int,
+    commit: int,
+    chosen_k: int,
+    chosen_tracks: int,
+) -> WindowReport:
+    """The report of window number ``window`` over ``scans[first:end]``, solved as
+    ``solution``, of which the first ``commit`` scans were committed with ``chosen_k``
+    targets and ``chosen_tracks`` tracks.  The per-k arrays stop where nothing is left
+    (p(K) entries after the last one of at least :data:`P_K_FLOOR` in its upper bound,
+    track-count entries after the last finite upper mass)."""
+    post = solution.posterior
+    possible = np.flatnonzero(np.isfinite(solution.table.log_mass_upper))
+    reach = int(possible[-1]) + 1 if possible.size else 1
+    positive = np.flatnonzero(post.probabilities_upper >= P_K_FLOOR)
+    k_reach = int(positive[-1]) + 1 if positive.size else 1
+    return WindowReport(
+        window=window,
+        first_scan=first,
+        last_scan=end - 1,
+        start_time=scans[first].time,
+        end_time=scans[end - 1].time,
+        committed_scans=commit,
+        p_k_length=post.max_tracks + 1,
+        p_k=post.probabilities[:k_reach].copy(),
+        p_k_lower=post.probabilities_lower[:k_reach].copy(),
+        p_k_upper=post.probabilities_upper[:k_reach].copy(),
+        p_tracks=post.track_probabilities[:reach].copy(),
+        best_objective=post.best_log_score[:reach].copy(),
+        best_objective_upper=solution.table.best_upper[:reach].copy(),
+        joint_map_k=post.joint_map_k,
+        marginal_k=post.marginal_k,
+        chosen_k=chosen_k,
+        joint_map_tracks=post.joint_map_tracks,
+        marginal_tracks=post.marginal_tracks,
+        chosen_tracks=chosen_tracks,
+        undetected_mean=post.undetected_mean,
+        k_prior=post.count_prior.kind,
+        marginal_exact=post.exact,
+        marginal_certain=post.marginal_certain,
+        joint_certain=post.joint_certain,
+        captured_mass=solution.captured_mass,
+        status=solution.status,
+        hypotheses_kept=solution.hypotheses.count,
+        nodes_generated=solution.hypotheses.nodes_generated,
+        nodes_pruned=solution.hypotheses.nodes_pruned,
+        nodes_capped=solution.hypotheses.nodes_capped,
+        hypotheses_pruned_by_bound=solution.bound_pruned,
+        clusters=len(solution.cluster_sizes),
+        largest_cluster=max(solution.cluster_sizes, default=0),
+        bounded_clusters=len(solution.bounded_clusters),
+        carried_tracks=int(np.count_nonzero(solution.hypotheses.tree_track_ids >= 0)),
+        piles_up_at_kmax=post.piles_up_at_kmax,
+        over_time_limit=solution.timed_out,
+        generate_seconds=solution.generate_seconds,
+        solve_seconds=solution.solve_seconds,
     )
 
 
@@ -842,6 +906,46 @@ class WindowEstimator:
         -------
         WindowReport
         """
+        self._check_step(scans, state, select)
+        t_start = time.perf_counter()
+        span = window_span(
+            state.next_scan,
+            state.total_scans,
+            length=self.settings.windows.window_length,
+            stride=self.settings.windows.stride,
+        )
+        start, end, commit = span.start, span.end, span.commit
+        solution = self.solve_window(scans[start:end], state.carried, undetected=state.undetected)
+        chosen_k, chosen_tracks = self.k_estimator.choose(solution.posterior)
+        if select is None:
+            selection = solution.selection(chosen_tracks)
+        else:
+            selection = np.asarray(select(solution, chosen_k, chosen_tracks), dtype=np.int64)
+            chosen_tracks = int(np.count_nonzero(solution.problem.counts[selection]))
+        state.carried, state.next_track_id = self._commit(
+            solution.hypotheses, selection, commit, state.records, state.next_track_id
+        )
+        state.undetected = solution.population.after_scan[commit - 1]
+        report = _window_report(
+            solution,
+            window=state.tally.windows,
+            scans=scans,
+            first=start,
+            end=end,
+            commit=commit,
+            chosen_k=chosen_k,
+            chosen_tracks=chosen_tracks,
+        )
+        state.next_scan = start + commit
+        state.tally.add(report)
+        state.tally.seconds += time.perf_counter() - t_start
+        return report
+
+    @staticmethod
+    def _check_step(scans: Sequence[Scan], state: RunState, select: SelectionRule | None) -> None:
+        """Refuse what :meth:`step` cannot take: a state that is not a RunState, is of
+        another run or is done; scans that are not a sequence; a ``select`` that is not
+        callable."""
         check_instance("step: state", state, RunState, hint="start a run with start(scans)")
         if isinstance(scans, (str, bytes)) or not isinstance(scans, Sequence):
             raise InputError(
@@ -854,75 +958,6 @@ class WindowEstimator:
             )
         if state.done:
             raise InputError("state is done: every scan is committed already")
-        t_start = time.perf_counter()
-        span = window_span(
-            state.next_scan,
-            state.total_scans,
-            length=self.settings.windows.window_length,
-            stride=self.settings.windows.stride,
-        )
-        start, end, commit = span.start, span.end, span.commit
-        solution = self.solve_window(scans[start:end], state.carried, undetected=state.undetected)
-        post = solution.posterior
-        chosen_k, chosen_tracks = self.k_estimator.choose(post)
-        if select is None:
-            selection = solution.selection(chosen_tracks)
-        else:
-            selection = np.asarray(select(solution, chosen_k, chosen_tracks), dtype=np.int64)
-            chosen_tracks = int(np.count_nonzero(solution.problem.counts[selection]))
-        state.carried, state.next_track_id = self._commit(
-            solution.hypotheses, selection, commit, state.records, state.next_track_id
-        )
-        state.undetected = solution.population.after_scan[commit - 1]
-        possible = np.flatnonzero(np.isfinite(solution.table.log_mass_upper))
-        reach = int(possible[-1]) + 1 if possible.size else 1
-        positive = np.flatnonzero(post.probabilities_upper >= P_K_FLOOR)
-        k_reach = int(positive[-1]) + 1 if positive.size else 1
-        report = WindowReport(
-            window=state.tally.windows,
-            first_scan=start,
-            last_scan=end - 1,
-            start_time=scans[start].time,
-            end_time=scans[end - 1].time,
-            committed_scans=commit,
-            p_k_length=post.max_tracks + 1,
-            p_k=post.probabilities[:k_reach].copy(),
-            p_k_lower=post.probabilities_lower[:k_reach].copy(),
-            p_k_upper=post.probabilities_upper[:k_reach].copy(),
-            p_tracks=post.track_probabilities[:reach].copy(),
-            best_objective=post.best_log_score[:reach].copy(),
-            best_objective_upper=solution.table.best_upper[:reach].copy(),
-            joint_map_k=post.joint_map_k,
-            marginal_k=post.marginal_k,
-            chosen_k=chosen_k,
-            joint_map_tracks=post.joint_map_tracks,
-            marginal_tracks=post.marginal_tracks,
-            chosen_tracks=chosen_tracks,
-            undetected_mean=post.undetected_mean,
-            k_prior=post.count_prior.kind,
-            marginal_exact=post.exact,
-            marginal_certain=post.marginal_certain,
-            joint_certain=post.joint_certain,
-            captured_mass=solution.captured_mass,
-            status=solution.status,
-            hypotheses_kept=solution.hypotheses.count,
-            nodes_generated=solution.hypotheses.nodes_generated,
-            nodes_pruned=solution.hypotheses.nodes_pruned,
-            nodes_capped=solution.hypotheses.nodes_capped,
-            hypotheses_pruned_by_bound=solution.bound_pruned,
-            clusters=len(solution.cluster_sizes),
-            largest_cluster=max(solution.cluster_sizes, default=0),
-            bounded_clusters=len(solution.bounded_clusters),
-            carried_tracks=int(np.count_nonzero(solution.hypotheses.tree_track_ids >= 0)),
-            piles_up_at_kmax=post.piles_up_at_kmax,
-            over_time_limit=solution.timed_out,
-            generate_seconds=solution.generate_seconds,
-            solve_seconds=solution.solve_seconds,
-        )
-        state.next_scan = start + commit
-        state.tally.add(report)
-        state.tally.seconds += time.perf_counter() - t_start
-        return report
 
     def finish(
         self,

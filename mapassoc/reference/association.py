@@ -713,6 +713,48 @@ def single_object_sequences(
     pd = check_probability("detection_probability", detection_probability, allow_zero=False)
     lam = check_positive("clutter_intensity", clutter_intensity)
     step = check_positive("dt", dt)
+    x0, P0, scan_arrays = _checked_single_object_inputs(
+        prior_mean, prior_cov, scans, motion, measurement_model
+    )
+    sizes = [z.shape[0] for z in scan_arrays]
+    _check_enumeration(
+        f"single_object_sequences over {len(sizes)} scans of {_sizes_text(sizes)} measurements",
+        sequence_count(sizes),
+        limit,
+    )
+
+    sequences, log_w, means, covs = _grown_sequences(
+        x0,
+        P0,
+        scan_arrays,
+        motion,
+        measurement_model,
+        log_miss=_log_miss(pd),
+        log_detect=math.log(pd) - math.log(lam),
+        step=step,
+    )
+    weights, log_normalizer = _normalise(log_w, "association sequence")
+    return SequencePosterior(
+        sequences=tuple(sequences),
+        log_weights=_frozen(log_w),
+        weights=_frozen(weights),
+        log_normalizer=log_normalizer,
+        means=_frozen(means),
+        covariances=_frozen(covs),
+    )
+
+
+def _checked_single_object_inputs(
+    prior_mean: ArrayLike,
+    prior_cov: ArrayLike,
+    scans: Sequence[ArrayLike],
+    motion: MotionModel,
+    measurement_model: MeasurementModel,
+) -> tuple[FloatArray, FloatArray, list[FloatArray]]:
+    """The prior mean (dx,), prior covariance (dx, dx) and scans (each (m_k, dz)) of
+    :func:`single_object_sequences` as checked arrays, refused (naming the argument)
+    where the shapes, the motion model or the measurement model do not fit together
+    or there is no scan."""
     x0 = check_finite_array("prior_mean", prior_mean, shape=(None,))
     dx = x0.shape[0]
     P0 = check_covariance("prior_cov", prior_cov, dim=dx)
@@ -732,15 +774,26 @@ def single_object_sequences(
     ]
     if not scan_arrays:
         raise InputError("scans must contain at least one (m_k, dz) array, got none")
-    sizes = [z.shape[0] for z in scan_arrays]
-    _check_enumeration(
-        f"single_object_sequences over {len(sizes)} scans of {_sizes_text(sizes)} measurements",
-        sequence_count(sizes),
-        limit,
-    )
+    return x0, P0, scan_arrays
 
-    log_miss = _log_miss(pd)
-    log_detect = math.log(pd) - math.log(lam)
+
+def _grown_sequences(
+    x0: FloatArray,
+    P0: FloatArray,
+    scan_arrays: list[FloatArray],
+    motion: MotionModel,
+    measurement_model: MeasurementModel,
+    *,
+    log_miss: float,
+    log_detect: float,
+    step: float,
+) -> tuple[list[tuple[int, ...]], FloatArray, FloatArray, FloatArray]:
+    """Every association sequence over ``scan_arrays`` with its unnormalised log
+    weight (shape (N,)), posterior mean (N, dx) and covariance (N, dx, dx) at the last
+    scan: each sequence's children are its miss (``log_miss``) and one Kalman update
+    per measurement (``log_detect`` plus the measurement's log-likelihood), in that
+    order, as :func:`single_object_sequences` states."""
+    dx = x0.shape[0]
     sequences: list[tuple[int, ...]] = [()]
     log_w = np.zeros(1)
     means = x0[None, :]
@@ -757,13 +810,4 @@ def single_object_sequences(
         covs = np.concatenate([covs[:, None], post_covs], axis=1).reshape(-1, dx, dx)
         log_w = child_log_w.reshape(-1)
         sequences = [parent + (j,) for parent in sequences for j in range(m + 1)]
-
-    weights, log_normalizer = _normalise(log_w, "association sequence")
-    return SequencePosterior(
-        sequences=tuple(sequences),
-        log_weights=_frozen(log_w),
-        weights=_frozen(weights),
-        log_normalizer=log_normalizer,
-        means=_frozen(means),
-        covariances=_frozen(covs),
-    )
+    return sequences, log_w, means, covs

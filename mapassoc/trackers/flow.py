@@ -317,6 +317,22 @@ def _shortest_paths_costs(
         cap = min(limit, forced + 2 * (cap - forced))
 
 
+def _weak_components(
+    tails: NDArray[np.int64], heads: NDArray[np.int64], num_items: int
+) -> tuple[int, NDArray[np.int32]]:
+    """The weakly connected components of the links ``tails[e] -> heads[e]`` (shape
+    (E,)) over ``num_items`` items: their number and each item's component label."""
+    count, label = connected_components(
+        coo_array(
+            (np.ones(tails.size), (tails, heads)),
+            shape=(num_items, num_items),
+        ),
+        directed=True,
+        connection="weak",
+    )
+    return int(count), label
+
+
 def _decode_paths(
     graph: _WindowGraph, solved: list[_SolvedComponent], tracks_per_component: IntArray
 ) -> list[_Path]:
@@ -507,14 +523,7 @@ class FlowTracker:
         # No flow has more tracks than items kept (each track holds one at least), so
         # a huge max_tracks costs no more than that.
         kmax = max(graph.carried, min(self.config.estimator.count.max_tracks, int(kept.size)))
-        count, label = connected_components(
-            coo_array(
-                (np.ones(sub.tails.size), (sub.tails, sub.heads)),
-                shape=(kept.size, kept.size),
-            ),
-            directed=True,
-            connection="weak",
-        )
+        count, label = _weak_components(sub.tails, sub.heads, int(kept.size))
         solved = [
             self._solve_component(graph, kept, forced, sub, label == comp, kmax)
             for comp in range(count)

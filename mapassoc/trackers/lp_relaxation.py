@@ -64,7 +64,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -480,6 +480,26 @@ def _check_positive(name: str, value: object, *, below: float = math.inf) -> flo
     return float(value)  # type: ignore[arg-type]
 
 
+def _walked_track_count(
+    value: Callable[[int], float], tolerance: Callable[[float], float], start: int
+) -> int:
+    """The track count T of largest ``value(T)`` (a concave function of T), walking from
+    ``start``: up while the value rises by more than ``tolerance`` of the best so far,
+    then down while it stays within it (ties go to the smaller T)."""
+    best_T = start
+    best = value(best_T)
+    while value(best_T + 1) > best + tolerance(best):  # concave: walk up while it rises
+        best_T += 1
+        best = value(best_T)
+    while True:  # ties go to the smaller T
+        below = value(best_T - 1)
+        if not (math.isfinite(below) and below >= best - tolerance(best)):
+            break
+        best_T -= 1
+        best = below
+    return best_T
+
+
 class _LpRule:
     """The selection rule of one run (:data:`~mapassoc.estimator.pipeline.SelectionRule`):
     solves the relaxation of a window, records its certificate, returns its set."""
@@ -507,17 +527,7 @@ class _LpRule:
         def tolerance(v: float) -> float:
             return t.gap_tolerance * max(1.0, abs(v)) if math.isfinite(v) else 0.0
 
-        best_T = chosen_tracks
-        best = value(best_T)
-        while value(best_T + 1) > best + tolerance(best):  # concave: walk up while it rises
-            best_T += 1
-            best = value(best_T)
-        while True:  # ties go to the smaller T
-            below = value(best_T - 1)
-            if not (math.isfinite(below) and below >= best - tolerance(best)):
-                break
-            best_T -= 1
-            best = below
+        best_T = _walked_track_count(value, tolerance, chosen_tracks)
         estimator_set = solution.selection(chosen_tracks)
         lp = solved[best_T]
         certificate, selection, decision = certify_relaxation(
