@@ -1,5 +1,6 @@
-"""The configuration example of README.md ("## Files") loads and lists every key: every
-field of every settings record, in its table, with its default."""
+"""The configuration page's example (docs/configuration.md, "## Example") loads and lists
+every key: every field of every settings record, in its table, with its default; and the
+generated reference beside it documents every field."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from mapassoc.data.settings import COMPONENTS, BirthModel, EstimatorSettings
 from mapassoc.models.measurement import MEASUREMENT_REGISTRY
 from mapassoc.models.motion import MOTION_REGISTRY
 
-README = Path(__file__).resolve().parent.parent / "README.md"
+PAGE = Path(__file__).resolve().parent.parent / "docs" / "configuration.md"
 DEFAULTS: dict[str, object] = {
     "birth": BirthModel(),
     **{f"estimator.{name}": getattr(EstimatorSettings(), name) for name in COMPONENTS},
@@ -25,16 +26,16 @@ DEFAULTS: dict[str, object] = {
 as ``EstimatorSettings()`` composes them)."""
 
 
-def files_section() -> str:
-    text = README.read_text(encoding="utf-8")
-    start = text.index("\n## Files\n")
-    end = text.index("\n## ", start + 1)
-    return text[start:end]
+def example_section() -> str:
+    text = PAGE.read_text(encoding="utf-8")
+    start = text.index("\n## Example\n")
+    end = text.find("\n## ", start + 1)
+    return text[start:] if end < 0 else text[start:end]
 
 
 def toml_block() -> str:
-    blocks = re.findall(r"```toml\n(.*?)```", files_section(), flags=re.DOTALL)
-    assert len(blocks) == 1, f"expected one TOML block in the Files section, found {len(blocks)}"
+    blocks = re.findall(r"```toml\n(.*?)```", example_section(), flags=re.DOTALL)
+    assert len(blocks) == 1, f"expected one TOML block in the Example section, found {len(blocks)}"
     return blocks[0]
 
 
@@ -50,7 +51,7 @@ def test_the_readme_example_loads_without_warnings(tmp_path: Path) -> None:
 def _table(document: dict[str, object], section: str) -> dict[str, object]:
     table: object = document
     for part in section.split("."):
-        assert isinstance(table, dict) and part in table, f"README lacks [{section}]"
+        assert isinstance(table, dict) and part in table, f"the example lacks [{section}]"
         table = table[part]
     assert isinstance(table, dict)
     return table
@@ -67,7 +68,7 @@ def test_every_settings_field_is_a_key_of_the_example(section: str) -> None:
     table = _table(tomllib.loads(toml_block()), section)
     fields = [field.name for field in dataclasses.fields(DEFAULTS[section])]  # type: ignore[arg-type]
     missing = [name for name in fields if name not in table]
-    assert not missing, f"README [{section}] lacks {missing}"
+    assert not missing, f"the example's [{section}] lacks {missing}"
     assert list(table) == fields  # in the dataclass's order, nothing else
 
 
@@ -99,3 +100,27 @@ def test_every_motion_and_sensor_key_is_in_the_example() -> None:
     for spec in MEASUREMENT_REGISTRY.values():
         assert spec.name in {table["measurement"] for table in document["sensors"]}, spec.name
         assert set(spec.keys) <= sensor_keys, spec.name
+
+
+@pytest.mark.parametrize("section", list(DEFAULTS))
+def test_the_generated_reference_documents_every_field(section: str) -> None:
+    from mapassoc.apps.config_reference import configuration_reference, documented_parameters
+
+    text = configuration_reference()
+    part = text.split(f"### `[{section}]`", 1)[1].split("\n### ", 1)[0]
+    cls = type(DEFAULTS[section])
+    described = documented_parameters(cls)
+    for field in dataclasses.fields(cls):
+        row = re.search(rf"^\| `{field.name}` \|.*$", part, flags=re.MULTILINE)
+        assert row, f"[{section}] {field.name} missing from the reference"
+        assert described.get(field.name), f"{cls.__name__}.{field.name} has no description"
+        meaning = re.sub(r":\w+:", "", described[field.name])  # markup aside
+        assert re.sub(r"\W", "", meaning)[:30] in re.sub(r"\W", "", row.group(0)), field.name
+
+
+def test_the_reference_lists_every_registered_model() -> None:
+    from mapassoc.apps.config_reference import configuration_reference
+
+    text = configuration_reference()
+    for name in [*MOTION_REGISTRY, *MEASUREMENT_REGISTRY]:
+        assert f"| `{name}` |" in text, name
