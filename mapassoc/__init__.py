@@ -71,7 +71,7 @@ _EXPORTS: dict[str, str] = {
     "evaluate_tables": "mapassoc.evaluation.tables",
     "gospa": "mapassoc.evaluation.metrics",
     "oracle_tracks": "mapassoc.evaluation.oracle",
-    # the seeds' exact references
+    # exact references of the theory (the n-object posterior, single-object sequences)
     "n_object_posterior": "mapassoc.reference.association",
     "single_object_sequences": "mapassoc.reference.association",
     # errors

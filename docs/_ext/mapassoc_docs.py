@@ -200,10 +200,12 @@ def _number(value: object, digits: int = 3) -> str:
 
 def benchmarks_section(title: str, record: Mapping[str, Any]) -> list[str]:
     """The Markdown of one recorded benchmark: where it came from, then its tables."""
-    bench = record.get("bench", record)
+    bench = record.get("result", record)
     lines = [f"## {title}", ""]
     for key in ("date", "version", "machine", "command"):
         value = record.get(key, "not recorded")
+        if isinstance(value, Mapping):
+            value = ", ".join(f"{name} {item}" for name, item in value.items())
         lines.append(f"- **{key}**: `{value}`" if key == "command" else f"- **{key}**: {value}")
     lines += [
         "",
@@ -292,13 +294,14 @@ def attribute_docs(module_name: str) -> dict[str, str]:
 
 def home_module(module: Any, name: str, modules: list[Any]) -> str:
     """The module that defines public name ``name`` of ``module``: a class's or function's
-    ``__module__``, a variable's documenting module (the first that holds a docstring
+    ``__module__`` (an alias's own module), a variable's documenting module (the first that holds a docstring
     for the same object), else ``module`` itself."""
     import inspect
 
     obj = getattr(module, name)
     if inspect.isclass(obj) or inspect.isfunction(obj):
-        return str(obj.__module__)
+        # an alias under another name (``BatchOptions = RunOptions``) is documented here
+        return str(obj.__module__) if obj.__name__ == name else str(module.__name__)
     if name in attribute_docs(module.__name__):
         return str(module.__name__)
     for other in modules:

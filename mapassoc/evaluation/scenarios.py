@@ -88,6 +88,7 @@ __all__ = [
 Plan = list[tuple[float, str]]
 
 DEFAULT_SCENARIO = "crossing"
+"""The scenario that ``mapassoc demo`` and ``mapassoc simulate`` use when none is named."""
 
 # Nearly-constant-velocity acceleration noise intensity of the Cartesian scenarios
 # (length^2 / time^3): the velocity wanders by about 0.045 per unit time, so over a
@@ -1444,6 +1445,7 @@ SCENARIOS: dict[str, Callable[[int], Scenario]] = {
     "dense_radar": dense_radar,
     "staggered": staggered,
 }
+"""The built-in scenarios by name: ``SCENARIOS[name](seed)`` builds one."""
 
 _DESCRIPTIONS: dict[str, str] = {
     "crossing": (

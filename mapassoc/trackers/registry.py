@@ -192,6 +192,7 @@ TRACKERS: dict[str, TrackerSpec] = {
         ),
     )
 }
+"""Every tracking method by name (the table of the module docstring)."""
 
 
 DEFAULT_TRACKERS: tuple[str, ...] = (
