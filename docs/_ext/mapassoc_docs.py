@@ -294,8 +294,8 @@ def attribute_docs(module_name: str) -> dict[str, str]:
 
 def home_module(module: Any, name: str, modules: list[Any]) -> str:
     """The module that defines public name ``name`` of ``module``: a class's or function's
-    ``__module__`` (an alias's own module), a variable's documenting module (the first that holds a docstring
-    for the same object), else ``module`` itself."""
+    ``__module__`` (an alias's own module), a variable's documenting module (the first
+    that holds a docstring for the same object), else ``module`` itself."""
     import inspect
 
     obj = getattr(module, name)
