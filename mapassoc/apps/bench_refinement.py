@@ -63,7 +63,7 @@ __all__ = [
 ]
 
 REFINEMENT_FAMILIES = DEFAULT_REFINEMENT_FAMILIES
-"""The default families: as hard as users' data (README, "Benchmark")."""
+"""The default families: as hard as users' data (the documentation's refinement guide)."""
 
 GOSPA_CUTOFF = 10.0
 """GOSPA cut-off c of the refinement benchmark's scores (alpha = 2)."""
