@@ -5,12 +5,12 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 OUT    ?= demo-out
 
-.PHONY: setup demo test bench bench-reprocess lint notebooks clean
+.PHONY: setup demo test docs bench bench-reprocess lint notebooks clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,docs]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -18,10 +18,14 @@ setup: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/mapassoc demo --out $(OUT) --overwrite
 
-# Every test, slow ones included (-m ""), on every core (pytest-xdist; an idle worker
-# takes tests queued for another, so no worker trails alone at the end).
-test: $(STAMP)
+# The documentation first (warnings are errors), then every test, slow ones included
+# (-m ""), on every core (pytest-xdist; an idle worker takes tests queued for another).
+test: docs
 	$(BIN)/python -m pytest -q -m "" -n auto --dist worksteal
+
+# The HTML site, offline (no notebook execution, no intersphinx): docs/_build/html/index.html.
+docs: $(STAMP)
+	$(BIN)/python -m sphinx -b html -W --keep-going -q docs docs/_build/html
 
 bench: $(STAMP)
 	$(BIN)/mapassoc bench
@@ -37,4 +41,4 @@ lint: $(STAMP)
 	$(BIN)/python -m pytest -q -m "" tests/test_static_checks.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(OUT) .pytest_cache .ruff_cache docs/_build docs/jupyter_execute

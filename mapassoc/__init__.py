@@ -8,6 +8,13 @@ The objects a notebook needs are importable from the package itself::
     result = ma.WindowEstimator(config=scenario.config).run(scenario.scans)
     ma.evaluate_tables(scenario.truth, result.tracks)
 
+The works the method rests on, cited by short names in the docstrings (the documentation's
+references page gives them in full): "Perry's MAP formulation" is R. Perry, "Time-Recursive
+Number-of-Tracks Estimation for ..." (Proceedings of SPIE, 2000; Villanova University);
+"the n-object posterior" and "single-object tracking in clutter" are from L. Svensson et
+al., "Multi-Object Tracking for Automotive Systems" (Chalmers University of Technology);
+the association vectors are those of W. Afzal, "Track Association Problems in AD" (2022).
+
 They are loaded on first use (PEP 562), so ``import mapassoc`` and the command line
 stay fast; ``_EXPORTS`` says which module defines each.  (A function named like its
 module, ``mapassoc.evaluation.simulate.simulate``, is not exported: importing the module would
@@ -71,7 +78,7 @@ _EXPORTS: dict[str, str] = {
     "evaluate_tables": "mapassoc.evaluation.tables",
     "gospa": "mapassoc.evaluation.metrics",
     "oracle_tracks": "mapassoc.evaluation.oracle",
-    # the seeds' exact references
+    # exact references of the theory (the n-object posterior, single-object sequences)
     "n_object_posterior": "mapassoc.reference.association",
     "single_object_sequences": "mapassoc.reference.association",
     # errors

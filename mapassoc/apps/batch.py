@@ -68,6 +68,7 @@ __all__ = [
 ]
 
 BATCH_SUMMARY_NAME = "batch_summary.csv"
+"""Name of the file a batch writes in its output folder: one row per recording."""
 SUMMARY_COLUMNS = (
     "name",
     "status",
@@ -84,6 +85,7 @@ SUMMARY_COLUMNS = (
     "detections",
     "config",
 )
+"""Columns of the batch summary, in file order."""
 LIST_COLUMNS = ("name", "detections", "config")
 
 

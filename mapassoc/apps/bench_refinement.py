@@ -70,13 +70,15 @@ __all__ = [
 ]
 
 REFINEMENT_FAMILIES = DEFAULT_REFINEMENT_FAMILIES
-"""The default families: as hard as users' data (README, "Benchmark")."""
+"""The default families: as hard as users' data (the documentation's refinement guide)."""
 
 GOSPA_CUTOFF = 10.0
+"""GOSPA cut-off c of the refinement benchmark's scores (alpha = 2)."""
 MIN_EXISTENCE = 0.5
 """The extraction rule measured beside the refined set: tracks of existence >= this."""
 RELIABILITY_BINS = 5
 METHODS = ("forward", "refined", f"r>={MIN_EXISTENCE:g}", "mht", "ss_gnn", "oracle")
+"""The methods the refinement benchmark compares, in table order."""
 
 
 @dataclass(frozen=True)

@@ -80,7 +80,9 @@ __all__ = [
 ]
 
 MANIFEST_NAME = "manifest.json"
+"""File of a run folder that says what the run was (inputs, configuration, state)."""
 CHECKPOINT_NAME = "checkpoint.pickle"
+"""File of a run folder that holds the pickled state a resumed run continues from."""
 RUN_FORMAT = "mapassoc-run/1"
 """``manifest.json`` format of a ``mapassoc run`` folder."""
 DEMO_FORMAT = "mapassoc-demo/1"

@@ -394,6 +394,7 @@ def detection_columns_to_scans(
 
 
 def is_missing(value: object) -> bool:
+    """Whether a table cell is empty: None, a float NaN, or pandas' NA or NaT."""
     if value is None:
         return True
     if isinstance(value, float) and math.isnan(value):

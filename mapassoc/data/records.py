@@ -57,6 +57,8 @@ VARIANCE_PREFIX = "var_"
 
 
 def check_sensors(sensors: Mapping[str, Sensor]) -> list[Sensor]:
+    """The sensors of ``sensors`` as a list, refusing an empty mapping or a value that is
+    not a ``Sensor``."""
     if not isinstance(sensors, Mapping) or len(sensors) == 0:
         raise InputError(f"sensors must be a non-empty mapping name -> Sensor, got {sensors!r}")
     for name, sensor in sensors.items():
@@ -84,6 +86,8 @@ def measurement_columns(sensors: Sequence[Sensor]) -> list[str]:
     return union
 
 def check_scans_for_writing(scans: Sequence[Scan], sensors: Mapping[str, Sensor]) -> None:
+    """Refuse scans that cannot be written for ``sensors`` (not a sequence of ``Scan``,
+    empty, or of an unknown sensor), naming the problem."""
     if isinstance(scans, str) or not isinstance(scans, Sequence):
         raise InputError(f"scans must be a sequence of Scan, got {scans!r}")
     if len(scans) == 0:
@@ -437,6 +441,7 @@ class TrackTable(_StateRecords):
 # --------------------------------------------------------------------------- truth
 
 TRUTH_HEADER = "target_id,time,<state names>"
+"""The header of a truth file, as error messages state it."""
 
 
 def truth_state_names(path: str, header: Sequence[str], *, row: int | None) -> list[str]:
@@ -461,6 +466,7 @@ def truth_state_names(path: str, header: Sequence[str], *, row: int | None) -> l
 TRACKS_HEADER = (
     "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row[,existence]"
 )
+"""The header of a tracks file, as error messages state it."""
 
 
 def track_state_names(

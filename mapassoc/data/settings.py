@@ -67,7 +67,9 @@ __all__ = [
 ]
 
 K_PRIORS = COUNT_PRIORS
+"""Names of the priors on the number of targets (``[estimator.count] k_prior``)."""
 K_ESTIMATES = tuple(K_ESTIMATORS)
+"""Names of the estimates of K (``[estimator.count] k_estimate``)."""
 
 DEFAULT_PRUNE_LOG_RATIO = 9.0
 """The forward pass's pruning width: the default of every rule that prunes at it."""

@@ -22,7 +22,7 @@ with ``c_m = log Pd_m + log N(nu_m; 0, S_m) - log lambda_m`` where it is detecte
 (Kalman innovation of its own filter; ``-inf`` outside the gate, which the window model
 never associates), ``c_m = log(1 - Pd_m P_G)`` where it is missed, ``u_f`` the
 undetected-target mean of :mod:`mapassoc.models.population` from the recording's first
-scan, and
+scan, and::
 
     tail(m) = max( log(1 - Ps^{t_{m+1} - t_m}),
                    (t_{m+1} - t_m) log Ps + log(1 - Pd_{m+1} P_G) + tail(m + 1) ),

@@ -39,8 +39,8 @@ Starting values.  The rate starts where every detection is clutter: ``lambda_bar
 the mean detections per scan, an upper bound on the rate.  That start is cheap (with
 much clutter assumed, few hypotheses survive) and descends to the estimate; a start
 below the truth is not offered, because too little assumed clutter turns clutter into
-tracks and every window into a combinatorial problem (on ``dense_pd08``, a first pass at
-a quarter of the true rate took 252 s against 1.1 s at the upper bound).  Where the
+tracks and every window into a combinatorial problem (on ``dense_pd08`` a first pass at a
+quarter of the true rate took over two hundred times as long as one at the upper bound).  Where the
 upper bound explains no detection at all (few false alarms among many targets: the
 assumed clutter then hides every track), the next pass tries a quarter of it, once; a
 recording without targets comes back to the mean detections per scan.  That probe is

@@ -1,6 +1,11 @@
 """The posterior over the number of targets K in a window (Perry's MAP formulation), under a
 named prior.
 
+Perry's MAP formulation is R. Perry, "Time-Recursive Number-of-Tracks Estimation for ..."
+(Proceedings of SPIE, 2000; Villanova University): the joint MAP estimate of the number of
+tracks and the track set (its eq. 14), and the marginal over track sets for p(K | Z); the
+documentation's references page gives what is confirmed of the citation.
+
 The window's per-T tables (T the number of tracks of a track set: carried tracks
 alive in the window plus tracks started in it) give, for T = 0..Kmax,
 

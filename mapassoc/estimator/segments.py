@@ -22,7 +22,7 @@ and stitch the results (:func:`stitch_segments`):
 A detection is used by at most one stitched track (the owned ranges are disjoint), so
 the result is a feasible track set.  It is not the sequential run's: a segment starts
 without the tracks the sequential run would carry into it, and the two may commit
-differently near the cuts.  The benchmark of the README measures both the speed-up and
+differently near the cuts.  ``mapassoc bench-reprocess`` measures both the speed-up and
 the accuracy against the sequential run.
 """
 

@@ -29,6 +29,7 @@ __all__ = [
 
 
 def readonly(array: NDArray) -> NDArray:
+    """``array`` made read-only (in place) and returned."""
     array.setflags(write=False)
     return array
 
@@ -147,6 +148,8 @@ class TimedPoints:
 
 
 def float_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    """``value`` as a float array, refusing what is not numeric (the message names
+    ``name``)."""
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError):
@@ -160,6 +163,8 @@ def float_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
 
 
 def int_array(name: str, value: ArrayLike) -> NDArray[np.int64]:
+    """``value`` as an int64 array, refusing what is not integer (the message names
+    ``name``)."""
     arr = np.array(value)
     if arr.size == 0:
         return arr.astype(np.int64)
@@ -169,6 +174,8 @@ def int_array(name: str, value: ArrayLike) -> NDArray[np.int64]:
 
 
 def check_order(p: object) -> float:
+    """The GOSPA/OSPA order ``p`` as a float, refusing values below 1 (the metrics are
+    metrics only for p >= 1)."""
     order = check_positive("p", p)
     if order < 1.0:
         raise InputError(f"p must be >= 1 (GOSPA is a metric only for p >= 1), got {p!r}")
@@ -207,6 +214,8 @@ def check_cost_powers(p: float, **costs: float) -> None:
 
 
 def check_runs(truth: TimedPoints, estimates: TimedPoints) -> None:
+    """Refuse a truth and an estimate that are not both ``TimedPoints`` of the same position
+    dimension."""
     for name, run in (("truth", truth), ("estimates", estimates)):
         if not isinstance(run, TimedPoints):
             raise InputError(f"{name} must be a TimedPoints, got {type(run).__name__}")

@@ -92,6 +92,7 @@ __all__ = [
 Plan = list[tuple[float, str]]
 
 DEFAULT_SCENARIO = "crossing"
+"""The scenario that ``mapassoc demo`` and ``mapassoc simulate`` use when none is named."""
 
 # Nearly-constant-velocity acceleration noise intensity of the Cartesian scenarios
 # (length^2 / time^3): the velocity wanders by about 0.045 per unit time, so over a
@@ -1450,6 +1451,7 @@ SCENARIOS: dict[str, Callable[[int], Scenario]] = {
     # Manoeuvring traffic in metres and seconds (mapassoc.evaluation.manoeuvres).
     **{name: family.build for name, family in MANOEUVRE_FAMILIES.items()},
 }
+"""The built-in scenarios by name: ``SCENARIOS[name](seed)`` builds one."""
 
 _DESCRIPTIONS: dict[str, str] = {
     "crossing": (

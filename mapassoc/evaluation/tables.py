@@ -57,6 +57,7 @@ def position_names(truth: TruthTable, tracks: TrackTable) -> tuple[str, ...]:
 
 
 def truth_points(truth: TruthTable, names: tuple[str, ...]) -> TimedPoints:
+    """The truth's positions (the state components ``names``) as ``TimedPoints``."""
     cols = [truth.state_names.index(n) for n in names]
     return TimedPoints.from_unsorted(
         times=truth.times, ids=truth.target_ids, positions=truth.states[:, cols]
@@ -64,6 +65,8 @@ def truth_points(truth: TruthTable, names: tuple[str, ...]) -> TimedPoints:
 
 
 def track_points(tracks: TrackTable, names: tuple[str, ...]) -> TimedPoints:
+    """The tracks' positions (the state components ``names``) as ``TimedPoints``, one point
+    per track and time (its last row)."""
     cols = [tracks.state_names.index(n) for n in names]
     # Last row of each (track, time): iterate in reverse and keep first occurrences.
     keys = list(zip(tracks.track_ids.tolist(), tracks.times.tolist(), strict=True))

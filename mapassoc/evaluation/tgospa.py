@@ -64,10 +64,6 @@ Three exact reductions keep the programs small, so a whole run is cheap:
   state = matching, step cost = ``gamma^p / 2`` times the number of pairs that change), which
   is the same minimum without the solver's set-up cost; larger components go to HiGHS.
 
-Measured (2 shared cores, oracle tracks of the bench families, c = gamma = 10): 0.01-0.14 s
-for the 40-60 scan families with 4-10 targets, 0.6 s for scale100 (100 targets, 30 scans,
-42 components); one component of 28 trajectories over 60 scans took 0.6 s (the LP 0.2 s).
-
 The evaluation times are those of :func:`mapassoc.evaluation.metrics.gospa_over_time`: the
 sorted union of the truth and estimate times, matched exactly.  A trajectory is the rows of one
 id; ids are what make trajectories, so a track id reused for two objects is one trajectory.

@@ -390,8 +390,10 @@ class ConstantAcceleration(_LinearKinematic):
 class RandomWalk(_LinearKinematic):
     """Random walk ``x_k = x_{k-1} + q_k`` with ``q_k ~ N(0, noise_intensity * dt * I)``.
 
-    Seeds 001 and 003 use the scalar case (``ndim=1``, ``dt=1``), for which
-    ``noise_intensity`` is the per-step motion variance (0.35 in single-object tracking in clutter).
+    The worked examples of the n-object posterior and of single-object tracking in clutter
+    (L. Svensson et al., "Multi-Object Tracking for Automotive Systems") use the scalar case
+    (``ndim=1``, ``dt=1``), for which ``noise_intensity`` is the per-step motion variance
+    (0.35 in the clutter example).
 
     Parameters
     ----------

@@ -322,7 +322,7 @@ class JointMapK(KEstimator):
 
 
 class MedianK(KEstimator):
-    """The posterior median of K (it minimises the expected absolute error |K - K_hat|):
+    """The posterior median of K (it minimises the expected absolute error ``|K - K_hat|``):
     the smallest K with p(K' <= K | Z) >= 1/2, with the MAP set given that K."""
 
     name = "median"

@@ -1,4 +1,4 @@
-"""Exact data-association posteriors of the seeds, by full enumeration.
+"""Exact data-association posteriors of the works the estimator follows, by full enumeration.
 
 These functions enumerate *every* association and are the exact reference against
 which the approximate (pruned, windowed, optimised) estimators are checked.  Their
@@ -8,20 +8,23 @@ what it would enumerate before it starts (:func:`association_count`,
 (:data:`ENUMERATION_LIMIT` unless raised), rather than allocating until memory runs out.
 
 * :func:`enumerate_associations` and :func:`association_table`: the data association
-  vectors theta of Afzal's survey, section 5.2 (eq. 18-20), and the object/clutter split of
-  its Table 1.
+  vectors theta of W. Afzal, "Track Association Problems in AD" (2022), section 5.2
+  (eq. 18-20), and the object/clutter split of its Table 1.
 * :func:`n_object_posterior`: the posterior of n objects with independent Gaussian
-  priors after one scan (the n-object posterior).  For each theta the unnormalised weight is::
+  priors after one scan (the n-object posterior of L. Svensson et al., "Multi-Object
+  Tracking for Automotive Systems", Chalmers University of Technology).  For each theta
+  the unnormalised weight is::
 
       w~_theta = (1 - Pd)^(#missed) * (Pd / lambda)^(#detected)
                  * prod_{i detected} N(z_theta_i; z^_i, S_i)
 
-  (the n-object posterior; design notes: the combinatorial factors of the Poisson clutter cancel),
-  normalised as ``w_theta = w~_theta / sum_theta' w~_theta'`` (the n-object posterior), and every
+  (the combinatorial factors of the Poisson clutter cancel between the clutter's count
+  and its ordering), normalised as ``w_theta = w~_theta / sum_theta' w~_theta'``, and every
   object's density given theta is its Kalman update with ``z_theta_i`` (prior when
   missed).
 * :func:`single_object_sequences`: one object in clutter over several scans, one
-  hypothesis per sequence of associations theta_1:k (single-object tracking in clutter)::
+  hypothesis per sequence of associations theta_1:k (single-object tracking in clutter,
+  from the same course)::
 
       w~_theta_1:k = w~_theta_1:k-1 * (1 - Pd)                        if theta_k = 0
       w~_theta_1:k = w~_theta_1:k-1 * (Pd / lambda) N(z_theta_k; z^, S)  otherwise
@@ -30,9 +33,9 @@ Weights are carried in log space and normalised with a log-sum-exp.  A detection
 probability of exactly 1 gives missed detections ``log 0 = -inf``, hence weight exactly
 0, without numerical warnings.
 
-Measurement indices follow the seeds: 1-based, with 0 meaning "missed".  The clutter
-intensity lambda is per unit measurement volume (the n-object posterior uses lambda = 0.3 per unit
-length on [-5, 5], not 0.3 / 10).
+Measurement indices follow those works: 1-based, with 0 meaning "missed".  The clutter
+intensity lambda is per unit measurement volume (the course's two-object example uses
+lambda = 0.3 per unit length on [-5, 5], not 0.3 / 10).
 """
 
 from __future__ import annotations
@@ -673,7 +676,7 @@ def single_object_sequences(
         theta_k = j:  log w~ += log(Pd / lambda) + log N(z_j; z^, S),  Kalman update
 
     Unnormalised weights are the cumulative products; normalising them gives the same
-    weights as the seed's recursion on normalised parent weights.  The number of
+    weights as the course's recursion on normalised parent weights.  The number of
     hypotheses is ``prod_k (m_k + 1)``.
 
     Parameters

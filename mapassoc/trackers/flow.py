@@ -376,9 +376,9 @@ class FlowTracker:
         How each window's flows are found: successive shortest paths on the float costs
         (:func:`~mapassoc.formulations.tracking_flow.successive_shortest_paths`, one
         Dijkstra per K), or networkx's network simplex on integer-scaled costs, one call
-        per K (:class:`~mapassoc.solvers.networkx_flow.NetworkxFlowSolver`; the whole
-        tracker is 2.5-3.5x slower with it on crossing and dense, with the same tracks
-        unless two track sets tie within its rounding of the costs).
+        per K (:class:`~mapassoc.solvers.networkx_flow.NetworkxFlowSolver`; slower, which
+        is why it is not the default, with the same tracks unless two track sets tie
+        within its rounding of the costs).
     name : str, default "flow"
 
     Raises

@@ -265,6 +265,7 @@ class MOfNRule:
 
 
 ManagementRule = ScoreRule | MOfNRule
+"""A track-management rule of the baselines: a score rule or an M-of-N rule."""
 
 
 def management_rule(rule: ManagementRule | None) -> ManagementRule:

@@ -61,9 +61,9 @@ cluster (no-good cuts, :func:`~mapassoc.solvers.k_best.solve_k_best`) merged bes
 over the clusters (the j-th best sum of independent parts uses only the top j of each
 part). With ``m_best = 1`` leaves with value <= 0 are left out of the program: dropping
 such a leaf from any global hypothesis gives one at least as good, so the best is
-unchanged (with ``m_best > 1`` every leaf enters: ``m_best = 3`` takes ``dense`` from 5
-s to 17 s). Global hypothesis probabilities are ``exp(score)`` normalised over the M
-best (Blackman 2004, restricted to the hypotheses formed;
+unchanged (with ``m_best > 1`` every leaf enters, which makes the programs larger and
+the tracker several times slower on ``dense``). Global hypothesis probabilities are
+``exp(score)`` normalised over the M best (Blackman 2004, restricted to the hypotheses formed;
 :meth:`MhtDetails.m_best_probabilities`). With ``m_best_pruning`` every tree that has a
 leaf in one of the M best hypotheses keeps only such leaves (hypothesis-probability
 pruning; trees in none are left to the rules below, so that a young tree can still

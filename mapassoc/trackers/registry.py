@@ -10,19 +10,20 @@ keyword-only parameters whose type is a number, a boolean or a string).  Adding 
 method, with options of its own, is one module with a class implementing
 :class:`~mapassoc.trackers.base.Tracker` and one row here.
 
-=========  =====================================  ======================================
-name       class                                  method
-=========  =====================================  ======================================
-``map``    :class:`~.map_estimator.MapTracker`    sliding-window MAP track sets, p(K | Z),
-                                                  refined over the whole recording
-``map-forward`` :class:`~.map_estimator.MapForwardTracker`  the forward pass alone
-``gnn``    :class:`~.gnn.GnnTracker`              global nearest neighbour (2-D assignment)
-``jpda``   :class:`~.jpda.JpdaTracker`            joint probabilistic data association
-``mht``    :class:`~.mht.MhtTracker`              track-oriented MHT, N-scan pruning
-``flow``   :class:`~.flow.FlowTracker`            min-cost network flow over a window
-``lp``     :class:`~.lp_relaxation.LpRelaxationTracker`  LP relaxation of the MAP program
-``oracle`` :class:`~.oracle.OracleTracker`        smoother on the true associations
-=========  =====================================  ======================================
+===============  ============================================  =====================================
+name             class                                         method
+===============  ============================================  =====================================
+``map``          :class:`~.map_estimator.MapTracker`           sliding-window MAP sets, p(K | Z),
+                                                               refined over the recording
+``map-forward``  :class:`~.map_estimator.MapForwardTracker`    the forward pass alone
+``gnn``          :class:`~.gnn.GnnTracker`                     global nearest neighbour (2-D
+                                                               assignment)
+``jpda``         :class:`~.jpda.JpdaTracker`                   joint probabilistic data association
+``mht``          :class:`~.mht.MhtTracker`                     track-oriented MHT, N-scan pruning
+``flow``         :class:`~.flow.FlowTracker`                   min-cost network flow over a window
+``lp``           :class:`~.lp_relaxation.LpRelaxationTracker`  LP relaxation of the MAP program
+``oracle``       :class:`~.oracle.OracleTracker`               smoother on the true associations
+===============  ============================================  =====================================
 """
 
 from __future__ import annotations
@@ -191,6 +192,7 @@ TRACKERS: dict[str, TrackerSpec] = {
         ),
     )
 }
+"""Every tracking method by name (the table of the module docstring)."""
 
 
 DEFAULT_TRACKERS: tuple[str, ...] = (

@@ -371,7 +371,7 @@ def perry_posterior(w: Window) -> np.ndarray:
 
 
 @pytest.mark.parametrize("seed", range(30))
-def test_public_configuration_reduces_to_seed_002(seed: int) -> None:
+def test_public_configuration_reduces_to_perrys_formulation(seed: int) -> None:
     """rate = 0, survival_probability = 1, k_prior = "uniform", no gate and no pruning,
     a window that starts the recording: p(K | Z) is the posterior of Perry's MAP
     formulation under its uniform prior, whatever initial_count is (it scales every track set with T

@@ -296,7 +296,7 @@ HANDMADE = TinyModel(
 
 
 @pytest.mark.parametrize("seed", [*range(12), "handmade"])
-def test_posterior_equals_literal_seed_002_formula(seed: int | str) -> None:
+def test_posterior_equals_perrys_formula_literally(seed: int | str) -> None:
     model = HANDMADE if seed == "handmade" else tiny_model(int(seed))
     num_detections = sum(len(d) for d in model.detections)
     kmax = num_detections + 1
@@ -351,7 +351,7 @@ def enumerate_sets(problem: PackingProblem) -> list[np.ndarray]:
     return list(enumerate_feasible(set_packing_program(problem, None)))
 
 
-def test_one_scan_window_reduces_to_seed_001() -> None:
+def test_one_scan_window_reduces_to_the_n_object_posterior() -> None:
     """The n-object posterior's worked example through the public configuration alone (its
     column of docs/model.md section 4): rate = 0 and initial_count = 0 (no new target),
     survival_probability = 1, no gate.  The window's feasible track sets are exactly

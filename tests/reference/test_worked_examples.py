@@ -1,12 +1,14 @@
-"""Acceptance tests: the seeds' worked examples, reproduced exactly by
-mapassoc.reference.association.
+"""Acceptance tests: the worked examples of the works the exact references follow,
+reproduced exactly by mapassoc.reference.association.
 
-* Afzal's survey, section 5.2, eq. 18-20 and Table 1: the association vectors and their
-  object / clutter split;
-* the n-object posterior: the two-object posterior with seven associations (weights derived by hand
-  below, independently of the library);
-* single-object tracking in clutter: one object over two scans (checked against a
-  brute-force numerical integration on a grid that uses no Kalman formula).
+* W. Afzal, "Track Association Problems in AD" (2022), section 5.2, eq. 18-20 and Table 1:
+  the association vectors and their object / clutter split;
+* the n-object posterior of L. Svensson et al., "Multi-Object Tracking for Automotive
+  Systems" (Chalmers University of Technology): the two-object posterior with seven
+  associations (weights derived by hand below, independently of the library);
+* single-object tracking in clutter, from the same course: one object over two scans
+  (checked against a brute-force numerical integration on a grid that uses no Kalman
+  formula).
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ def normal(z: float, mean: float, var: float) -> float:
 # --------------------------------------------------------------------------------------
 
 
-def test_seed000_table1_two_objects_two_measurements() -> None:
+def test_afzal_table1_two_objects_two_measurements() -> None:
     # (theta, O^1, O^2, C, m^o, m^c) exactly as Table 1 of Afzal's survey.
     table1 = [
         ((0, 0), (None, None), (1, 2), 0, 2),
@@ -110,29 +112,29 @@ def test_association_table_rejects_invalid_theta(theta: tuple) -> None:
 # The n-object posterior: two objects, two measurements, seven associations
 # --------------------------------------------------------------------------------------
 
-SEED001_PRIOR_MEANS = np.array([[-2.5], [2.5]])
-SEED001_PRIOR_COVS = np.array([[[0.36]], [[0.36]]])
-SEED001_MEASUREMENTS = np.array([[-1.6], [1.0]])
-SEED001_CLUTTER = 0.3  # per unit length on [-5, 5] (design notes), not 0.3 / 10
+TWO_OBJECT_PRIOR_MEANS = np.array([[-2.5], [2.5]])
+TWO_OBJECT_PRIOR_COVS = np.array([[[0.36]], [[0.36]]])
+TWO_OBJECT_MEASUREMENTS = np.array([[-1.6], [1.0]])
+TWO_OBJECT_CLUTTER = 0.3  # per unit length on [-5, 5] (the worked example's density), not 0.3 / 10
 
 
-def seed001_posterior(pd: float):
+def two_object_posterior(pd: float):
     return n_object_posterior(
-        SEED001_PRIOR_MEANS,
-        SEED001_PRIOR_COVS,
-        SEED001_MEASUREMENTS,
+        TWO_OBJECT_PRIOR_MEANS,
+        TWO_OBJECT_PRIOR_COVS,
+        TWO_OBJECT_MEASUREMENTS,
         scalar_measurement(),
         pd,
-        SEED001_CLUTTER,
+        TWO_OBJECT_CLUTTER,
     )
 
 
-def seed001_hand_weights(pd: float) -> dict[tuple[int, int], float]:
+def two_object_hand_weights(pd: float) -> dict[tuple[int, int], float]:
     """Unnormalised weights of the n-object posterior, written out term by term."""
     S = 0.36 + 0.2  # innovation variance H P H^T + R = 0.56 for both objects
     assert S == pytest.approx(0.56)
     miss = 1.0 - pd  # (1 - Pd) per missed object
-    det = pd / SEED001_CLUTTER  # (Pd / lambda) per detected object
+    det = pd / TWO_OBJECT_CLUTTER  # (Pd / lambda) per detected object
     obj1_z1 = normal(-1.6, -2.5, S)
     obj1_z2 = normal(1.0, -2.5, S)
     obj2_z1 = normal(-1.6, 2.5, S)
@@ -149,9 +151,9 @@ def seed001_hand_weights(pd: float) -> dict[tuple[int, int], float]:
 
 
 @pytest.mark.parametrize("pd", [0.85, 0.95, 0.5])
-def test_seed001_weights_match_hand_derivation(pd: float) -> None:
-    post = seed001_posterior(pd)
-    hand = seed001_hand_weights(pd)
+def test_two_object_example_weights_match_hand_derivation(pd: float) -> None:
+    post = two_object_posterior(pd)
+    hand = two_object_hand_weights(pd)
     assert list(post.associations) == list(hand)
     total = sum(hand.values())
     expected = np.array([hand[theta] / total for theta in post.associations])
@@ -162,28 +164,28 @@ def test_seed001_weights_match_hand_derivation(pd: float) -> None:
     assert post.weights.sum() == pytest.approx(1.0, abs=1e-14)
 
 
-def test_seed001_statements() -> None:
+def test_two_object_example_statements() -> None:
     # Pd = 0.85: three of seven weights are "more or less zero" (< 0.01): exactly the
     # associations that use the far measurement for some object (object 1 with z2 = 1,
     # object 2 with z1 = -1.6).
-    post = seed001_posterior(0.85)
+    post = two_object_posterior(0.85)
     weights = dict(zip(post.associations, post.weights, strict=True))
     near_zero = {theta for theta, weight in weights.items() if weight < 0.01}
     assert near_zero == {(0, 1), (2, 0), (2, 1)}
     # Pd = 0.95: theta = [1, 2] "almost 0.8" (exact value 0.7719978...), both missed almost 0
     # (0.0104...).
-    post = seed001_posterior(0.95)
+    post = two_object_posterior(0.95)
     assert 0.7 < post.weight_of((1, 2)) < 0.85
     assert post.weight_of((1, 2)) == pytest.approx(0.7719978, abs=1e-7)
     assert post.weight_of((0, 0)) < 0.02
     assert int(np.argmax(post.weights)) == post.associations.index((1, 2))
     # Pd = 0.5: both missed has the largest weight (0.4336...).
-    post = seed001_posterior(0.5)
+    post = two_object_posterior(0.5)
     assert int(np.argmax(post.weights)) == post.associations.index((0, 0))
 
 
-def test_seed001_components_are_kalman_updates_by_hand() -> None:
-    post = seed001_posterior(0.85)
+def test_two_object_example_components_are_kalman_updates_by_hand() -> None:
+    post = two_object_posterior(0.85)
     a = post.associations.index((1, 2))
     gain = 0.36 / 0.56
     var = 0.36 - gain * 0.36  # = 0.36 * 0.2 / 0.56 = 0.128571...
@@ -193,12 +195,12 @@ def test_seed001_components_are_kalman_updates_by_hand() -> None:
     assert post.covariances[a, 1, 0, 0] == pytest.approx(var, abs=1e-12)
     # Missed objects keep their prior.
     b = post.associations.index((0, 0))
-    np.testing.assert_array_equal(post.means[b], SEED001_PRIOR_MEANS)
-    np.testing.assert_array_equal(post.covariances[b], SEED001_PRIOR_COVS)
+    np.testing.assert_array_equal(post.means[b], TWO_OBJECT_PRIOR_MEANS)
+    np.testing.assert_array_equal(post.covariances[b], TWO_OBJECT_PRIOR_COVS)
 
 
-def test_seed001_marginal_mixture_is_a_density_with_matching_moments() -> None:
-    post = seed001_posterior(0.85)
+def test_two_object_example_marginal_mixture_is_a_density_with_matching_moments() -> None:
+    post = two_object_posterior(0.85)
     grid = np.linspace(-10.0, 10.0, 20001)
     step = grid[1] - grid[0]
     for i in range(2):
@@ -222,27 +224,27 @@ def test_seed001_marginal_mixture_is_a_density_with_matching_moments() -> None:
 # Single-object tracking in clutter: single object in clutter, two scans
 # --------------------------------------------------------------------------------------
 
-SEED003_SCANS = [np.array([[-1.3], [1.7]]), np.array([[1.3]])]
-SEED003_PD = 0.9
-SEED003_CLUTTER = 0.4  # per unit length on [-4, 4]
-SEED003_MOTION_VAR = 0.35
+CLUTTER_SCANS = [np.array([[-1.3], [1.7]]), np.array([[1.3]])]
+CLUTTER_PD = 0.9
+CLUTTER_CLUTTER = 0.4  # per unit length on [-4, 4]
+CLUTTER_MOTION_VAR = 0.35
 
 
-def seed003_posterior():
+def one_object_in_clutter_posterior():
     return single_object_sequences(
         [0.5],
         [[0.2]],
-        SEED003_SCANS,
-        RandomWalk(ndim=1, noise_intensity=SEED003_MOTION_VAR),
+        CLUTTER_SCANS,
+        RandomWalk(ndim=1, noise_intensity=CLUTTER_MOTION_VAR),
         scalar_measurement(),
-        SEED003_PD,
-        SEED003_CLUTTER,
+        CLUTTER_PD,
+        CLUTTER_CLUTTER,
         dt=1.0,
     )
 
 
-def test_seed003_statements() -> None:
-    post = seed003_posterior()
+def test_one_object_in_clutter_example_statements() -> None:
+    post = one_object_in_clutter_posterior()
     assert post.sequences == ((0, 0), (0, 1), (1, 0), (1, 1), (2, 0), (2, 1))
     # Most likely: detected at both times, by z = 1.7 at time 1 and z = 1.3 at time 2.
     assert post.sequences[int(np.argmax(post.weights))] == (2, 1)
@@ -252,7 +254,7 @@ def test_seed003_statements() -> None:
     assert post.weights.sum() == pytest.approx(1.0, abs=1e-14)
 
 
-def test_seed003_matches_brute_force_grid_integration() -> None:
+def test_one_object_in_clutter_example_matches_brute_force_grid_integration() -> None:
     """Weights, means and variances against numerical integration (no Kalman formula)."""
     num_points = 4001
     grid = np.linspace(-8.0, 8.0, num_points)
@@ -263,20 +265,20 @@ def test_seed003_matches_brute_force_grid_integration() -> None:
 
     def likelihood(theta: int, scan: np.ndarray) -> np.ndarray:
         if theta == 0:
-            return np.full(num_points, 1.0 - SEED003_PD)
+            return np.full(num_points, 1.0 - CLUTTER_PD)
         z = float(scan[theta - 1, 0])
-        return SEED003_PD / SEED003_CLUTTER * gauss(z, grid, SCALAR_MEASUREMENT_VAR)
+        return CLUTTER_PD / CLUTTER_CLUTTER * gauss(z, grid, SCALAR_MEASUREMENT_VAR)
 
     prior_x1 = gauss(grid, 0.5, 0.2)
     # Transition x2 | x1 ~ N(x1, 0.35) on a uniform grid is a discrete convolution.
     offsets = np.arange(-(num_points - 1), num_points) * step
-    kernel = gauss(offsets, 0.0, SEED003_MOTION_VAR)
+    kernel = gauss(offsets, 0.0, CLUTTER_MOTION_VAR)
     expected_weight, expected_mean, expected_var = {}, {}, {}
     for theta1 in range(3):
-        joint_x1 = prior_x1 * likelihood(theta1, SEED003_SCANS[0])
+        joint_x1 = prior_x1 * likelihood(theta1, CLUTTER_SCANS[0])
         predicted_x2 = np.convolve(joint_x1, kernel)[num_points - 1 : 2 * num_points - 1] * step
         for theta2 in range(2):
-            joint_x2 = predicted_x2 * likelihood(theta2, SEED003_SCANS[1])
+            joint_x2 = predicted_x2 * likelihood(theta2, CLUTTER_SCANS[1])
             mass = joint_x2.sum() * step
             mean = (grid * joint_x2).sum() * step / mass
             expected_weight[(theta1, theta2)] = mass
@@ -284,7 +286,7 @@ def test_seed003_matches_brute_force_grid_integration() -> None:
             expected_var[(theta1, theta2)] = ((grid - mean) ** 2 * joint_x2).sum() * step / mass
     total = sum(expected_weight.values())
 
-    post = seed003_posterior()
+    post = one_object_in_clutter_posterior()
     assert set(post.sequences) == set(expected_weight)
     for h, sequence in enumerate(post.sequences):
         assert post.weights[h] == pytest.approx(expected_weight[sequence] / total, abs=1e-9)
@@ -293,16 +295,16 @@ def test_seed003_matches_brute_force_grid_integration() -> None:
         assert post.covariances[h, 0, 0] == pytest.approx(expected_var[sequence], abs=1e-9)
 
 
-def test_seed003_handles_empty_scan_and_lexicographic_order() -> None:
-    scans = [SEED003_SCANS[0], np.empty((0, 1)), SEED003_SCANS[1]]
+def test_one_object_in_clutter_example_handles_empty_scan_and_lexicographic_order() -> None:
+    scans = [CLUTTER_SCANS[0], np.empty((0, 1)), CLUTTER_SCANS[1]]
     post = single_object_sequences(
         [0.5],
         [[0.2]],
         scans,
         RandomWalk(ndim=1, noise_intensity=0.35),
         scalar_measurement(),
-        SEED003_PD,
-        SEED003_CLUTTER,
+        CLUTTER_PD,
+        CLUTTER_CLUTTER,
     )
     assert list(post.sequences) == sorted(itertools.product(range(3), range(1), range(2)))
     # An empty scan multiplies every weight by (1 - Pd): normalised weights are those of
@@ -310,16 +312,16 @@ def test_seed003_handles_empty_scan_and_lexicographic_order() -> None:
     two_step = single_object_sequences(
         [0.5],
         [[0.2]],
-        [SEED003_SCANS[0], SEED003_SCANS[1]],
+        [CLUTTER_SCANS[0], CLUTTER_SCANS[1]],
         RandomWalk(ndim=1, noise_intensity=0.35),
         scalar_measurement(),
-        SEED003_PD,
-        SEED003_CLUTTER,
+        CLUTTER_PD,
+        CLUTTER_CLUTTER,
         dt=2.0,
     )
     np.testing.assert_allclose(post.weights, two_step.weights, rtol=0, atol=1e-14)
     np.testing.assert_allclose(
-        post.log_weights, two_step.log_weights + math.log(1.0 - SEED003_PD), rtol=1e-13
+        post.log_weights, two_step.log_weights + math.log(1.0 - CLUTTER_PD), rtol=1e-13
     )
 
 
@@ -407,15 +409,15 @@ def test_permuting_measurements_permutes_associations(
 def test_detection_probability_one_gives_missed_associations_weight_exactly_zero() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        post = seed001_posterior(1.0)
+        post = two_object_posterior(1.0)
         sequences = single_object_sequences(
             [0.5],
             [[0.2]],
-            SEED003_SCANS,
+            CLUTTER_SCANS,
             RandomWalk(ndim=1, noise_intensity=0.35),
             scalar_measurement(),
             1.0,
-            SEED003_CLUTTER,
+            CLUTTER_CLUTTER,
         )
     for theta, weight, log_weight in zip(
         post.associations, post.weights, post.log_weights, strict=True
@@ -430,7 +432,7 @@ def test_detection_probability_one_gives_missed_associations_weight_exactly_zero
         assert (weight == 0.0) == (0 in sequence)
     # Hand check: with no misses the weights are proportional to the two products of
     # Gaussian likelihoods.
-    hand = seed001_hand_weights(1.0)
+    hand = two_object_hand_weights(1.0)
     assert post.weight_of((1, 2)) == pytest.approx(
         hand[(1, 2)] / (hand[(1, 2)] + hand[(2, 1)]), abs=1e-12
     )
@@ -472,9 +474,9 @@ def test_gaussian_mixture_pdf_and_merge_by_hand() -> None:
 
 def _n_object_call(**overrides: object) -> None:
     arguments: dict[str, object] = {
-        "prior_means": SEED001_PRIOR_MEANS,
-        "prior_covs": SEED001_PRIOR_COVS,
-        "measurements": SEED001_MEASUREMENTS,
+        "prior_means": TWO_OBJECT_PRIOR_MEANS,
+        "prior_covs": TWO_OBJECT_PRIOR_COVS,
+        "measurements": TWO_OBJECT_MEASUREMENTS,
         "measurement_model": scalar_measurement(),
         "detection_probability": 0.85,
         "clutter_intensity": 0.3,
@@ -530,7 +532,7 @@ def test_non_symmetric_prior_covariance_is_rejected() -> None:
 
 
 def test_marginal_rejects_bad_object_index() -> None:
-    post = seed001_posterior(0.85)
+    post = two_object_posterior(0.85)
     for bad in (-1, 2, 0.0):
         with pytest.raises(InputError, match="object index"):
             post.marginal(bad)  # type: ignore[arg-type]
@@ -542,7 +544,7 @@ def _sequences_call(**overrides: object) -> None:
     arguments: dict[str, object] = {
         "prior_mean": [0.5],
         "prior_cov": [[0.2]],
-        "scans": SEED003_SCANS,
+        "scans": CLUTTER_SCANS,
         "motion": RandomWalk(ndim=1, noise_intensity=0.35),
         "measurement_model": scalar_measurement(),
         "detection_probability": 0.9,
@@ -567,7 +569,7 @@ def _sequences_call(**overrides: object) -> None:
         ({"motion": RandomWalk(ndim=2, noise_intensity=0.35)}, InputError, "motion"),
         ({"motion": "random walk"}, InputError, "motion"),
         (
-            {"detection_probability": 1.0, "scans": [SEED003_SCANS[0], np.empty((0, 1))]},
+            {"detection_probability": 1.0, "scans": [CLUTTER_SCANS[0], np.empty((0, 1))]},
             InputError,
             "probability 0",
         ),
