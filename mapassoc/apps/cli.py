@@ -4,6 +4,7 @@ Subcommands::
 
     mapassoc scenarios                               list the built-in scenarios
     mapassoc simulate NAME --out DIR [--scans N]     write a scenario folder
+    mapassoc init-config DETECTIONS [--out TOML]     a starter configuration from the data
     mapassoc run CONFIG DETECTIONS --out DIR         estimate tracks
     mapassoc estimate-parameters CONFIG DETECTIONS   sensor parameters from the recording
     mapassoc batch SOURCE --out DIR [--config C]     many recordings, in parallel
@@ -536,6 +537,37 @@ def _add_run_command(sub: Subcommands) -> None:
     p.set_defaults(func=_cmd_run)
 
 
+def _cmd_init_config(args: argparse.Namespace) -> int:
+    from mapassoc.apps.init_config import init_config, parse_site
+
+    sites = dict(parse_site(text) for text in args.site)
+    init_config(args.detections, args.out, sites=sites)
+    print(f"{args.out}: starter configuration of {args.detections}; run it with "
+          f"mapassoc run {args.out} {args.detections} --out DIR")  # fmt: skip
+    return 0
+
+
+def _add_init_config_command(sub: Subcommands) -> None:
+    """``mapassoc init-config``."""
+    p = sub.add_parser(
+        "init-config",
+        help="write a starter configuration inferred from a detections file",
+        description="Reads a detections file (plain seconds or ISO 8601 times; x,y, "
+        "lat,lon, range,azimuth or range,bearing columns), finds its sensors and their "
+        "measurement kinds, the region, the scan period, the noise and a velocity spread "
+        "from the data, and writes a commented configuration with \"auto\" for the "
+        "clutter rate and Pd, which the run estimates. Never overwrites a file.",
+        allow_abbrev=False,
+    )
+    p.add_argument("detections", help=_DETECTIONS_HELP)
+    p.add_argument("--out", default="config.toml", help="the configuration to write (a new "
+                   "file; default config.toml)")  # fmt: skip
+    p.add_argument("--site", action="append", default=[], metavar="NAME=LAT,LON[,HEIGHT]",
+                   help="the place of a sensor that gives range and azimuth (degrees, "
+                   "metres above the WGS-84 ellipsoid); once per such sensor")  # fmt: skip
+    p.set_defaults(func=_cmd_init_config)
+
+
 def _add_estimate_parameters_command(sub: Subcommands) -> None:
     """``mapassoc estimate-parameters``."""
     p = sub.add_parser(
@@ -915,6 +947,7 @@ def _add_compare_command(sub: Subcommands) -> None:
 COMMANDS = (
     _add_scenarios_command,
     _add_simulate_command,
+    _add_init_config_command,
     _add_run_command,
     _add_estimate_parameters_command,
     _add_migrate_config_command,
