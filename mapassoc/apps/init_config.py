@@ -110,7 +110,8 @@ def guess_sensors(
     guesses = []
     for name in names or ["sensor"]:
         rows = frame["sensor"].astype(str) == name if has_sensor else frame.index
-        filled = {c for c in frame.columns if c not in ("time", "sensor") and _filled(frame, c, rows)}
+        columns = [c for c in frame.columns if c not in ("time", "sensor")]
+        filled = {c for c in columns if _filled(frame, c, rows)}
         if {"lat", "lon"} <= filled:
             guesses.append(SensorGuess(name, "geo_position", 3 if "alt" in filled else 2))
         elif {"range", "azimuth"} <= filled:
@@ -251,12 +252,12 @@ def chain_moments(times: Sequence[float], positions: Sequence[Any]) -> Moments:
         for i, j in nxt[k].items():
             dt = times[k + 1] - times[k]
             velocities.append((positions[k + 1][j] - positions[k][i]) / dt)
-            l = nxt[k + 1].get(j)
-            m = None if l is None else nxt[k + 2].get(l)
-            if l is None or m is None:
+            third = nxt[k + 1].get(j)
+            fourth = None if third is None else nxt[k + 2].get(third)
+            if third is None or fourth is None:
                 continue
-            d1 = positions[k + 2][l] - 2 * positions[k + 1][j] + positions[k][i]
-            d2 = positions[k + 3][m] - 2 * positions[k + 2][l] + positions[k + 1][j]
+            d1 = positions[k + 2][third] - 2 * positions[k + 1][j] + positions[k][i]
+            d2 = positions[k + 3][fourth] - 2 * positions[k + 2][third] + positions[k + 1][j]
             second.append(d1)
             pairs.append((d1, d2))
     v = np.concatenate(velocities) if velocities else np.zeros(1)
@@ -395,7 +396,9 @@ def init_config(
     """
     target = Path(out)
     if target.exists():
-        raise OutputError(str(target), "exists; init-config never overwrites a file (give another --out)")
+        raise OutputError(
+            str(target), "exists; init-config never overwrites a file (give another --out)"
+        )
     text = infer_config_text(detections, sites=dict(sites or {}))
     try:
         with open(target, "x", encoding="utf-8") as handle:

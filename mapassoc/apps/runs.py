@@ -584,6 +584,7 @@ class RunSession:
         self.resumed_at = 0
         self._detections: bytes | None = None
         self.recording_base: RecordingBase | None = None
+        self.scans: list[Scan] = []
 
     def seconds(self) -> float:
         """Wall time since the session began."""
@@ -663,7 +664,7 @@ class RunSession:
             )  # fmt: skip
             self._detections = None
             return self.scans
-        self.scans: list[Scan] = read_detections_file(
+        self.scans = read_detections_file(
             self.inputs.detections_path, self.inputs.config.sensors, content=self._detections,
             format_name=self.options.detections_format,
         )  # fmt: skip

@@ -302,7 +302,9 @@ def _components(
     """Every internal component column: converted values, nulls as the file's cells."""
     recording: Recording = config.recording
     sensors: Mapping[str, Sensor] = config.sensors
-    internal = list(dict.fromkeys(c for s in sensors.values() for c in s.measurement.component_names))
+    internal = list(
+        dict.fromkeys(c for s in sensors.values() for c in s.measurement.component_names)
+    )
     out = {}
     for name in internal:
         source = _input_name(name, recording, columns.names)
@@ -506,4 +508,5 @@ def write_recording_tracks(
             writer.writerow(list(columns))
             writer.writerows(zip(*columns.values(), strict=True))
     except OSError as exc:
-        raise DataFileError(os.fspath(path), f"cannot write the file: {exc.strerror or exc}") from None
+        reason = exc.strerror or exc
+        raise DataFileError(os.fspath(path), f"cannot write the file: {reason}") from None

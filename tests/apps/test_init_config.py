@@ -113,7 +113,9 @@ def test_a_radar_without_its_site_is_refused_in_one_line(
 
 
 @pytest.mark.parametrize("site", ["radar=95,4", "radar=52", "=52,4", "radar=a,b"])
-def test_a_bad_site_is_one_line(site: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_bad_site_is_one_line(
+    site: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     det = _geo_file(tmp_path / "det.csv")
     assert main(["init-config", str(det), "--out", str(tmp_path / "c.toml"), "--site", site]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -22,11 +22,11 @@ import pytest
 pytest.importorskip("pyproj")
 
 from mapassoc.apps.cli import main  # noqa: E402
+from mapassoc.data.config import load_config  # noqa: E402
 from mapassoc.data.formats import read_detections_file, read_truth_file  # noqa: E402
 from mapassoc.data.frames import GeodeticPoint, LocalFrame, plane_to_site_polar  # noqa: E402
 from mapassoc.data.io import read_tracks  # noqa: E402
 from mapassoc.data.records import TrackTable, TruthTable  # noqa: E402
-from mapassoc.data.config import load_config  # noqa: E402
 from mapassoc.evaluation.tables import evaluate_tables  # noqa: E402
 
 SITE = GeodeticPoint(latitude=52.3086, longitude=4.7639, height=0.0)
@@ -141,9 +141,8 @@ def test_range_azimuth_plots_from_a_site_track_as_well_as_local_range_bearing(
     text = (tmp_path / "local.toml").read_text()
     assert "position = [0.0, 0.0]" in text  # a local radar's place is the user's to give
     (tmp_path / "local.toml").unlink()
-    (tmp_path / "local.toml").write_text(
-        text.replace("position = [0.0, 0.0]", f"position = [{float(offset[0])!r}, {float(offset[1])!r}]")
-    )
+    placed = f"position = [{float(offset[0])!r}, {float(offset[1])!r}]"
+    (tmp_path / "local.toml").write_text(text.replace("position = [0.0, 0.0]", placed))
     import shutil
 
     shutil.rmtree(local_run)

@@ -15,13 +15,13 @@ pytest.importorskip("pyproj")
 
 from mapassoc.data.config import config_to_toml, parse_config  # noqa: E402
 from mapassoc.data.frames import GeodeticPoint, LocalFrame  # noqa: E402
-from mapassoc.data.records import TrackTable  # noqa: E402
 from mapassoc.data.recording import (  # noqa: E402
     RecordingBase,
     read_recording,
     recording_track_columns,
     scans_from_recording_frame,
 )
+from mapassoc.data.records import TrackTable  # noqa: E402
 from mapassoc.errors import ConfigError, DataFileError, InputError  # noqa: E402
 
 ORIGIN = GeodeticPoint(52.3086, 4.7639, 0.0)
@@ -134,7 +134,7 @@ def test_elevation_makes_the_range_a_slant_range(tmp_path: Path) -> None:
     ("old", "new", "key"),
     [
         ("latitude = 52.3086\n", "latitude = 95.0\n", "sensors[1].latitude"),
-        ("origin = { latitude = 52.3086,", "origin = { latitude = -91.0,", "recording.origin.latitude"),
+        ("{ latitude = 52.3086,", "{ latitude = -91.0,", "recording.origin.latitude"),
         ('frame = "geodetic"', 'frame = "mercator"', "recording.frame"),
         ("longitude = 4.7639\nheight", "height", "sensors[1].longitude"),
         ("height = 10.0\n", "height = 10.0\nposition = [0.0, 0.0]\n", "sensors[1].position"),
