@@ -86,6 +86,7 @@ import math
 import os
 import re
 from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TextIO
 
 import numpy as np
@@ -862,78 +863,96 @@ def read_tracks(path: PathLike) -> TrackTable:
     header = _read_header(path, lines, TRACKS_HEADER)
     names, var_names = track_state_names(path, header, row=1)
     has_existence = header[-1] == EXISTENCE_COLUMN
-    count = len(names)
-    existence: list[float] = []
-    ids: list[int] = []
-    times: list[float] = []
-    sensors: list[str] = []
-    states: list[list[float]] = []
-    variances: list[list[float]] = []
-    detection_rows: list[int] = []
+    records: list[_TrackLine] = []
     first_line: dict[tuple[int, float, str], int] = {}
     for line, cells in lines:
         _check_width(path, line, cells, header)
-        track = _int_cell(path, line, "track_id", cells[0], minimum=0)
-        time = _float_cell(path, line, "time", cells[1])
-        sensor = cells[2]
-        if sensor == "":
-            raise DataFileError(
-                path, "empty cell; expected a sensor name", row=line, column="sensor"
-            )
-        key = (track, time, sensor)
+        key = _track_key(path, line, cells)
         if key in first_line:
             raise DataFileError(
                 path,
-                f"track {track} at time {time!r} of sensor {sensor!r} already appears at line "
-                f"{first_line[key]}; expected one line per track per scan",
+                f"track {key[0]} at time {key[1]!r} of sensor {key[2]!r} already appears at "
+                f"line {first_line[key]}; expected one line per track per scan",
                 row=line,
                 column="time",
             )
         first_line[key] = line
-        state_cells = cells[len(TRACK_FIXED_COLUMNS) : len(TRACK_FIXED_COLUMNS) + count]
-        if has_existence:
-            cell = cells[-1]
-            value = math.nan if cell == "" else _float_cell(path, line, EXISTENCE_COLUMN, cell)
-            if not (math.isnan(value) or 0.0 <= value <= 1.0):
-                raise DataFileError(
-                    path,
-                    f"existence {cell!r} is not a probability; expected a value in [0, 1]",
-                    row=line,
-                    column=EXISTENCE_COLUMN,
-                )
-            existence.append(value)
-            cells = cells[:-1]
-        var_cells = cells[len(TRACK_FIXED_COLUMNS) + count : -1]
-        state = [_float_cell(path, line, n, c) for n, c in zip(names, state_cells, strict=True)]
-        variance = []
-        for name, cell in zip(var_names, var_cells, strict=True):
-            value = _float_cell(path, line, name, cell)
-            if value < 0:
-                raise DataFileError(
-                    path,
-                    f"variance {cell!r} is negative; expected a value >= 0",
-                    row=line,
-                    column=name,
-                )
-            variance.append(value)
-        row_cell = cells[-1]
-        detection_row = (
-            -1 if row_cell == "" else _int_cell(path, line, TRACK_ROW_COLUMN, row_cell, minimum=0)
-        )
-        ids.append(track)
-        times.append(time)
-        sensors.append(sensor)
-        states.append(state)
-        variances.append(variance)
-        detection_rows.append(detection_row)
-    size = len(ids)
+        records.append(_track_line(path, line, cells, key, names, var_names, has_existence))
+    size, count = len(records), len(names)
     return TrackTable(
-        track_ids=np.array(ids, dtype=np.int64),
-        times=np.array(times, dtype=float),
-        sensors=tuple(sensors),
-        states=np.array(states, dtype=float).reshape(size, count),
-        variances=np.array(variances, dtype=float).reshape(size, count),
-        detection_rows=np.array(detection_rows, dtype=np.int64),
+        track_ids=np.array([r.track for r in records], dtype=np.int64),
+        times=np.array([r.time for r in records], dtype=float),
+        sensors=tuple(r.sensor for r in records),
+        states=np.array([r.state for r in records], dtype=float).reshape(size, count),
+        variances=np.array([r.variance for r in records], dtype=float).reshape(size, count),
+        detection_rows=np.array([r.detection_row for r in records], dtype=np.int64),
         state_names=tuple(names),
-        existence=np.array(existence, dtype=float) if has_existence else None,
+        existence=(
+            np.array([r.existence for r in records], dtype=float) if has_existence else None
+        ),
     )
+
+
+@dataclass(frozen=True)
+class _TrackLine:
+    """One parsed line of a tracks file."""
+
+    track: int
+    time: float
+    sensor: str
+    state: list[float]
+    variance: list[float]
+    detection_row: int
+    existence: float
+
+
+def _track_key(path: str, line: int, cells: list[str]) -> tuple[int, float, str]:
+    """``(track_id, time, sensor)`` of a tracks-file line."""
+    track = _int_cell(path, line, "track_id", cells[0], minimum=0)
+    time = _float_cell(path, line, "time", cells[1])
+    sensor = cells[2]
+    if sensor == "":
+        raise DataFileError(path, "empty cell; expected a sensor name", row=line, column="sensor")
+    return track, time, sensor
+
+
+def _track_line(
+    path: str,
+    line: int,
+    cells: list[str],
+    key: tuple[int, float, str],
+    names: Sequence[str],
+    var_names: Sequence[str],
+    has_existence: bool,
+) -> _TrackLine:
+    """The cells of one tracks-file line after its key, parsed (format 4)."""
+    track, time, sensor = key
+    fixed, count = len(TRACK_FIXED_COLUMNS), len(names)
+    state_cells = cells[fixed : fixed + count]
+    existence = math.nan
+    if has_existence:
+        cell = cells[-1]
+        existence = math.nan if cell == "" else _float_cell(path, line, EXISTENCE_COLUMN, cell)
+        if not (math.isnan(existence) or 0.0 <= existence <= 1.0):
+            raise DataFileError(
+                path,
+                f"existence {cell!r} is not a probability; expected a value in [0, 1]",
+                row=line,
+                column=EXISTENCE_COLUMN,
+            )
+        cells = cells[:-1]
+    state = [_float_cell(path, line, n, c) for n, c in zip(names, state_cells, strict=True)]
+    variance = []
+    for name, cell in zip(var_names, cells[fixed + count : -1], strict=True):
+        value = _float_cell(path, line, name, cell)
+        if value < 0:
+            raise DataFileError(
+                path, f"variance {cell!r} is negative; expected a value >= 0", row=line,
+                column=name,
+            )  # fmt: skip
+        variance.append(value)
+    row_cell = cells[-1]
+    detection_row = (
+        -1 if row_cell == "" else _int_cell(path, line, TRACK_ROW_COLUMN, row_cell, minimum=0)
+    )
+    return _TrackLine(track, time, sensor, state, variance, detection_row, existence)
