@@ -358,7 +358,7 @@ def test_a_geodetic_recording_plots_metres_east_and_north_of_its_origin() -> Non
         variances=np.ones((2, 4)), detection_rows=np.array([-1, -1]),
         state_names=("x", "y", "vx", "vy"),
     )  # fmt: skip
-    scans = [Scan(time=0.0, sensor="adsb", detections=np.zeros((0, 2)))]
+    scans = [Scan(time=0.0, sensor="adsb", detections=np.zeros((0, 2)), rows=np.zeros(0, int))]
     ax = Figure().add_subplot()
     draw_tracks(ax, scans=scans, sensors={"adsb": sensor}, tracks=tracks,
                 origin=GeodeticPoint(52.3086, -4.7639, 0.0))  # fmt: skip
