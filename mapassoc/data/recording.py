@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -70,6 +71,7 @@ RECORDING_TRACKS_NAME = "tracks_recording.csv"
 
 Fail = Callable[[str, str | None, int | None], Exception]
 _GEO_POSITION = ("lat", "lon", "alt")
+_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _LOCAL_POSITION = ("x", "y", "z")
 
 
@@ -158,13 +160,7 @@ class _Columns:
             for position, cell in enumerate(series.tolist()):
                 if cell is None or cell == "" or (isinstance(cell, float) and math.isnan(cell)):
                     continue
-                try:
-                    values[position] = float(cell)
-                except (TypeError, ValueError):
-                    raise self.fail(
-                        f"value {cell!r} is not a number; expected a decimal number", name,
-                        position,
-                    ) from None  # fmt: skip
+                values[position] = self._number(cell, name, position)
             return values, np.isnan(values)
         if pd.api.types.is_bool_dtype(series.dtype) or not pd.api.types.is_numeric_dtype(
             series.dtype
@@ -172,6 +168,23 @@ class _Columns:
             raise self.fail(f"dtype {series.dtype}; expected numbers", name, None)
         null = series.isna().to_numpy(dtype=bool)
         return series.to_numpy(dtype=np.float64, na_value=np.nan), null
+
+    def _number(self, cell: object, name: str, position: int) -> float:
+        """A finite decimal number (text cells as the CSV reader reads them)."""
+        if isinstance(cell, int | float) and not isinstance(cell, bool):
+            value = float(cell)
+        elif isinstance(cell, str) and _NUMBER.fullmatch(cell.strip()):
+            value = float(cell)
+        else:
+            raise self.fail(
+                f"value {cell!r} is not a number; expected a decimal number such as 1.5e-3",
+                name,
+                position,
+            )
+        if not math.isfinite(value):
+            raise self.fail(f"value {cell!r} is not finite; expected a finite number", name,
+                            position)  # fmt: skip
+        return value
 
     def times(self) -> tuple[FloatArray, TimeBase]:
         import pandas as pd
@@ -390,10 +403,7 @@ def scans_from_recording_frame(
 
     columns.fail = mapped
     components = _components(columns, config, owners, local)
-    ids = None
-    if DETECTION_ID in columns.names:
-        values, null = columns.floats(DETECTION_ID)
-        ids = (np.where(null, -1, values).astype(np.int64), null)
+    ids = _ids(columns) if DETECTION_ID in columns.names else None
     names = ("time",) + (("sensor",) if "sensor" in columns.names else ()) + tuple(components)
     table = DetectionColumns(
         names=names + ((DETECTION_ID,) if ids is not None else ()),
@@ -406,6 +416,20 @@ def scans_from_recording_frame(
     )
     scans = detection_columns_to_scans(table, config.sensors, mapped)
     return scans, RecordingBase(time=time_base, frame=local)
+
+
+def _ids(columns: _Columns) -> tuple[IntArray, BoolArray]:
+    """The ``detection_id`` column: whole numbers (the ingest path checks the rest)."""
+    values, null = columns.floats(DETECTION_ID)
+    whole = null | ((values == np.round(values)) & (np.abs(values) < 2.0**53))
+    if not np.all(whole):
+        i = int(np.argmax(~whole))
+        raise columns.fail(
+            f"value {float(values[i])!r} is not a whole number; expected a detection id",
+            DETECTION_ID,
+            i,
+        )
+    return np.where(null, -1, values).astype(np.int64), null
 
 
 def _frame_fail(message: str, column: str | None, row: int | None) -> InputError:

@@ -92,6 +92,9 @@ def test_lat_lon_and_range_azimuth_lines_become_metres_and_bearings(tmp_path: Pa
     [
         ("2024-05-01T12:00:01Z,adsb,91.0,4.7,,", "lat", "outside [-90, 90]"),
         ("2024-05-01T12:00:01Z,adsb,52.0,east,,", "lon", "not a number"),
+        ("2024-05-01T12:00:01Z,adsb,52.0,nan,,", "lon", "not a number"),
+        ("2024-05-01T12:00:01Z,adsb,52.0,1_0,,", "lon", "not a number"),
+        ("2024-05-01T12:00:01Z,adsb,52.0,1e999,,", "lon", "not finite"),
         ("7.0,adsb,52.0,4.7,,", "time", "another kind"),
         ("2024-05-01T12:00:01Z,adsb,52.0,,,", "lon", "empty cell"),
         ("2024-05-01T12:00:01Z,adsb,52.0,4.7,100.0,", "range", "does not measure"),
@@ -204,3 +207,48 @@ def test_a_frame_without_a_recording_section_is_refused() -> None:
     plain = GEO.split("[motion]")[1].split("[[sensors]]\nname = \"radar\"")[0]
     with pytest.raises(InputError, match="no \\[recording\\]"):
         scans_from_recording_frame(pd.DataFrame({"time": [0.0]}), _config("[motion]" + plain))
+
+
+LOCAL_RADAR = """
+[recording]
+frame = "local"
+angles = "radians"
+
+[motion]
+model = "constant_velocity"
+ndim = 2
+noise_intensity = 1.0
+
+[[sensors]]
+name = "radar"
+measurement = "range_bearing"
+position = [100.0, -50.0]
+range_std = 20.0
+bearing_std = 0.002
+detection_probability = 0.9
+false_alarms_per_scan = 0.1
+region = [[0.0, 10000.0], [-3.15, 3.15]]
+"""
+
+
+def test_decoded_radar_plots_with_range_and_azimuth_work_as_they_are(tmp_path: Path) -> None:
+    path = _write(tmp_path / "plots.csv", [
+        "time,sensor,range,azimuth",
+        f"2024-05-01T12:00:00.125Z,radar,1000.0,{math.pi / 2!r}",
+        "2024-05-01T12:00:04.125Z,radar,2000.0,0.0",
+    ])  # fmt: skip
+    scans, base = read_recording(path, _config(LOCAL_RADAR))
+    assert base.frame is None and base.time.kind == "iso8601"
+    assert [s.time for s in scans] == [0.125, 4.125]
+    # azimuth clockwise from north (the y axis) to bearing counter-clockwise from east
+    assert scans[0].detections[0].tolist() == [1000.0, 0.0]
+    assert scans[1].detections[0][1] == pytest.approx(math.pi / 2)
+
+
+def test_a_naive_timestamp_is_utc_and_said_so(tmp_path: Path) -> None:
+    path = _write(tmp_path / "plots.csv", [
+        "time,sensor,range,bearing", "2024-05-01T12:00:00,radar,1000.0,0.5",
+    ])  # fmt: skip
+    with pytest.warns(UserWarning, match="taken as UTC"):
+        _, base = read_recording(path, _config(LOCAL_RADAR))
+    assert not base.time.zoned
