@@ -8,15 +8,17 @@ the run is written as ``"auto"``:
   radar plot from a site, whose place is given with ``--site NAME=LAT,LON[,HEIGHT]``;
   ``x, y[, z]``; ``range, bearing``), and the kind of time (:mod:`mapassoc.data.times`);
 * the origin of the plane (the first site, else the centre of the data) and each
-  sensor's region: the extent of its detections with a margin of a quarter of the extent
-  on each side (a position sensor), or ranges up to 1.25 times the farthest plot and all
-  bearings (a range-bearing sensor);
+  sensor's region: the extent of its detections with a margin of 5 % of the extent on
+  each side (a position sensor: clutter fills the sensor's region already, and a wider
+  box would dilute the clutter density the run estimates), or of its ranges and
+  bearings (a range-bearing sensor; all bearings when they span nearly the circle);
 * the scan period (the median time between a sensor's scans);
 * the measurement noise ``r`` and the process noise ``q`` of a constant-velocity model
   from the second differences of nearest-neighbour chains of detections: for positions
   ``x_{k-1}, x_k, x_{k+1}`` a time ``T`` apart, the second difference has variance
   ``V = (2/3) q T^3 + 6 r`` and lag-one autocovariance ``C = q T^3 / 6 - 4 r``, so
-  ``r = (V - 4 C) / 22`` and ``q T^3 = 6 (C + 4 r)``: a method of moments on the
+  ``r = (V - 4 C) / 22`` and ``q T^3 = 6 (C + 4 r)`` (floored at ``r / 100``), from the
+  second differences within three robust standard deviations: a method of moments on the
   innovations' autocovariances in the spirit of Odelson, Rajamani and Rawlings, "A new
   autocovariance least-squares method for estimating noise covariances" (Automatica,
   2006);
@@ -47,8 +49,7 @@ from mapassoc.errors import DataFileError, InputError, OutputError
 
 __all__ = ["SensorGuess", "infer_config_text", "init_config", "parse_site"]
 
-_MARGIN = 0.25
-_RANGE_MARGIN = 1.25
+_MARGIN = 0.05
 _MIN_NOISE_STD = 0.1
 """Metres: the least noise written (a recording of exact positions gives none)."""
 _MIN_PROCESS_NOISE = 1e-4
@@ -264,24 +265,38 @@ def chain_moments(times: Sequence[float], positions: Sequence[Any]) -> Moments:
     spread = max(math.sqrt(_robust_variance(v)), 1e-3)
     if not pairs:
         return Moments(1.0, 1.0, spread, period)
-    d1s = np.concatenate([p[0] for p in pairs])
-    d2s = np.concatenate([p[1] for p in pairs])
-    variance = _robust_variance(np.concatenate(second))
+    d1s, d2s = np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+    # clutter in a chain gives second differences far out in the tails: keep the pairs
+    # within 3 robust standard deviations, then the moments of what is left
+    scale = 3.0 * math.sqrt(_robust_variance(np.concatenate(second)))
+    keep = (np.abs(d1s) <= scale).all(axis=1) & (np.abs(d2s) <= scale).all(axis=1)
+    if np.any(keep):
+        d1s, d2s = d1s[keep], d2s[keep]
+    d1s, d2s = d1s.ravel(), d2s.ravel()
+    variance = _robust_variance(np.concatenate([d1s, d2s]))
     lag = (_robust_variance(d1s + d2s) - _robust_variance(d1s - d2s)) / 4
     r = max((variance - 4 * lag) / 22, variance / 200)
-    q_t3 = 6 * (lag + 4 * r)
-    if not q_t3 > 0:
-        q_t3 = variance / 100
+    # q T^3 = 6 (C + 4 r) is the small difference of two large numbers when the noise
+    # dominates the motion within a scan; it is floored at r / 100 (a nearly constant
+    # velocity), never left at zero or below
+    q_t3 = max(6 * (lag + 4 * r), r / 100)
     return Moments(r, max(q_t3 / period**3, _MIN_PROCESS_NOISE), spread, period)
 
 
-def _region(positions: Sequence[Any], sensor: Any) -> list[list[float]]:
+def _region(scans: Sequence[Any], positions: Sequence[Any], sensor: Any) -> list[list[float]]:
+    """The extent of a sensor's detections with a margin of ``_MARGIN`` of it each side:
+    of their positions, or of their ranges and bearings (all bearings when they span
+    nearly the circle, as they do across the bearing's cut at +-pi)."""
     from mapassoc.models.measurement import RangeBearing
 
     if isinstance(sensor.measurement, RangeBearing):
-        ranges = np.concatenate([np.hypot(*(p - sensor.measurement.sensor_position).T)
-                                 for p in positions if len(p)])  # fmt: skip
-        return [[0.0, float(ranges.max() * _RANGE_MARGIN)], [-math.pi, math.pi]]
+        z = np.concatenate([scan.detections for scan in scans if scan.size])
+        low, high = z.min(axis=0), z.max(axis=0)
+        margin = np.maximum((high - low) * _MARGIN, [10.0, 1e-3])
+        ranges = [max(0.0, float(low[0] - margin[0])), float(high[0] + margin[0])]
+        if high[1] - low[1] > 0.9 * 2 * math.pi:
+            return [ranges, [-math.pi, math.pi]]
+        return [ranges, [float(low[1] - margin[1]), float(high[1] + margin[1])]]
     stacked = np.concatenate([p for p in positions if len(p)])
     low, high = stacked.min(axis=0), stacked.max(axis=0)
     margin = np.maximum((high - low) * _MARGIN, 10.0)
@@ -335,7 +350,7 @@ def infer_config_text(path: str | os.PathLike[str], *, sites: Mapping[str, Geode
         positions = _positions(own, sensor)
         moment = chain_moments([scan.time for scan in own], positions)
         noise[guess.name] = _noise(moment, positions, sensor)
-        regions[guess.name] = _region(positions, sensor)
+        regions[guess.name] = _region(own, positions, sensor)
         moments.append(moment)
     origin = None if base.frame is None else base.frame.origin
     lines = _header_lines(name, base) + _draft_toml(guesses, sites, origin, noise, regions)

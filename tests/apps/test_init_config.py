@@ -63,9 +63,9 @@ def test_a_lat_lon_file_gives_a_geodetic_configuration_with_auto_rates(tmp_path:
     assert sensor["detection_probability"] == "auto" and sensor["false_alarms_per_scan"] == "auto"
     assert config.auto.false_alarms == ("adsb",)
     assert "# scan period 2.0 s" in text
-    # region: the extent of the data (0.1088 deg of longitude, 7.4 km) and a quarter each side
+    # region: the extent of the data (0.1088 deg of longitude, 7.4 km) and 5 % each side
     (low, high), _ = sensor["region"]
-    assert 1.45 < (high - low) / 7400 < 1.55
+    assert 1.08 < (high - low) / 7400 < 1.12
     # a speed of ~ 0.001 deg lat per 2 s (55 m/s north) and 0.0008 deg lon (27 m/s east)
     assert 20.0 < data["birth"]["velocity_std"] < 70.0
 
