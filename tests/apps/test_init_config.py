@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import datetime as dt
+import json
 import math
 import tomllib
 from pathlib import Path
@@ -77,7 +79,19 @@ def test_init_config_then_run_on_a_users_file(tmp_path: Path) -> None:
                  "--no-progress", "--no-timings"]) == 0  # fmt: skip
     lines = (tmp_path / "r" / "tracks_recording.csv").read_text().splitlines()
     assert lines[0].startswith("track_id,time,sensor,lat,lon,x,y")
-    assert lines[1].split(",")[1].endswith("Z")
+    # every track time is one of the input's instants, exactly
+    inputs = {
+        dt.datetime.fromisoformat(line.split(",")[0]) for line in det.read_text().splitlines()[1:]
+    }
+    outputs = {dt.datetime.fromisoformat(line.split(",")[1]) for line in lines[1:]}
+    assert outputs and outputs <= inputs
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert summary["recording"]["time"] == {
+        "kind": "iso8601", "epoch": "2024-05-01T12:00:00.000000Z", "zoned": True,
+    }  # fmt: skip
+    assert summary["recording"]["origin"]["latitude"] == pytest.approx(52.307, abs=0.01)
+    manifest = json.loads((tmp_path / "r" / "manifest.json").read_text())
+    assert "tracks_recording.csv" in manifest["outputs"]
 
 
 def test_it_never_overwrites_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
