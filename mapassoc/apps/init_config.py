@@ -392,7 +392,9 @@ def _model_lines(moments: Sequence[Moments], dim: int, scans: Sequence[Any]) -> 
         f"initial_count = {float(initial)!r}  # detections in the first scan",
         "rate = 0.1",
         "",
-        "# [estimator.windows] and the other estimator tables: their defaults",
+        "[estimator.windows]",
+        "# scans per window; the other [estimator.*] tables are left at their defaults",
+        "window_length = 5",
     ]
 
 
