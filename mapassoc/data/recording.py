@@ -150,8 +150,18 @@ class _Columns:
         self.fail = fail
         self.text = text  # cells are strings (a CSV file)
         self.names = tuple(str(name) for name in frame.columns)
+        self._parsed: dict[str, tuple[FloatArray, BoolArray]] = {}
 
     def floats(self, name: str) -> tuple[FloatArray, BoolArray]:
+        """A column as float64 with its null mask (parsed once; read-only arrays)."""
+        if name not in self._parsed:
+            values, null = self._floats(name)
+            values.setflags(write=False)
+            null.setflags(write=False)
+            self._parsed[name] = (values, null)
+        return self._parsed[name]
+
+    def _floats(self, name: str) -> tuple[FloatArray, BoolArray]:
         import pandas as pd
 
         series = self.frame[name]
