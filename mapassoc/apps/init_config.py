@@ -339,10 +339,11 @@ def infer_config_text(path: str | os.PathLike[str], *, sites: Mapping[str, Geode
     draft = _draft_config(_draft_toml(guesses, sites, None), dim, name)
 
     def fail(message: str, column: str | None, row: int | None) -> Exception:
-        line = None if row is None else row + 2
+        line = None if row is None else row + 2  # a CSV file's line (a Parquet row + 2)
         return DataFileError(name, message, row=line, column=column)
 
-    scans, base = scans_from_recording_frame(frame, draft, fail=fail, text=True)
+    text = not name.lower().endswith((".parquet", ".pq"))  # else typed Parquet columns
+    scans, base = scans_from_recording_frame(frame, draft, fail=fail, text=text)
     noise, regions, moments = {}, {}, []
     for guess in guesses:
         sensor = draft.sensors[guess.name]
@@ -355,9 +356,9 @@ def infer_config_text(path: str | os.PathLike[str], *, sites: Mapping[str, Geode
     origin = None if base.frame is None else base.frame.origin
     lines = _header_lines(name, base) + _draft_toml(guesses, sites, origin, noise, regions)
     lines += _model_lines(moments, dim, scans)
-    text = "\n".join(lines) + "\n"
-    parse_config(tomllib.loads(text), source=name)  # what is written must read back
-    return text
+    document = "\n".join(lines) + "\n"
+    parse_config(tomllib.loads(document), source=name)  # what is written must read back
+    return document
 
 
 def _header_lines(name: str, base: Any) -> list[str]:
