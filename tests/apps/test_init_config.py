@@ -134,3 +134,16 @@ def test_a_bad_site_is_one_line(
     assert main(["init-config", str(det), "--out", str(tmp_path / "c.toml"), "--site", site]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"--site {site!r}" in err[0]
+
+
+def test_a_parquet_recording_with_a_timestamp_column(tmp_path: Path) -> None:
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    frame = pd.read_csv(_geo_file(tmp_path / "det.csv"))
+    frame["time"] = pd.to_datetime(frame["time"], utc=True, format="ISO8601")
+    frame.to_parquet(tmp_path / "det.parquet")
+    from_parquet = infer_config_text(tmp_path / "det.parquet", sites={})
+    from_csv = infer_config_text(tmp_path / "det.csv", sites={})
+    assert "timestamps from 2024-05-01T12:00:00.000000Z" in from_parquet
+    # the same recording: the same configuration, but for the file named in the comment
+    assert from_parquet.replace("det.parquet", "det.csv") == from_csv
