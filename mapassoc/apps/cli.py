@@ -4,6 +4,7 @@ Subcommands::
 
     mapassoc scenarios                               list the built-in scenarios
     mapassoc simulate NAME --out DIR [--scans N]     write a scenario folder
+    mapassoc init-config DETECTIONS [--out TOML]     a starter configuration from the data
     mapassoc run CONFIG DETECTIONS --out DIR         estimate tracks
     mapassoc estimate-parameters CONFIG DETECTIONS   sensor parameters from the recording
     mapassoc batch SOURCE --out DIR [--config C]     many recordings, in parallel
@@ -477,7 +478,8 @@ def _add_run_command(sub: Subcommands) -> None:
         "tracks.parquet), windows.jsonl "
         "(one line per window: p(K | Z) over the targets present and p(T | Z) over the "
         "tracks, joint MAP and marginal K, objective per number of tracks, solver status, "
-        "hypothesis counts) and summary.json.",
+        "hypothesis counts) and summary.json; with a [recording] section also "
+        "tracks_recording.csv, in the recording's own time and latitude/longitude.",
     )
     p.add_argument("config", help="TOML configuration (motion, sensors, birth, estimator)")
     p.add_argument("detections", help=_DETECTIONS_HELP)
@@ -493,6 +495,18 @@ def _add_run_command(sub: Subcommands) -> None:
         action="store_true",
         help="no progress (else a bar on a terminal, a log line every 30 s otherwise)",
     )
+    _add_run_session_options(p)
+    p.add_argument(
+        "--tracks-format",
+        choices=format_names(),
+        default="csv",
+        help="tracks.csv (default) or tracks.parquet (extra 'parquet')",
+    )
+    p.set_defaults(func=_cmd_run)
+
+
+def _add_run_session_options(p: argparse.ArgumentParser) -> None:
+    """``run``'s options of the session: overwrite or resume, checkpoints, segments."""
     again = p.add_mutually_exclusive_group()
     again.add_argument(
         "--overwrite",
@@ -527,13 +541,37 @@ def _add_run_command(sub: Subcommands) -> None:
         metavar="N",
         help="worker processes for --segments (default: every usable core)",
     )
-    p.add_argument(
-        "--tracks-format",
-        choices=format_names(),
-        default="csv",
-        help="tracks.csv (default) or tracks.parquet (extra 'parquet')",
+
+
+def _cmd_init_config(args: argparse.Namespace) -> int:
+    from mapassoc.apps.init_config import init_config, parse_site
+
+    sites = dict(parse_site(text) for text in args.site)
+    init_config(args.detections, args.out, sites=sites)
+    print(f"{args.out}: starter configuration of {args.detections}; run it with "
+          f"mapassoc run {args.out} {args.detections} --out DIR")  # fmt: skip
+    return 0
+
+
+def _add_init_config_command(sub: Subcommands) -> None:
+    """``mapassoc init-config``."""
+    p = sub.add_parser(
+        "init-config",
+        help="write a starter configuration inferred from a detections file",
+        description="Reads a detections file (plain seconds or ISO 8601 times; x,y, "
+        "lat,lon, range,azimuth or range,bearing columns), finds its sensors and their "
+        "measurement kinds, the region, the scan period, the noise and a velocity spread "
+        "from the data, and writes a commented configuration with \"auto\" for the "
+        "clutter rate and Pd, which the run estimates. Never overwrites a file.",
+        allow_abbrev=False,
     )
-    p.set_defaults(func=_cmd_run)
+    p.add_argument("detections", help=_DETECTIONS_HELP)
+    p.add_argument("--out", default="config.toml", help="the configuration to write (a new "
+                   "file; default config.toml)")  # fmt: skip
+    p.add_argument("--site", action="append", default=[], metavar="NAME=LAT,LON[,HEIGHT]",
+                   help="the place of a sensor that gives range and azimuth (degrees, "
+                   "metres above the WGS-84 ellipsoid); once per such sensor")  # fmt: skip
+    p.set_defaults(func=_cmd_init_config)
 
 
 def _add_estimate_parameters_command(sub: Subcommands) -> None:
@@ -700,6 +738,23 @@ def _add_bench_command(sub: Subcommands) -> None:
         # No abbreviations: the former `--seed S` must not silently mean `--seeds S`.
         allow_abbrev=False,
     )
+    _add_bench_run_options(p)
+    p.add_argument(
+        "--k-priors",
+        type=_comma_separated,
+        default=",".join(DEFAULT_K_PRIORS),
+        metavar="PRIOR,...",
+        help="comma-separated priors on the number of targets per window "
+        "(estimator.count.k_prior: birth, uniform, poisson with the configuration's "
+        "k_prior_mean) to run every family with; the first is the one the goals judge "
+        f"(default {','.join(DEFAULT_K_PRIORS)})",
+    )
+    p.add_argument("--json", metavar="PATH", help="also write the results to this JSON file")
+    p.set_defaults(func=_cmd_bench)
+
+
+def _add_bench_run_options(p: argparse.ArgumentParser) -> None:
+    """``bench``'s options of what runs: families, seeds, window, time limit, scans."""
     p.add_argument(
         "--families",
         "--scenarios",
@@ -742,18 +797,6 @@ def _add_bench_command(sub: Subcommands) -> None:
         metavar="N",
         help="keep only the first N scans of every scenario (quick checks)",
     )
-    p.add_argument(
-        "--k-priors",
-        type=_comma_separated,
-        default=",".join(DEFAULT_K_PRIORS),
-        metavar="PRIOR,...",
-        help="comma-separated priors on the number of targets per window "
-        "(estimator.count.k_prior: birth, uniform, poisson with the configuration's "
-        "k_prior_mean) to run every family with; the first is the one the goals judge "
-        f"(default {','.join(DEFAULT_K_PRIORS)})",
-    )
-    p.add_argument("--json", metavar="PATH", help="also write the results to this JSON file")
-    p.set_defaults(func=_cmd_bench)
 
 
 
@@ -866,6 +909,26 @@ def _add_compare_command(sub: Subcommands) -> None:
         help=f"trackers to compare, from {', '.join(tracker_names())} "
         f"(default {','.join(DEFAULT_TRACKERS)})",
     )
+    _add_compare_run_options(p)
+    p.add_argument(
+        "--option",
+        action="append",
+        metavar="TRACKER.OPTION=VALUE",
+        help="an option of one tracker, as a [trackers.TRACKER] table of a configuration "
+        "file sets it (such as mht.n_scan=5 or jpda.max_events=50000); repeatable",
+    )
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace --out when it holds a previous comparison (never any other folder)",
+    )
+    p.add_argument("--no-plot", action="store_true", help="skip compare.png")
+    p.set_defaults(func=_cmd_compare)
+
+
+def _add_compare_run_options(p: argparse.ArgumentParser) -> None:
+    """``compare``'s options of what runs and how it is scored."""
     p.add_argument(
         "--scenarios",
         type=_comma_separated,
@@ -895,26 +958,12 @@ def _add_compare_command(sub: Subcommands) -> None:
         help="OSPA(2) as the mean over sliding windows of N scan times (default: the whole "
         "run at once, where every unpaired track, however short, costs the cut-off)",
     )
-    p.add_argument(
-        "--option",
-        action="append",
-        metavar="TRACKER.OPTION=VALUE",
-        help="an option of one tracker, as a [trackers.TRACKER] table of a configuration "
-        "file sets it (such as mht.n_scan=5 or jpda.max_events=50000); repeatable",
-    )
-    p.add_argument("--out", required=True, help="output folder (created)")
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace --out when it holds a previous comparison (never any other folder)",
-    )
-    p.add_argument("--no-plot", action="store_true", help="skip compare.png")
-    p.set_defaults(func=_cmd_compare)
 
 
 COMMANDS = (
     _add_scenarios_command,
     _add_simulate_command,
+    _add_init_config_command,
     _add_run_command,
     _add_estimate_parameters_command,
     _add_migrate_config_command,

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
+from mapassoc.data.frames import GeodeticPoint
 from mapassoc.data.io import TrackTable, TruthTable
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
@@ -346,13 +347,31 @@ def _draw_estimated(
     return handles
 
 
+def origin_labels(origin: GeodeticPoint) -> tuple[str, str]:
+    """Axis labels of a geodetic recording's plane: metres east and north of the origin."""
+    where = f"{abs(origin.latitude):.4f}\N{DEGREE SIGN}{'N' if origin.latitude >= 0 else 'S'} "
+    where += f"{abs(origin.longitude):.4f}\N{DEGREE SIGN}{'E' if origin.longitude >= 0 else 'W'}"
+    return f"east of {where} [m]", f"north of {where} [m]"
+
+
 def _finish_axes(
-    ax: Axes, handles: list[Artist], *, title: str, length_unit: str | None, legend: bool
+    ax: Axes,
+    handles: list[Artist],
+    *,
+    title: str,
+    length_unit: str | None,
+    legend: bool,
+    origin: GeodeticPoint | None = None,
 ) -> None:
     """Equal aspect, axis labels, title and (when ``legend``) the legend beside the axes."""
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel(_axis_label("x", length_unit))
-    ax.set_ylabel(_axis_label("y", length_unit))
+    if origin is None:
+        ax.set_xlabel(_axis_label("x", length_unit))
+        ax.set_ylabel(_axis_label("y", length_unit))
+    else:
+        xlabel, ylabel = origin_labels(origin)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
     ax.set_title(title or "mapassoc tracks")
     if legend and handles:
         ax.legend(
@@ -372,6 +391,7 @@ def draw_tracks(
     length_unit: str | None = None,
     time_unit: str | None = None,
     legend: bool = True,
+    origin: GeodeticPoint | None = None,
 ) -> None:
     """Draw detections, truth and estimated tracks on ``ax``, with a legend beside it.
 
@@ -405,6 +425,9 @@ def draw_tracks(
     legend : bool
         Draw the legend (outside the axes, upper right).  ``False`` for a grid of small
         panels where one legend is enough.
+    origin : GeodeticPoint, optional
+        The origin of a geodetic recording's plane (``summary.json``'s
+        ``recording.origin``): the axes then read metres east and north of it.
 
     Raises
     ------
@@ -421,7 +444,9 @@ def draw_tracks(
         *_draw_truth(ax, scene.targets, scene.min_length),
         *_draw_estimated(ax, scene.estimated, scene.min_length, time_unit),
     ]
-    _finish_axes(ax, handles, title=title, length_unit=length_unit, legend=legend)
+    _finish_axes(
+        ax, handles, title=title, length_unit=length_unit, legend=legend, origin=origin
+    )
 
 
 def plot_tracks(
@@ -434,15 +459,16 @@ def plot_tracks(
     title: str = "",
     length_unit: str | None = None,
     time_unit: str | None = None,
+    origin: GeodeticPoint | None = None,
 ) -> Path:
     """Write a PNG of :func:`draw_tracks` (legend beside the axes); returns its path.
 
-    ``length_unit`` and ``time_unit`` are :func:`draw_tracks`'s.
+    ``length_unit``, ``time_unit`` and ``origin`` are :func:`draw_tracks`'s.
     """
     fig = _figure(figsize=(10.5, 8), dpi=110)
     draw_tracks(
         fig.add_subplot(), scans=scans, sensors=sensors, tracks=tracks, truth=truth,
-        title=title, length_unit=length_unit, time_unit=time_unit,
+        title=title, length_unit=length_unit, time_unit=time_unit, origin=origin,
     )  # fmt: skip
     return _save(fig, path)
 

@@ -39,6 +39,12 @@ from mapassoc.apps.run_folders import (
     write_json,
 )
 from mapassoc.data.formats import file_name, format_names
+from mapassoc.data.recording import (
+    RECORDING_TRACKS_NAME,
+    RecordingBase,
+    read_recording,
+    write_recording_tracks,
+)
 from mapassoc.errors import DataFileError, InputError, MapassocError, OutputError, StopRequested
 from mapassoc.trackers.registry import tracker_names
 from mapassoc.validation import check_callback, check_integer, check_path
@@ -577,6 +583,8 @@ class RunSession:
         self.point = _ResumePoint()
         self.resumed_at = 0
         self._detections: bytes | None = None
+        self.recording_base: RecordingBase | None = None
+        self.scans: list[Scan] = []
 
     def seconds(self) -> float:
         """Wall time since the session began."""
@@ -649,7 +657,14 @@ class RunSession:
         from mapassoc.data.formats import read_detections_file
 
         assert self._detections is not None, "read_scans follows open, once"
-        self.scans: list[Scan] = read_detections_file(
+        if self.inputs.config.recording is not None:  # a user's own file: times and frame
+            self.scans, self.recording_base = read_recording(
+                self.inputs.detections_path, self.inputs.config, content=self._detections,
+                format_name=self.options.detections_format,
+            )  # fmt: skip
+            self._detections = None
+            return self.scans
+        self.scans = read_detections_file(
             self.inputs.detections_path, self.inputs.config.sensors, content=self._detections,
             format_name=self.options.detections_format,
         )  # fmt: skip
@@ -936,6 +951,14 @@ class RunSession:
             stop=self._stopped,
         )  # fmt: skip
 
+    def _recording_summary(self) -> dict[str, Any]:
+        """``{"recording": ...}`` for a recording read with its own times and frame: the
+        epoch and kind of its times, the origin of the plane, the tracks file in them."""
+        base = self.recording_base
+        if base is None:
+            return {}
+        return {"recording": {**base.to_json(), "tracks": RECORDING_TRACKS_NAME}}
+
     def write_outputs(
         self, result: EstimateResult, caught: list[warnings.WarningMessage]
     ) -> dict[str, Any]:
@@ -957,10 +980,14 @@ class RunSession:
             "detections": manifest["inputs"]["detections"]["path"],
             **result.summary(timings=self.options.timings),
             **({"parameters": parameters} if parameters is not None else {}),
+            **self._recording_summary(),
             "warnings": messages,
         }
         record.writing = folder.partial / file_name("tracks", tracks_format)
         write_tracks_file(record.writing, result.tracks)
+        if self.recording_base is not None:
+            record.writing = folder.partial / RECORDING_TRACKS_NAME
+            write_recording_tracks(record.writing, result.tracks, self.recording_base)
         if result.confidence is not None:
             record.writing = folder.partial / ASSOCIATIONS_NAME
             kept = {
@@ -1073,6 +1100,8 @@ def _output_names(summary: dict[str, Any], tracks_format: str) -> list[str]:
     names = [file_name("tracks", tracks_format), WINDOWS_NAME, SUMMARY_NAME]
     if "confidence" in summary:
         names.append(ASSOCIATIONS_NAME)
+    if "recording" in summary:
+        names.append(str(summary["recording"]["tracks"]))
     return names
 
 

@@ -2,6 +2,14 @@
 
 Schema (unknown keys anywhere are an error; every value is checked)::
 
+    [recording]                   # optional: a user's own file (mapassoc.data.recording)
+    frame = "geodetic"            # "local" (x, y metres) or "geodetic" (lat, lon degrees)
+    origin = {latitude = 52.3, longitude = 4.76, height = 0.0}   # or "auto"
+    angles = "degrees"            # azimuth and elevation: "degrees" or "radians"
+    # in a geodetic recording a range_bearing sensor is placed by latitude = ...,
+    # longitude = ..., height = ... (metres; needed with an elevation column) instead
+    # of position = [x, y]; regions are in metres from the origin
+
     [motion]
     model = "constant_velocity"   # constant_velocity | constant_acceleration | random_walk
                                   # | coordinated_turn | singer
@@ -96,6 +104,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from mapassoc.data.frames import GeodeticPoint, LocalFrame
+from mapassoc.data.recording import Recording
 from mapassoc.data.settings import COMPONENTS, FLAT_KEYS, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
 from mapassoc.models.measurement import (
@@ -139,7 +149,7 @@ MEASUREMENTS = tuple(MEASUREMENT_REGISTRY)
 """Measurement model names registered when this module was imported (see
 :data:`mapassoc.models.measurement.MEASUREMENT_REGISTRY`, which the reader and writer use)."""
 
-_SECTIONS = ("motion", "sensors", "birth", "estimator", "trackers")
+_SECTIONS = ("recording", "motion", "sensors", "birth", "estimator", "trackers")
 
 TrackerOption = bool | int | float | str
 """The value of a tracker's option in a ``[trackers.<name>]`` table."""
@@ -208,6 +218,10 @@ class Config:
         Options of the baseline trackers by tracker name (``[trackers.<name>]`` tables),
         handed to each tracker by :func:`mapassoc.trackers.registry.build_tracker`; empty
         (default): every tracker with its defaults.
+    recording : Recording, optional
+        The ``[recording]`` section: the file's kind of time and frame
+        (:mod:`mapassoc.data.recording`); None: plain seconds in the local frame, read by
+        :func:`mapassoc.data.io.read_detections`.
     """
 
     motion: MotionModel
@@ -219,6 +233,7 @@ class Config:
     trackers: Mapping[str, Mapping[str, TrackerOption]] = dataclasses.field(
         default_factory=dict
     )
+    recording: Recording | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.motion, MotionModel):
@@ -249,6 +264,8 @@ class Config:
                     f"auto names sensor {name!r}, which is not configured "
                     f"(known: {sorted(self.sensors)})"
                 )
+        if self.recording is not None and not isinstance(self.recording, Recording):
+            raise InputError(f"recording must be a Recording or None, got {self.recording!r}")
         object.__setattr__(self, "sensors", dict(self.sensors))
         object.__setattr__(self, "trackers", _checked_tracker_options(self.trackers))
 
@@ -567,6 +584,33 @@ def _parse_sensor(
         measurement = spec.read(_SensorSettings(parser, table, prefix), motion)
     except InputError as exc:  # a model's own checks of its settings (key: the setting)
         raise parser.fail(_subkey(prefix, exc), str(exc)) from None
+    detection_probability, false_alarms, auto_rate, start, auto_pd = _sensor_rates(
+        parser, table, prefix
+    )
+    region = _parse_region(
+        parser,
+        parser.required(table, prefix, "region"),
+        f"{prefix}.region",
+        measurement.component_names,
+    )
+    try:
+        sensor = Sensor(
+            name=name,
+            measurement=measurement,
+            detection_probability=detection_probability,
+            false_alarms_per_scan=false_alarms,
+            region=region,
+        )
+    except InputError as exc:
+        raise parser.fail(_subkey(prefix, exc), str(exc)) from None
+    return sensor, auto_rate, ((name, start),) if auto_pd else ()
+
+
+def _sensor_rates(
+    parser: _Parser, table: Mapping[str, object], prefix: str
+) -> tuple[float, float, bool, float | None, bool]:
+    """A sensor's Pd and false-alarm rate: ``(pd, rate, rate is auto, Pd start, Pd is
+    auto)``; "auto" values hold placeholders (Pd 1, rate 0)."""
     pd_value = parser.required(table, prefix, "detection_probability")
     rate_value = parser.required(table, prefix, "false_alarms_per_scan")
     for value, what, expected in (
@@ -594,23 +638,7 @@ def _parse_sensor(
     )
     auto_rate = rate_value == AUTO
     false_alarms = 0.0 if auto_rate else _false_alarm_rate(parser, rate_value, prefix)
-    region = _parse_region(
-        parser,
-        parser.required(table, prefix, "region"),
-        f"{prefix}.region",
-        measurement.component_names,
-    )
-    try:
-        sensor = Sensor(
-            name=name,
-            measurement=measurement,
-            detection_probability=detection_probability,
-            false_alarms_per_scan=false_alarms,
-            region=region,
-        )
-    except InputError as exc:
-        raise parser.fail(_subkey(prefix, exc), str(exc)) from None
-    return sensor, auto_rate, ((name, start),) if auto_pd else ()
+    return detection_probability, false_alarms, auto_rate, start, auto_pd
 
 
 def _false_alarm_rate(parser: _Parser, value: object, prefix: str) -> float:
@@ -627,9 +655,86 @@ def _false_alarm_rate(parser: _Parser, value: object, prefix: str) -> float:
     return rate
 
 
+_RECORDING_KEYS = ("frame", "origin", "angles")
+_SITE_KEYS = ("latitude", "longitude", "height")
+
+
+def _geodetic_point(parser: _Parser, table: Mapping[str, object], prefix: str) -> GeodeticPoint:
+    """``latitude, longitude[, height]`` of a table (an origin or a site)."""
+    values: dict[str, float | None] = {}
+    for name in _SITE_KEYS:
+        key = f"{prefix}.{name}" if prefix else name
+        if name not in table:
+            if name == "height":
+                values[name] = None
+                continue
+            raise parser.fail(key, f"missing; a place needs {', '.join(_SITE_KEYS[:2])}")
+        values[name] = parser.finite(table[name], key)
+    lat, lon = values["latitude"], values["longitude"]
+    assert lat is not None and lon is not None
+    for name, value, bound in (("latitude", lat, 90.0), ("longitude", lon, 360.0)):
+        low = -90.0 if name == "latitude" else -180.0
+        if not low <= value <= bound:
+            key = f"{prefix}.{name}" if prefix else name
+            raise parser.fail(key, f"{value!r} is outside [{low:g}, {bound:g}] degrees")
+    return GeodeticPoint(latitude=lat, longitude=lon, height=values["height"])
+
+
+def _parse_recording(parser: _Parser, data: Mapping[str, object]) -> Recording | None:
+    """The optional ``[recording]`` section (module docstring)."""
+    if "recording" not in data:
+        return None
+    table = parser.table(data["recording"], "recording")
+    parser.only_keys(table, "recording", _RECORDING_KEYS, "in [recording]")
+    frame = parser.choice(table.get("frame", "local"), "recording.frame", ("local", "geodetic"))
+    angles = parser.choice(
+        table.get("angles", "degrees"), "recording.angles", ("degrees", "radians")
+    )
+    origin = None
+    value = table.get("origin", AUTO)
+    if frame == "local" and "origin" in table:
+        raise parser.fail("recording.origin", 'only goes with frame = "geodetic"')
+    if value != AUTO:
+        origin_table = parser.table(value, "recording.origin")
+        parser.only_keys(origin_table, "recording.origin", _SITE_KEYS, "for a place")
+        origin = _geodetic_point(parser, origin_table, "recording.origin")
+    return Recording(frame=frame, origin=origin, angles=angles)  # type: ignore[arg-type]
+
+
+def _placed_sensor(
+    parser: _Parser,
+    item: object,
+    index: int,
+    recording: Recording | None,
+    sites: Mapping[str, GeodeticPoint],
+) -> tuple[object, GeodeticPoint | None]:
+    """A geodetic recording's range-bearing sensor placed by latitude, longitude and
+    height: its table with ``position`` in metres in the origin's plane, and its site.
+    Any other sensor table is returned as it is."""
+    prefix = f"sensors[{index}]"
+    if recording is None or recording.frame != "geodetic" or not isinstance(item, Mapping):
+        return item, None
+    if item.get("measurement") != "range_bearing":
+        return item, None
+    if "position" in item:
+        raise parser.fail(
+            f"{prefix}.position",
+            "a geodetic recording places a site by latitude, longitude and height "
+            "(metres), not by position",
+        )
+    site = _geodetic_point(parser, item, prefix)
+    origin = recording.origin or next(iter(sites.values()), site)
+    east, north = LocalFrame(origin=origin).to_local(
+        site.latitude, site.longitude, 0.0 if site.height is None else site.height
+    )[0, :2]
+    table = {key: value for key, value in item.items() if key not in _SITE_KEYS}
+    table["position"] = [float(east), float(north)]
+    return table, site
+
+
 def _parse_sensors(
-    parser: _Parser, data: Mapping[str, object], motion: MotionModel
-) -> tuple[dict[str, Sensor], AutoParameters]:
+    parser: _Parser, data: Mapping[str, object], motion: MotionModel, recording: Recording | None
+) -> tuple[dict[str, Sensor], AutoParameters, dict[str, GeodeticPoint]]:
     if "sensors" not in data:
         raise parser.fail("sensors", "missing required [[sensors]] tables (at least one)")
     items = parser.array(data["sensors"], "sensors")
@@ -639,8 +744,12 @@ def _parse_sensors(
     first_index: dict[str, int] = {}
     auto_rates: list[str] = []
     auto_pds: list[tuple[str, float | None]] = []
+    sites: dict[str, GeodeticPoint] = {}
     for index, item in enumerate(items):
+        item, site = _placed_sensor(parser, item, index, recording, sites)
         sensor, auto_rate, auto_pd = _parse_sensor(parser, item, index, motion)
+        if site is not None:
+            sites[sensor.name] = site
         auto_rates += [sensor.name] if auto_rate else []
         auto_pds += auto_pd
         if sensor.name in sensors:
@@ -651,7 +760,7 @@ def _parse_sensors(
             )
         sensors[sensor.name] = sensor
         first_index[sensor.name] = index
-    return sensors, AutoParameters(tuple(auto_rates), tuple(auto_pds))
+    return sensors, AutoParameters(tuple(auto_rates), tuple(auto_pds)), sites
 
 
 def _field_kind(field: dataclasses.Field[object]) -> str:
@@ -826,7 +935,10 @@ def parse_config(
     document = parser.table(data, _DOCUMENT_KEY)
     parser.only_keys(document, "", _SECTIONS, "at the top level")
     motion = _parse_motion(parser, document)
-    sensors, auto = _parse_sensors(parser, document, motion)
+    recording = _parse_recording(parser, document)
+    sensors, auto, sites = _parse_sensors(parser, document, motion, recording)
+    if recording is not None and sites:
+        recording = dataclasses.replace(recording, sites=sites)
     birth = _parse_birth(parser, document)
     estimator, flat = _parse_estimator(parser, document)
     if flat:
@@ -842,6 +954,7 @@ def parse_config(
         source=source,
         auto=auto,
         trackers=trackers,
+        recording=recording,
     )
 
 
@@ -1038,7 +1151,8 @@ def config_to_toml(config: Config) -> str:
         :class:`~mapassoc.models.measurement.LinearMeasurement`).
     """
     check_config(config, allow_auto=True)
-    lines = ["# mapassoc configuration", "", "[motion]", *_motion_lines(config.motion)]
+    lines = ["# mapassoc configuration", *_recording_lines(config.recording)]
+    lines += ["", "[motion]", *_motion_lines(config.motion)]
     pd_starts = config.auto.pd_starts()
     for index, sensor in enumerate(config.sensors.values()):
         key = f"sensors[{index}]"
@@ -1058,7 +1172,10 @@ def config_to_toml(config: Config) -> str:
             "",
             "[[sensors]]",
             f"name = {_toml_string(sensor.name)}",
-            *_measurement_lines(sensor.measurement, config.motion, key),
+            *_site_lines(
+                _measurement_lines(sensor.measurement, config.motion, key),
+                None if config.recording is None else config.recording.sites.get(sensor.name),
+            ),
             *pd_lines,
             f"false_alarms_per_scan = {rate}",
             "region = ["
@@ -1076,6 +1193,32 @@ def config_to_toml(config: Config) -> str:
         for option, value in options.items():
             lines.append(f"{_toml_key(option)} = {_toml_option(value)}")
     return "\n".join(lines) + "\n"
+
+
+def _place_text(point: GeodeticPoint) -> list[str]:
+    lines = [f"latitude = {_toml_float(point.latitude)}"]
+    lines.append(f"longitude = {_toml_float(point.longitude)}")
+    return lines + ([] if point.height is None else [f"height = {_toml_float(point.height)}"])
+
+
+def _recording_lines(recording: Recording | None) -> list[str]:
+    """The ``[recording]`` section (none for a configuration without one)."""
+    if recording is None:
+        return []
+    lines = ["", "[recording]", f"frame = {_toml_string(recording.frame)}"]
+    if recording.frame == "geodetic":
+        if recording.origin is None:
+            lines.append(f"origin = {_toml_string(AUTO)}")
+        else:
+            lines.append("origin = { " + ", ".join(_place_text(recording.origin)) + " }")
+    return lines + [f"angles = {_toml_string(recording.angles)}"]
+
+
+def _site_lines(lines: list[str], site: GeodeticPoint | None) -> list[str]:
+    """A range-bearing sensor's lines with its site's place instead of ``position``."""
+    if site is None:
+        return lines
+    return [line for line in lines if not line.startswith("position =")] + _place_text(site)
 
 
 def _record_lines(settings: object) -> list[str]:

@@ -256,8 +256,25 @@ def detection_columns_to_scans(
     sensor_list = check_sensors(sensors)
     union = measurement_columns(sensor_list)
     times = table.times
-    n = times.shape[0]
-    if n == 0:
+    _check_times(table, fail)
+    codes = _codes(table, sensor_list, sensors, fail)
+    is_detection = np.zeros(times.shape[0], dtype=bool)
+    values: list[FloatArray] = []
+    for code, sensor in enumerate(sensor_list):
+        filled, stacked = _sensor_values(table, codes == code, sensor, union, fail)
+        is_detection |= filled
+        values.append(stacked)
+    ids = _detection_ids(table, is_detection, fail, row_name)
+    rank = _sensor_ranks(sensor_list)
+    groups = _detection_groups(times, codes, rank, np.flatnonzero(is_detection))
+    empty = _empty_scans(times, codes, is_detection, groups, sensor_list, fail, row_name)
+    return _build_scans(groups, empty, values, ids, sensor_list)
+
+
+def _check_times(table: DetectionColumns, fail: Fail) -> None:
+    """At least one row; every time present and finite."""
+    times = table.times
+    if times.shape[0] == 0:
         raise fail(
             "no rows; a scan without detections is a row with time and sensor and empty "
             "measurement cells",
@@ -271,106 +288,130 @@ def detection_columns_to_scans(
         i = int(np.argmax(bad))
         raise fail(f"value {float(times[i])!r} is not finite; expected a finite time", "time", i)
 
-    # sensor codes
+
+def _codes(
+    table: DetectionColumns,
+    sensor_list: Sequence[Sensor],
+    sensors: Mapping[str, Sensor],
+    fail: Fail,
+) -> IntArray:
+    """The position in ``sensor_list`` of each row's sensor."""
+    n = table.times.shape[0]
     if table.sensors is None:
-        codes = np.zeros(n, dtype=np.int64)
-    else:
-        code_of = {sensor.name: k for k, sensor in enumerate(sensor_list)}
-        codes = np.fromiter(
-            (code_of.get(v, -1) if isinstance(v, str) else -1 for v in table.sensors),
-            dtype=np.int64,
-            count=n,
+        return np.zeros(n, dtype=np.int64)
+    code_of = {sensor.name: k for k, sensor in enumerate(sensor_list)}
+    codes = np.fromiter(
+        (code_of.get(v, -1) if isinstance(v, str) else -1 for v in table.sensors),
+        dtype=np.int64,
+        count=n,
+    )
+    if np.any(codes < 0):
+        i = int(np.argmax(codes < 0))
+        value = table.sensors[i]
+        what = "empty cell" if is_missing(value) else f"unknown sensor {value!r}"
+        raise fail(f"{what}; expected one of {list(sensors)}", "sensor", i)
+    return codes
+
+
+def _sensor_values(
+    table: DetectionColumns, mine: BoolArray, sensor: Sensor, union: Sequence[str], fail: Fail
+) -> tuple[BoolArray, FloatArray]:
+    """Which of a sensor's rows (``mine``) are detections, and its ``(n, dz)`` values:
+    all or none of a row's own components, none of the others, finite."""
+    own_names = sensor.measurement.component_names
+    for name in union:
+        if name in own_names:
+            continue
+        present = mine & ~table.components[name][1]
+        if np.any(present):
+            i = int(np.argmax(present))
+            raise fail(
+                f"value {float(table.components[name][0][i])!r} in a column sensor "
+                f"{sensor.name!r} does not measure; expected an empty cell",
+                name,
+                i,
+            )
+    nulls = np.column_stack([table.components[name][1] for name in own_names])
+    filled = mine & ~nulls.any(axis=1)
+    partial = mine & nulls.any(axis=1) & ~nulls.all(axis=1)
+    if np.any(partial):
+        i = int(np.argmax(partial))
+        empty_name = own_names[int(np.argmax(nulls[i]))]
+        raise fail(
+            f"empty cell; sensor {sensor.name!r} needs all of {','.join(own_names)} "
+            "(a scan without detections leaves all of them empty)",
+            empty_name,
+            i,
         )
-        if np.any(codes < 0):
-            i = int(np.argmax(codes < 0))
-            value = table.sensors[i]
-            what = "empty cell" if is_missing(value) else f"unknown sensor {value!r}"
-            raise fail(f"{what}; expected one of {list(sensors)}", "sensor", i)
+    stacked = np.column_stack([table.components[name][0] for name in own_names])
+    infinite = filled[:, None] & ~np.isfinite(stacked)
+    if np.any(infinite):
+        i, j = (int(v) for v in np.argwhere(infinite)[0])
+        raise fail(
+            f"value {float(stacked[i, j])!r} is not finite; expected a finite number",
+            own_names[j],
+            i,
+        )
+    return filled, stacked
 
-    # measurement cells: all or none of a row's own components, none of the others
-    is_detection = np.zeros(n, dtype=bool)
-    values: list[FloatArray] = []
-    for code, sensor in enumerate(sensor_list):
-        own_names = sensor.measurement.component_names
-        mine = codes == code
-        for name in union:
-            if name in own_names:
-                continue
-            present = mine & ~table.components[name][1]
-            if np.any(present):
-                i = int(np.argmax(present))
-                raise fail(
-                    f"value {float(table.components[name][0][i])!r} in a column sensor "
-                    f"{sensor.name!r} does not measure; expected an empty cell",
-                    name,
-                    i,
-                )
-        nulls = np.column_stack([table.components[name][1] for name in own_names])
-        filled = mine & ~nulls.any(axis=1)
-        partial = mine & nulls.any(axis=1) & ~nulls.all(axis=1)
-        if np.any(partial):
-            i = int(np.argmax(partial))
-            empty_name = own_names[int(np.argmax(nulls[i]))]
-            raise fail(
-                f"empty cell; sensor {sensor.name!r} needs all of {','.join(own_names)} "
-                "(a scan without detections leaves all of them empty)",
-                empty_name,
-                i,
-            )
-        stacked = np.column_stack([table.components[name][0] for name in own_names])
-        infinite = filled[:, None] & ~np.isfinite(stacked)
-        if np.any(infinite):
-            i, j = (int(v) for v in np.argwhere(infinite)[0])
-            raise fail(
-                f"value {float(stacked[i, j])!r} is not finite; expected a finite number",
-                own_names[j],
-                i,
-            )
-        is_detection |= filled
-        values.append(stacked)
 
-    # detection ids
+def _detection_ids(
+    table: DetectionColumns,
+    is_detection: BoolArray,
+    fail: Fail,
+    row_name: Callable[[int], str],
+) -> IntArray:
+    """The detection id of each row (module docstring)."""
+    n = table.times.shape[0]
     if table.ids is None:
-        ids = np.arange(n, dtype=np.int64) if table.row_ids is None else table.row_ids
-    else:
-        ids, id_null = table.ids
-        missing = is_detection & id_null
-        if np.any(missing):
-            raise fail(
-                "empty cell on a detection; expected a detection id >= 0",
-                DETECTION_ID,
-                int(np.argmax(missing)),
-            )
-        extra = ~is_detection & ~id_null
-        if np.any(extra):
-            i = int(np.argmax(extra))
-            raise fail(
-                f"detection id {int(ids[i])} on a row without measurements (a scan without "
-                "detections); expected an empty cell",
-                DETECTION_ID,
-                i,
-            )
-        negative = is_detection & (ids < 0)
-        if np.any(negative):
-            i = int(np.argmax(negative))
-            raise fail(
-                f"detection id {int(ids[i])} is negative; expected an integer >= 0",
-                DETECTION_ID,
-                i,
-            )
-        detection_positions = np.flatnonzero(is_detection)
-        repeated = first_repeated(ids[detection_positions])
-        if repeated is not None:
-            value, first, second = repeated
-            raise fail(
-                f"detection id {value} already names the detection at "
-                f"{row_name(int(detection_positions[first]))}; expected distinct ids",
-                DETECTION_ID,
-                int(detection_positions[second]),
-            )
+        return np.arange(n, dtype=np.int64) if table.row_ids is None else table.row_ids
+    ids, id_null = table.ids
+    missing = is_detection & id_null
+    if np.any(missing):
+        raise fail(
+            "empty cell on a detection; expected a detection id >= 0",
+            DETECTION_ID,
+            int(np.argmax(missing)),
+        )
+    extra = ~is_detection & ~id_null
+    if np.any(extra):
+        i = int(np.argmax(extra))
+        raise fail(
+            f"detection id {int(ids[i])} on a row without measurements (a scan without "
+            "detections); expected an empty cell",
+            DETECTION_ID,
+            i,
+        )
+    negative = is_detection & (ids < 0)
+    if np.any(negative):
+        i = int(np.argmax(negative))
+        raise fail(
+            f"detection id {int(ids[i])} is negative; expected an integer >= 0", DETECTION_ID, i
+        )
+    detection_positions = np.flatnonzero(is_detection)
+    repeated = first_repeated(ids[detection_positions])
+    if repeated is not None:
+        value, first, second = repeated
+        raise fail(
+            f"detection id {value} already names the detection at "
+            f"{row_name(int(detection_positions[first]))}; expected distinct ids",
+            DETECTION_ID,
+            int(detection_positions[second]),
+        )
+    return ids
 
-    rank = _sensor_ranks(sensor_list)
-    groups = _detection_groups(times, codes, rank, np.flatnonzero(is_detection))
+
+def _empty_scans(
+    times: FloatArray,
+    codes: IntArray,
+    is_detection: BoolArray,
+    groups: Mapping[tuple[float, int], IntArray],
+    sensor_list: Sequence[Sensor],
+    fail: Fail,
+    row_name: Callable[[int], str],
+) -> list[tuple[float, int]]:
+    """The ``(time, code)`` of the rows without measurements: one per scan, none for a
+    scan with detections."""
     empty_seen: dict[tuple[float, int], int] = {}
     for i in np.flatnonzero(~is_detection).tolist():
         key = (float(times[i]), int(codes[i]))
@@ -390,7 +431,7 @@ def detection_columns_to_scans(
                 i,
             )
         empty_seen[key] = i
-    return _build_scans(groups, list(empty_seen), values, ids, sensor_list)
+    return list(empty_seen)
 
 
 def is_missing(value: object) -> bool:

@@ -86,6 +86,7 @@ import math
 import os
 import re
 from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TextIO
 
 import numpy as np
@@ -125,6 +126,7 @@ __all__ = [
     "Origins",
     "TrackTable",
     "read_detections",
+    "read_cells",
     "write_detections",
     "number_rows",
     "read_truth",
@@ -387,40 +389,54 @@ def read_detections(
     path = check_path("read_detections: path", path)
     if content is not None:
         check_instance("read_detections: content", content, bytes, expected="bytes (the file's)")
-    sensor_list = check_sensors(sensors)
-    union = measurement_columns(sensor_list)
-    canonical = "time,sensor," + ",".join(union)
+    union = measurement_columns(check_sensors(sensors))
     lines = _lines(path, content)
-    header = _read_header(path, lines, canonical)
+    header = _read_header(path, lines, "time,sensor," + ",".join(union))
 
     def header_fail(message: str, column: str | None, row: int | None) -> DataFileError:
         return DataFileError(path, message, row=1, column=column)
 
     check_detection_columns(header, sensors, header_fail)
+    table = _detection_table(path, header, lines, union)
+    line_numbers = table.row_ids
+    assert line_numbers is not None
+
+    # every cell a number where a number is due: the rest is the one ingest path's
+    def fail(message: str, column: str | None, row: int | None) -> DataFileError:
+        return DataFileError(
+            path, message, row=1 if row is None else int(line_numbers[row]), column=column
+        )
+
+    def line_name(row: int) -> str:
+        return f"line {line_numbers[row]}"
+
+    return detection_columns_to_scans(table, sensors, fail, row_name=line_name)
+
+
+def _detection_table(
+    path: str, header: list[str], lines: Iterator[tuple[int, list[str]]], union: Sequence[str]
+) -> DetectionColumns:
+    """The detection lines after the header as columns (cells parsed, times checked)."""
     column_of = {name: index for index, name in enumerate(header)}
-    time_column = column_of["time"]
-    sensor_column = column_of.get("sensor")
+    time_column, sensor_column = column_of["time"], column_of.get("sensor")
     id_column = column_of.get(DETECTION_ID)
     measured = [(name, column_of[name]) for name in union]
-
     line_numbers: list[int] = []
     times: list[float] = []
     sensor_cells: list[str] = []
     values: dict[str, list[float]] = {name: [] for name in union}
     ids: list[int] = []
-    previous_time = -math.inf
     for line, cells in lines:
         _check_width(path, line, cells, header)
         time = _float_cell(path, line, "time", cells[time_column])
-        if time < previous_time:
+        if times and time < times[-1]:
             raise DataFileError(
                 path,
                 f"time {cells[time_column]} goes backwards: line {line_numbers[-1]} has time "
-                f"{previous_time!r}; times must not decrease down the file",
+                f"{times[-1]!r}; times must not decrease down the file",
                 row=line,
                 column="time",
             )
-        previous_time = time
         line_numbers.append(line)
         times.append(time)
         if sensor_column is not None:
@@ -432,36 +448,70 @@ def read_detections(
             cell = cells[id_column]
             ids.append(-1 if cell == "" else _int_cell(path, line, DETECTION_ID, cell, minimum=0))
     if not line_numbers:
-        raise DataFileError(
-            path,
-            "no detection lines after the header; a scan without detections is a line with "
-            "time and sensor and empty measurement cells",
-        )
+        raise DataFileError(path, _NO_LINES)
+    return _columns_of(header, times, sensor_cells if sensor_column is not None else None,
+                       values, ids if id_column is not None else None, line_numbers)  # fmt: skip
 
-    # every cell a number where a number is due: the rest is the one ingest path's
-    def fail(message: str, column: str | None, row: int | None) -> DataFileError:
-        return DataFileError(
-            path, message, row=1 if row is None else line_numbers[row], column=column
-        )
 
-    def line_name(row: int) -> str:
-        return f"line {line_numbers[row]}"
+_NO_LINES = (
+    "no detection lines after the header; a scan without detections is a line with "
+    "time and sensor and empty measurement cells"
+)
 
+
+def _columns_of(
+    header: list[str],
+    times: list[float],
+    sensor_cells: list[str] | None,
+    values: Mapping[str, list[float]],
+    ids: list[int] | None,
+    line_numbers: list[int],
+) -> DetectionColumns:
     components = {}
-    for name in union:
-        column = np.array(values[name], dtype=np.float64)
+    for name, cells in values.items():
+        column = np.array(cells, dtype=np.float64)
         components[name] = (column, np.isnan(column))  # cells are finite or empty
-    id_values = np.array(ids, dtype=np.int64)
-    table = DetectionColumns(
+    id_values = None if ids is None else np.array(ids, dtype=np.int64)
+    return DetectionColumns(
         names=tuple(header),
         times=np.array(times, dtype=np.float64),
         time_null=np.zeros(len(times), dtype=bool),
-        sensors=sensor_cells if sensor_column is not None else None,
+        sensors=sensor_cells,
         components=components,
-        ids=(id_values, id_values < 0) if id_column is not None else None,
+        ids=None if id_values is None else (id_values, id_values < 0),
         row_ids=np.array(line_numbers, dtype=np.int64),
     )
-    return detection_columns_to_scans(table, sensors, fail, row_name=line_name)
+
+
+def read_cells(
+    path: PathLike, content: bytes | None = None
+) -> tuple[list[str], list[int], list[list[str]]]:
+    """A CSV file as text: its header, the line number of each record and the columns.
+
+    The file rules of the module docstring (UTF-8, a header of distinct names, every
+    line as wide as the header, at least one record) are checked here; the cells are
+    left as stripped text for a reader that parses them itself
+    (:func:`mapassoc.data.recording.read_recording`).
+
+    Returns
+    -------
+    header : list of str
+    lines : list of int, length n
+    columns : list of list of str, one per header name, each of length n
+    """
+    path = check_path("read_cells: path", path)
+    lines = _lines(path, content)
+    header = _read_header(path, lines, "time,sensor,<measurement columns>")
+    numbers: list[int] = []
+    columns: list[list[str]] = [[] for _ in header]
+    for line, cells in lines:
+        _check_width(path, line, cells, header)
+        numbers.append(line)
+        for column, cell in zip(columns, cells, strict=True):
+            column.append(cell)
+    if not numbers:
+        raise DataFileError(path, _NO_LINES)
+    return header, numbers, columns
 
 
 def write_detections(path: PathLike, scans: Sequence[Scan], sensors: Mapping[str, Sensor]) -> None:
@@ -813,78 +863,96 @@ def read_tracks(path: PathLike) -> TrackTable:
     header = _read_header(path, lines, TRACKS_HEADER)
     names, var_names = track_state_names(path, header, row=1)
     has_existence = header[-1] == EXISTENCE_COLUMN
-    count = len(names)
-    existence: list[float] = []
-    ids: list[int] = []
-    times: list[float] = []
-    sensors: list[str] = []
-    states: list[list[float]] = []
-    variances: list[list[float]] = []
-    detection_rows: list[int] = []
+    records: list[_TrackLine] = []
     first_line: dict[tuple[int, float, str], int] = {}
     for line, cells in lines:
         _check_width(path, line, cells, header)
-        track = _int_cell(path, line, "track_id", cells[0], minimum=0)
-        time = _float_cell(path, line, "time", cells[1])
-        sensor = cells[2]
-        if sensor == "":
-            raise DataFileError(
-                path, "empty cell; expected a sensor name", row=line, column="sensor"
-            )
-        key = (track, time, sensor)
+        key = _track_key(path, line, cells)
         if key in first_line:
             raise DataFileError(
                 path,
-                f"track {track} at time {time!r} of sensor {sensor!r} already appears at line "
-                f"{first_line[key]}; expected one line per track per scan",
+                f"track {key[0]} at time {key[1]!r} of sensor {key[2]!r} already appears at "
+                f"line {first_line[key]}; expected one line per track per scan",
                 row=line,
                 column="time",
             )
         first_line[key] = line
-        state_cells = cells[len(TRACK_FIXED_COLUMNS) : len(TRACK_FIXED_COLUMNS) + count]
-        if has_existence:
-            cell = cells[-1]
-            value = math.nan if cell == "" else _float_cell(path, line, EXISTENCE_COLUMN, cell)
-            if not (math.isnan(value) or 0.0 <= value <= 1.0):
-                raise DataFileError(
-                    path,
-                    f"existence {cell!r} is not a probability; expected a value in [0, 1]",
-                    row=line,
-                    column=EXISTENCE_COLUMN,
-                )
-            existence.append(value)
-            cells = cells[:-1]
-        var_cells = cells[len(TRACK_FIXED_COLUMNS) + count : -1]
-        state = [_float_cell(path, line, n, c) for n, c in zip(names, state_cells, strict=True)]
-        variance = []
-        for name, cell in zip(var_names, var_cells, strict=True):
-            value = _float_cell(path, line, name, cell)
-            if value < 0:
-                raise DataFileError(
-                    path,
-                    f"variance {cell!r} is negative; expected a value >= 0",
-                    row=line,
-                    column=name,
-                )
-            variance.append(value)
-        row_cell = cells[-1]
-        detection_row = (
-            -1 if row_cell == "" else _int_cell(path, line, TRACK_ROW_COLUMN, row_cell, minimum=0)
-        )
-        ids.append(track)
-        times.append(time)
-        sensors.append(sensor)
-        states.append(state)
-        variances.append(variance)
-        detection_rows.append(detection_row)
-    size = len(ids)
+        records.append(_track_line(path, line, cells, key, names, var_names, has_existence))
+    size, count = len(records), len(names)
     return TrackTable(
-        track_ids=np.array(ids, dtype=np.int64),
-        times=np.array(times, dtype=float),
-        sensors=tuple(sensors),
-        states=np.array(states, dtype=float).reshape(size, count),
-        variances=np.array(variances, dtype=float).reshape(size, count),
-        detection_rows=np.array(detection_rows, dtype=np.int64),
+        track_ids=np.array([r.track for r in records], dtype=np.int64),
+        times=np.array([r.time for r in records], dtype=float),
+        sensors=tuple(r.sensor for r in records),
+        states=np.array([r.state for r in records], dtype=float).reshape(size, count),
+        variances=np.array([r.variance for r in records], dtype=float).reshape(size, count),
+        detection_rows=np.array([r.detection_row for r in records], dtype=np.int64),
         state_names=tuple(names),
-        existence=np.array(existence, dtype=float) if has_existence else None,
+        existence=(
+            np.array([r.existence for r in records], dtype=float) if has_existence else None
+        ),
     )
+
+
+@dataclass(frozen=True)
+class _TrackLine:
+    """One parsed line of a tracks file."""
+
+    track: int
+    time: float
+    sensor: str
+    state: list[float]
+    variance: list[float]
+    detection_row: int
+    existence: float
+
+
+def _track_key(path: str, line: int, cells: list[str]) -> tuple[int, float, str]:
+    """``(track_id, time, sensor)`` of a tracks-file line."""
+    track = _int_cell(path, line, "track_id", cells[0], minimum=0)
+    time = _float_cell(path, line, "time", cells[1])
+    sensor = cells[2]
+    if sensor == "":
+        raise DataFileError(path, "empty cell; expected a sensor name", row=line, column="sensor")
+    return track, time, sensor
+
+
+def _track_line(
+    path: str,
+    line: int,
+    cells: list[str],
+    key: tuple[int, float, str],
+    names: Sequence[str],
+    var_names: Sequence[str],
+    has_existence: bool,
+) -> _TrackLine:
+    """The cells of one tracks-file line after its key, parsed (format 4)."""
+    track, time, sensor = key
+    fixed, count = len(TRACK_FIXED_COLUMNS), len(names)
+    state_cells = cells[fixed : fixed + count]
+    existence = math.nan
+    if has_existence:
+        cell = cells[-1]
+        existence = math.nan if cell == "" else _float_cell(path, line, EXISTENCE_COLUMN, cell)
+        if not (math.isnan(existence) or 0.0 <= existence <= 1.0):
+            raise DataFileError(
+                path,
+                f"existence {cell!r} is not a probability; expected a value in [0, 1]",
+                row=line,
+                column=EXISTENCE_COLUMN,
+            )
+        cells = cells[:-1]
+    state = [_float_cell(path, line, n, c) for n, c in zip(names, state_cells, strict=True)]
+    variance = []
+    for name, cell in zip(var_names, cells[fixed + count : -1], strict=True):
+        value = _float_cell(path, line, name, cell)
+        if value < 0:
+            raise DataFileError(
+                path, f"variance {cell!r} is negative; expected a value >= 0", row=line,
+                column=name,
+            )  # fmt: skip
+        variance.append(value)
+    row_cell = cells[-1]
+    detection_row = (
+        -1 if row_cell == "" else _int_cell(path, line, TRACK_ROW_COLUMN, row_cell, minimum=0)
+    )
+    return _TrackLine(track, time, sensor, state, variance, detection_row, existence)

@@ -126,6 +126,22 @@ def scans_from_arrays(
     code_of = {sensor.name: k for k, sensor in enumerate(sensor_list)}
     t = _times_array("times", times, length=None)
     n = t.shape[0]
+    z = _measurements_array(measurements, n)
+    codes = _sensor_codes(sensor_names, n, sensors, code_of)
+    _check_dimensions(z, codes, sensor_list)
+    id_array = np.arange(n, dtype=np.int64) if ids is None else _ids_array(ids, n)
+    empty = [] if scan_times is None else _listed_scans(scan_times, sensors, code_of)
+    if n == 0 and not empty:
+        raise InputError(
+            "no detections and no scan_times: there is no scan to make (give scan_times for "
+            "scans without detections)"
+        )
+    table = _arrays_table(t, z, codes, id_array, empty, sensor_list)
+    return detection_columns_to_scans(table, sensors, _arrays_fail)
+
+
+def _measurements_array(measurements: ArrayLike, n: int) -> FloatArray:
+    """``measurements`` as finite float64 of shape ``(n, dz)`` (raises InputError)."""
     try:
         z = np.asarray(measurements)
     except (TypeError, ValueError):
@@ -147,35 +163,47 @@ def scans_from_arrays(
             f"measurements[{i}, {j}] is {float(z[i, j])!r}; expected a finite number (every "
             "row is a detection; a scan without detections is given by scan_times)"
         )
+    return z
 
-    # sensor of each detection
+
+def _sensor_codes(
+    sensor_names: str | Sequence[str] | None,
+    n: int,
+    sensors: Mapping[str, Sensor],
+    code_of: Mapping[str, int],
+) -> IntArray:
+    """The position in ``sensors`` of each detection's sensor, shape ``(n,)``."""
     if sensor_names is None:
-        if len(sensor_list) > 1:
+        if len(code_of) > 1:
             raise InputError(
-                f"sensor_names is required: {len(sensor_list)} sensors are configured "
+                f"sensor_names is required: {len(code_of)} sensors are configured "
                 f"({', '.join(sensors)}); give the sensor of each detection or one name"
             )
-        codes = np.zeros(n, dtype=np.int64)
-    elif isinstance(sensor_names, str):
+        return np.zeros(n, dtype=np.int64)
+    if isinstance(sensor_names, str):
         if sensor_names not in code_of:
             raise InputError(f"sensor_names is {sensor_names!r}; expected one of {list(sensors)}")
-        codes = np.full(n, code_of[sensor_names], dtype=np.int64)
-    else:
-        names = np.asarray(sensor_names, dtype=object)
-        if names.shape != (n,):
-            raise InputError(
-                f"sensor_names must be one name or a sequence of {n} names (one per entry "
-                f"of times), got shape {names.shape}"
-            )
-        codes = np.empty(n, dtype=np.int64)
-        for i, name in enumerate(names.tolist()):
-            if not isinstance(name, str) or name not in code_of:
-                raise InputError(f"sensor_names[{i}] is {name!r}; expected one of {list(sensors)}")
-            codes[i] = code_of[name]
+        return np.full(n, code_of[sensor_names], dtype=np.int64)
+    names = np.asarray(sensor_names, dtype=object)
+    if names.shape != (n,):
+        raise InputError(
+            f"sensor_names must be one name or a sequence of {n} names (one per entry "
+            f"of times), got shape {names.shape}"
+        )
+    codes = np.empty(n, dtype=np.int64)
+    for i, name in enumerate(names.tolist()):
+        if not isinstance(name, str) or name not in code_of:
+            raise InputError(f"sensor_names[{i}] is {name!r}; expected one of {list(sensors)}")
+        codes[i] = code_of[name]
+    return codes
+
+
+def _check_dimensions(z: FloatArray, codes: IntArray, sensor_list: Sequence[Sensor]) -> None:
+    """Every sensor the detections name measures ``z.shape[1]`` components."""
     for code in np.unique(codes).tolist():
         sensor = sensor_list[code]
         dim = sensor.measurement.measurement_dim
-        if n and z.shape[1] != dim:
+        if z.shape[0] and z.shape[1] != dim:
             i = int(np.argmax(codes == code))
             raise InputError(
                 f"measurements have {z.shape[1]} columns, but sensor {sensor.name!r} "
@@ -183,48 +211,47 @@ def scans_from_arrays(
                 "for sensors of different dimensions use scans_from_frame"
             )
 
-    # ids
-    if ids is None:
-        id_array = np.arange(n, dtype=np.int64)
-    else:
-        raw = np.asarray(ids)
-        if raw.shape != (n,):
-            raise InputError(f"ids must have shape ({n},), got shape {raw.shape}")
-        if n and not np.issubdtype(raw.dtype, np.integer):
-            raise InputError(f"ids must be integers, got dtype {raw.dtype}")
-        if n and raw.dtype == np.uint64 and int(raw.max()) > np.iinfo(np.int64).max:
-            raise InputError(f"ids must fit in int64, got {int(raw.max())}")
-        id_array = raw.astype(np.int64)
-        if n and int(id_array.min()) < 0:
-            i = int(np.argmax(id_array < 0))
-            raise InputError(f"ids[{i}] is {int(id_array[i])}; expected an integer >= 0")
-        repeated = first_repeated(id_array)
-        if repeated is not None:
-            value, first, second = repeated
-            raise InputError(f"ids[{second}] is {value}, as is ids[{first}]; expected distinct ids")
 
-    # scans that must exist
+def _ids_array(ids: ArrayLike, n: int) -> IntArray:
+    """``ids`` as distinct int64 >= 0 of shape ``(n,)`` (raises InputError)."""
+    raw = np.asarray(ids)
+    if raw.shape != (n,):
+        raise InputError(f"ids must have shape ({n},), got shape {raw.shape}")
+    if n and not np.issubdtype(raw.dtype, np.integer):
+        raise InputError(f"ids must be integers, got dtype {raw.dtype}")
+    if n and raw.dtype == np.uint64 and int(raw.max()) > np.iinfo(np.int64).max:
+        raise InputError(f"ids must fit in int64, got {int(raw.max())}")
+    id_array = raw.astype(np.int64)
+    if n and int(id_array.min()) < 0:
+        i = int(np.argmax(id_array < 0))
+        raise InputError(f"ids[{i}] is {int(id_array[i])}; expected an integer >= 0")
+    repeated = first_repeated(id_array)
+    if repeated is not None:
+        value, first, second = repeated
+        raise InputError(f"ids[{second}] is {value}, as is ids[{first}]; expected distinct ids")
+    return id_array
+
+
+def _listed_scans(
+    scan_times: ArrayLike | Mapping[str, ArrayLike],
+    sensors: Mapping[str, Sensor],
+    code_of: Mapping[str, int],
+) -> list[tuple[float, int]]:
+    """``(time, sensor code)`` of the scans ``scan_times`` says must exist."""
     empty: list[tuple[float, int]] = []
-    if scan_times is not None:
-        if isinstance(scan_times, Mapping):
-            for name, listed in scan_times.items():
-                if name not in code_of:
-                    raise InputError(
-                        f"scan_times has the key {name!r}; expected sensor names from "
-                        f"{list(sensors)}"
-                    )
-                for time in _times_array(f"scan_times[{name!r}]", listed, length=None):
-                    empty.append((float(time), code_of[name]))
-        else:
-            for time in _times_array("scan_times", scan_times, length=None):
-                empty.extend((float(time), code) for code in range(len(sensor_list)))
-    if n == 0 and not empty:
-        raise InputError(
-            "no detections and no scan_times: there is no scan to make (give scan_times for "
-            "scans without detections)"
-        )
-    table = _arrays_table(t, z, codes, id_array, empty, sensor_list)
-    return detection_columns_to_scans(table, sensors, _arrays_fail)
+    if isinstance(scan_times, Mapping):
+        for name, listed in scan_times.items():
+            if name not in code_of:
+                raise InputError(
+                    f"scan_times has the key {name!r}; expected sensor names from "
+                    f"{list(sensors)}"
+                )
+            for time in _times_array(f"scan_times[{name!r}]", listed, length=None):
+                empty.append((float(time), code_of[name]))
+    else:
+        for time in _times_array("scan_times", scan_times, length=None):
+            empty.extend((float(time), code) for code in range(len(code_of)))
+    return empty
 
 
 def _arrays_fail(message: str, column: str | None, row: int | None) -> InputError:

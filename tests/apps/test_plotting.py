@@ -333,3 +333,34 @@ def test_up_to_the_legend_limit_every_track_has_its_own_colour(crossing: Scenari
         if re.match(r"track \d", str(line.get_label()))
     }
     assert len(colours) == TRACK_LEGEND_LIMIT
+
+
+def test_a_geodetic_recording_plots_metres_east_and_north_of_its_origin() -> None:
+    from matplotlib.figure import Figure
+
+    from mapassoc.apps.plotting import draw_tracks
+    from mapassoc.data.frames import GeodeticPoint
+    from mapassoc.data.records import TrackTable
+    from mapassoc.data.scans import Scan
+    from mapassoc.models.measurement import LinearMeasurement
+    from mapassoc.models.motion import ConstantVelocity
+    from mapassoc.models.sensor import Region, Sensor
+
+    motion = ConstantVelocity(ndim=2, noise_intensity=1.0)
+    sensor = Sensor(
+        name="adsb", measurement=LinearMeasurement.position(motion, noise_std=10.0),
+        detection_probability=0.9, false_alarms_per_scan=0.1,
+        region=Region.from_bounds([[-1e3, 1e3], [-1e3, 1e3]]),
+    )  # fmt: skip
+    tracks = TrackTable(
+        track_ids=np.array([1, 1]), times=np.array([0.0, 1.0]), sensors=("adsb", "adsb"),
+        states=np.array([[0.0, 0.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0]]),
+        variances=np.ones((2, 4)), detection_rows=np.array([-1, -1]),
+        state_names=("x", "y", "vx", "vy"),
+    )  # fmt: skip
+    scans = [Scan(time=0.0, sensor="adsb", detections=np.zeros((0, 2)), rows=np.zeros(0, int))]
+    ax = Figure().add_subplot()
+    draw_tracks(ax, scans=scans, sensors={"adsb": sensor}, tracks=tracks,
+                origin=GeodeticPoint(52.3086, -4.7639, 0.0))  # fmt: skip
+    assert ax.get_xlabel() == "east of 52.3086\N{DEGREE SIGN}N 4.7639\N{DEGREE SIGN}W [m]"
+    assert ax.get_ylabel() == "north of 52.3086\N{DEGREE SIGN}N 4.7639\N{DEGREE SIGN}W [m]"
