@@ -52,6 +52,8 @@ timestamps (a pandas ``datetime64`` column or a Parquet timestamp column)."""
 NAIVE_UTC_WARNING = (
     "timestamps without a time zone are taken as UTC; give a zone (Z or +hh:mm) to say so"
 )
+"""The warning given once per file whose timestamps carry no zone: they are read as UTC
+rather than refused, because recorders commonly write UTC without saying so."""
 
 _UNIX = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")

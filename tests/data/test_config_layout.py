@@ -44,6 +44,9 @@ NON_DEFAULT: dict[str, dict[str, Any]] = {
         "beam_width": 50,
         "bound_prune_log_ratio": 11.0,
         "program_time_limit": 0.25,
+        "beam_entry_margin": 30.0,
+        "mass_bound_multiplier_limit": 12.0,
+        "mass_bound_multipliers": 7,
     },
     "count": {
         "max_tracks": 3,

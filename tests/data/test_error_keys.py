@@ -59,6 +59,9 @@ BAD_SEARCH: dict[str, tuple[object, dict[str, object]]] = {
     "beam_width": (0, {}),
     "bound_prune_log_ratio": (-1.0, {}),
     "program_time_limit": (0.0, {}),
+    "beam_entry_margin": (0.0, {}),
+    "mass_bound_multiplier_limit": (-1.0, {}),
+    "mass_bound_multipliers": (0, {}),
 }
 BAD_COUNT: dict[str, tuple[object, dict[str, object]]] = {
     "max_tracks": (-1, {}),
