@@ -16,6 +16,7 @@ pytest's default ``prepend`` import mode inserts the directory of ``tests/confte
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import itertools
 import math
 import resource
@@ -315,3 +316,46 @@ def polling_unit(units: tuple[str, ...], depth: int = 3) -> str:
             return frame.f_code.co_name
         frame = frame.f_back  # type: ignore[assignment]
     return "other"
+
+
+TINY_NOISE_INTENSITY = 0.4
+
+
+def tiny_recording(seed: int, num_scans: int = 3, most: int = 2) -> tuple[Config, list[Scan]]:
+    """A random 1-D or 2-D recording of ``num_scans`` scans with 0..``most`` detections each."""
+    rng = np.random.default_rng(seed)
+    ndim = int(rng.choice([1, 2]))
+    motion = ConstantVelocity(ndim=ndim, noise_intensity=TINY_NOISE_INTENSITY)
+    times = np.cumsum(np.r_[0.0, rng.uniform(0.5, 1.5, size=num_scans - 1)]).tolist()
+    counts = [int(rng.integers(0, most + 1)) for _ in range(num_scans)]
+    # Targets that move a little plus clutter, so that some track sets score well.
+    start = rng.uniform(-3.0, 3.0, size=ndim)
+    detections = []
+    for t, c in zip(times, counts, strict=True):
+        points = [start + 0.5 * t + rng.normal(0, 0.4, size=ndim) for _ in range(c)]
+        if c and rng.random() < 0.5:
+            points[-1] = rng.uniform(-6.0, 6.0, size=ndim)
+        detections.append([p.tolist() for p in points])
+    config = make_config(
+        motion=motion,
+        noise_std=float(rng.uniform(0.3, 0.8)),
+        detection_probability=float(rng.uniform(0.5, 0.95)),
+        false_alarms_per_scan=float(rng.uniform(0.3, 2.0)),
+        region=[[-8.0, 8.0]] * ndim,
+        rate=float(rng.uniform(0.1, 0.8)),
+        initial_count=float(rng.uniform(0.0, 2.0)),
+        velocity_std=float(rng.uniform(0.5, 1.5)),
+        survival_probability=float(rng.uniform(0.6, 0.99)),
+        window_length=num_scans,
+    )
+    config = dataclasses.replace(
+        config, estimator=dataclasses.replace(config.estimator, time_limit=NO_TIME_LIMIT)
+    )
+    return config, make_scans(times, detections, ndim)
+
+
+def all_track_sets(scans: list[Scan]) -> Iterator[list[tuple[tuple[int, int], ...]]]:
+    """Every track set of a recording, as lists of ((scan, index), ...) paths."""
+    where = [(k, i) for k, scan in enumerate(scans) for i in range(scan.size)]
+    for partition in partitions([k for k, _ in where]):
+        yield [tuple(where[d] for d in track) for track in partition]

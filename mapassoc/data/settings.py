@@ -367,6 +367,14 @@ class RefinementSettings:
         and at the wide width a long window's trees cost about four short ones' (over
         the bench families the narrower width found the same J on most runs and a
         fraction of a nat less on the others, in less of the refinement's time).
+    identity_moves : bool
+        After each sweep's fragment linking, also make the identity moves of
+        :mod:`mapassoc.estimator.identity_moves` over the whole recording: switches of
+        two tracks' tails at close approaches, splits before detections that cost their
+        track more than they pay, and merges over any gap; each only where J rises.
+        They run once the sweeps have converged (or at the last pass), and if they change
+        the set the sweeps go on: they cost little beside a sweep and catch what a window
+        cannot see, such as two pieces of one target further apart than ``link_gap``.
     min_existence : float
         After the refinement, report only the tracks whose existence probability
         (:meth:`mapassoc.estimator.refinement.Refiner.confidence`) is at least this, in
@@ -382,17 +390,18 @@ class RefinementSettings:
     refilter_detections: int = 15
     prune_log_ratio: float = 18.0
     long_prune_log_ratio: float | None = None
+    identity_moves: bool = True
     min_existence: float = 0.0
 
     def __post_init__(self) -> None:
         _set_int(self, "passes", minimum=0)
         for name in ("window_length", "long_window_length", "stride"):
             _set_int(self, name, minimum=1, optional=True)
-        if not isinstance(self.scan_windows, bool):
-            raise InputError(
-                f"scan_windows must be true or false, got {self.scan_windows!r}",
-                key="scan_windows",
-            )
+        for name in ("scan_windows", "identity_moves"):
+            if not isinstance(getattr(self, name), bool):
+                raise InputError(
+                    f"{name} must be true or false, got {getattr(self, name)!r}", key=name
+                )
         _set_int(self, "link_gap", minimum=0)
         _set_int(self, "refilter_detections", minimum=1)
         _check_width(self, "prune_log_ratio")

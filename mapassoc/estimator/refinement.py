@@ -86,6 +86,7 @@ from mapassoc.estimator.confidence import (
     TrackConfidence,
 )
 from mapassoc.estimator.hypotheses import HypothesisGenerator
+from mapassoc.estimator.identity_moves import identity_moves
 from mapassoc.estimator.linking import link_fragments
 from mapassoc.estimator.objective import RecordingObjective, TrackPath, rows_from_paths
 
@@ -115,7 +116,9 @@ class RefinementReport:
     objective_forward : float
         J of the forward pass's track set.
     objective_after_pass : list of float
-        J after each sweep (window re-solves, then fragment linking); non-decreasing.
+        J after each sweep (window re-solves, then fragment linking; with
+        ``identity_moves``, the moves after the sweep where the sweeps have converged or
+        the last pass is reached); non-decreasing.
     windows_solved, windows_improved : int
     windows_time_limited : int
         Re-solves whose window solve the deadline cut short (status ``time_limit``; its
@@ -125,6 +128,13 @@ class RefinementReport:
         ``time_limit``), as the forward pass counts its windows.
     links : int
         Fragment joins made.
+    switches, splits, merges : int
+        Identity moves made (:mod:`mapassoc.estimator.identity_moves`; 0 unless
+        ``identity_moves`` is set): tail exchanges, cuts and joins over any gap.
+    stopped : str
+        Why the sweeps ended: ``"converged"`` (a sweep of every window length changed
+        nothing: no move the refinement makes raises J) or ``"pass_limit"`` (``passes``
+        sweeps were made and the last one still changed the set).
     dropped : int
         Tracks removed because their value was negative (their detections are likelier
         false alarms).
@@ -138,7 +148,11 @@ class RefinementReport:
     windows_time_limited: int = 0
     status_counts: dict[str, int] = field(default_factory=_no_statuses)
     links: int = 0
+    switches: int = 0
+    splits: int = 0
+    merges: int = 0
     dropped: int = 0
+    stopped: str = "converged"
     seconds: float = 0.0
 
     @property
@@ -159,7 +173,11 @@ class RefinementReport:
             "windows_time_limited": self.windows_time_limited,
             "window_statuses": dict(self.status_counts),
             "links": self.links,
+            "switches": self.switches,
+            "splits": self.splits,
+            "merges": self.merges,
             "tracks_dropped": self.dropped,
+            "stopped": self.stopped,
         }
         if timings:
             out["seconds"] = self.seconds
@@ -275,14 +293,22 @@ class Refiner:
         starts = {n: self.window_starts(n) for n in lengths}
         dirty = {n: set(starts[n]) for n in lengths}
         unchanged = 0
+        report.stopped = "pass_limit" if self.settings.passes > 0 else "converged"
         for sweep in range(self.settings.passes):
             N = lengths[sweep % len(lengths)]
             order = starts[N] if (sweep // len(lengths)) % 2 == 0 else starts[N][::-1]
             changed = self._sweep(current, values, N, order, starts, dirty, report, stop)
+            unchanged = 0 if changed else unchanged + 1
+            last = sweep == self.settings.passes - 1
+            if (unchanged >= len(lengths) or last) and self._identity_moves(
+                current, values, report, stop
+            ):
+                unchanged = 0  # the moves changed the set: every window may pay again
+                dirty = {n: set(starts[n]) for n in lengths}
             values = self._exact_values(current)
             report.objective_after_pass.append(float(sum(values.values())))
-            unchanged = 0 if changed else unchanged + 1
             if unchanged >= len(lengths):
+                report.stopped = "converged"
                 break  # a sweep of every window length changed nothing
         tracks_out = dict(sorted(current.items()))
         report.seconds = time.perf_counter() - t0
@@ -334,6 +360,30 @@ class Refiner:
             del values[tid]
         report.dropped += len(dropped)
         return changed or bool(dropped)
+
+    def _identity_moves(
+        self,
+        current: dict[int, TrackPath],
+        values: dict[int, float],
+        report: RefinementReport,
+        stop: Callable[[], bool] | None,
+    ) -> bool:
+        """The identity moves over the whole recording (when ``identity_moves`` is set);
+        whether any was made."""
+        if not self.settings.identity_moves:
+            return False
+        counts, self._next_id = identity_moves(
+            self.objective,
+            current,
+            values,
+            next_id=self._next_id,
+            refilter_detections=self.settings.refilter_detections,
+            stop=stop,
+        )
+        report.switches += counts.switches
+        report.splits += counts.splits
+        report.merges += counts.merges
+        return counts.total > 0
 
     def window_starts(self, length: int | None = None) -> list[int]:
         """First scans of the re-solved windows of ``length`` scans (default
@@ -512,8 +562,6 @@ def refine_track_rows(
     sure = refiner.confidence(refined, stop=stop) if confidence else None
     dropped: tuple[int, ...] = ()
     if sure is not None and min_existence > 0:
-        dropped = tuple(
-            tid for tid in refined if sure.existence.get(tid, math.nan) < min_existence
-        )
+        dropped = tuple(tid for tid in refined if sure.existence.get(tid, math.nan) < min_existence)
         refined = {tid: path for tid, path in refined.items() if tid not in dropped}
     return RefinedTracks(rows_from_paths(scans, refined), report, sure, dropped)

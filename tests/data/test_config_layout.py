@@ -65,6 +65,7 @@ NON_DEFAULT: dict[str, dict[str, Any]] = {
         "refilter_detections": 7,
         "prune_log_ratio": 20.0,
         "long_prune_log_ratio": 6.0,
+        "identity_moves": False,
         "min_existence": 0.3,
     },
     "parameters": {

@@ -21,11 +21,11 @@ import numpy as np
 import pytest
 from support import (
     NO_TIME_LIMIT,
+    TINY_NOISE_INTENSITY,
+    all_track_sets,
     brute_force_tables,
-    make_config,
-    make_scans,
-    partitions,
     random_problem,
+    tiny_recording,
 )
 
 from mapassoc.errors import InputError
@@ -36,42 +36,6 @@ from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.estimator.refinement import RefinementSettings, Refiner, refine_track_rows
 from mapassoc.evaluation.scenarios import build_scenario
 from mapassoc.filtering.compiled import COMPILED_SWITCH
-from mapassoc.models.motion import ConstantVelocity
-
-NOISE_INTENSITY = 0.4
-
-
-def _tiny_recording(seed: int, num_scans: int = 3, most: int = 2):
-    """A random 1-D or 2-D recording of ``num_scans`` scans with 0..``most`` detections each."""
-    rng = np.random.default_rng(seed)
-    ndim = int(rng.choice([1, 2]))
-    motion = ConstantVelocity(ndim=ndim, noise_intensity=NOISE_INTENSITY)
-    times = np.cumsum(np.r_[0.0, rng.uniform(0.5, 1.5, size=num_scans - 1)]).tolist()
-    counts = [int(rng.integers(0, most + 1)) for _ in range(num_scans)]
-    # Targets that move a little plus clutter, so that some track sets score well.
-    start = rng.uniform(-3.0, 3.0, size=ndim)
-    detections = []
-    for t, c in zip(times, counts, strict=True):
-        points = [start + 0.5 * t + rng.normal(0, 0.4, size=ndim) for _ in range(c)]
-        if c and rng.random() < 0.5:
-            points[-1] = rng.uniform(-6.0, 6.0, size=ndim)
-        detections.append([p.tolist() for p in points])
-    config = make_config(
-        motion=motion,
-        noise_std=float(rng.uniform(0.3, 0.8)),
-        detection_probability=float(rng.uniform(0.5, 0.95)),
-        false_alarms_per_scan=float(rng.uniform(0.3, 2.0)),
-        region=[[-8.0, 8.0]] * ndim,
-        rate=float(rng.uniform(0.1, 0.8)),
-        initial_count=float(rng.uniform(0.0, 2.0)),
-        velocity_std=float(rng.uniform(0.5, 1.5)),
-        survival_probability=float(rng.uniform(0.6, 0.99)),
-        window_length=num_scans,
-    )
-    config = dataclasses.replace(
-        config, estimator=dataclasses.replace(config.estimator, time_limit=NO_TIME_LIMIT)
-    )
-    return config, make_scans(times, detections, ndim)
 
 
 def _joint_log_likelihood(config, scans, track) -> float:
@@ -85,7 +49,7 @@ def _joint_log_likelihood(config, scans, track) -> float:
     sensor = config.sensors["s"]
     R = np.asarray(sensor.measurement.noise_covariance)
     d = R.shape[0]
-    q = NOISE_INTENSITY
+    q = TINY_NOISE_INTENSITY
     first_scan, first_index = track[0]
     m0 = np.r_[scans[first_scan].detections[first_index], np.zeros(d)]
     P0 = np.zeros((2 * d, 2 * d))
@@ -161,19 +125,12 @@ def _endings(config, scans, last: int) -> list[float]:
     return endings
 
 
-def _all_track_sets(scans):
-    """Every track set of a recording, as lists of ((scan, index), ...) paths."""
-    where = [(k, i) for k, scan in enumerate(scans) for i in range(scan.size)]
-    for partition in partitions([k for k, _ in where]):
-        yield [tuple(where[d] for d in track) for track in partition]
-
-
 @pytest.mark.parametrize("seed", range(12))
 def test_objective_equals_the_generative_model_on_every_track_set(seed: int) -> None:
-    config, scans = _tiny_recording(seed)
+    config, scans = tiny_recording(seed)
     objective = RecordingObjective(config=config, scans=scans)
     count = 0
-    for tracks in _all_track_sets(scans):
+    for tracks in all_track_sets(scans):
         expected = sum(_reference_value(config, scans, t) for t in tracks)
         assert objective.value(tracks) == pytest.approx(expected, abs=1e-9, rel=1e-12)
         count += 1
@@ -256,9 +213,9 @@ def _feasible(tracks) -> bool:
 
 @pytest.mark.parametrize("seed", range(10))
 def test_refinement_over_the_whole_recording_finds_the_global_map(seed: int) -> None:
-    config, scans = _tiny_recording(seed, num_scans=4, most=2)
+    config, scans = tiny_recording(seed, num_scans=4, most=2)
     objective = RecordingObjective(config=config, scans=scans)
-    best = max(objective.value(tracks) for tracks in _all_track_sets(scans))
+    best = max(objective.value(tracks) for tracks in all_track_sets(scans))
     # Start from a poor set: every detection its own track.
     singles = {
         i + 1: ((k, j),)
@@ -283,7 +240,7 @@ def test_a_resolve_programs_best_set_equals_enumeration(seed: int) -> None:
     """The window solver's best set with K free, as the refinement asks it (lone
     hypotheses in closed form, small clusters by the frontier search, large ones by the
     integer program) against every subset, sizes uncounted."""
-    config, scans = _tiny_recording(0)
+    config, scans = tiny_recording(0)
     refiner = Refiner(config=config, scans=scans, settings=RefinementSettings())
     rng = np.random.default_rng(seed)
     H = int(rng.integers(1, 15))
@@ -305,7 +262,7 @@ def test_a_windows_marginals_equal_enumeration(seed: int) -> None:
     """The window solver's marginals with K free, as the confidence pass asks them (lone
     hypotheses in closed form, the other clusters by the frontier search forward and
     backward) against a sum over every feasible set."""
-    config, scans = _tiny_recording(0)
+    config, scans = tiny_recording(0)
     refiner = Refiner(config=config, scans=scans, settings=RefinementSettings())
     rng = np.random.default_rng(50 + seed)
     H = int(rng.integers(1, 11))
@@ -557,9 +514,9 @@ def test_existence_and_associations_equal_enumeration_over_every_track_set(seed:
     """With the confidence window covering the recording and nothing pruned, a track's
     existence (some track uses one of its detections) and its associations (the
     detection's track starts at one of its detections) are sums over every track set."""
-    config, scans = _tiny_recording(seed, num_scans=3, most=2)
+    config, scans = tiny_recording(seed, num_scans=3, most=2)
     objective = RecordingObjective(config=config, scans=scans)
-    sets = list(_all_track_sets(scans))
+    sets = list(all_track_sets(scans))
     weights = np.array([sum(_reference_mass(config, scans, t) for t in s) for s in sets])
     probabilities = np.exp(weights - np.logaddexp.reduce(weights))
     # Any track set names the trees to ask about: the best one with a track.
