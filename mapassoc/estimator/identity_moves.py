@@ -251,7 +251,7 @@ def split_tracks(
         if not pending:
             break
         check_stop(stop, REFINEMENT_PHASE)
-        again = []
+        again: list[int] = []
         for tid in pending:
             cut = _best_split(objective, tracks[tid], values[tid])
             if cut is None:
