@@ -105,6 +105,11 @@ def track_existence(tracks: TrackTable) -> np.ndarray:
     probability reports its tracks as certain, which is how GOSPA scores them, so
     P-GOSPA then equals GOSPA (alpha = 2) at every time.
 
+    Returns
+    -------
+    ndarray, shape (N,)
+        In [0, 1], one per row of ``tracks`` (in its order).
+
     Raises
     ------
     InputError
