@@ -14,6 +14,11 @@ the window estimator and reports
 * GOSPA (cut-off :data:`GOSPA_CUTOFF`, with the localisation / missed / false parts of
   GOSPA^2) next to the oracle's (Kalman smoother on the true associations) and their
   ratio;
+* identity: P-GOSPA (Xia, García-Fernández, Karlsson, Yuan, Chang and Svensson,
+  "Probabilistic GOSPA"), which also scores the existence probabilities the estimate
+  reports; T-GOSPA of the trajectories (c = gamma = :data:`GOSPA_CUTOFF`, p = 2) next to
+  the oracle's and their ratio; the fragments (track ids) per tracked target and the
+  identity switches of its assignment; and the track ids per true target;
 * how well p(K | Z) (``WindowReport.p_k``) predicts the true number K of
   targets in each window, i.e. the distinct truth targets with a truth record at a time
   in ``[start_time, end_time]`` of the window (:func:`window_target_counts`): the Brier
@@ -23,7 +28,8 @@ the window estimator and reports
   windows (:func:`count_scores`).
 
 Then, per family and prior, the mean GOSPA ratio over seeds with its spread, the mean
-Brier score and hit rate and the mean throughput; how time per scan grows over the
+Brier score and hit rate, the mean fragments per target, identity switches, T-GOSPA
+ratio and P-GOSPA over the oracle's GOSPA, and the mean throughput; how time per scan grows over the
 ``scale20 -> scale50 -> scale100`` family (fixed density, so linear in targets is the
 goal); the throughput of batched gating; the goals (speed, GOSPA, time limit and growth
 are judged on the first prior of ``k_priors`` only, so that no run is counted twice);
@@ -44,6 +50,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+import warnings
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
@@ -67,7 +74,7 @@ from mapassoc.evaluation.scenarios import (
     scenario_names,
     truncate_scenario,
 )
-from mapassoc.evaluation.tables import evaluate_tables
+from mapassoc.evaluation.tables import evaluate_tables, pgospa_tables
 from mapassoc.filtering.kalman import pairwise_gate_and_loglik
 from mapassoc.validation import check_integer
 
@@ -210,8 +217,8 @@ class RunResult:
         Mean over windows of p(true K | Z).
     tgospa, oracle_tgospa : float or None
         T-GOSPA of the estimate's and of the oracle's trajectories (c = gamma =
-        ``GOSPA_CUTOFF``, p = 2; :mod:`mapassoc.evaluation.tgospa`); in the JSON only, not
-        in the printed line.  ``None`` for runs built without it.
+        ``GOSPA_CUTOFF``, p = 2; :mod:`mapassoc.evaluation.tgospa`).  ``None`` for runs
+        built without it.
     fragments_per_target : float or None
         Mean track ids per tracked true target in the estimate's T-GOSPA assignment.
     tgospa_id_switches : int or None
@@ -220,6 +227,15 @@ class RunResult:
         Scans per second of the forward pass alone (the windows, up to the last one's
         commit; ``scans_per_second`` adds the whole recording's refinement and the
         smoothing).  ``None`` for runs built without it.
+    tgospa_ratio : float or None
+        ``tgospa / oracle_tgospa`` (``inf`` if only the oracle is perfect, 1 if both are);
+        ``None`` without T-GOSPA.
+    pgospa : float or None
+        Mean over time of P-GOSPA (c = ``GOSPA_CUTOFF``, p = 2,
+        :func:`mapassoc.evaluation.tables.pgospa_tables`) of the estimate with the
+        existence probabilities it reports (1 where it reports none).  The oracle reports
+        none, so its P-GOSPA is its GOSPA, ``oracle_gospa.total``.  ``None`` for runs
+        built without it.
     """
 
     family: str
@@ -258,6 +274,13 @@ class RunResult:
     fragments_per_target: float | None = None
     tgospa_id_switches: int | None = None
     forward_scans_per_second: float | None = None
+    tgospa_ratio: float | None = None
+    pgospa: float | None = None
+
+    @property
+    def ids_per_target(self) -> float:
+        """Track ids reported per true target (``tracks / targets``; 1 is ideal)."""
+        return self.tracks / self.targets if self.targets else math.nan
 
 
 @dataclass(frozen=True)
@@ -294,6 +317,12 @@ class FamilySummary:
     forward_scans_per_second : float or None
         Mean over seeds of the forward pass's own throughput (``None`` when a run
         lacks it).
+    fragments_per_target_mean, id_switches_mean, tgospa_ratio_mean : float or None
+        Means over seeds of the runs' fragments per tracked target, T-GOSPA identity
+        switches and T-GOSPA ratio to the oracle (``None`` when a run lacks them).
+    pgospa_ratio_mean : float or None
+        Mean over seeds of the run's P-GOSPA over the oracle's GOSPA (the oracle's
+        P-GOSPA: it reports no existence); ``None`` when a run lacks P-GOSPA.
     """
 
     family: str
@@ -314,6 +343,10 @@ class FamilySummary:
     k_hit_rate_mean: float
     speed_goal: float | None
     forward_scans_per_second: float | None = None
+    fragments_per_target_mean: float | None = None
+    id_switches_mean: float | None = None
+    tgospa_ratio_mean: float | None = None
+    pgospa_ratio_mean: float | None = None
 
     @property
     def speed_met(self) -> bool | None:
@@ -670,6 +703,7 @@ class _Accuracy:
     oracle_tgospa: float | None
     fragments_per_target: float | None
     id_switches: int | None
+    pgospa: float
 
 
 def _accuracy(scenario: Scenario, tracks: TrackTable) -> _Accuracy:
@@ -683,6 +717,10 @@ def _accuracy(scenario: Scenario, tracks: TrackTable) -> _Accuracy:
     )
     trajectory, oracle_trajectory = estimate.tgospa, oracle.tgospa
     fragmentation = estimate.fragmentation
+    with warnings.catch_warnings():
+        # evaluate_tables has warned about these tables already.
+        warnings.simplefilter("ignore", UserWarning)
+        probabilistic = pgospa_tables(scenario.truth, tracks, c=GOSPA_CUTOFF)
     return _Accuracy(
         gospa=GospaParts.from_series(estimate.gospa),
         oracle_gospa=GospaParts.from_series(oracle.gospa),
@@ -690,6 +728,7 @@ def _accuracy(scenario: Scenario, tracks: TrackTable) -> _Accuracy:
         oracle_tgospa=None if oracle_trajectory is None else oracle_trajectory.total,
         fragments_per_target=None if fragmentation is None else fragmentation.fragments_per_target,
         id_switches=None if fragmentation is None else fragmentation.num_id_switches,
+        pgospa=probabilistic.mean_total,
     )
 
 
@@ -739,6 +778,10 @@ def _run_result(name: str, seed: int, setup: _BenchSetup, timed: _TimedRun) -> R
         fragments_per_target=accuracy.fragments_per_target,
         tgospa_id_switches=accuracy.id_switches,
         forward_scans_per_second=n_scans / forward if forward > 0 else math.inf,
+        tgospa_ratio=None
+        if accuracy.tgospa is None or accuracy.oracle_tgospa is None
+        else _ratio(accuracy.tgospa, accuracy.oracle_tgospa),
+        pgospa=accuracy.pgospa,
     )
 
 
@@ -790,10 +833,24 @@ def summarize_family(runs: Sequence[RunResult]) -> FamilySummary:
         k_brier_mean=float(np.mean([run.k_brier for run in runs])),
         k_hit_rate_mean=float(np.mean([run.k_hit_rate for run in runs])),
         speed_goal=SPEED_GOALS.get(family),
-        forward_scans_per_second=None
-        if any(run.forward_scans_per_second is None for run in runs)
-        else float(np.mean([run.forward_scans_per_second for run in runs])),
+        forward_scans_per_second=_mean_of([run.forward_scans_per_second for run in runs]),
+        fragments_per_target_mean=_mean_of([run.fragments_per_target for run in runs]),
+        id_switches_mean=_mean_of([run.tgospa_id_switches for run in runs]),
+        tgospa_ratio_mean=_mean_of([run.tgospa_ratio for run in runs]),
+        pgospa_ratio_mean=_mean_of(
+            [
+                None if run.pgospa is None else _ratio(run.pgospa, run.oracle_gospa.total)
+                for run in runs
+            ]
+        ),
     )
+
+
+def _mean_of(values: Sequence[float | None]) -> float | None:
+    """The mean of ``values``, or ``None`` when one is missing."""
+    if any(value is None for value in values):
+        return None
+    return float(np.mean([float(value) for value in values if value is not None]))
 
 
 def scale_growth(summaries: Sequence[FamilySummary]) -> ScaleGrowth | None:
@@ -838,12 +895,79 @@ def bench_gating(tracks: int = 2000, detections: int = 50, repeats: int = 5) -> 
 
 # --------------------------------------------------------------------------- printing
 
-_HEADER = (
-    f"{'family':10s} {'seed':>4s} {'k_prior':7s} {'tgts':>4s} {'det/scn':>7s} {'scans':>5s} "
-    f"{'scans/s':>8s} {'p50 ms':>8s} {'p95 ms':>8s} {'max ms':>8s} {'>lim':>4s} {'hyps':>7s} "
-    f"{'maxcl':>6s} {'minmass':>7s} {'GOSPA (GOSPA^2: loc/miss/false)':>31s} {'oracle':>6s} "
-    f"{'ratio':>6s} {'Brier':>5s} {'K hit':>5s}  status"
+@dataclass(frozen=True)
+class _Column:
+    """One column of a run's printed line: its label, width and the run's cell text."""
+
+    label: str
+    width: int
+    text: Callable[[RunResult], str]
+    left: bool = False
+
+
+def _cell(value: float | int | None, fmt: str) -> str:
+    """``value`` in ``fmt``, or ``-`` for a value the run lacks."""
+    return "-" if value is None else format(value, fmt)
+
+
+def _gospa_cell(r: RunResult) -> str:
+    g = r.gospa
+    return f"{g.total:6.2f} ({g.localisation:7.2f}/{g.missed:7.2f}/{g.false:7.2f})"
+
+
+# Each cell is padded to its column's width, so header and lines align whatever the widths.
+_COLUMNS: tuple[_Column, ...] = (
+    _Column("seed", 4, lambda r: f"{r.seed:d}"),
+    _Column("k_prior", 7, lambda r: r.k_prior, left=True),
+    _Column("tgts", 4, lambda r: f"{r.targets:d}"),
+    _Column("det/scn", 7, lambda r: f"{r.detections_per_scan:.1f}"),
+    _Column("scans", 5, lambda r: f"{r.scans:d}"),
+    _Column("scans/s", 8, lambda r: f"{r.scans_per_second:.1f}"),
+    _Column("p50 ms", 8, lambda r: f"{r.window_p50_ms:.1f}"),
+    _Column("p95 ms", 8, lambda r: f"{r.window_p95_ms:.1f}"),
+    _Column("max ms", 8, lambda r: f"{r.window_max_ms:.1f}"),
+    _Column(">lim", 4, lambda r: f"{r.windows_over_limit:d}"),
+    _Column("hyps", 7, lambda r: f"{r.hypotheses_mean:.0f}"),
+    _Column("maxcl", 6, lambda r: f"{r.largest_cluster:d}"),
+    _Column("minmass", 7, lambda r: f"{r.min_captured_mass:.3f}"),
+    _Column("GOSPA (GOSPA^2: loc/miss/false)", 32, _gospa_cell),
+    _Column("oracle", 6, lambda r: f"{r.oracle_gospa.total:.2f}"),
+    _Column("ratio", 6, lambda r: f"{r.gospa_ratio:.2f}"),
+    _Column("P-GOSPA", 7, lambda r: _cell(r.pgospa, ".2f")),
+    _Column("T-GOSPA", 8, lambda r: _cell(r.tgospa, ".2f")),
+    _Column("oracle T", 8, lambda r: _cell(r.oracle_tgospa, ".2f")),
+    _Column("T-ratio", 7, lambda r: _cell(r.tgospa_ratio, ".2f")),
+    _Column("frag", 5, lambda r: _cell(r.fragments_per_target, ".2f")),
+    _Column("ids/tg", 6, lambda r: f"{r.ids_per_target:.2f}"),
+    _Column("IDsw", 4, lambda r: _cell(r.tgospa_id_switches, "d")),
+    _Column("Brier", 5, lambda r: f"{r.k_brier:.3f}"),
+    _Column("K hit", 5, lambda r: f"{r.k_hit_rate:.2f}"),
 )
+
+
+def _family_width(families: Sequence[str]) -> int:
+    """Width of the family column: the longest name, at least 10."""
+    return max(10, *(len(name) for name in families))
+
+
+def _header(family_width: int = 10) -> str:
+    """The column labels of :func:`_run_line`, each over its column."""
+    cells = [
+        column.label.ljust(column.width) if column.left else column.label.rjust(column.width)
+        for column in _COLUMNS
+    ]
+    return f"{'family':{family_width}s} " + " ".join(cells) + "  status"
+
+
+def _run_line(r: RunResult, family_width: int = 10) -> str:
+    """One run's printed line, aligned with :func:`_header` of the same width."""
+    cells = [
+        column.text(r).ljust(column.width) if column.left else column.text(r).rjust(column.width)
+        for column in _COLUMNS
+    ]
+    return (
+        f"{r.family:{family_width}s} " + " ".join(cells) + f"  {_status_text(r.status_counts)}"
+    )
 
 
 def _mark(met: bool | None) -> str:
@@ -852,19 +976,6 @@ def _mark(met: bool | None) -> str:
 
 def _status_text(counts: Sequence[tuple[str, int]]) -> str:
     return " ".join(f"{status}:{count}" for status, count in counts)
-
-
-def _run_line(r: RunResult) -> str:
-    g = r.gospa
-    return (
-        f"{r.family:10s} {r.seed:4d} {r.k_prior:7s} {r.targets:4d} {r.detections_per_scan:7.1f} "
-        f"{r.scans:5d} {r.scans_per_second:8.1f} {r.window_p50_ms:8.1f} {r.window_p95_ms:8.1f} "
-        f"{r.window_max_ms:8.1f} {r.windows_over_limit:4d} {r.hypotheses_mean:7.0f} "
-        f"{r.largest_cluster:6d} {r.min_captured_mass:7.3f} "
-        f"{g.total:6.2f} ({g.localisation:7.2f}/{g.missed:7.2f}/{g.false:7.2f}) "
-        f"{r.oracle_gospa.total:6.2f} {r.gospa_ratio:6.2f} {r.k_brier:5.3f} {r.k_hit_rate:5.2f}  "
-        f"{_status_text(r.status_counts)}"
-    )
 
 
 def _family_line(s: FamilySummary, time_limit: float) -> str:
@@ -877,12 +988,29 @@ def _family_line(s: FamilySummary, time_limit: float) -> str:
         f"  => {s.family} (k_prior {s.k_prior}), {len(s.seeds)} seed(s): {speed}; GOSPA "
         f"{s.gospa_ratio_mean:.2f}x oracle (min {s.gospa_ratio_min:.2f}, max "
         f"{s.gospa_ratio_max:.2f}) [goal <= {GOSPA_RATIO_GOAL:g}x: {_mark(s.gospa_met)}]; "
+        f"{_identity_text(s)}"
         f"p(K | Z) Brier {s.k_brier_mean:.3f}, marginal K right in {s.k_hit_rate_mean:.0%} of "
         f"windows; windows over {time_limit:g} s: "
         f"{s.windows_over_limit}/{s.windows} [goal 0: {_mark(s.time_limit_met)}], slowest "
         f"{s.window_max_ms:.0f} ms; status {_status_text(s.status_counts)}; min captured mass "
         f"{s.min_captured_mass:.3f}"
     )
+
+
+def _identity_text(s: FamilySummary) -> str:
+    """The family line's identity part (``""`` when the runs lack it): mean fragments per
+    target, switches, T-GOSPA ratio to the oracle and P-GOSPA over the oracle's GOSPA."""
+    parts = [
+        template.format(value)
+        for template, value in (
+            ("frag {:.2f}", s.fragments_per_target_mean),
+            ("IDsw {:.1f}", s.id_switches_mean),
+            ("T-GOSPA {:.2f}x oracle", s.tgospa_ratio_mean),
+            ("P-GOSPA {:.2f}x oracle GOSPA", s.pgospa_ratio_mean),
+        )
+        if value is not None
+    ]
+    return f"identity: {', '.join(parts)}; " if parts else ""
 
 
 def _growth_line(g: ScaleGrowth) -> str:
@@ -1010,7 +1138,7 @@ def run_benchmark(
         print(text, file=stream, flush=True)
 
     say(settings.heading())
-    say(_HEADER)
+    say(_header(_family_width(settings.families)))
     runs, summaries = _run_families(settings, say)
     growth, pairs = _print_totals(summaries, settings.priors, gating, say)
     result = BenchmarkResult(
@@ -1118,7 +1246,7 @@ def _run_families(
                     k_prior=prior,
                 )
                 family_runs.append(run)
-                say(_run_line(run))
+                say(_run_line(run, _family_width(settings.families)))
             summary = summarize_family(family_runs)
             summaries.append(summary)
             runs.extend(family_runs)

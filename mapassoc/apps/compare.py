@@ -3,8 +3,9 @@
 :func:`compare` simulates each (scenario, seed), builds every tracker of
 :data:`~mapassoc.trackers.registry.TRACKERS` named, on the same configuration, runs it and
 scores its tracks against the truth (:func:`mapassoc.evaluation.scoring.score_tracks`:
-GOSPA and its parts, OSPA, OSPA(2), CLEAR-MOT, and for methods that report p(K | Z) its
-Brier score and calibration).  The result is a pandas DataFrame with one row per
+GOSPA and its parts, P-GOSPA of the existence probabilities, OSPA, OSPA(2), T-GOSPA with
+its fragments and switches, CLEAR-MOT, and for methods that report p(K | Z) its Brier
+score and calibration).  The result is a pandas DataFrame with one row per
 (scenario, seed, tracker); :func:`summarize` averages it over seeds.  ``mapassoc compare``
 prints that summary and writes both tables as CSV and a figure into a compare folder
 (:func:`compare_folder`, :func:`write_comparison`): a run folder of its own kind
@@ -349,8 +350,10 @@ _FORMAT_COLUMNS = (
     ("gospa_localisation", "loc^p", "{:7.2f}"),
     ("gospa_missed", "miss^p", "{:7.2f}"),
     ("gospa_false", "false^p", "{:7.2f}"),
+    ("pgospa", "P-GOSPA", "{:7.2f}"),
     ("ospa2", "OSPA2", "{:6.2f}"),
     ("tgospa", "T-GOSPA", "{:7.2f}"),
+    ("tgospa_id_switches", "T-IDsw", "{:6.1f}"),
     ("fragments_per_target", "frag", "{:5.2f}"),
     ("mota", "MOTA", "{:6.3f}"),
     ("id_switches", "IDsw", "{:5.1f}"),
@@ -364,6 +367,9 @@ def format_summary(summary: pd.DataFrame) -> str:
 
     ``loc^p``, ``miss^p`` and ``false^p`` are the means of GOSPA's p-th power parts (at
     each time they add up to GOSPA^p), so they are not on the scale of the GOSPA column.
+    ``P-GOSPA`` scores the existence probabilities a tracker reports as well (it equals
+    GOSPA for one that reports none); ``T-IDsw`` counts the identity switches of the
+    T-GOSPA assignment, ``IDsw`` CLEAR-MOT's.
     """
     header = f"{'scenario':12s} {'tracker':11s} {'runs':>4s}"
     widths = []

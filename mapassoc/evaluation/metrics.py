@@ -631,13 +631,29 @@ def _number(value: object) -> str:
     return f"{float(value):.4f}"  # type: ignore[arg-type]
 
 
+def _pgospa_rows(pg: object) -> list[tuple[str, object]]:
+    """The report's P-GOSPA lines from ``summary["pgospa"]`` (none when it is absent)."""
+    if not isinstance(pg, dict):
+        return []
+    p = f"{float(pg['p']):g}"
+    return [
+        (f"P-GOSPA mean (c={float(pg['c']):g}, p={p}, alpha=2)", pg["mean_total"]),
+        (f"  localisation part of P-GOSPA^{p}, mean", pg["mean_localisation"]),
+        (f"  existence mismatch part of P-GOSPA^{p}, mean", pg["mean_existence_mismatch"]),
+        (f"  missed part of P-GOSPA^{p}, mean", pg["mean_missed"]),
+        (f"  false part of P-GOSPA^{p}, mean", pg["mean_false"]),
+    ]
+
+
 def format_report(summary: RunEvaluation | dict) -> str:
     """Format an evaluation as an aligned plain-text table.
 
     Parameters
     ----------
     summary : RunEvaluation or dict
-        Output of :func:`evaluate`, or its :meth:`~RunEvaluation.to_json` dictionary.
+        Output of :func:`evaluate`, or its :meth:`~RunEvaluation.to_json` dictionary; a
+        ``"pgospa"`` entry (:func:`mapassoc.evaluation.tables.pgospa_summary`) adds the
+        P-GOSPA lines after GOSPA's.
 
     Returns
     -------
@@ -670,6 +686,9 @@ def format_report(summary: RunEvaluation | dict) -> str:
         (f"  localisation part of GOSPA^{p}, mean", g["mean_localisation"]),
         (f"  missed part of GOSPA^{p}, mean", g["mean_missed"]),
         (f"  false part of GOSPA^{p}, mean", g["mean_false"]),
+    ]
+    rows += _pgospa_rows(summary.get("pgospa"))
+    rows += [
         ("missed targets per time", g["mean_num_missed"]),
         ("false estimates per time", g["mean_num_false"]),
         ("position RMSE", summary["position_rmse"]),

@@ -4,11 +4,14 @@
 :class:`~mapassoc.data.io.TruthTable`: GOSPA (:mod:`mapassoc.evaluation.metrics`), OSPA and
 OSPA(2) (:mod:`mapassoc.evaluation.ospa`), CLEAR-MOT (:mod:`mapassoc.evaluation.clear_mot`,
 needs the optional extra ``metrics``) and, for trackers that report p(K | Z), the count
-scores of :mod:`mapassoc.evaluation.calibration`, and T-GOSPA of the trajectories with the
-fragments per target of its assignment (:mod:`mapassoc.evaluation.tgospa`).  Positions are
-the ``x``, ``y`` (and ``z``) columns both tables have, and a track written twice at one time
-keeps its last row (:mod:`mapassoc.evaluation.tables`).  :meth:`TrackingScores.as_row` gives a
-flat dictionary for one row of a pandas DataFrame.
+scores of :mod:`mapassoc.evaluation.calibration`, T-GOSPA of the trajectories with the
+fragments per target of its assignment (:mod:`mapassoc.evaluation.tgospa`), and P-GOSPA
+(Xia, García-Fernández, Karlsson, Yuan, Chang and Svensson, "Probabilistic GOSPA";
+:func:`mapassoc.evaluation.tables.pgospa_tables`), which scores the existence
+probabilities of the track table as well (a tracker that reports none gets its GOSPA).
+Positions are the ``x``, ``y`` (and ``z``) columns both tables have, and a track written
+twice at one time keeps its last row (:mod:`mapassoc.evaluation.tables`).
+:meth:`TrackingScores.as_row` gives a flat dictionary for one row of a pandas DataFrame.
 """
 
 from __future__ import annotations
@@ -25,9 +28,11 @@ from mapassoc.evaluation.calibration import DEFAULT_BINS, CountScores, count_ser
 from mapassoc.evaluation.clear_mot import ClearMotResult, clear_mot
 from mapassoc.evaluation.metrics import GospaSeries, gospa_over_time
 from mapassoc.evaluation.ospa import ospa2, ospa2_over_time, ospa_over_time
+from mapassoc.evaluation.pgospa import PgospaSeries
 from mapassoc.evaluation.points import TimedPoints, check_cost_powers, check_order
 from mapassoc.evaluation.tables import (
     disjoint_times_message,
+    pgospa_tables,
     position_names,
     track_points,
     truth_points,
@@ -89,6 +94,13 @@ class TrackingScores:
         assignment (1.0 is ideal; ``nan`` when no target was tracked).
     tgospa_id_switches : int
         Changes of a target's track id between consecutive times in that assignment.
+    pgospa : float
+        Mean over evaluation times of P-GOSPA (same ``c`` and ``p``, alpha = 2) with the
+        existence probabilities of the output's track table (1 where it has none, and then
+        equal to ``gospa``).
+    pgospa_existence_mismatch : float
+        Mean over times of its existence-mismatch part (a p-th power quantity; 0 without
+        existence probabilities).
     """
 
     c: float
@@ -117,6 +129,8 @@ class TrackingScores:
     tgospa_gamma: float
     fragments_per_target: float
     tgospa_id_switches: int
+    pgospa: float
+    pgospa_existence_mismatch: float
 
     def as_row(self) -> dict[str, float | int | None]:
         """The fields as a flat dictionary (one DataFrame row), in declaration order."""
@@ -190,12 +204,16 @@ def score_tracks(
     if message is not None:
         warnings.warn(message, UserWarning, stacklevel=2)
     metrics = _measure(truth_points(truth, names), track_points(output.tracks, names), settings)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # warned just above
+        probabilistic = pgospa_tables(truth, output.tracks, c=settings.cutoff, p=settings.order)
+
     counts = (
         None
         if output.counts is None
         else count_series_scores(truth, output.counts, num_bins=num_bins)
     )
-    return _tracking_scores(settings, metrics, counts, output)
+    return _tracking_scores(settings, metrics, counts, output, probabilistic)
 
 
 def _check_tables(truth: object, output: object) -> None:
@@ -309,6 +327,7 @@ def _tracking_scores(
     metrics: _Metrics,
     counts: CountScores | None,
     output: TrackerOutput,
+    probabilistic: PgospaSeries,
 ) -> TrackingScores:
     """The metrics as one flat :class:`TrackingScores` (``None`` for what was not computed)."""
     gospa, mot, window = metrics.gospa, metrics.mot, settings.ospa2_window
@@ -339,4 +358,6 @@ def _tracking_scores(
         tgospa_gamma=settings.gamma,
         fragments_per_target=metrics.fragmentation.fragments_per_target,
         tgospa_id_switches=metrics.fragmentation.num_id_switches,
+        pgospa=probabilistic.mean_total,
+        pgospa_existence_mismatch=float(np.mean(probabilistic.existence_mismatch)),
     )

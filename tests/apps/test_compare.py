@@ -103,18 +103,20 @@ def test_format_summary_shows_the_means(two_seeds: pd.DataFrame) -> None:
     text = format_summary(summary)
     lines = text.splitlines()
     assert lines[0].split() == [
-        "scenario", "tracker", "runs", "GOSPA", "loc^p", "miss^p", "false^p", "OSPA2",
-        "T-GOSPA", "frag", "MOTA", "IDsw", "Brier", "seconds",
+        "scenario", "tracker", "runs", "GOSPA", "loc^p", "miss^p", "false^p", "P-GOSPA",
+        "OSPA2", "T-GOSPA", "T-IDsw", "frag", "MOTA", "IDsw", "Brier", "seconds",
     ]
     assert set(lines[1]) == {"-"}
     for line, (_, row) in zip(lines[2:], summary.iterrows(), strict=True):
         cells = line.split()
         assert cells[:3] == [row["scenario"], row["tracker"], "2"]
         assert float(cells[3]) == pytest.approx(row["gospa"], abs=0.005)
-        assert float(cells[7]) == pytest.approx(row["ospa2"], abs=0.005)
-        assert float(cells[8]) == pytest.approx(row["tgospa"], abs=0.005)
-        assert float(cells[9]) == pytest.approx(row["fragments_per_target"], abs=0.005)
-        assert cells[12] == "-"  # neither tracker reports p(K | Z)
+        assert float(cells[7]) == pytest.approx(row["pgospa"], abs=0.005)
+        assert float(cells[8]) == pytest.approx(row["ospa2"], abs=0.005)
+        assert float(cells[9]) == pytest.approx(row["tgospa"], abs=0.005)
+        assert float(cells[10]) == pytest.approx(row["tgospa_id_switches"], abs=0.05)
+        assert float(cells[11]) == pytest.approx(row["fragments_per_target"], abs=0.005)
+        assert cells[14] == "-"  # neither tracker reports p(K | Z)
 
 
 @pytest.mark.parametrize(
