@@ -373,6 +373,17 @@ def _check_compare_claims(means: pd.DataFrame, runs: pd.DataFrame) -> None:
     assert round(methods.loc["parallel", "map"].max(), 2) == 5.44
     assert round(gospa.loc["parallel", "oracle"].min(), 2) == 0.65
     assert round(gospa.loc["parallel", "oracle"].max(), 2) == 1.18
+    # Whole trajectories.
+    ospa2 = unstack["ospa2"]
+    assert (ospa2.drop("oracle").idxmin() == "map").all()
+    quoted(ospa2, 2, {
+        "crossing": {"map": 0.47, "oracle": 0.46},
+        "dense": {"map": 0.47, "oracle": 0.46},
+        "parallel": {"map": 2.22, "oracle": 0.43, "jpda": 3.17, "flow": 3.17},
+    })  # fmt: skip
+    assert ospa2["parallel"].drop(["oracle", "map"]).nsmallest(2).index.tolist() in (
+        ["jpda", "flow"], ["flow", "jpda"]
+    )
     # Identity.
     fragments = runs.pivot_table(
         index=["scenario", "seed"], columns="tracker", values="fragments_per_target"
