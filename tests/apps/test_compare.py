@@ -189,11 +189,18 @@ def test_draw_comparison_bars_are_the_summary(two_seeds: pd.DataFrame) -> None:
 
     summary = summarize(two_seeds)
     fig = Figure()
-    axes = [fig.add_subplot(2, 2, i + 1) for i in range(4)]
+    axes = [fig.add_subplot(2, 3, i + 1) for i in range(5)]
     draw_comparison(axes, summary)
-    for ax, column in zip(axes, ("gospa", "ospa2", "id_switches", "seconds"), strict=True):
+    columns = ("gospa", "ospa2", "tgospa", "fragments_per_target", "seconds")
+    for ax, column in zip(axes, columns, strict=True):
         heights = [patch.get_height() for patch in ax.patches]
         np.testing.assert_allclose(heights, summary[column].to_numpy(dtype=float))
+    # The identity panels are not the same numbers as the others (a mix-up would pass a
+    # check of one column only), and a summary row per tracker is one bar per panel.
+    assert not np.allclose(summary["tgospa"], summary["gospa"])
+    assert len(axes[3].patches) == len(summary)
+    with pytest.raises(InputError, match="axes: got 4 Axes, expected 5"):
+        draw_comparison(axes[:4], summary)
 
 
 def test_cli_writes_consistent_tables_and_figure(
