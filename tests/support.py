@@ -359,3 +359,14 @@ def all_track_sets(scans: list[Scan]) -> Iterator[list[tuple[tuple[int, int], ..
     where = [(k, i) for k, scan in enumerate(scans) for i in range(scan.size)]
     for partition in partitions([k for k, _ in where]):
         yield [tuple(where[d] for d in track) for track in partition]
+
+
+def feasible_track_set(tracks: dict[int, tuple[tuple[int, int], ...]]) -> bool:
+    """Whether every track is in scan order with at most one detection per scan and no
+    detection is used twice."""
+    used = [d for path in tracks.values() for d in path]
+    ordered = all(
+        list(path) == sorted(path) and len({m for m, _ in path}) == len(path)
+        for path in tracks.values()
+    )
+    return ordered and len(used) == len(set(used))

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 import pytest
-from support import all_track_sets, tiny_recording
+from support import all_track_sets, feasible_track_set, tiny_recording
 
 from mapassoc.estimator import identity_moves as moves
 from mapassoc.estimator.linking import link_fragments
@@ -42,15 +42,6 @@ def _random_tracks(scans, rng: np.random.Generator) -> dict[int, TrackPath]:
     return {tid: tuple(path) for tid, path in tracks.items()}
 
 
-def _feasible(tracks: dict[int, TrackPath]) -> bool:
-    used = [d for path in tracks.values() for d in path]
-    ordered = all(
-        list(path) == sorted(path) and len({m for m, _ in path}) == len(path)
-        for path in tracks.values()
-    )
-    return ordered and len(used) == len(set(used))
-
-
 @pytest.mark.parametrize("seed", range(12))
 def test_every_move_leaves_values_equal_to_j_from_scratch(seed: int) -> None:
     config, scans = tiny_recording(seed, num_scans=6, most=3)
@@ -62,7 +53,7 @@ def test_every_move_leaves_values_equal_to_j_from_scratch(seed: int) -> None:
         objective, tracks, values, next_id=max(tracks) + 1, refilter_detections=2
     )
     fresh = RecordingObjective(config=config, scans=scans)
-    assert _feasible(tracks)
+    assert feasible_track_set(tracks)
     assert set(values) == set(tracks) and next_id > max(tracks)
     for tid, path in tracks.items():
         assert values[tid] == pytest.approx(fresh.track_value(path), abs=1e-9)
@@ -171,7 +162,7 @@ def _map_and_refined(seed: int, identity: bool) -> tuple[float, float]:
     )
     refiner = Refiner(config=config, scans=scans, settings=settings, objective=objective)
     refined, report = refiner.refine(singles)
-    assert _feasible(refined)
+    assert feasible_track_set(refined)
     assert report.objective == pytest.approx(objective.value(list(refined.values())), abs=1e-9)
     return best, report.objective
 

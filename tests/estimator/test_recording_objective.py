@@ -24,6 +24,7 @@ from support import (
     TINY_NOISE_INTENSITY,
     all_track_sets,
     brute_force_tables,
+    feasible_track_set,
     random_problem,
     tiny_recording,
 )
@@ -202,15 +203,6 @@ def test_the_trees_and_j_take_the_same_filter_steps(
     assert checked >= 10
 
 
-def _feasible(tracks) -> bool:
-    used = [p for path in tracks.values() for p in path]
-    scans_ok = all(
-        len({k for k, _ in path}) == len(path) and list(path) == sorted(path)
-        for path in tracks.values()
-    )
-    return scans_ok and len(used) == len(set(used))
-
-
 @pytest.mark.parametrize("seed", range(10))
 def test_refinement_over_the_whole_recording_finds_the_global_map(seed: int) -> None:
     config, scans = tiny_recording(seed, num_scans=4, most=2)
@@ -230,7 +222,7 @@ def test_refinement_over_the_whole_recording_finds_the_global_map(seed: int) -> 
         objective=objective,
     )
     refined, report = refiner.refine(singles)
-    assert _feasible(refined)
+    assert feasible_track_set(refined)
     assert objective.value(refined) == pytest.approx(best, abs=1e-9)
     assert report.objective == pytest.approx(best, abs=1e-9)
 
@@ -349,7 +341,7 @@ def test_refinement_never_lowers_the_objective(seed: int) -> None:
     assert after >= before - 1e-9
     history = [report.objective_forward, *report.objective_after_pass]
     assert all(b >= a - 1e-9 for a, b in zip(history, history[1:], strict=False))
-    assert _feasible(paths_from_rows(objective, rows))
+    assert feasible_track_set(paths_from_rows(objective, rows))
 
 
 def test_long_windows_are_pruned_at_their_own_width(monkeypatch: pytest.MonkeyPatch) -> None:
