@@ -371,7 +371,8 @@ class RefinementSettings:
         After each sweep's fragment linking, also make the identity moves of
         :mod:`mapassoc.estimator.identity_moves` over the whole recording: switches of
         two tracks' tails at close approaches, splits before detections that cost their
-        track more than they pay, and merges over any gap; each only where J rises.
+        track more than they pay, extensions by free detections next to a track's end or
+        start, and merges over any gap; each only where J rises.
         They run once the sweeps have converged (or at the last pass), and if they change
         the set the sweeps go on: they cost little beside a sweep and catch what a window
         cannot see, such as two pieces of one target further apart than ``link_gap``.

@@ -23,6 +23,11 @@ where it can pay and applied where its exact ΔJ is positive.
 * **split** (:func:`split_tracks`): a track is cut before a detection whose term is
   negative (the detection costs the track more than it pays: a jump of the innovation).
   The head's value is read off the track's own run, the tail's is a new track's.
+* **extend** (:func:`extend_tracks`): a track takes a detection no track uses, at most
+  ``gap`` scans after its end or before its start (a missed end or start taken back).
+  Only detections in the track's gate are scored (the trees' gate, through
+  :meth:`~mapassoc.estimator.objective.RecordingObjective.continue_each` after the end;
+  one filter step from the new first detection before the start).
 * **merge** (:func:`merge_tracks`): fragment linking
   (:func:`~mapassoc.estimator.linking.link_fragments`) over any gap, with the missed
   detections' terms between.
@@ -42,10 +47,12 @@ from mapassoc.estimator.objective import RecordingObjective, TrackPath, Trajecto
 
 __all__ = [
     "SWITCH_DETECTION_DISTANCE",
+    "EXTEND_SCANS",
     "close_approaches",
     "IdentityMoveCounts",
     "switch_tracks",
     "split_tracks",
+    "extend_tracks",
     "merge_tracks",
     "identity_moves",
 ]
@@ -58,6 +65,12 @@ noise standard deviations, where the two tracks' gates overlap.  The detections,
 filtered states, are compared: where two targets cross, their positions meet while their
 velocities differ.  A proposal rule only: it bounds the work, never J."""
 
+EXTEND_SCANS = 2
+"""Most scans between a track's end (or start) and a free detection an extension gives
+it: a start or an end the forward pass missed is a scan or two away; detections further
+off are the merges' and the window re-solves' (before a start the gate of a new track is
+wide, so every scan further back adds many candidates, each a filter run)."""
+
 MAX_ROUNDS = 100
 """Most rounds of one move kind in one call: a deterministic work budget (each accepted
 move raises J, so the rounds end anyway; the budget bounds a pathological recording)."""
@@ -69,17 +82,18 @@ class IdentityMoveCounts:
 
     Attributes
     ----------
-    switches, splits, merges : int
+    switches, splits, extensions, merges : int
     """
 
     switches: int = 0
     splits: int = 0
+    extensions: int = 0
     merges: int = 0
 
     @property
     def total(self) -> int:
         """All moves made."""
-        return self.switches + self.splits + self.merges
+        return self.switches + self.splits + self.extensions + self.merges
 
 
 def identity_moves(
@@ -89,9 +103,11 @@ def identity_moves(
     *,
     next_id: int,
     refilter_detections: int,
+    extend_gap: int = EXTEND_SCANS,
     stop: Callable[[], bool] | None = None,
 ) -> tuple[IdentityMoveCounts, int]:
-    """Switches, then splits, then merges over any gap, each where the exact J rises.
+    """Switches, splits, extensions (within ``extend_gap`` scans), then merges over any
+    gap, each where the exact J rises.
 
     ``tracks`` (id -> path) and ``values`` (id -> v) are updated in place; returns the
     counts and the next free track id (splits make new tracks).  ``stop`` is polled
@@ -101,10 +117,14 @@ def identity_moves(
         objective, tracks, values, refilter_detections=refilter_detections, stop=stop
     )
     splits, next_id = split_tracks(objective, tracks, values, next_id=next_id, stop=stop)
+    extensions = extend_tracks(objective, tracks, values, gap=extend_gap, stop=stop)
     merges = merge_tracks(
         objective, tracks, values, refilter_detections=refilter_detections, stop=stop
     )
-    return IdentityMoveCounts(switches=switches, splits=splits, merges=merges), next_id
+    counts = IdentityMoveCounts(
+        switches=switches, splits=splits, extensions=extensions, merges=merges
+    )
+    return counts, next_id
 
 
 # -- switch ------------------------------------------------------------------------------
@@ -282,6 +302,88 @@ def _best_split(
         if rises(value if best is None else best[1] + best[2], head + tail):
             best = (int(k), head, tail)
     return best
+
+
+# -- extend ------------------------------------------------------------------------------
+def extend_tracks(
+    objective: RecordingObjective,
+    tracks: dict[int, TrackPath],
+    values: dict[int, float],
+    *,
+    gap: int,
+    stop: Callable[[], bool] | None = None,
+) -> int:
+    """Give tracks free detections at most ``gap`` scans after their end or before their
+    start, where J rises; the number of detections taken.
+
+    Each round scores every track's best extension by one free detection, applies them
+    in decreasing order of gain (a detection to one track), each on the exact value of
+    the extended track, and repeats until a round applies none (or :data:`MAX_ROUNDS`).
+    """
+    made = 0
+    for _ in range(MAX_ROUNDS if gap > 0 else 0):
+        check_stop(stop, REFINEMENT_PHASE)
+        free = _free_detections(objective, tracks)
+        proposals = []
+        for tid in sorted(tracks):
+            best = _best_extension(objective, tracks[tid], values[tid], free, gap)
+            if best is not None:
+                proposals.append((best[0], tid, best[1]))
+        applied = 0
+        taken: set[tuple[int, int]] = set()
+        for _gain, tid, path in sorted(proposals, reverse=True):
+            added = set(path) - set(tracks[tid])
+            value = objective.track_value(path)
+            if added & taken or not rises(values[tid], value):
+                continue
+            taken |= added
+            tracks[tid], values[tid] = path, value
+            applied += 1
+        made += applied
+        if applied == 0:
+            break
+    return made
+
+
+def _free_detections(
+    objective: RecordingObjective, tracks: dict[int, TrackPath]
+) -> dict[int, list[int]]:
+    """Per scan, the detections (indices in the scan) no track uses."""
+    used = {d for path in tracks.values() for d in path}
+    return {
+        m: [j for j in range(scan.size) if (m, j) not in used]
+        for m, scan in enumerate(objective.scans)
+    }
+
+
+def _best_extension(
+    objective: RecordingObjective,
+    path: TrackPath,
+    value: float,
+    free: dict[int, list[int]],
+    gap: int,
+) -> tuple[float, TrackPath] | None:
+    """``(gain, extended path)`` of the track's best extension by one free detection
+    within ``gap`` scans of its end or its start; None if none raises J."""
+    M = len(objective.scans)
+    last, first = path[-1][0], path[0][0]
+    after = [(m, j) for m in range(last + 1, min(M, last + gap + 1)) for j in free[m]]
+    candidates: list[tuple[float, TrackPath]] = []
+    if after:
+        run = objective.trajectory(path)
+        found = objective.continue_each(run.state(len(path) - 1), after)
+        for detection, (ok, state) in zip(after, found, strict=True):
+            if ok.size:
+                extended = float(state.value[0] + objective.terms.tails[detection[0]])
+                candidates.append((extended - value, (*path, detection)))
+    for m in range(max(0, first - gap), first):
+        for j in free[m]:
+            start = objective.start_path(((m, j),))
+            if np.isfinite(objective.continue_paths(start, path[:1]).value[0]):
+                longer = ((m, j), *path)
+                candidates.append((objective.track_value(longer) - value, longer))
+    rising = [c for c in candidates if rises(0.0, c[0])]
+    return max(rising, key=lambda c: c[0]) if rising else None
 
 
 # -- merge -------------------------------------------------------------------------------

@@ -128,9 +128,10 @@ class RefinementReport:
         ``time_limit``), as the forward pass counts its windows.
     links : int
         Fragment joins made.
-    switches, splits, merges : int
+    switches, splits, extensions, merges : int
         Identity moves made (:mod:`mapassoc.estimator.identity_moves`; 0 unless
-        ``identity_moves`` is set): tail exchanges, cuts and joins over any gap.
+        ``identity_moves`` is set): tail exchanges, cuts, free detections taken after a
+        track's end or before its start, and joins over any gap.
     stopped : str
         Why the sweeps ended: ``"converged"`` (a sweep of every window length changed
         nothing: no move the refinement makes raises J) or ``"pass_limit"`` (``passes``
@@ -150,6 +151,7 @@ class RefinementReport:
     links: int = 0
     switches: int = 0
     splits: int = 0
+    extensions: int = 0
     merges: int = 0
     dropped: int = 0
     stopped: str = "converged"
@@ -175,6 +177,7 @@ class RefinementReport:
             "links": self.links,
             "switches": self.switches,
             "splits": self.splits,
+            "extensions": self.extensions,
             "merges": self.merges,
             "tracks_dropped": self.dropped,
             "stopped": self.stopped,
@@ -382,6 +385,7 @@ class Refiner:
         )
         report.switches += counts.switches
         report.splits += counts.splits
+        report.extensions += counts.extensions
         report.merges += counts.merges
         return counts.total > 0
 

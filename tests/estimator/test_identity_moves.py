@@ -215,3 +215,57 @@ def test_close_approaches_are_every_close_pair_of_detections_at_a_common_scan(se
                     if diff @ np.linalg.solve(R2, diff) <= moves.SWITCH_DETECTION_DISTANCE:
                         expected.add((a, b, i, j))
     assert set(moves.close_approaches(objective, tracks)) == expected
+
+
+def _rising_extensions(objective: RecordingObjective, tracks: dict[int, TrackPath], gap: int):
+    """(track, detection) of every free detection within ``gap`` scans of a track's end
+    or start whose addition raises J, each scored from scratch (the whole filter run)."""
+    used = {d for path in tracks.values() for d in path}
+    found = []
+    for tid, path in tracks.items():
+        value = objective.track_value(path)
+        first, last = path[0][0], path[-1][0]
+        for m, scan in enumerate(objective.scans):
+            if not (last < m <= last + gap or first - gap <= m < first):
+                continue
+            for j in range(scan.size):
+                if (m, j) in used:
+                    continue
+                longer = (*path, (m, j)) if m > last else ((m, j), *path)
+                if objective.track_value(longer) > value + 1e-6:
+                    found.append((tid, (m, j)))
+    return found
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_extend_takes_every_free_detection_that_pays_near_an_end_or_a_start(seed: int) -> None:
+    config, scans = tiny_recording(400 + seed, num_scans=6, most=3)
+    objective = RecordingObjective(config=config, scans=scans)
+    rng = np.random.default_rng(seed)
+    tracks = _random_tracks(scans, rng)
+    # Free some detections: drop each track's first or last detection half of the time.
+    for tid, path in list(tracks.items()):
+        if len(path) > 1 and rng.random() < 0.5:
+            tracks[tid] = path[1:] if rng.random() < 0.5 else path[:-1]
+    values = {tid: objective.track_value(path) for tid, path in tracks.items()}
+    before = sum(values.values())
+    expected = bool(_rising_extensions(objective, tracks, moves.EXTEND_SCANS))
+    made = moves.extend_tracks(objective, tracks, values, gap=moves.EXTEND_SCANS)
+    assert (made > 0) == expected
+    assert feasible_track_set(tracks) and sum(values.values()) >= before - 1e-9
+    for tid, path in tracks.items():
+        assert values[tid] == pytest.approx(objective.track_value(path), abs=1e-9)
+    assert not _rising_extensions(objective, tracks, moves.EXTEND_SCANS)
+
+
+def test_extend_takes_back_a_true_tracks_missed_first_and_last_detections() -> None:
+    scenario = build_scenario("crossing", seed=1)
+    objective, truth = _truth_paths(scenario)
+    tid = max(truth, key=lambda t: objective.track_value(truth[t]))
+    path = truth[tid]
+    cut = path[1:-1]
+    assert objective.track_value(path) > objective.track_value(cut)  # the ends pay
+    tracks, values = {tid: cut}, {tid: objective.track_value(cut)}
+    made = moves.extend_tracks(objective, tracks, values, gap=moves.EXTEND_SCANS)
+    assert made >= 2 and values[tid] >= objective.track_value(path) - 1e-9
+    assert set(path) <= set(tracks[tid])
