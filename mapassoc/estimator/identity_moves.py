@@ -19,7 +19,7 @@ where it can pay and applied where its exact ΔJ is positive.
   everything after ``m``.  Proposed where their detections at ``m`` are close (a close
   approach, :data:`SWITCH_DETECTION_DISTANCE`); its ΔJ is proposed by
   re-filtering each tail from the other head's state (converging to the tail's own run,
-  :meth:`~mapassoc.estimator.objective.RecordingObjective.continue_converging`).
+  :meth:`~mapassoc.estimator.objective.RecordingObjective.continue_converging_many`).
 * **split** (:func:`split_tracks`): a track is cut before a detection whose term is
   negative (the detection costs the track more than it pays: a jump of the innovation).
   The head's value is read off the track's own run, the tail's is a new track's.
@@ -43,7 +43,7 @@ import numpy as np
 from mapassoc.errors import check_stop
 from mapassoc.estimator.boundaries import REFINEMENT_PHASE, rises
 from mapassoc.estimator.linking import link_fragments
-from mapassoc.estimator.objective import RecordingObjective, TrackPath, Trajectory
+from mapassoc.estimator.objective import RecordingObjective, TrackPath
 
 __all__ = [
     "SWITCH_DETECTION_DISTANCE",
@@ -161,15 +161,24 @@ def _switch_proposals(
     refilter: int,
 ) -> list[tuple[float, int, int, int, int]]:
     """(proposed gain, track a, track b, a's index of the cut, b's) of each close
-    approach whose proposed switch rises, the largest gain first."""
-    runs: dict[int, Trajectory] = {}
+    approach whose proposed switch rises, the largest gain first.
+
+    Both continuations of every approach (a's head with b's tail, b's head with a's) are
+    re-filtered in one batch
+    (:meth:`~mapassoc.estimator.objective.RecordingObjective.continue_converging_many`).
+    """
+    approaches = close_approaches(objective, tracks)
+    runs = {
+        tid: objective.trajectory(tracks[tid]) for tid in {t for a in approaches for t in a[:2]}
+    }
+    requests = []
+    for a, b, i, j in approaches:
+        requests.append((runs[a].state(i), runs[b], j + 1))
+        requests.append((runs[b].state(j), runs[a], i + 1))
+    continued = objective.continue_converging_many(requests, max_detections=refilter)
     proposals = []
-    for a, b, i, j in close_approaches(objective, tracks):
-        for tid in (a, b):
-            if tid not in runs:
-                runs[tid] = objective.trajectory(tracks[tid])
-        gain = _switch_gain(objective, runs[a], runs[b], i, j, refilter)
-        gain -= values[a] + values[b]
+    for n, (a, b, i, j) in enumerate(approaches):
+        gain = float(continued[2 * n][0] + continued[2 * n + 1][0]) - (values[a] + values[b])
         if rises(0.0, gain):
             proposals.append((gain, a, b, i, j))
     return sorted(proposals, reverse=True)
@@ -202,26 +211,6 @@ def close_approaches(
             (a, i, _), (b, j, _) = entries[p], entries[q]
             found.append((a, b, i, j))
     return found
-
-
-def _switch_gain(
-    objective: RecordingObjective,
-    run_a: Trajectory,
-    run_b: Trajectory,
-    i: int,
-    j: int,
-    refilter: int,
-) -> float:
-    """Proposed values of ``a``'s head with ``b``'s tail plus ``b``'s head with ``a``'s."""
-    a_then_b = objective.continue_converging(run_a.state(i), run_b, j + 1, max_detections=refilter)[
-        0
-    ]
-    if not np.isfinite(a_then_b):
-        return -np.inf
-    b_then_a = objective.continue_converging(run_b.state(j), run_a, i + 1, max_detections=refilter)[
-        0
-    ]
-    return float(a_then_b + b_then_a)
 
 
 def _apply_switches(
@@ -377,11 +366,14 @@ def _best_extension(
                 extended = float(state.value[0] + objective.terms.tails[detection[0]])
                 candidates.append((extended - value, (*path, detection)))
     for m in range(max(0, first - gap), first):
-        for j in free[m]:
-            start = objective.start_path(((m, j),))
-            if np.isfinite(objective.continue_paths(start, path[:1]).value[0]):
-                longer = ((m, j), *path)
-                candidates.append((objective.track_value(longer) - value, longer))
+        if not free[m]:
+            continue
+        # Every free detection of the scan as a new track's first, continued by this
+        # track's first detection in one batch: only those whose gate it falls in count.
+        reach = objective.continue_paths(objective.start_paths(m, free[m]), path[:1])
+        for k in np.flatnonzero(np.isfinite(reach.value)):
+            longer = ((m, free[m][k]), *path)
+            candidates.append((objective.track_value(longer) - value, longer))
     rising = [c for c in candidates if rises(0.0, c[0])]
     return max(rising, key=lambda c: c[0]) if rising else None
 

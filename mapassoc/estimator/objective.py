@@ -147,16 +147,21 @@ class RecordingObjective:
     def start_path(self, path: TrackPath) -> PathState:
         """The state of a track at its first detection, valued by the first-detection term."""
         m, j = path[0]
+        return self.start_paths(m, [j])
+
+    def start_paths(self, m: int, detections: Sequence[int]) -> PathState:
+        """A batch of new tracks, one per detection of scan ``m`` (indices in the scan),
+        each at its first detection and valued by the first-detection term."""
         scan = self.scans[m]
-        z = scan.detections[j][None, :]
+        z = scan.detections[np.asarray(detections, dtype=np.int64)].reshape(len(detections), -1)
         x, P = birth_states(self.motion, self._sensors[m].measurement, z, self.birth)
         return PathState(
             scan=m,
             means=x,
             covariances=P,
             initiated=not self._converts,
-            first_time=np.array([scan.time]),
-            value=np.array([self.terms.birth[m]]),
+            first_time=np.full(len(detections), scan.time),
+            value=np.full(len(detections), self.terms.birth[m]),
         )
 
     def continue_paths(self, start: PathState, path: Iterable[tuple[int, int]]) -> PathState:
