@@ -341,8 +341,7 @@ class RefinementSettings:
         per-tree cap never cuts it, and the re-solve is exact over what the refinement's
         width keeps: block coordinate ascent on J, one scan's associations at a time. It
         completes what the cap cuts from the longer windows' trees where targets are
-        closely spaced (converging seeds 0 and 1: J 1408 -> 1476 and 1408 -> 1513, the
-        truth's 1504 and 1508).
+        closely spaced (the converging family's measurements are in the changelog).
     link_gap : int
         Most scans between a track's last detection and another's first for a
         fragment-linking candidate; 0 turns fragment linking off.
