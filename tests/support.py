@@ -370,3 +370,9 @@ def feasible_track_set(tracks: dict[int, tuple[tuple[int, int], ...]]) -> bool:
         for path in tracks.values()
     )
     return ordered and len(used) == len(set(used))
+
+
+def single_detection_tracks(scans: list[Scan]) -> dict[int, tuple[tuple[int, int], ...]]:
+    """A poor starting set: every detection its own track (ids from 1)."""
+    where = [(m, j) for m, scan in enumerate(scans) for j in range(scan.size)]
+    return {i + 1: (d,) for i, d in enumerate(where)}

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 import pytest
-from support import all_track_sets, feasible_track_set, tiny_recording
+from support import all_track_sets, feasible_track_set, single_detection_tracks, tiny_recording
 
 from mapassoc.estimator import identity_moves as moves
 from mapassoc.estimator.linking import link_fragments
@@ -153,10 +153,7 @@ def _map_and_refined(seed: int, identity: bool) -> tuple[float, float]:
     config, scans = tiny_recording(100 + seed, num_scans=5, most=2)
     objective = RecordingObjective(config=config, scans=scans)
     best = max(objective.value(tracks) for tracks in all_track_sets(scans))
-    singles = {
-        i + 1: ((m, j),)
-        for i, (m, j) in enumerate((m, j) for m, scan in enumerate(scans) for j in range(scan.size))
-    }
+    singles = single_detection_tracks(scans)
     settings = RefinementSettings(
         passes=4, window_length=2, long_window_length=2, link_gap=1, identity_moves=identity
     )
@@ -180,10 +177,7 @@ def test_the_moves_reach_the_global_map_at_least_as_often_on_enumerable_recordin
 
 def test_the_report_says_why_the_sweeps_stopped() -> None:
     config, scans = tiny_recording(3, num_scans=5, most=2)
-    singles = {
-        i + 1: ((m, j),)
-        for i, (m, j) in enumerate((m, j) for m, scan in enumerate(scans) for j in range(scan.size))
-    }
+    singles = single_detection_tracks(scans)
     settings = RefinementSettings(passes=1, window_length=2, identity_moves=True)
     _, one = Refiner(config=config, scans=scans, settings=settings).refine(singles)
     many = dataclasses.replace(settings, passes=50)

@@ -26,6 +26,7 @@ from support import (
     brute_force_tables,
     feasible_track_set,
     random_problem,
+    single_detection_tracks,
     tiny_recording,
 )
 
@@ -209,10 +210,7 @@ def test_refinement_over_the_whole_recording_finds_the_global_map(seed: int) -> 
     objective = RecordingObjective(config=config, scans=scans)
     best = max(objective.value(tracks) for tracks in all_track_sets(scans))
     # Start from a poor set: every detection its own track.
-    singles = {
-        i + 1: ((k, j),)
-        for i, (k, j) in enumerate((k, j) for k, scan in enumerate(scans) for j in range(scan.size))
-    }
+    singles = single_detection_tracks(scans)
     refiner = Refiner(
         config=config,
         scans=scans,
