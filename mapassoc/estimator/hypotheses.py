@@ -98,6 +98,7 @@ from mapassoc.models.birth import (
     initiation_model,
     needs_conversion,
 )
+from mapassoc.models.interacting import filter_state_dim
 from mapassoc.models.motion import MotionModel
 from mapassoc.models.population import (
     BirthModel,
@@ -748,10 +749,10 @@ class HypothesisGenerator:
             )
         self._init_model = initiation_model(motion)
         self._converts = needs_conversion(motion)
-        self._dims = (self._init_model.state_dim, motion.state_dim)
+        self._dims = (self._init_model.state_dim, filter_state_dim(motion))
         self._n_max = max(self._dims)
         self._log_survival = math.log(birth.survival_probability)
-        self._filter = KalmanFilter()
+        self._filter = KalmanFilter(motion=motion)
 
     # -- bounds for pruning ----------------------------------------------------------
     def continuation_gain_bound(self, sensor: Sensor) -> float:
@@ -1046,7 +1047,7 @@ class HypothesisGenerator:
         state space (``initiated``), ``dt`` after their states."""
         f = frontier.nodes
         model = self.motion if initiated else self._init_model
-        d = model.state_dim
+        d = self._dims[int(initiated)]
         x = f.means[group, :d]
         P = f.covariances[group, :d, :d]
         # Predict, grouped by distinct dt (one value except at a window's start).

@@ -74,6 +74,7 @@ from mapassoc.models.birth import (
     initiation_model,
     needs_conversion,
 )
+from mapassoc.models.interacting import filter_state_dim
 
 __all__ = [
     "TrackPath",
@@ -127,7 +128,7 @@ class RecordingObjective:
         self.terms = ScanTerms.of_recording(config, self.scans)
         self.times = self.terms.times
         self._trajectories: dict[TrackPath, Trajectory] = {}
-        self.kalman = KalmanFilter()
+        self.kalman = KalmanFilter(motion=self.motion)
         self.refiltering = Refiltering(
             scans=self.scans,
             measurements=[sensor.measurement for sensor in self._sensors],
@@ -509,7 +510,7 @@ class RecordingObjective:
 
     def _in_motion_space(self, state: PathState) -> bool:
         """Whether ``state`` is an initiated track in the motion model's state space."""
-        return state.initiated and state.means.shape[1] == self.motion.state_dim
+        return state.initiated and state.means.shape[1] == filter_state_dim(self.motion)
 
     def value(self, tracks: Mapping[int, TrackPath] | Iterable[TrackPath]) -> float:
         """J(omega) = sum of the tracks' values (0 for no track; ``-inf`` if impossible)."""

@@ -28,11 +28,27 @@ Batches: states ``(B, n)``, covariances ``(B, n, n)``.  An :class:`Innovation` h
 measurement model's predicted measurements of a batch; a gated pair ``(row, detection)``
 is scored and updated by its row of the batch.
 
-A model *set* (interacting multiple models) sits behind the same calls: each model of
-the set is a :class:`KalmanFilter` step on the rows of that model (predict and update
-per model), the mixing and the model probabilities of each node are carried beside the
-states; nothing here assumes one motion model per batch beyond the ``model`` argument of
-:meth:`KalmanFilter.predict`.
+A model *set* (:class:`~mapassoc.models.interacting.InteractingModels`) sits behind the
+same calls, so the trees, J and the refinement run it without a second code path.  A
+track in the set has one filter state of length ``M n + M`` (the model-conditioned
+moments and log model probabilities, packed by
+:func:`~mapassoc.models.interacting.pack_models`); a :class:`KalmanFilter` built with
+the set (``KalmanFilter(motion=...)``) recognises such states by their length:
+
+* :meth:`KalmanFilter.predict` mixes (:func:`mapassoc.filtering.imm.mix`) and predicts
+  each model's moments with that model's own step;
+* :meth:`KalmanFilter.innovation` forms each model's :class:`Innovation` and returns a
+  :class:`MixtureInnovation`: its ``z_hat`` and ``S`` are the moment-matched mean and
+  covariance of the predicted measurement mixture, which give the residual ``nu`` and
+  the gate's ``d2`` (a chi-square gate on the mixture's first two moments, the usual
+  IMM gate: the mixture is not Gaussian, so the gate probability ``P_G`` of the miss
+  term is that of the moment-matched Gaussian, an approximation); its log-likelihood is
+  the IMM's predictive likelihood ``log sum_j c_j N(nu_j; 0, S_j)`` (Blom and
+  Bar-Shalom, 1988), each ``nu_j`` the detection's residual against model ``j``;
+* :meth:`KalmanFilter.update` updates each model's moments with its own gain and the
+  model probabilities by Bayes' rule (:func:`mapassoc.filtering.imm.model_log_probabilities`).
+
+A set of identical models is therefore the single model, score for score (tested).
 
 The compiled backend (:mod:`mapassoc.filtering.compiled`) runs the same algebra over a
 recording's per-scan matrices; the numpy twin of its loops
@@ -48,6 +64,7 @@ import numpy as np
 
 from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.errors import InputError
+from mapassoc.filtering.imm import mix, model_log_probabilities
 from mapassoc.filtering.kalman import (
     gaussian_terms,
     innovation_covariance,
@@ -56,10 +73,12 @@ from mapassoc.filtering.kalman import (
     predicted_covariance,
     strip_gate,
 )
+from mapassoc.log_space import log_sum_exp
+from mapassoc.models.interacting import InteractingModels, pack_models, unpack_models
 from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
 
-__all__ = ["DENSE_GATING_PAIRS", "GatedPairs", "Innovation", "KalmanFilter"]
+__all__ = ["DENSE_GATING_PAIRS", "GatedPairs", "Innovation", "KalmanFilter", "MixtureInnovation"]
 
 DENSE_GATING_PAIRS = 4096
 """Above this many (row, detection) pairs, a linear measurement's gate first keeps the
@@ -173,6 +192,76 @@ class Innovation:
         )
 
 
+@dataclass(frozen=True, eq=False)
+class MixtureInnovation(Innovation):
+    """The predicted measurements of a batch of tracks in a model set (module docstring).
+
+    ``z_hat``, ``S``, ``S_inv`` and ``logdet`` are the moment-matched mixture's (they
+    give the residuals and the gate); ``H`` is the Jacobian of the mixture's ``z_hat``
+    with respect to the filter state, ``[c_1 H_1, ..., c_M H_M, 0]``.
+
+    Attributes
+    ----------
+    parts : tuple of Innovation, length M
+        Each model's predicted measurements of the batch.
+    log_c : ndarray, shape (B, M)
+        Log predicted model probabilities.
+    """
+
+    parts: tuple[Innovation, ...]
+    log_c: FloatArray
+
+    def model_residuals(self, nu: FloatArray, rows: IntArray | None = None) -> list[FloatArray]:
+        """Each model's residual of the detections ``z_hat + nu`` (rows ``rows``)."""
+        z_hat = self.z_hat if rows is None else self.z_hat[rows]
+        z = z_hat + nu
+        return [part.residuals(z, rows) for part in self.parts]
+
+    def model_scores(self, nu: FloatArray, rows: IntArray | None = None) -> FloatArray:
+        """``log c_j + log N(nu_j; 0, S_j)`` of each model, shape ``nu.shape[:-1] + (M,)``."""
+        log_c = self.log_c if rows is None else self.log_c[rows]
+        terms = [
+            part.scores(nu_j, rows)[1]
+            for part, nu_j in zip(self.parts, self.model_residuals(nu, rows), strict=True)
+        ]
+        return np.stack(terms, axis=-1) + log_c
+
+    def scores(self, nu: FloatArray, rows: IntArray | None = None) -> tuple[FloatArray, FloatArray]:
+        """``d2`` against the mixture's moments and the IMM predictive log-likelihood."""
+        d2, _ = super().scores(nu, rows)
+        return d2, log_sum_exp(self.model_scores(nu, rows), axis=-1)
+
+    def gate(self, Z: FloatArray, threshold: float) -> GatedPairs:
+        """The pairs inside the mixture's gate, with the IMM predictive log-likelihood."""
+        pairs = super().gate(Z, threshold)
+        if len(pairs) == 0:
+            return pairs
+        _, loglik = self.scores(pairs.nu, pairs.row)
+        return GatedPairs(pairs.row, pairs.detection, pairs.nu, pairs.d2, loglik)
+
+
+def _mixture_innovation(
+    parts: list[Innovation], log_c: FloatArray, measurement: MeasurementModel
+) -> MixtureInnovation:
+    """The moment-matched predicted measurement of model innovations ``parts``."""
+    c = np.exp(log_c)  # (B, M)
+    z_parts = np.stack([part.z_hat for part in parts], axis=1)  # (B, M, dz)
+    z_hat = np.einsum("bj,bjd->bd", c, z_parts)
+    d = np.asarray(measurement.residual(z_parts, z_hat[:, None, :]), dtype=np.float64)
+    z_hat = z_hat + np.einsum("bj,bjd->bd", c, d)  # a wrapped angle's circular mean
+    d = np.asarray(measurement.residual(z_parts, z_hat[:, None, :]), dtype=np.float64)
+    S_parts = np.stack([part.S for part in parts], axis=1)
+    S = np.einsum("bj,bjde->bde", c, S_parts) + np.einsum("bj,bjd,bje->bde", c, d, d)
+    S = 0.5 * (S + np.swapaxes(S, -1, -2))
+    S_inv, logdet = inverse_and_logdet(S)
+    H = np.concatenate(
+        [c[:, j, None, None] * part.H for j, part in enumerate(parts)]
+        + [np.zeros((len(z_hat), z_hat.shape[1], len(parts)))],
+        axis=2,
+    )
+    return MixtureInnovation(measurement, z_hat, H, S, S_inv, logdet, tuple(parts), log_c)
+
+
 class KalmanFilter:
     """The Kalman / extended Kalman steps of a batch (module docstring).
 
@@ -180,8 +269,11 @@ class KalmanFilter:
     has few distinct steps, and the trees predict with them thousands of times).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, motion: MotionModel | None = None) -> None:
         self._motion: dict[tuple[int, float], tuple[MotionModel, FloatArray, FloatArray]] = {}
+        self._switching: dict[float, FloatArray] = {}
+        self.models = motion if isinstance(motion, InteractingModels) else None
+        """The model set whose filter states :meth:`innovation` recognises, or None."""
 
     def linear_motion(self, model: MotionModel, dt: float) -> tuple[FloatArray, FloatArray] | None:
         """``(F(dt), Q(dt))`` of a linear model (cached), None for a nonlinear one."""
@@ -215,8 +307,11 @@ class KalmanFilter:
         x_pred : ndarray, shape (B, n)
         P_pred : ndarray, shape (B, n, n)
         F : ndarray, shape (n, n) or (B, n, n)
-            The transition matrix (linear model) or each mean's Jacobian (EKF).
+            The transition matrix (linear model) or each mean's Jacobian (EKF); empty,
+            shape (0, 0), for a model set (mixing is not one linear map).
         """
+        if isinstance(model, InteractingModels):
+            return self._predict_set(model, x, P, dt)
         matrices = self.linear_motion(model, dt)
         if matrices is None:
             x = np.asarray(x, dtype=np.float64)
@@ -239,6 +334,13 @@ class KalmanFilter:
         x = np.asarray(x, dtype=np.float64)
         if x.ndim != 2 or P.shape != x.shape + x.shape[-1:]:
             raise InputError(f"x must be (B, n) and P (B, n, n), got {x.shape} and {P.shape}")
+        if self.models is not None and x.shape[1] == self.models.filter_state_dim:
+            log_c, xs, Ps = unpack_models(x, P, self.models.n_models)
+            parts = [
+                self.innovation(measurement, xs[:, j], Ps[:, j])
+                for j in range(self.models.n_models)
+            ]
+            return _mixture_innovation(parts, log_c, measurement)
         H = np.asarray(measurement.jacobian(x), dtype=np.float64)
         S = innovation_covariance(H, P, measurement.noise_covariance)
         S_inv, logdet = inverse_and_logdet(S)
@@ -268,6 +370,8 @@ class KalmanFilter:
         x_post : ndarray, shape (K, n)
         P_post : ndarray, shape (K, n, n)
         """
+        if isinstance(innovation, MixtureInnovation):
+            return self._update_set(x, P, innovation, rows, nu)
         return joseph_update(
             x[rows],
             P[rows],
@@ -275,4 +379,55 @@ class KalmanFilter:
             innovation.S_inv[rows],
             innovation.H[rows],
             innovation.measurement.noise_covariance,
+        )
+
+    def _predict_set(
+        self, models: InteractingModels, x: FloatArray, P: FloatArray, dt: float
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """IMM mixing, then each model's prediction of its mixed moments."""
+        if x.shape[-1] != models.filter_state_dim:
+            raise InputError(
+                f"states of a set of {models.n_models} models must have length "
+                f"{models.filter_state_dim}, got {x.shape}"
+            )
+        key = float(dt)
+        Pi = self._switching.get(key)
+        if Pi is None or len(Pi) != models.n_models:
+            if len(self._switching) >= _MOTION_CACHE_SIZE:
+                self._switching.clear()
+            Pi = self._switching[key] = models.switching.at(key)
+        log_c, x0, P0 = mix(*unpack_models(x, P, models.n_models), Pi)
+        moved = [
+            self.predict(model, x0[:, j], P0[:, j], dt)[:2]
+            for j, model in enumerate(models.models)
+        ]
+        xs = np.stack([m[0] for m in moved], axis=1)
+        Ps = np.stack([m[1] for m in moved], axis=1)
+        x_new, P_new = pack_models(log_c, xs, Ps)
+        return x_new, P_new, np.zeros((0, 0))
+
+    def _update_set(
+        self,
+        x: FloatArray,
+        P: FloatArray,
+        innovation: MixtureInnovation,
+        rows: IntArray,
+        nu: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:
+        """Each model's update with its own residual, and the model probabilities."""
+        M = len(innovation.parts)
+        _, xs, Ps = unpack_models(x[rows], P[rows], M)
+        residuals = innovation.model_residuals(nu, rows)
+        updated = [
+            joseph_update(xs[:, j], Ps[:, j], residuals[j], part.S_inv[rows], part.H[rows],
+                          part.measurement.noise_covariance)  # fmt: skip
+            for j, part in enumerate(innovation.parts)
+        ]
+        log_mu = model_log_probabilities(
+            innovation.log_c[rows], innovation.model_scores(nu, rows) - innovation.log_c[rows]
+        )
+        return pack_models(
+            log_mu,
+            np.stack([u[0] for u in updated], axis=1),
+            np.stack([u[1] for u in updated], axis=1),
         )

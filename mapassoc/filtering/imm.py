@@ -43,15 +43,11 @@ mixing adds model-conditioned means and covariances, which is only meaningful in
 space.  Constant velocity ``(x, y, vx, vy)`` and the coordinated turn ``(x, y, speed,
 heading, turn_rate)`` are related by a nonlinear change of variables (polar velocity),
 which a Gaussian mixture can only take through a linearisation; that pairing is refused
-here rather than approximated silently, and waits for the single filter interface.
+here rather than approximated silently.
 
-Switching law (:class:`SwitchingLaw`): either ``switch_probability``, the probability of
-leaving the current model within one unit of time, for the chain that jumps to every
-model alike (``Pi(dt) = exp(-k dt) I + (1 - exp(-k dt)) U`` with ``U`` the uniform matrix
-``1/M``, so ``P(leave within 1) = (1 - exp(-k)) (M - 1) / M``), or a full matrix per unit
-of time, taken to a scan interval ``dt`` through its generator (``Pi(dt) =
-expm(dt logm(Pi))``, refused when ``logm(Pi)`` is not a valid generator).  Both compose:
-``Pi(a) Pi(b) = Pi(a + b)``.
+Switching law: :class:`~mapassoc.models.switching.SwitchingLaw` (the law per unit of
+time, taken to each scan interval), part of the model
+:class:`~mapassoc.models.interacting.InteractingModels`.
 
 Smoother (:func:`imm_smooth`): Kim's fixed-interval smoother for Markov-switching linear
 models (C.-J. Kim, "Dynamic linear models with Markov-switching", Journal of
@@ -72,7 +68,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm, logm
 
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
@@ -87,6 +82,7 @@ from mapassoc.filtering.kalman import (
 from mapassoc.log_space import log_sum_exp
 from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
+from mapassoc.models.switching import SwitchingLaw, check_switching_matrix
 
 __all__ = [
     "SwitchingLaw",
@@ -109,123 +105,6 @@ __all__ = [
     "IMMSmoothed",
     "imm_smooth",
 ]
-
-_ROW_TOLERANCE = 1e-9
-"""How far from 1 a row of a switching matrix may sum."""
-
-
-def check_switching_matrix(matrix: object, *, name: str = "matrix") -> FloatArray:
-    """A validated switching matrix: square, entries in [0, 1], rows summing to 1.
-
-    Parameters
-    ----------
-    matrix : array_like, shape (M, M)
-    name : str
-        The argument's name in error messages.
-
-    Returns
-    -------
-    ndarray, shape (M, M)
-    """
-    try:
-        Pi = np.array(matrix, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a square matrix of numbers, got {matrix!r}") from None
-    if Pi.ndim != 2 or Pi.shape[0] != Pi.shape[1] or Pi.shape[0] < 1:
-        raise InputError(f"{name} must be a square (M, M) matrix, got shape {Pi.shape}")
-    if not np.all(np.isfinite(Pi)) or np.any(Pi < 0.0) or np.any(Pi > 1.0):
-        raise InputError(f"{name} must have entries in [0, 1], got {Pi.tolist()!r}")
-    sums = Pi.sum(axis=1)
-    if np.any(np.abs(sums - 1.0) > _ROW_TOLERANCE):
-        raise InputError(f"{name} rows must sum to 1, got row sums {sums.tolist()!r}")
-    return Pi
-
-
-@dataclass(frozen=True)
-class SwitchingLaw:
-    """How a target switches models: ``switch_probability`` per unit time, or a matrix.
-
-    Give exactly one of the two (module docstring).
-
-    Parameters
-    ----------
-    n_models : int
-        Number of models M, >= 1.
-    switch_probability : float, optional
-        Probability of leaving the current model within one unit of time, in
-        ``[0, (M - 1) / M)`` (the uniform chain cannot leave more often).
-    matrix : array_like, shape (M, M), optional
-        The switching matrix over one unit of time.
-    """
-
-    n_models: int
-    switch_probability: float | None = None
-    matrix: FloatArray | None = None
-
-    def __post_init__(self) -> None:
-        M = self.n_models
-        if isinstance(M, bool) or not isinstance(M, (int, np.integer)) or M < 1:
-            raise InputError(f"n_models must be an integer >= 1, got {M!r}")
-        if (self.switch_probability is None) == (self.matrix is None):
-            raise InputError("give exactly one of switch_probability and matrix")
-        if self.matrix is not None:
-            Pi = check_switching_matrix(self.matrix)
-            if Pi.shape[0] != M:
-                raise InputError(f"matrix must be ({M}, {M}) for n_models = {M}, got {Pi.shape}")
-            _generator(Pi)  # refused here when Pi has no generator
-            object.__setattr__(self, "matrix", Pi)
-            return
-        p = self.switch_probability
-        top = (M - 1) / M
-        if (
-            isinstance(p, bool)
-            or not isinstance(p, (int, float))
-            or not (p == 0.0 if M == 1 else 0.0 <= p < top)
-        ):
-            allowed = "0 for one model" if M == 1 else f"a number in [0, {top:g}) for {M} models"
-            raise InputError(f"switch_probability must be {allowed}, got {p!r}")
-
-    def at(self, dt: float) -> FloatArray:
-        """The switching matrix over a scan interval ``dt > 0``, shape ``(M, M)``."""
-        if (
-            isinstance(dt, bool)
-            or not isinstance(dt, (int, float, np.floating))
-            or not (math.isfinite(dt) and dt > 0)
-        ):
-            raise InputError(f"dt must be a positive finite scan interval, got {dt!r}")
-        M = self.n_models
-        if self.matrix is not None:
-            Pi = expm(float(dt) * _generator(self.matrix))
-            Pi = np.clip(np.real(Pi), 0.0, 1.0)
-            return np.asarray(Pi / Pi.sum(axis=1, keepdims=True), dtype=np.float64)
-        if M == 1:
-            return np.ones((1, 1))
-        stay = 1.0 - float(self.switch_probability or 0.0) * M / (M - 1)  # exp(-k)
-        keep = stay ** float(dt)
-        return np.asarray(keep * np.eye(M) + (1.0 - keep) / M, dtype=np.float64)
-
-
-def _generator(Pi: FloatArray) -> FloatArray:
-    """``logm(Pi)`` if it is a valid generator (off-diagonal >= 0, rows summing to 0)."""
-    if np.allclose(Pi, np.eye(Pi.shape[0])):
-        return np.zeros_like(Pi)
-    logarithm = np.asarray(logm(Pi))
-    G = np.real(logarithm)
-    if np.any(np.abs(np.imag(logarithm)) > 1e-9):
-        G = np.full_like(G, np.nan)  # a complex logarithm: no real generator
-    off = G - np.diag(np.diag(G))
-    if not (
-        np.all(np.isfinite(G))
-        and np.all(off >= -1e-9)
-        and np.allclose(G.sum(axis=1), 0.0, atol=1e-9)
-    ):
-        raise InputError(
-            f"matrix {Pi.tolist()!r} is the switching matrix of no continuous-time chain (its "
-            "logarithm is not a generator), so it has no value for other scan intervals; give "
-            "switch_probability, or a matrix that is"
-        )  # fmt: skip
-    return np.asarray(G, dtype=np.float64)
-
 
 def check_models(models: Sequence[MotionModel]) -> tuple[MotionModel, ...]:
     """The models as a tuple, refused unless there is at least one and all share one
@@ -500,6 +379,13 @@ def _start(
     return IMMPrediction(log_mu, xs, Ps, np.broadcast_to(np.eye(n), (M, n, n)).copy())
 
 
+def _unmoved(state: IMMState) -> IMMPrediction:
+    """The prediction over no time: the state itself (no motion, no switching)."""
+    n = state.means.shape[-1]
+    eye = np.broadcast_to(np.eye(n), state.covariances.shape).copy()
+    return IMMPrediction(state.log_probabilities, state.means, state.covariances, eye)
+
+
 def imm_filter(
     models: Sequence[MotionModel],
     switching: SwitchingLaw,
@@ -523,7 +409,8 @@ def imm_filter(
     x0 : ndarray, shape (n,)
     P0 : ndarray, shape (n, n)
     steps : sequence of FilterStep
-        Strictly increasing times.
+        Non-decreasing times; a step at the time of the one before (two sensors scanning
+        at once) neither moves nor switches the models.
     log_mu0 : ndarray, shape (M,), optional
         Log prior model probabilities (default uniform).
     """
@@ -534,15 +421,19 @@ def imm_filter(
     if not steps:
         raise InputError("steps must contain at least one FilterStep")
     times = np.array([s.time for s in steps], dtype=float)
-    if np.any(np.diff(times) <= 0):
-        raise InputError(f"steps must have strictly increasing times, got {times.tolist()}")
+    if np.any(np.diff(times) < 0):
+        raise InputError(f"steps must have non-decreasing times, got {times.tolist()}")
     prediction = _start(chosen, x0, P0, log_mu0)
     states: list[IMMState] = []
     predicted, logliks = [], []
     for k, step in enumerate(steps):
         if k:
             dt = float(times[k] - times[k - 1])
-            prediction = imm_predict(states[-1], chosen, switching.at(dt), dt)
+            prediction = (
+                imm_predict(states[-1], chosen, switching.at(dt), dt)
+                if dt > 0
+                else _unmoved(states[-1])
+            )
         predicted.append(prediction.log_predicted)
         if step.z is None:
             states.append(imm_miss(prediction))
@@ -628,6 +519,9 @@ def imm_smooth(models: Sequence[MotionModel], switching: SwitchingLaw, run: IMMR
     xs, Ps = run.x_filtered.copy(), run.P_filtered.copy()
     for k in range(T - 2, -1, -1):
         dt = float(run.times[k + 1] - run.times[k])
+        if dt == 0:  # no motion and no switching between the two steps
+            log_s[k], xs[k], Ps[k] = log_s[k + 1], xs[k + 1], Ps[k + 1]
+            continue
         with np.errstate(divide="ignore"):
             log_Pi = np.log(switching.at(dt))
         # log Pi_ij + log mu^s_(k+1)(j) - log c_(k+1)(j): the backward weights of each pair.

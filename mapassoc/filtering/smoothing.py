@@ -56,7 +56,8 @@ from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.filtering.batch import KalmanFilter
-from mapassoc.filtering.kalman import rts_smooth
+from mapassoc.filtering.imm import imm_filter, imm_smooth
+from mapassoc.filtering.kalman import FilterStep, rts_smooth
 from mapassoc.models.birth import (
     birth_state,
     convert_initiated,
@@ -64,6 +65,7 @@ from mapassoc.models.birth import (
     initiation_model,
     needs_conversion,
 )
+from mapassoc.models.interacting import InteractingModels
 from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
 from mapassoc.models.population import BirthModel
@@ -186,6 +188,8 @@ def smooth_track(
     rows : list of int, length T (-1 for a miss)
     """
     motion = config.motion
+    if isinstance(motion, InteractingModels):
+        return _smooth_interacting(scans, detections, config, motion)
     birth = config.birth
     converts = needs_conversion(motion)
     model = initiation_model(motion)
@@ -241,6 +245,37 @@ def smooth_track(
     )
     states, covariances = motion.canonical_states(states, covariances)
     return scan_indices, states, covariances, rows
+
+
+def _smooth_interacting(
+    scans: Sequence[Scan], detections: Mapping[int, int], config: Config, motion: InteractingModels
+) -> tuple[list[int], FloatArray, FloatArray, list[int]]:
+    """:func:`smooth_track` for a model set: Kim's IMM smoother, the models' combination.
+
+    The run starts every model at the single-point initiation of the first detection
+    with the prior model probabilities (the trees start a track with the first model
+    alone and enter the set at its second detection; the two differ only in the first
+    interval's process noise).
+    """
+    first, last = min(detections), max(detections)
+    scan_indices = list(range(first, last + 1))
+    z0 = scans[first].detections[detections[first]]
+    x0, P0 = birth_state(motion, config.sensors[scans[first].sensor].measurement, z0,
+                         config.birth)  # fmt: skip
+    steps = [FilterStep(scans[first].time)]
+    for k in scan_indices[1:]:
+        scan = scans[k]
+        if k in detections:
+            measurement = config.sensors[scan.sensor].measurement
+            steps.append(FilterStep(scan.time, measurement, scan.detections[detections[k]]))
+        else:
+            steps.append(FilterStep(scan.time))
+    with np.errstate(divide="ignore"):
+        log_mu0 = np.log(motion.initial_probabilities)
+    run = imm_filter(motion.models, motion.switching, x0, P0, steps, log_mu0=log_mu0)
+    smoothed = imm_smooth(motion.models, motion.switching, run)
+    rows = [int(scans[k].rows[detections[k]]) if k in detections else -1 for k in scan_indices]
+    return scan_indices, smoothed.x, smoothed.P, rows
 
 
 def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Config) -> TrackTable:
