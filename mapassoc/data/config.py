@@ -108,6 +108,7 @@ from mapassoc.data.frames import GeodeticPoint, LocalFrame
 from mapassoc.data.recording import Recording
 from mapassoc.data.settings import COMPONENTS, FLAT_KEYS, EstimatorSettings
 from mapassoc.errors import ConfigError, InputError
+from mapassoc.models.interacting import InteractingModels
 from mapassoc.models.measurement import (
     MEASUREMENT_REGISTRY,
     MeasurementModel,
@@ -117,6 +118,7 @@ from mapassoc.models.measurement import (
 from mapassoc.models.motion import MOTION_REGISTRY, MotionModel, motion_spec
 from mapassoc.models.population import BirthModel
 from mapassoc.models.sensor import Region, Sensor
+from mapassoc.models.switching import SwitchingLaw
 from mapassoc.validation import (
     check_instance,
     check_names,
@@ -446,18 +448,39 @@ def _leaf(key: str) -> str:
     return key.rsplit(".", 1)[-1]
 
 
+IMM = "imm"
+"""``[motion] model = "imm"``: interacting multiple models
+(:class:`~mapassoc.models.interacting.InteractingModels`), read and written here rather
+than registered in :data:`~mapassoc.models.motion.MOTION_REGISTRY`, whose models are
+single ones with flat settings; this one's models are nested ``[[motion.models]]`` tables."""
+_IMM_KEYS = ("model", "switch_probability", "matrix", "initial_probabilities", "models")
+
+
 def _parse_motion(parser: _Parser, data: Mapping[str, object]) -> MotionModel:
     if "motion" not in data:
         raise parser.fail("motion", "missing required section [motion]")
     table = parser.table(data["motion"], "motion")
-    names = tuple(MOTION_REGISTRY)
-    model = parser.choice(parser.required(table, "motion", "model"), "motion.model", names)
+    if table.get("model") == IMM:
+        return _parse_imm(parser, table)
+    return _parse_single_motion(parser, table, "motion", (*MOTION_REGISTRY, IMM))
+
+
+def _parse_single_motion(
+    parser: _Parser, table: Mapping[str, object], prefix: str, names: tuple[str, ...]
+) -> MotionModel:
+    """One registered motion model from ``table`` (``[motion]`` or one of
+    ``[[motion.models]]``); ``names`` are the ``model`` values the error lists."""
+    model = parser.choice(parser.required(table, prefix, "model"), f"{prefix}.model", names)
+    if model not in MOTION_REGISTRY:  # "imm" inside an imm
+        raise parser.fail(
+            f"{prefix}.model", f"an {IMM!r} model's models must be single models, got {model!r}"
+        )
     spec = MOTION_REGISTRY[model]
-    parser.only_keys(table, "motion", spec.keys, spec.context)
+    parser.only_keys(table, prefix, spec.keys, spec.context)
     values: dict[str, object] = {}
     for setting in spec.settings:
-        key = f"motion.{setting.key}"
-        raw = parser.required(table, "motion", setting.key)
+        key = f"{prefix}.{setting.key}"
+        raw = parser.required(table, prefix, setting.key)
         if setting.kind == "ndim":
             ndim = parser.integer(raw, key)
             if ndim not in (1, 2, 3):
@@ -466,8 +489,52 @@ def _parse_motion(parser: _Parser, data: Mapping[str, object]) -> MotionModel:
         else:
             values[setting.key] = parser.positive(raw, key)
     try:
-        return spec.cls(**values)
+        motion: MotionModel = spec.cls(**values)
     except InputError as exc:  # a model's own checks of its settings (key: the setting)
+        raise parser.fail(_subkey(prefix, exc), str(exc)) from None
+    return motion
+
+
+def _parse_imm(parser: _Parser, table: Mapping[str, object]) -> InteractingModels:
+    """``[motion] model = "imm"``: its ``[[motion.models]]``, each read as a ``[motion]``
+    table, the switching law (``switch_probability`` or ``matrix``) and the optional
+    ``initial_probabilities``."""
+    parser.only_keys(table, "motion", _IMM_KEYS, f"for {IMM}")
+    raw = parser.required(table, "motion", "models")
+    if not isinstance(raw, list) or not raw or not all(isinstance(t, Mapping) for t in raw):
+        raise parser.fail(
+            "motion.models", f"must be a non-empty array of tables [[motion.models]], got {raw!r}"
+        )
+    models = [
+        _parse_single_motion(parser, item, f"motion.models[{index}]", (*MOTION_REGISTRY, IMM))
+        for index, item in enumerate(raw)
+    ]
+    given = [key for key in ("switch_probability", "matrix") if key in table]
+    if len(given) != 1:
+        raise parser.fail(
+            "motion", f"an {IMM!r} model needs exactly one of switch_probability and matrix, "
+            f"got {given or 'neither'}"
+        )  # fmt: skip
+    key = f"motion.{given[0]}"
+    value = table[given[0]]
+    if key == "motion.matrix":
+        value = [parser.array(row, f"{key}[{i}]") for i, row in enumerate(parser.array(value, key))]
+    elif isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise parser.fail(key, f"must be a number, got {value!r}")
+    probabilities = table.get("initial_probabilities")
+    if probabilities is not None:
+        parser.array(probabilities, "motion.initial_probabilities")
+    try:
+        law = SwitchingLaw(len(models), **{given[0]: value})  # type: ignore[arg-type]
+    except InputError as exc:
+        raise parser.fail(key, str(exc)) from None
+    try:
+        return InteractingModels(
+            models=models,
+            switching=law,
+            initial_probabilities=probabilities,  # type: ignore[arg-type]
+        )
+    except InputError as exc:
         raise parser.fail(_subkey("motion", exc), str(exc)) from None
 
 
@@ -1090,6 +1157,9 @@ def _toml_floats(values: object) -> str:
 
 
 def _motion_lines(motion: MotionModel) -> list[str]:
+    """The ``[motion]`` table's lines (and, for an IMM set, its ``[[motion.models]]``)."""
+    if isinstance(motion, InteractingModels):
+        return _imm_lines(motion)
     spec = motion_spec(motion)
     if spec is None:
         raise ConfigError("motion", f"cannot write motion model {motion!r} as TOML")
@@ -1098,6 +1168,19 @@ def _motion_lines(motion: MotionModel) -> list[str]:
         value = getattr(motion, setting.key)
         written = str(int(value)) if setting.kind == "ndim" else _toml_float(value)
         lines.append(f"{setting.key} = {written}")
+    return lines
+
+
+def _imm_lines(motion: InteractingModels) -> list[str]:
+    law = motion.switching
+    lines = [f"model = {_toml_string(IMM)}"]
+    if law.matrix is not None:
+        lines.append("matrix = [" + ", ".join(_toml_floats(row) for row in law.matrix) + "]")
+    else:
+        lines.append(f"switch_probability = {_toml_float(law.switch_probability or 0.0)}")
+    lines.append(f"initial_probabilities = {_toml_floats(motion.initial_probabilities)}")
+    for model in motion.models:
+        lines += ["", "[[motion.models]]", *_motion_lines(model)]
     return lines
 
 
