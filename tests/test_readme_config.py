@@ -172,3 +172,19 @@ def test_the_reference_lists_every_registered_model() -> None:
     text = generator().configuration_reference()
     for name in [*MOTION_REGISTRY, *MEASUREMENT_REGISTRY]:
         assert f"| `{name}` |" in text, name
+
+
+def test_the_example_and_the_reference_name_every_imm_key() -> None:
+    """``model = "imm"`` is read in mapassoc.data.config, not the registry: its keys and
+    its nested tables are in the example's comments and in the reference's row."""
+    from mapassoc.data.config import _IMM_KEYS, IMM
+
+    block = toml_block()
+    text = generator().configuration_reference()
+    assert block.splitlines()[1].endswith(f"| {IMM}")  # the model line lists it
+    assert block.count("# [[motion.models]]") == 2
+    row = next(line for line in text.splitlines() if line.startswith(f"| `{IMM}` |"))
+    for key in _IMM_KEYS[1:]:
+        assert f"`{key}`" in row, key
+        if key != "models":  # the nested tables, counted above
+            assert re.search(rf"^# {key} = ", block, flags=re.MULTILINE), key

@@ -141,6 +141,7 @@ def record_table(table: str, cls: type, defaults: object) -> list[str]:
 
 def model_tables() -> list[str]:
     """The motion and measurement models a configuration names, with their keys."""
+    from mapassoc.data.config import IMM
     from mapassoc.models.measurement import MEASUREMENT_REGISTRY
     from mapassoc.models.motion import MOTION_REGISTRY
 
@@ -148,6 +149,13 @@ def model_tables() -> list[str]:
     for spec in MOTION_REGISTRY.values():
         keys = ", ".join(f"`{setting.key}` ({setting.kind})" for setting in spec.settings)
         lines.append(f"| `{spec.name}` | {keys or 'none'} |")
+    lines.append(
+        f"| `{IMM}` | `switch_probability` (probability of leaving the current model within "
+        "one unit of time) or `matrix` (M x M switching matrix per unit of time, an array of "
+        "arrays); `initial_probabilities` (optional, M numbers summing to 1, default "
+        "uniform); `models` (M >= 1 `[[motion.models]]` tables, each one of the models above "
+        "with its keys, all in one state space; the first starts every track) |"
+    )
     lines += ["", "### `[[sensors]]`", "", "| `measurement` | its keys |", "| --- | --- |"]
     for mspec in MEASUREMENT_REGISTRY.values():
         lines.append(f"| `{mspec.name}` | {', '.join(f'`{k}`' for k in mspec.keys) or 'none'} |")

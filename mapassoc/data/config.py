@@ -12,12 +12,17 @@ Schema (unknown keys anywhere are an error; every value is checked)::
 
     [motion]
     model = "constant_velocity"   # constant_velocity | constant_acceleration | random_walk
-                                  # | coordinated_turn | singer
+                                  # | coordinated_turn | singer | imm
     ndim = 2                      # 1, 2 or 3; linear models only (coordinated_turn is 2-D)
     noise_intensity = 0.5         # constant_velocity, constant_acceleration, random_walk
     # coordinated_turn instead: speed_noise_intensity = ..., turn_rate_noise_intensity = ...
     # singer instead: ndim, time_constant = ... (tau > 0), acceleration_std = ... (> 0)
     # (the keys of each model: mapassoc.models.motion.MOTION_REGISTRY)
+    # imm (interacting multiple models) instead: model = "imm", switch_probability = ...
+    # (leaving the current model within one unit of time) or matrix = [[...], ...]
+    # (M x M, per unit of time), optional initial_probabilities = [...] (default
+    # uniform), and one [[motion.models]] table per model, each keyed as a single
+    # [motion] table, all in one state space (mapassoc.models.interacting)
 
     [[sensors]]                   # one table per sensor, at least one, distinct names
     name = "radar"
