@@ -149,9 +149,15 @@ __all__ = [
 
 PathLike = str | os.PathLike[str]
 
-MOTION_MODELS = tuple(MOTION_REGISTRY)
-"""Motion model names registered when this module was imported (see
-:data:`mapassoc.models.motion.MOTION_REGISTRY`, which the reader and writer use)."""
+IMM = "imm"
+"""``[motion] model = "imm"``: interacting multiple models
+(:class:`~mapassoc.models.interacting.InteractingModels`), read and written here rather
+than registered in :data:`~mapassoc.models.motion.MOTION_REGISTRY`, whose models are
+single ones with flat settings; this one's models are nested ``[[motion.models]]`` tables."""
+MOTION_MODELS = (*MOTION_REGISTRY, IMM)
+"""Motion model names a configuration may give: those registered when this module was
+imported (see :data:`mapassoc.models.motion.MOTION_REGISTRY`, which the reader and
+writer use), and ``"imm"`` (interacting multiple models)."""
 MEASUREMENTS = tuple(MEASUREMENT_REGISTRY)
 """Measurement model names registered when this module was imported (see
 :data:`mapassoc.models.measurement.MEASUREMENT_REGISTRY`, which the reader and writer use)."""
@@ -453,11 +459,6 @@ def _leaf(key: str) -> str:
     return key.rsplit(".", 1)[-1]
 
 
-IMM = "imm"
-"""``[motion] model = "imm"``: interacting multiple models
-(:class:`~mapassoc.models.interacting.InteractingModels`), read and written here rather
-than registered in :data:`~mapassoc.models.motion.MOTION_REGISTRY`, whose models are
-single ones with flat settings; this one's models are nested ``[[motion.models]]`` tables."""
 _IMM_KEYS = ("model", "switch_probability", "matrix", "initial_probabilities", "models")
 
 
@@ -1161,13 +1162,14 @@ def _toml_floats(values: object) -> str:
     return "[" + ", ".join(_toml_float(v) for v in np.asarray(values, dtype=float).ravel()) + "]"
 
 
-def _motion_lines(motion: MotionModel) -> list[str]:
-    """The ``[motion]`` table's lines (and, for an IMM set, its ``[[motion.models]]``)."""
+def _motion_lines(motion: MotionModel, key: str = "motion") -> list[str]:
+    """The ``[motion]`` table's lines (and, for an IMM set, its ``[[motion.models]]``);
+    ``key`` names the table in errors."""
     if isinstance(motion, InteractingModels):
         return _imm_lines(motion)
     spec = motion_spec(motion)
     if spec is None:
-        raise ConfigError("motion", f"cannot write motion model {motion!r} as TOML")
+        raise ConfigError(key, f"cannot write motion model {motion!r} as TOML")
     lines = [f"model = {_toml_string(spec.name)}"]
     for setting in spec.settings:
         value = getattr(motion, setting.key)
@@ -1184,8 +1186,8 @@ def _imm_lines(motion: InteractingModels) -> list[str]:
     else:
         lines.append(f"switch_probability = {_toml_float(law.switch_probability or 0.0)}")
     lines.append(f"initial_probabilities = {_toml_floats(motion.initial_probabilities)}")
-    for model in motion.models:
-        lines += ["", "[[motion.models]]", *_motion_lines(model)]
+    for index, model in enumerate(motion.models):
+        lines += ["", "[[motion.models]]", *_motion_lines(model, f"motion.models[{index}]")]
     return lines
 
 

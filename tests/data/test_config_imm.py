@@ -4,6 +4,7 @@ writing them back, the key each bad value is reported under, and a run on a load
 from __future__ import annotations
 
 import copy
+import dataclasses
 import tomllib
 import warnings
 from collections.abc import Callable
@@ -13,7 +14,14 @@ import numpy as np
 import pytest
 from support import SENSOR, make_scans
 
-from mapassoc.data.config import Config, config_to_toml, load_config, parse_config, write_config
+from mapassoc.data.config import (
+    MOTION_MODELS,
+    Config,
+    config_to_toml,
+    load_config,
+    parse_config,
+    write_config,
+)
 from mapassoc.errors import ConfigError
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.models.interacting import InteractingModels
@@ -250,3 +258,34 @@ def test_a_loaded_imm_config_runs_the_estimator() -> None:
     # two tracks, each made of one target's detections (rows 2, 4, ... and 3, 5, ...)
     tracks = sorted(sorted(rows) for rows in result.track_rows.values())
     assert tracks == [list(range(2, 14, 2)), list(range(3, 14, 2))]
+
+
+def test_the_configuration_names_include_imm() -> None:
+    assert MOTION_MODELS[-1] == "imm" and "constant_velocity" in MOTION_MODELS
+
+
+class _OwnVelocity(ConstantVelocity):
+    """A constant-velocity model of its own class: not registered, so not writable."""
+
+
+def test_the_writer_names_the_component_it_cannot_write() -> None:
+    config = _parse(_document())
+    motion = _imm(config)
+    own = InteractingModels(
+        models=[motion.models[0], _OwnVelocity(ndim=2, noise_intensity=3.0)],
+        switching=motion.switching,
+    )
+    with pytest.raises(ConfigError) as info:
+        config_to_toml(dataclasses.replace(config, motion=own))
+    assert info.value.key == "motion.models[1]"
+    assert "cannot write motion model" in str(info.value)
+
+
+def test_a_matrix_for_another_number_of_models_names_the_matrix() -> None:
+    data = _document()
+    del data["motion"]["switch_probability"]  # type: ignore[attr-defined]
+    data["motion"]["matrix"] = np.eye(3).tolist()  # type: ignore[index]
+    with pytest.raises(ConfigError) as info:
+        parse_config(data)
+    assert info.value.key == "motion.matrix"
+    assert "(2, 2) for n_models = 2" in str(info.value)
