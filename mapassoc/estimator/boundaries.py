@@ -328,10 +328,9 @@ class WindowBoundaries:
             group = np.flatnonzero(nodes.initiated[leaves] == initiated)
             if group.size == 0:
                 continue
-            # Uninitiated states convert per track at their next later detection; they
-            # are advanced one by one so that a batch never mixes conversion times.
-            batches = [group] if initiated else [group[k : k + 1] for k in range(group.size)]
-            for batch in batches:
+            # Uninitiated states convert at their next later detection: continue_each
+            # takes them in one batch where all convert at the same scan.
+            for batch in (group,):
                 v = leaves[batch]
                 d = int(nodes.state_dims[v[0]])
                 start = PathState(

@@ -93,7 +93,7 @@ from mapassoc.estimator.tree_pruning import (
 from mapassoc.filtering.batch import GatedPairs, Innovation, KalmanFilter
 from mapassoc.models.birth import (
     birth_states,
-    convert_initiated,
+    convert_initiated_many,
     initiation_measurement,
     initiation_model,
     needs_conversion,
@@ -1140,9 +1140,10 @@ class HypothesisGenerator:
         def states(index: IntArray) -> tuple[FloatArray, FloatArray]:
             xu, Pu = self._filter.update(x, P, innovation, pairs.row[index], pairs.nu[index])
             means, covs = _pad(xu, Pu, self._n_max)
-            if convert is not None:
-                for k in np.flatnonzero(convert[index]):
-                    means[k], covs[k] = convert_initiated(self.motion, xu[k], Pu[k], self.birth)
+            chosen = np.flatnonzero(convert[index]) if convert is not None else ()
+            if len(chosen):
+                cx, cP = convert_initiated_many(self.motion, xu[chosen], Pu[chosen], self.birth)
+                means[chosen], covs[chosen] = _pad(cx, cP, self._n_max)
             return means, covs
 
         return states

@@ -69,7 +69,7 @@ from mapassoc.estimator.track_paths import CONVERGED, PathState, TrackPath, Traj
 from mapassoc.filtering.batch import KalmanFilter
 from mapassoc.models.birth import (
     birth_states,
-    convert_initiated,
+    convert_initiated_many,
     initiation_measurement,
     initiation_model,
     needs_conversion,
@@ -221,7 +221,9 @@ class RecordingObjective:
             by_scan.setdefault(int(m), []).append(i)
         found: dict[int, tuple[IntArray, PathState]] = {}
         for m, indices in by_scan.items():
-            if start.initiated:
+            # An uninitiated batch converts at scan m together when every track's first
+            # detection is earlier (the trees' rule); otherwise track by track.
+            if start.initiated or bool(np.all(self.scans[m].time > start.first_time)):
                 found.update(self._continue_at(start, m, [(i, detections[i][1]) for i in indices]))
                 continue
             for i in indices:
@@ -234,15 +236,21 @@ class RecordingObjective:
         self, start: PathState, m: int, requested: Sequence[tuple[int, int]]
     ) -> dict[int, tuple[IntArray, PathState]]:
         """:meth:`continue_each` of the detections ``requested`` (``(key, index in scan
-        m)``) at one scan, for initiated tracks: one prediction and one innovation for
-        all of them, the gate of every (track, detection) pair (the trees' gate), and
-        one update per pair inside it.  Keyed by ``key``."""
+        m)``) at one scan, for initiated tracks or uninitiated ones that all convert at
+        scan ``m``: one prediction and one innovation for all of them, the gate of every
+        (track, detection) pair (the trees' gate), one update per pair inside it (and
+        the conversion).  Keyed by ``key``."""
         missed = self.advance_missed(start, m - 1)
         x, P = self._predict(missed, m)
-        innovation = self.kalman.innovation(self._sensors[m].measurement, x, P)
+        measurement = self._sensors[m].measurement
+        if not start.initiated:
+            measurement = initiation_measurement(self.motion, measurement)
+        innovation = self.kalman.innovation(measurement, x, P)
         measured = self.scans[m].detections[[j for _, j in requested]]
         pairs = innovation.gate(measured, float(self.terms.thresholds[m]))
         xu, Pu = self.kalman.update(x, P, innovation, pairs.row, pairs.nu)
+        if not start.initiated:  # every track converts here (continue_each)
+            xu, Pu = convert_initiated_many(self.motion, xu, Pu, self.birth)
         value = (
             missed.value[pairs.row]
             + self.terms.survival[m]
@@ -322,12 +330,7 @@ class RecordingObjective:
             if np.any(convert) and not np.all(convert):
                 raise InputError("a batch of tracks must convert to the turn state together")
             if np.all(convert):
-                converted = [
-                    convert_initiated(self.motion, xu[b], Pu[b], self.birth) for b in range(len(xu))
-                ]
-                xu = np.array([c[0] for c in converted]).reshape(len(xu), -1)
-                n = xu.shape[1]
-                Pu = np.array([c[1] for c in converted]).reshape(len(xu), n, n)
+                xu, Pu = convert_initiated_many(self.motion, xu, Pu, self.birth)
                 initiated = True
         return PathState(
             scan=m,

@@ -26,6 +26,7 @@ import numpy as np
 
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
+from mapassoc.models.interacting import InteractingModels
 from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
 from mapassoc.models.population import BirthModel
@@ -36,6 +37,7 @@ __all__ = [
     "birth_state",
     "birth_states",
     "convert_initiated",
+    "convert_initiated_many",
     "needs_conversion",
 ]
 
@@ -56,9 +58,10 @@ def initiation_measurement(motion: MotionModel, measurement: MeasurementModel) -
     The measurement model does this itself
     (:meth:`~mapassoc.models.measurement.MeasurementModel.on_initiation_state`).
     """
-    if not needs_conversion(motion):
-        return measurement
-    return measurement.on_initiation_state(motion, initiation_model(motion))
+    model = initiation_model(motion)
+    if not needs_conversion(motion) or tuple(model.state_names) == tuple(motion.state_names):
+        return measurement  # the same state space (a model set starts with its first model)
+    return measurement.on_initiation_state(motion, model)
 
 
 def needs_conversion(motion: MotionModel) -> bool:
@@ -153,3 +156,20 @@ def convert_initiated(
     P : ndarray, shape (n, n)
     """
     return motion.convert_initiated(x, P, birth)
+
+
+def convert_initiated_many(
+    motion: MotionModel, x: FloatArray, P: FloatArray, birth: BirthModel
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`convert_initiated` of a batch: means ``(B, n0)``, covariances ``(B, n0, n0)``.
+
+    A model set converts the batch at once (its conversion copies the state to every
+    model); other models are converted state by state.
+    """
+    if isinstance(motion, InteractingModels):
+        return motion.convert_initiated(x, P, birth)
+    converted = [motion.convert_initiated(x[b], P[b], birth) for b in range(len(x))]
+    if not converted:
+        n = motion.state_dim
+        return np.zeros((0, n)), np.zeros((0, n, n))
+    return np.stack([c[0] for c in converted]), np.stack([c[1] for c in converted])

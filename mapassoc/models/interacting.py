@@ -143,15 +143,19 @@ class InteractingModels(MotionModel):
     def convert_initiated(
         self, x: FloatArray, P: FloatArray, birth: BirthModel
     ) -> tuple[FloatArray, FloatArray]:
-        """Every model from ``(x, P)``, with the prior probabilities: the filter state."""
+        """Every model from ``(x, P)``, with the prior probabilities: the filter state.
+
+        Takes leading batch axes: ``x`` of shape ``(..., n)``, ``P`` ``(..., n, n)``.
+        """
         M = self.n_models
         x = np.asarray(x, dtype=np.float64)
         P = np.asarray(P, dtype=np.float64)
+        lead = x.shape[:-1]
         with np.errstate(divide="ignore"):
-            log_mu = np.log(self.initial_probabilities)
-        return pack_models(
-            log_mu, np.broadcast_to(x, (M, *x.shape)), np.broadcast_to(P, (M, *P.shape))
-        )
+            log_mu = np.broadcast_to(np.log(self.initial_probabilities), (*lead, M))
+        xs = np.broadcast_to(x[..., None, :], (*lead, M, x.shape[-1]))
+        Ps = np.broadcast_to(P[..., None, :, :], (*lead, M, *P.shape[-2:]))
+        return pack_models(log_mu, xs, Ps)
 
     def unconverted_state(
         self, x: FloatArray, P: FloatArray, birth: BirthModel
