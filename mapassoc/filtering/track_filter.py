@@ -36,10 +36,22 @@ from mapassoc.models.birth import (
     initiation_model,
     needs_conversion,
 )
+from mapassoc.models.interacting import InteractingModels
 from mapassoc.models.measurement import MeasurementModel
 
-_KALMAN = KalmanFilter()
-"""The batched filter interface, on batches of one track (the steps of the trees)."""
+_FILTERS: dict[int, tuple[object, KalmanFilter]] = {}
+"""The batched filter of each motion model in use (on batches of one track, the steps
+of the trees), by the model's id; a model set needs its own (it unpacks its states)."""
+
+
+def _kalman(config: Config) -> KalmanFilter:
+    """The batched filter for ``config.motion`` (kept: it caches F and Q per step)."""
+    found = _FILTERS.get(id(config.motion))
+    if found is None or found[0] is not config.motion:
+        if len(_FILTERS) >= 16:
+            _FILTERS.clear()
+        found = _FILTERS[id(config.motion)] = (config.motion, KalmanFilter(motion=config.motion))
+    return found[1]
 
 __all__ = [
     "FilteredTrack",
@@ -143,7 +155,7 @@ def predict_track(config: Config, track: FilteredTrack, time: float) -> Filtered
     if dt == 0.0:
         return track
     motion = config.motion if track.converted else initiation_model(config.motion)
-    x, P, _ = _KALMAN.predict(motion, track.x[None], track.P[None], dt)
+    x, P, _ = _kalman(config).predict(motion, track.x[None], track.P[None], dt)
     return FilteredTrack(
         x=x[0], P=P[0], time=time, first_time=track.first_time, converted=track.converted
     )
@@ -156,7 +168,7 @@ def innovations(config: Config, track: FilteredTrack, scan: Scan) -> Innovations
             f"the track is at time {track.time} but the scan is at {scan.time}; predict first"
         )
     measurement = _measurement(config, track, scan)
-    innovation = _KALMAN.innovation(measurement, track.x[None], track.P[None])
+    innovation = _kalman(config).innovation(measurement, track.x[None], track.P[None])
     Z = scan.detections
     nu = innovation.residuals(Z[None], np.zeros(1, dtype=np.int64))[0]
     d2, loglik = innovation.scores(nu, np.zeros(Z.shape[0], dtype=np.int64))
@@ -181,9 +193,10 @@ def update_track(config: Config, track: FilteredTrack, scan: Scan, detection: in
     first detection.
     """
     measurement = _measurement(config, track, scan)
-    innovation = _KALMAN.innovation(measurement, track.x[None], track.P[None])
+    kalman = _kalman(config)
+    innovation = kalman.innovation(measurement, track.x[None], track.P[None])
     nu = innovation.residuals(scan.detections[detection][None])
-    x, P = _KALMAN.update(track.x[None], track.P[None], innovation, np.zeros(1, np.int64), nu)
+    x, P = kalman.update(track.x[None], track.P[None], innovation, np.zeros(1, np.int64), nu)
     return _converted_after_update(config, track, x[0], P[0])
 
 
@@ -226,6 +239,12 @@ def update_track_mixture(
         )
     if miss_weight >= 1.0 or not np.any(weights > 0.0):
         return track
+    if isinstance(config.motion, InteractingModels) and track.converted:
+        raise InputError(
+            f"the probabilistic-data-association update is defined here for one motion model, "
+            f"not for the model set {config.motion!r}; track with gnn or mht, or the MAP "
+            "estimator, under a model set"
+        )
     measurement = _measurement(config, track, scan)
     R = measurement.noise_covariance
     x, P, S, H = track.x, track.P, innov.S, innov.H

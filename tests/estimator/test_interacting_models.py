@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from support import NO_TIME_LIMIT, all_track_sets, tiny_recording
 
+from mapassoc.errors import InputError
 from mapassoc.estimator.objective import RecordingObjective
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.evaluation.oracle import oracle_tracks
@@ -23,6 +24,9 @@ from mapassoc.models.birth import birth_state
 from mapassoc.models.interacting import InteractingModels, pack_models, unpack_models
 from mapassoc.models.motion import ConstantVelocity
 from mapassoc.models.switching import SwitchingLaw
+from mapassoc.trackers.gnn import GnnTracker
+from mapassoc.trackers.jpda import JpdaTracker
+from mapassoc.trackers.mht import MhtTracker
 
 SWITCH = 0.2
 """Probability of leaving a model within one unit of time, in the sets here."""
@@ -182,3 +186,23 @@ def test_the_smoother_of_identical_models_is_the_rts_smoother() -> None:
     doubled = oracle_tracks(scenario.scans, scenario.origins, same)
     np.testing.assert_allclose(doubled.states, single.states, rtol=1e-7, atol=1e-6)
     np.testing.assert_allclose(doubled.variances, single.variances, rtol=1e-7, atol=1e-6)
+
+
+@pytest.mark.parametrize("tracker", [GnnTracker, MhtTracker])
+def test_scan_by_scan_trackers_run_a_set_of_identical_models_as_the_single_model(
+    tracker: type,
+) -> None:
+    scenario = build_scenario("crossing", seed=0)
+    scans = scenario.scans[:20]
+    one = tracker(config=scenario.config).track(scans).tracks
+    two = tracker(config=_with_set(scenario.config, (1.0, 1.0))).track(scans).tracks
+    np.testing.assert_array_equal(two.track_ids, one.track_ids)
+    np.testing.assert_array_equal(two.detection_rows, one.detection_rows)
+    np.testing.assert_allclose(two.states, one.states, rtol=1e-7, atol=1e-6)
+
+
+def test_jpda_refuses_a_model_set_by_name() -> None:
+    scenario = build_scenario("crossing", seed=0)
+    config = _with_set(scenario.config, (1.0, 10.0))
+    with pytest.raises(InputError, match="probabilistic-data-association.*model set"):
+        JpdaTracker(config=config).track(scenario.scans[:20])
