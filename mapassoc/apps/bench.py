@@ -76,6 +76,7 @@ from mapassoc.evaluation.scenarios import (
 )
 from mapassoc.evaluation.tables import evaluate_tables, pgospa_tables
 from mapassoc.filtering.kalman import pairwise_gate_and_loglik
+from mapassoc.models.interacting import noise_levels
 from mapassoc.validation import check_integer
 
 if TYPE_CHECKING:
@@ -466,6 +467,16 @@ def _check_time_limit(value: object) -> float:
     return float(value)
 
 
+BENCH_MOTIONS = ("configured", "imm")
+"""Motion models a benchmark run can use (the ``motion`` of :func:`bench_scenario`)."""
+
+
+def _check_motion_choice(value: object) -> str:
+    if value not in BENCH_MOTIONS:
+        raise InputError(f"motion must be one of {', '.join(BENCH_MOTIONS)}, got {value!r}")
+    return str(value)
+
+
 def _check_config_choice(value: object) -> str:
     if value not in CONFIG_CHOICES:
         raise InputError(f"config must be one of {', '.join(CONFIG_CHOICES)}, got {value!r}")
@@ -546,6 +557,7 @@ def bench_scenario(
     config: str = "generic",
     scans: int | None = None,
     k_prior: str = "birth",
+    motion: str = "configured",
 ) -> RunResult:
     """Simulate one family with one seed, estimate, and measure speed, GOSPA and p(K | Z).
 
@@ -572,6 +584,9 @@ def bench_scenario(
         ``EstimatorSettings.k_prior`` of the run, set on either configuration
         (``"poisson"`` uses its ``k_prior_mean``).  ``"weights"`` is refused: the
         benchmark has no weights to give it.
+    motion : {"configured", "imm"}
+        The configuration's motion model, or a set of it at two process-noise levels
+        (:func:`~mapassoc.models.interacting.noise_levels`, its defaults).
 
     Returns
     -------
@@ -582,7 +597,7 @@ def bench_scenario(
     InputError
         An unknown scenario or a bad argument (checked before anything runs).
     """
-    setup = _bench_setup(name, seed, window_length, time_limit, config, scans, k_prior)
+    setup = _bench_setup(name, seed, window_length, time_limit, config, scans, k_prior, motion)
     timed = _timed_run(setup)
     return _run_result(name, seed, setup, timed)
 
@@ -617,6 +632,7 @@ def _bench_setup(
     config: str,
     scans: int | None,
     k_prior: str,
+    motion: str = "configured",
 ) -> _BenchSetup:
     """Check the arguments of :func:`bench_scenario`, build the scenario and its config."""
     prior = _check_k_prior("k_prior", k_prior)
@@ -633,6 +649,8 @@ def _bench_setup(
         run_config = _bench_config(scenario.config, window_length, limit)
     count = replace(run_config.estimator.count, k_prior=prior)
     run_config = replace(run_config, estimator=replace(run_config.estimator, count=count))
+    if _check_motion_choice(motion) == "imm":
+        run_config = replace(run_config, motion=noise_levels(run_config.motion))
     return _BenchSetup(scenario, run_config, choice, prior, limit)
 
 
@@ -1091,6 +1109,7 @@ def run_benchmark(
     gating: bool = True,
     out: TextIO | None = None,
     k_priors: Sequence[str] = DEFAULT_K_PRIORS,
+    motion: str = "configured",
 ) -> BenchmarkResult:
     """Run and print the benchmark; optionally write the results as JSON.
 
@@ -1119,6 +1138,8 @@ def run_benchmark(
         Priors on K (``EstimatorSettings.k_prior``, from :data:`BENCH_K_PRIORS`,
         distinct) to run every family and seed with (default :data:`DEFAULT_K_PRIORS`);
         the goals and the scale growth use the first only.
+    motion : {"configured", "imm"}
+        The motion model of every run (see :func:`bench_scenario`).
 
     Returns
     -------
@@ -1130,7 +1151,7 @@ def run_benchmark(
         An unknown family or a bad argument (checked before anything runs).
     """
     settings = _check_benchmark_arguments(
-        families, k_priors, seeds, window_length, time_limit, config, scans
+        families, k_priors, seeds, window_length, time_limit, config, scans, motion
     )
     stream = sys.stdout if out is None else out
 
@@ -1168,6 +1189,7 @@ class _BenchSettings:
         The time limit in seconds.
     choice : {"generic", "scenario"}
     scans : int or None
+    motion : {"configured", "imm"}
     """
 
     families: list[str]
@@ -1177,6 +1199,7 @@ class _BenchSettings:
     limit: float
     choice: str
     scans: int | None
+    motion: str = "configured"
 
     def as_dict(self) -> dict[str, object]:
         """The settings as :attr:`BenchmarkResult.settings` holds them."""
@@ -1188,6 +1211,7 @@ class _BenchSettings:
             "config": self.choice,
             "k_priors": self.priors,
             "scans": self.scans,
+            "motion": self.motion,
             "gospa_cutoff": GOSPA_CUTOFF,
         }
 
@@ -1197,6 +1221,8 @@ class _BenchSettings:
         return (
             f"window length {window}, "
             f"time limit {self.limit:g} s, {self.choice} configuration, "
+            + ("" if self.motion == "configured" else f"motion {self.motion}, ")
+            +
             f"k_priors {','.join(self.priors)}, seeds 0..{self.seeds - 1}"
             + (f", first {self.scans} scans" if self.scans is not None else "")
             + f", GOSPA cut-off {GOSPA_CUTOFF:g}"
@@ -1211,6 +1237,7 @@ def _check_benchmark_arguments(
     time_limit: float,
     config: str,
     scans: int | None,
+    motion: str = "configured",
 ) -> _BenchSettings:
     """The arguments of :func:`run_benchmark`, checked before anything runs."""
     names = _check_families(families)
@@ -1222,7 +1249,8 @@ def _check_benchmark_arguments(
     choice = _check_config_choice(config)
     if scans is not None:
         check_integer("scans", scans, minimum=1)
-    return _BenchSettings(names, priors, n_seeds, window_length, limit, choice, scans)
+    return _BenchSettings(names, priors, n_seeds, window_length, limit, choice, scans,
+                          _check_motion_choice(motion))  # fmt: skip
 
 
 def _run_families(
@@ -1244,6 +1272,7 @@ def _run_families(
                     config=settings.choice,
                     scans=settings.scans,
                     k_prior=prior,
+                    motion=settings.motion,
                 )
                 family_runs.append(run)
                 say(_run_line(run, _family_width(settings.families)))

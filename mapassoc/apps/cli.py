@@ -275,6 +275,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         scans=args.scans,
         json_path=Path(args.json) if args.json else None,
         k_priors=args.k_priors,
+        motion=args.motion,
     )
     return 0
 
@@ -757,6 +758,13 @@ def _add_bench_command(sub: Subcommands) -> None:
         "(estimator.count.k_prior: birth, uniform, poisson with the configuration's "
         "k_prior_mean) to run every family with; the first is the one the goals judge "
         f"(default {','.join(DEFAULT_K_PRIORS)})",
+    )
+    p.add_argument(
+        "--motion",
+        choices=("configured", "imm"),
+        default="configured",
+        help="the motion model of every run: the configuration's, or a set of it at two "
+        "process-noise levels (interacting multiple models; default configured)",
     )
     p.add_argument("--json", metavar="PATH", help="also write the results to this JSON file")
     p.set_defaults(func=_cmd_bench)

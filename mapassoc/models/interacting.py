@@ -50,7 +50,18 @@ from mapassoc.models.motion import MotionModel
 from mapassoc.models.population import BirthModel
 from mapassoc.models.switching import SwitchingLaw
 
-__all__ = ["InteractingModels", "filter_state_dim", "pack_models", "unpack_models"]
+__all__ = [
+    "InteractingModels",
+    "NOISE_LEVELS",
+    "filter_state_dim",
+    "noise_levels",
+    "pack_models",
+    "unpack_models",
+]
+
+NOISE_LEVELS = (0.05, 10.0)
+"""Process-noise factors of the models of :func:`noise_levels`, against the given
+model's: a quiet model for straight legs and a loud one for turns and speed changes."""
 
 
 class InteractingModels(MotionModel):
@@ -176,6 +187,46 @@ def filter_state_dim(motion: MotionModel) -> int:
     if isinstance(motion, InteractingModels):
         return motion.filter_state_dim
     return motion.state_dim
+
+
+def noise_levels(
+    model: MotionModel,
+    *,
+    factors: Sequence[float] = NOISE_LEVELS,
+    switch_probability: float = 0.05,
+) -> InteractingModels:
+    """A model at several process-noise levels: the classic IMM of manoeuvring targets.
+
+    Bar-Shalom, Li and Kirubarajan, *Estimation with Applications to Tracking and
+    Navigation* (2001), section 11.7: a nearly constant velocity model whose noise
+    fits the straight legs and one whose noise covers the manoeuvres.  The factors
+    scale the noise intensity of ``model`` (one fitted to a whole recording lies
+    between the two regimes, so the defaults go well below and well above it).
+
+    Parameters
+    ----------
+    model : MotionModel
+        A kinematic model with ``ndim`` and ``noise_intensity`` (constant velocity,
+        constant acceleration, random walk).
+    factors : sequence of float
+        Noise intensity of each model as a multiple of that of ``model``, > 0; the
+        first model starts every track.
+    switch_probability : float
+        Of the :class:`~mapassoc.models.switching.SwitchingLaw`, per unit time.
+    """
+    q = getattr(model, "noise_intensity", None)
+    ndim = getattr(model, "ndim", None)
+    if not isinstance(q, float) or ndim is None:
+        raise InputError(
+            f"model must be a kinematic model with ndim and noise_intensity, got {model!r}",
+            key="model",
+        )
+    chosen = [float(f) for f in factors]
+    if not chosen or not all(math.isfinite(f) and f > 0 for f in chosen):
+        raise InputError(f"factors must be positive numbers, got {factors!r}", key="factors")
+    models = [type(model)(ndim=ndim, noise_intensity=f * q) for f in chosen]
+    law = SwitchingLaw(len(models), switch_probability=switch_probability)
+    return InteractingModels(models=models, switching=law)
 
 
 def _checked_models(models: object) -> tuple[MotionModel, ...]:

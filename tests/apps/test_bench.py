@@ -520,3 +520,20 @@ def test_bench_command_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     data = json.loads(path.read_text())
     assert data["runs"][0]["scans"] == 5 and data["runs"][0]["window_length"] == 2
     assert data["settings"]["k_priors"] == ["uniform"] and data["runs"][0]["k_prior"] == "uniform"
+
+
+def test_bench_motion_imm_runs_the_configured_model_at_two_noise_levels() -> None:
+    from mapassoc.apps.bench import _bench_setup
+    from mapassoc.models.interacting import NOISE_LEVELS, InteractingModels
+
+    plain = _bench_setup("crossing", 0, WINDOW, 5.0, "generic", SCANS, "birth")
+    imm = _bench_setup("crossing", 0, WINDOW, 5.0, "generic", SCANS, "birth", "imm")
+    assert isinstance(imm.config.motion, InteractingModels)
+    q = plain.config.motion.noise_intensity
+    assert [m.noise_intensity for m in imm.config.motion.models] == [f * q for f in NOISE_LEVELS]
+    assert repr(imm.config.sensors) == repr(plain.config.sensors)
+    assert imm.config.birth == plain.config.birth
+    run = bench_scenario("crossing", 0, WINDOW, time_limit=5.0, scans=SCANS, motion="imm")
+    assert run.tracks >= 1 and math.isfinite(run.gospa.total)
+    with pytest.raises(InputError, match="motion must be one of configured, imm"):
+        bench_scenario("crossing", 0, WINDOW, scans=SCANS, motion="cv")

@@ -21,8 +21,13 @@ from mapassoc.evaluation.scenarios import build_scenario
 from mapassoc.filtering.imm import imm_filter
 from mapassoc.filtering.kalman import FilterStep, filter_sequence
 from mapassoc.models.birth import birth_state
-from mapassoc.models.interacting import InteractingModels, pack_models, unpack_models
-from mapassoc.models.motion import ConstantVelocity
+from mapassoc.models.interacting import (
+    InteractingModels,
+    noise_levels,
+    pack_models,
+    unpack_models,
+)
+from mapassoc.models.motion import ConstantVelocity, CoordinatedTurn
 from mapassoc.models.switching import SwitchingLaw
 from mapassoc.trackers.gnn import GnnTracker
 from mapassoc.trackers.jpda import JpdaTracker
@@ -206,3 +211,15 @@ def test_jpda_refuses_a_model_set_by_name() -> None:
     config = _with_set(scenario.config, (1.0, 10.0))
     with pytest.raises(InputError, match="probabilistic-data-association.*model set"):
         JpdaTracker(config=config).track(scenario.scans[:20])
+
+
+def test_noise_levels_scales_the_models_noise_and_refuses_other_models() -> None:
+    cv = ConstantVelocity(ndim=3, noise_intensity=2.0)
+    models = noise_levels(cv, factors=(0.5, 4.0), switch_probability=0.1)
+    assert [m.noise_intensity for m in models.models] == [1.0, 8.0]
+    assert all(m.ndim == 3 for m in models.models) and models.switching.switch_probability == 0.1
+    assert models.filter_state_dim == 2 * (6 + 1)
+    with pytest.raises(InputError, match="kinematic model"):
+        noise_levels(CoordinatedTurn(speed_noise_intensity=1.0, turn_rate_noise_intensity=0.1))
+    with pytest.raises(InputError, match="factors must be positive"):
+        noise_levels(cv, factors=(1.0, 0.0))
