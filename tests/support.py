@@ -376,3 +376,18 @@ def single_detection_tracks(scans: list[Scan]) -> dict[int, tuple[tuple[int, int
     """A poor starting set: every detection its own track (ids from 1)."""
     where = [(m, j) for m, scan in enumerate(scans) for j in range(scan.size)]
     return {i + 1: (d,) for i, d in enumerate(where)}
+
+
+def fresh_hypothesis_paths(hypotheses) -> Iterator[tuple[list[int], tuple[tuple[int, int], ...]]]:
+    """Each hypothesis of a window's trees that is not a carried tree's: its nodes with a
+    detection, root first, and its path of ``(scan, index in scan)``."""
+    nodes, window = hypotheses.nodes, hypotheses.detections
+    for h in range(hypotheses.count):
+        if hypotheses.tree_track_ids[hypotheses.tree[h]] >= 0:
+            continue  # carried trees have no prior here (the window starts the recording)
+        along = [v for v in nodes.path(int(hypotheses.leaf[h])) if nodes.detection[v] >= 0]
+        path = tuple(
+            (int(window.scan_position[d]), int(window.index_in_scan[d]))
+            for d in nodes.detection[along]
+        )
+        yield along, path

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from support import NO_TIME_LIMIT, all_track_sets, tiny_recording
+from support import NO_TIME_LIMIT, all_track_sets, fresh_hypothesis_paths, tiny_recording
 
 from mapassoc.errors import InputError
 from mapassoc.estimator.objective import RecordingObjective
@@ -163,14 +163,9 @@ def test_the_trees_and_j_take_the_same_imm_steps(name: str) -> None:
     scans = scenario.scans[: config.estimator.window_length]
     hypotheses = WindowEstimator(config=config).generator.generate(scans)
     objective = RecordingObjective(config=config, scans=scans)
-    nodes, window = hypotheses.nodes, hypotheses.detections
+    nodes = hypotheses.nodes
     checked = in_set = 0
-    for h in range(hypotheses.count):
-        along = [v for v in nodes.path(int(hypotheses.leaf[h])) if nodes.detection[v] >= 0]
-        path = tuple(
-            (int(window.scan_position[d]), int(window.index_in_scan[d]))
-            for d in nodes.detection[along]
-        )
+    for along, path in fresh_hypothesis_paths(hypotheses):
         run = objective.trajectory(path)
         for k, v in enumerate(along):
             mean, covariance = nodes.state(v)

@@ -25,6 +25,7 @@ from support import (
     all_track_sets,
     brute_force_tables,
     feasible_track_set,
+    fresh_hypothesis_paths,
     random_problem,
     single_detection_tracks,
     tiny_recording,
@@ -180,16 +181,9 @@ def test_the_trees_and_j_take_the_same_filter_steps(
     scans = scenario.scans[: config.estimator.window_length]
     hypotheses = WindowEstimator(config=config).generator.generate(scans)
     objective = RecordingObjective(config=config, scans=scans)
-    nodes, window = hypotheses.nodes, hypotheses.detections
+    nodes = hypotheses.nodes
     checked = 0
-    for h in range(hypotheses.count):
-        if hypotheses.tree_track_ids[hypotheses.tree[h]] >= 0:
-            continue  # carried trees have no prior here (the window starts the recording)
-        along = [v for v in nodes.path(int(hypotheses.leaf[h])) if nodes.detection[v] >= 0]
-        path = tuple(
-            (int(window.scan_position[d]), int(window.index_in_scan[d]))
-            for d in nodes.detection[along]
-        )
+    for along, path in fresh_hypothesis_paths(hypotheses):
         run = objective.trajectory(path)
         for k, v in enumerate(along):
             mean, covariance = nodes.state(v)
