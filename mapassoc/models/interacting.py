@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -228,7 +229,8 @@ def noise_levels(
     chosen = [float(f) for f in factors]
     if not chosen or not all(math.isfinite(f) and f > 0 for f in chosen):
         raise InputError(f"factors must be positive numbers, got {factors!r}", key="factors")
-    models = [type(model)(ndim=ndim, noise_intensity=f * q) for f in chosen]
+    kind: Any = type(model)  # a kinematic model: built from ndim and noise_intensity
+    models = [kind(ndim=ndim, noise_intensity=f * q) for f in chosen]
     law = SwitchingLaw(len(models), switch_probability=switch_probability)
     return InteractingModels(models=models, switching=law)
 
