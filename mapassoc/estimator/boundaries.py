@@ -330,20 +330,19 @@ class WindowBoundaries:
                 continue
             # Uninitiated states convert at their next later detection: continue_each
             # takes them in one batch where all convert at the same scan.
-            for batch in (group,):
-                v = leaves[batch]
-                d = int(nodes.state_dims[v[0]])
-                start = PathState(
-                    scan=last_scan,
-                    means=nodes.means[v, :d],
-                    covariances=nodes.covariances[v, :d, :d],
-                    initiated=initiated,
-                    first_time=nodes.first_time[v],
-                    value=np.zeros(len(v)),
-                )
-                for i, (rows, state) in enumerate(obj.continue_each(start, targets)):
-                    if rows.size:
-                        firsts[i].append((batch[rows], state))
+            v = leaves[group]
+            d = int(nodes.state_dims[v[0]])
+            start = PathState(
+                scan=last_scan,
+                means=nodes.means[v, :d],
+                covariances=nodes.covariances[v, :d, :d],
+                initiated=initiated,
+                first_time=nodes.first_time[v],
+                value=np.zeros(len(v)),
+            )
+            for i, (rows, state) in enumerate(obj.continue_each(start, targets)):
+                if rows.size:
+                    firsts[i].append((group[rows], state))
         pending: list[tuple[int, NDArray[np.int64], PathState]] = []
         for i, reached in enumerate(firsts):
             if not reached:
