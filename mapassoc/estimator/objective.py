@@ -63,6 +63,7 @@ from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config, check_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
+from mapassoc.estimator.converging import converge_in_lockstep
 from mapassoc.estimator.refiltering import ConvergeRequest, Refiltering
 from mapassoc.estimator.terms import ScanTerms, detection_term
 from mapassoc.estimator.track_paths import CONVERGED, PathState, TrackPath, Trajectory
@@ -193,7 +194,7 @@ class RecordingObjective:
                 )
             if m > state.scan + 1:
                 state = self.advance_missed(state, m - 1)
-            state = self._detect(state, m, j)
+            state = self.detect(state, m, j)
         return state
 
     def continue_each(
@@ -306,8 +307,9 @@ class RecordingObjective:
         term = detection_term(self.terms.log_pd[m], loglik, self.terms.log_clutter[m])
         return np.where(d2 <= self.terms.thresholds[m], term, -math.inf)
 
-    def _detect(self, state: PathState, m: int, j: int) -> PathState:
-        """The step to scan ``m`` = ``state.scan + 1`` continued by its detection ``j``."""
+    def detect(self, state: PathState, m: int, j: int | IntArray) -> PathState:
+        """The step to scan ``m`` = ``state.scan + 1`` continued by its detection ``j``
+        (one index in the scan for the whole batch, or one per track, shape (B,))."""
         sensor = self._sensors[m]
         scan = self.scans[m]
         initiated = state.initiated
@@ -433,41 +435,7 @@ class RecordingObjective:
             Each track's value so far plus the terms of the reference's detections from
             ``first`` on and its best ending (``-inf`` where a detection is out of gate).
         """
-        B = len(start)
-        out = np.full(B, -math.inf)
-        rows = np.arange(B)
-        state = start
-        last = len(reference.path) - 1
-        stop = last if max_detections is None else min(last, first + max_detections - 1)
-        for k in range(first, stop + 1):
-            state = self.continue_paths(state, reference.path[k : k + 1])
-            finite = np.flatnonzero(np.isfinite(state.value))
-            if finite.size < len(state):
-                state, rows = state.take(finite), rows[finite]
-            if len(state) == 0:
-                return out
-            if k == stop < last:  # cut short: the reference's terms from here on
-                out[rows] = state.value + (reference.values[last] - reference.values[k])
-                return out + self.terms.tails[reference.path[last][0]]
-            if k < last and state.initiated == bool(reference.initiated[k]):
-                mean, cov = reference.means[k], reference.covariances[k]
-                if state.means.shape[1:] == mean.shape:
-                    same = np.all(
-                        np.abs(state.means - mean) <= CONVERGED * (1.0 + np.abs(mean)), axis=1
-                    ) & np.all(
-                        np.abs(state.covariances - cov) <= CONVERGED * (1.0 + np.abs(cov)),
-                        axis=(1, 2),
-                    )
-                    if np.any(same):
-                        rest = reference.values[last] - reference.values[k]
-                        out[rows[same]] = state.value[same] + rest
-                        keep = np.flatnonzero(~same)
-                        state, rows = state.take(keep), rows[keep]
-                        if len(state) == 0:
-                            break
-        if len(state):
-            out[rows] = state.value
-        return out + self.terms.tails[reference.path[last][0]]
+        return converge_in_lockstep(self, [(start, reference, first)], max_detections)[0]
 
     def continue_converging_many(
         self,
@@ -487,15 +455,15 @@ class RecordingObjective:
         """
         out: list[FloatArray] = [np.full(len(start), -math.inf) for start, _, _ in requests]
         batchable: list[int] = []
+        others: list[int] = []
         for i, (start, reference, first) in enumerate(requests):
             if len(start) == 0:
                 continue
-            if self._batchable(start, reference, first):
-                batchable.append(i)
-            else:
-                out[i] = self.continue_converging(
-                    start, reference, first, max_detections=max_detections
-                )
+            (batchable if self._batchable(start, reference, first) else others).append(i)
+        if others:
+            rest = converge_in_lockstep(self, [requests[i] for i in others], max_detections)
+            for i, values in zip(others, rest, strict=True):
+                out[i] = values
         if batchable:
             chosen = [requests[i] for i in batchable]
             for i, values in zip(

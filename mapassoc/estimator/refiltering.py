@@ -28,8 +28,9 @@ import numpy as np
 from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
+from mapassoc.estimator.converging import ConvergeRequest
 from mapassoc.estimator.terms import ScanTerms
-from mapassoc.estimator.track_paths import CONVERGED, PathState, TrackPath, Trajectory
+from mapassoc.estimator.track_paths import CONVERGED, PathState, TrackPath
 from mapassoc.filtering.batch import KalmanFilter
 from mapassoc.filtering.compiled import ScanModel, filter_backend
 from mapassoc.models.measurement import LinearMeasurement, MeasurementModel
@@ -37,9 +38,6 @@ from mapassoc.models.motion import MotionModel
 
 __all__ = ["Refiltering", "ConvergeRequest"]
 
-ConvergeRequest = tuple[PathState, Trajectory, int]
-"""``(start, reference, first)``: tracks at ``start`` continued through
-``reference.path[first:]``."""
 
 
 class Refiltering:

@@ -202,29 +202,36 @@ class MixtureInnovation(Innovation):
 
     Attributes
     ----------
-    parts : tuple of Innovation, length M
-        Each model's predicted measurements of the batch.
+    models : Innovation
+        Every model's predicted measurements of the batch in one: its arrays have the
+        leading axes ``(B, M)`` (``z_hat`` of shape ``(B, M, dz)``, ...), so each step
+        is one numpy call for all the models rather than one per model.
     log_c : ndarray, shape (B, M)
         Log predicted model probabilities.
     """
 
-    parts: tuple[Innovation, ...]
+    models: Innovation
     log_c: FloatArray
 
-    def model_residuals(self, nu: FloatArray, rows: IntArray | None = None) -> list[FloatArray]:
-        """Each model's residual of the detections ``z_hat + nu`` (rows ``rows``)."""
+    def model_residuals(self, nu: FloatArray, rows: IntArray | None = None) -> FloatArray:
+        """Each model's residual of the detections ``z_hat + nu`` (rows ``rows``).
+
+        Parameters
+        ----------
+        nu : ndarray, shape (K, dz)
+        rows : ndarray of int, shape (K,), optional
+
+        Returns
+        -------
+        ndarray, shape (K, M, dz)
+        """
         z_hat = self.z_hat if rows is None else self.z_hat[rows]
-        z = z_hat + nu
-        return [part.residuals(z, rows) for part in self.parts]
+        return self.models.residuals((z_hat + nu)[..., None, :], rows)
 
     def model_scores(self, nu: FloatArray, rows: IntArray | None = None) -> FloatArray:
         """``log c_j + log N(nu_j; 0, S_j)`` of each model, shape ``nu.shape[:-1] + (M,)``."""
         log_c = self.log_c if rows is None else self.log_c[rows]
-        terms = [
-            part.scores(nu_j, rows)[1]
-            for part, nu_j in zip(self.parts, self.model_residuals(nu, rows), strict=True)
-        ]
-        return np.stack(terms, axis=-1) + log_c
+        return self.models.scores(self.model_residuals(nu, rows), rows)[1] + log_c
 
     def scores(self, nu: FloatArray, rows: IntArray | None = None) -> tuple[FloatArray, FloatArray]:
         """``d2`` against the mixture's moments and the IMM predictive log-likelihood."""
@@ -241,25 +248,23 @@ class MixtureInnovation(Innovation):
 
 
 def _mixture_innovation(
-    parts: list[Innovation], log_c: FloatArray, measurement: MeasurementModel
+    models: Innovation, log_c: FloatArray, measurement: MeasurementModel
 ) -> MixtureInnovation:
-    """The moment-matched predicted measurement of model innovations ``parts``."""
+    """The moment-matched predicted measurement of the models' innovations ``models``
+    (arrays with leading axes ``(B, M)``)."""
     c = np.exp(log_c)  # (B, M)
-    z_parts = np.stack([part.z_hat for part in parts], axis=1)  # (B, M, dz)
+    z_parts = models.z_hat  # (B, M, dz)
     z_hat = np.einsum("bj,bjd->bd", c, z_parts)
     d = np.asarray(measurement.residual(z_parts, z_hat[:, None, :]), dtype=np.float64)
     z_hat = z_hat + np.einsum("bj,bjd->bd", c, d)  # a wrapped angle's circular mean
     d = np.asarray(measurement.residual(z_parts, z_hat[:, None, :]), dtype=np.float64)
-    S_parts = np.stack([part.S for part in parts], axis=1)
-    S = np.einsum("bj,bjde->bde", c, S_parts) + np.einsum("bj,bjd,bje->bde", c, d, d)
+    S = np.einsum("bj,bjde->bde", c, models.S) + np.einsum("bj,bjd,bje->bde", c, d, d)
     S = 0.5 * (S + np.swapaxes(S, -1, -2))
     S_inv, logdet = inverse_and_logdet(S)
-    H = np.concatenate(
-        [c[:, j, None, None] * part.H for j, part in enumerate(parts)]
-        + [np.zeros((len(z_hat), z_hat.shape[1], len(parts)))],
-        axis=2,
-    )
-    return MixtureInnovation(measurement, z_hat, H, S, S_inv, logdet, tuple(parts), log_c)
+    B, M, dz, n = models.H.shape
+    weighted = np.swapaxes(c[:, :, None, None] * models.H, 1, 2).reshape(B, dz, M * n)
+    H = np.concatenate([weighted, np.zeros((B, dz, M))], axis=2)
+    return MixtureInnovation(measurement, z_hat, H, S, S_inv, logdet, models, log_c)
 
 
 class KalmanFilter:
@@ -272,6 +277,7 @@ class KalmanFilter:
     def __init__(self, *, motion: MotionModel | None = None) -> None:
         self._motion: dict[tuple[int, float], tuple[MotionModel, FloatArray, FloatArray]] = {}
         self._switching: dict[float, FloatArray] = {}
+        self._stacked: dict[float, tuple[InteractingModels, FloatArray, FloatArray]] = {}
         self.models = motion if isinstance(motion, InteractingModels) else None
         """The model set whose filter states :meth:`innovation` recognises, or None."""
 
@@ -336,11 +342,17 @@ class KalmanFilter:
             raise InputError(f"x must be (B, n) and P (B, n, n), got {x.shape} and {P.shape}")
         if self.models is not None and x.shape[1] == self.models.filter_state_dim:
             log_c, xs, Ps = unpack_models(x, P, self.models.n_models)
-            parts = [
-                self.innovation(measurement, xs[:, j], Ps[:, j])
-                for j in range(self.models.n_models)
-            ]
-            return _mixture_innovation(parts, log_c, measurement)
+            (B, M, n), dz = xs.shape, measurement.measurement_dim
+            flat = self.innovation(measurement, xs.reshape(B * M, n), Ps.reshape(B * M, n, n))
+            models = Innovation(
+                measurement,
+                flat.z_hat.reshape(B, M, dz),
+                flat.H.reshape(B, M, dz, n),
+                flat.S.reshape(B, M, dz, dz),
+                flat.S_inv.reshape(B, M, dz, dz),
+                flat.logdet.reshape(B, M),
+            )
+            return _mixture_innovation(models, log_c, measurement)
         H = np.asarray(measurement.jacobian(x), dtype=np.float64)
         S = innovation_covariance(H, P, measurement.noise_covariance)
         S_inv, logdet = inverse_and_logdet(S)
@@ -397,14 +409,38 @@ class KalmanFilter:
                 self._switching.clear()
             Pi = self._switching[key] = models.switching.at(key)
         log_c, x0, P0 = mix(*unpack_models(x, P, models.n_models), Pi)
-        moved = [
-            self.predict(model, x0[:, j], P0[:, j], dt)[:2]
-            for j, model in enumerate(models.models)
-        ]
-        xs = np.stack([m[0] for m in moved], axis=1)
-        Ps = np.stack([m[1] for m in moved], axis=1)
+        stacked = self._stacked_motion(models, key)
+        if stacked is not None:  # every model linear: one prediction for all of them
+            F, Q = stacked
+            xs = np.einsum("jab,...jb->...ja", F, x0)
+            Ps = predicted_covariance(F, P0, Q)
+        else:
+            moved = [
+                self.predict(model, x0[:, j], P0[:, j], dt)[:2]
+                for j, model in enumerate(models.models)
+            ]
+            xs = np.stack([m[0] for m in moved], axis=1)
+            Ps = np.stack([m[1] for m in moved], axis=1)
         x_new, P_new = pack_models(log_c, xs, Ps)
         return x_new, P_new, np.zeros((0, 0))
+
+    def _stacked_motion(
+        self, models: InteractingModels, dt: float
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """Every model's ``(F(dt), Q(dt))`` stacked, shapes ``(M, n, n)``, or None when
+        a model is nonlinear (cached with the models' own matrices)."""
+        found = self._stacked.get(dt)
+        if found is not None and found[0] is models:
+            return found[1], found[2]
+        matrices = [self.linear_motion(model, dt) for model in models.models]
+        if any(m is None for m in matrices):
+            return None
+        if len(self._stacked) >= _MOTION_CACHE_SIZE:
+            self._stacked.clear()
+        F = np.stack([m[0] for m in matrices if m is not None])
+        Q = np.stack([m[1] for m in matrices if m is not None])
+        self._stacked[dt] = (models, F, Q)
+        return F, Q
 
     def _update_set(
         self,
@@ -415,19 +451,18 @@ class KalmanFilter:
         nu: FloatArray,
     ) -> tuple[FloatArray, FloatArray]:
         """Each model's update with its own residual, and the model probabilities."""
-        M = len(innovation.parts)
+        M = innovation.log_c.shape[1]
         _, xs, Ps = unpack_models(x[rows], P[rows], M)
-        residuals = innovation.model_residuals(nu, rows)
-        updated = [
-            joseph_update(xs[:, j], Ps[:, j], residuals[j], part.S_inv[rows], part.H[rows],
-                          part.measurement.noise_covariance)  # fmt: skip
-            for j, part in enumerate(innovation.parts)
-        ]
+        parts = innovation.models
+        x_post, P_post = joseph_update(
+            xs,
+            Ps,
+            innovation.model_residuals(nu, rows),
+            parts.S_inv[rows],
+            parts.H[rows],
+            parts.measurement.noise_covariance,
+        )
         log_mu = model_log_probabilities(
             innovation.log_c[rows], innovation.model_scores(nu, rows) - innovation.log_c[rows]
         )
-        return pack_models(
-            log_mu,
-            np.stack([u[0] for u in updated], axis=1),
-            np.stack([u[1] for u in updated], axis=1),
-        )
+        return pack_models(log_mu, x_post, P_post)

@@ -14,7 +14,7 @@ import pytest
 from support import NO_TIME_LIMIT, all_track_sets, fresh_hypothesis_paths, tiny_recording
 
 from mapassoc.errors import InputError
-from mapassoc.estimator.objective import RecordingObjective
+from mapassoc.estimator.objective import RecordingObjective, paths_from_rows
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.scenarios import build_scenario
@@ -218,3 +218,38 @@ def test_noise_levels_scales_the_models_noise_and_refuses_other_models() -> None
         noise_levels(CoordinatedTurn(speed_noise_intensity=1.0, turn_rate_noise_intensity=0.1))
     with pytest.raises(InputError, match="factors must be positive"):
         noise_levels(cv, factors=(1.0, 0.0))
+
+
+@pytest.mark.parametrize("name", ["crossing", "two_sensors"])
+def test_joins_in_a_set_continued_in_lockstep_are_the_whole_re_filtering(name: str) -> None:
+    """The refinement's joins in a model set (continue_converging_many: requests of
+    different starts and references stacked scan by scan, each stopped where its state
+    meets the reference's) give each track what re-filtering it along the whole rest of
+    the reference gives, and what each request alone gives."""
+    scenario = build_scenario(name, seed=1)
+    config = _with_set(scenario.config, (1.0, 30.0))
+    scans = scenario.scans[:25]
+    forward = dataclasses.replace(scenario.config, estimator=dataclasses.replace(
+        scenario.config.estimator, refine_passes=0))  # fmt: skip
+    objective = RecordingObjective(config=config, scans=scans)
+    rows = WindowEstimator(config=forward).run(scans).track_rows
+    paths = [p for p in paths_from_rows(objective, rows).values() if len(p) > 6]
+    assert len(paths) >= 2
+    requests = []
+    for i, path in enumerate(paths):
+        reference, other = objective.trajectory(path), objective.trajectory(paths[i - 1])
+        for cut in (2, 3, len(path) // 2):
+            own = reference.state(cut - 1)
+            before = [k for k in range(2, len(other.path)) if other.path[k][0] < path[cut][0]]
+            starts = [own] + ([other.state(before[-1])] if before else [])
+            requests.extend((start, reference, cut) for start in starts)
+    many = objective.continue_converging_many(requests)
+    finite = 0
+    for (start, reference, first), got in zip(requests, many, strict=True):
+        alone = objective.continue_converging(start, reference, first)
+        np.testing.assert_allclose(got, alone, rtol=1e-12, atol=1e-9)
+        whole = objective.continue_paths(start, reference.path[first:])
+        expected = whole.value + objective.terms.tails[reference.path[-1][0]]
+        np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-6)
+        finite += int(np.isfinite(got).sum())
+    assert finite >= len(paths)
