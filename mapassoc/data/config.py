@@ -12,11 +12,13 @@ Schema (unknown keys anywhere are an error; every value is checked)::
 
     [motion]
     model = "constant_velocity"   # constant_velocity | constant_acceleration | random_walk
-                                  # | coordinated_turn | singer | imm
+                                  # | coordinated_turn | constant_turn | singer | imm
     ndim = 2                      # 1, 2 or 3; linear models only (coordinated_turn is 2-D)
     noise_intensity = 0.5         # constant_velocity, constant_acceleration, random_walk
     # coordinated_turn instead: speed_noise_intensity = ..., turn_rate_noise_intensity = ...
     # singer instead: ndim, time_constant = ... (tau > 0), acceleration_std = ... (> 0)
+    # constant_turn (2-D, constant_velocity's state) instead: turn_rate = ... (rad per
+    # unit time, any sign), noise_intensity = ...
     # (the keys of each model: mapassoc.models.motion.MOTION_REGISTRY)
     # imm (interacting multiple models) instead: model = "imm", switch_probability = ...
     # (leaving the current model within one unit of time) or matrix = [[...], ...]
@@ -492,6 +494,8 @@ def _parse_single_motion(
             if ndim not in (1, 2, 3):
                 raise parser.fail(key, f"must be 1, 2 or 3 spatial dimensions, got {ndim!r}")
             values[setting.key] = ndim
+        elif setting.kind == "real":
+            values[setting.key] = parser.finite(raw, key)
         else:
             values[setting.key] = parser.positive(raw, key)
     try:
@@ -1172,7 +1176,7 @@ def _motion_lines(motion: MotionModel, key: str = "motion") -> list[str]:
         raise ConfigError(key, f"cannot write motion model {motion!r} as TOML")
     lines = [f"model = {_toml_string(spec.name)}"]
     for setting in spec.settings:
-        value = getattr(motion, setting.key)
+        value = getattr(motion, setting.attribute or setting.key)
         written = str(int(value)) if setting.kind == "ndim" else _toml_float(value)
         lines.append(f"{setting.key} = {written}")
     return lines

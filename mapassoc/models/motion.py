@@ -15,6 +15,9 @@ Linear models (Afzal's survey, section 4.3, "Motion Model"):
   (the scalar model of the n-object posterior's and of single-object tracking in clutter's
   worked examples, with ``dt = 1``).
 
+* :class:`ConstantTurn`: a turn at a known rate in the 2-D constant-velocity state
+  (Bar-Shalom, Li & Kirubarajan 2001, section 11.7.1), the turn model of a model set.
+
 Nonlinear model (Afzal's survey, "Coordinated Turn"):
 
 * :class:`CoordinatedTurn`: state ``(x, y, speed, heading, turn_rate)``, with the
@@ -54,6 +57,7 @@ __all__ = [
     "ConstantAcceleration",
     "RandomWalk",
     "CoordinatedTurn",
+    "ConstantTurn",
     "Singer",
     "MotionSetting",
     "MotionSpec",
@@ -825,6 +829,106 @@ class CoordinatedTurn(MotionModel):
         )
 
 
+def _turn_terms(u: float) -> tuple[float, float, float, float]:
+    """``sin(u) / u``, ``(1 - cos u) / u``, ``(1 - cos u) / u^2`` and
+    ``(u - sin u) / u^3`` of ``u = omega dt``, stable as ``u -> 0`` (their series below
+    ``|u| = 1e-3``, where the closed forms lose digits; the first omitted terms are then
+    below 1e-13 relative)."""
+    if abs(u) < 1e-3:
+        u2 = u * u
+        return 1.0 - u2 / 6.0, u / 2.0 - u * u2 / 24.0, 0.5 - u2 / 24.0, 1.0 / 6.0 - u2 / 120.0
+    s, c = math.sin(u), math.cos(u)
+    return s / u, (1.0 - c) / u, (1.0 - c) / u**2, (u - s) / u**3
+
+
+class ConstantTurn(MotionModel):
+    """Coordinated turn at a known turn rate, in the constant-velocity state space.
+
+    State ``(x, y, vx, vy)``, as :class:`ConstantVelocity` with ``ndim = 2``; the velocity
+    turns at ``omega = turn_rate`` (rad per unit time, positive counter-clockwise) and is
+    perturbed by continuous white acceleration noise of power spectral density
+    ``q = noise_intensity`` on each axis (Bar-Shalom, Li and Kirubarajan 2001, section
+    11.7.1, the turn model of a known rate).  With ``u = omega dt``, ``s = sin u``,
+    ``c = cos u``::
+
+        F = [[1, 0, s/omega, -(1-c)/omega],
+             [0, 1, (1-c)/omega, s/omega],
+             [0, 0, c, -s],
+             [0, 0, s, c]]
+
+    and ``Q = integral_0^dt e^(A t) G q G^T e^(A^T t) dt`` in closed form: the velocity
+    block ``q dt I`` (a rotation keeps isotropic noise isotropic), the position block
+    ``2 q (dt - s/omega) / omega^2 I``, the cross block
+    ``(q / omega) [[(1-c)/omega, dt - s/omega], [-(dt - s/omega), (1-c)/omega]]``.  At
+    ``omega = 0`` it is :class:`ConstantVelocity` exactly.
+
+    Why a linear turn model: in a model set with constant-velocity models it shares
+    their state space, so the IMM mixes it with them directly (the nonlinear
+    :class:`CoordinatedTurn` has another state); a set of a few turn rates of either
+    sign covers a target's turns as the classic IMM of manoeuvring aircraft does.
+
+    Parameters
+    ----------
+    turn_rate : float
+        omega, rad per unit time (any finite value; 0 is constant velocity).
+    noise_intensity : float
+        q, > 0.
+    """
+
+    def __init__(self, *, turn_rate: float, noise_intensity: float) -> None:
+        if not (isinstance(turn_rate, (int, float, np.floating)) and math.isfinite(turn_rate)):
+            raise InputError(f"turn_rate must be a finite number of rad per unit time, "
+                             f"got {turn_rate!r}")  # fmt: skip
+        self.omega = float(turn_rate)
+        self.noise_intensity = check_positive("noise_intensity", noise_intensity)
+        self.ndim = 2
+
+    state_dim = property(lambda self: 4)
+    state_names = property(lambda self: ("x", "y", "vx", "vy"))
+    position_indices = property(lambda self: (0, 1))
+    velocity_indices = property(lambda self: (2, 3))
+    is_linear = property(lambda self: True)
+
+    def turn_rate(self, state: FloatArray) -> float:
+        """omega, whatever the state (the protocol's turn rate of a state)."""
+        return self.omega
+
+    def matrices(self, dt: float) -> tuple[FloatArray, FloatArray]:
+        """``(F(dt), Q(dt))``, shapes ``(4, 4)`` (class docstring)."""
+        dt = _check_dt(dt)
+        w, q = self.omega, self.noise_intensity
+        u = w * dt
+        sinc, cosc, cosc2, tail = _turn_terms(u)
+        s, one_c = sinc * dt, cosc * dt  # sin(u) / omega, (1 - cos u) / omega
+        c, sn = math.cos(u), math.sin(u)
+        F = np.array([[1, 0, s, -one_c], [0, 1, one_c, s], [0, 0, c, -sn], [0, 0, sn, c]])
+        diag = q * cosc2 * dt**2  # q (1 - c) / omega^2
+        off = q * tail * w * dt**3  # q (dt - s / omega) / omega
+        Q = np.zeros((4, 4))
+        Q[0, 0] = Q[1, 1] = 2.0 * q * tail * dt**3  # 2 q (dt - s / omega) / omega^2
+        Q[2, 2] = Q[3, 3] = q * dt
+        Q[:2, 2:] = [[diag, off], [-off, diag]]
+        Q[2:, :2] = Q[:2, 2:].T
+        return F, Q
+
+    def transition(self, x: FloatArray, dt: float) -> FloatArray:
+        return np.asarray(x, dtype=float) @ self.matrices(dt)[0].T
+
+    def jacobian(self, x: FloatArray, dt: float) -> FloatArray:
+        F = self.matrices(dt)[0]
+        return np.broadcast_to(F, np.shape(x)[:-1] + F.shape).copy()
+
+    def process_noise(self, dt: float) -> FloatArray:
+        return self.matrices(dt)[1]
+
+    def birth_prior(self, birth: BirthModel) -> tuple[FloatArray, FloatArray]:
+        """That of the 2-D constant-velocity model: zero mean, ``velocity_std^2``."""
+        return np.zeros(2), np.eye(2) * birth.velocity_std**2
+
+    def __repr__(self) -> str:
+        return f"ConstantTurn(turn_rate={self.omega}, noise_intensity={self.noise_intensity})"
+
+
 # --------------------------------------------------------------------------- registry
 
 
@@ -835,18 +939,24 @@ class MotionSetting:
     Parameters
     ----------
     key : str
-        TOML key under ``[motion]``; also the constructor keyword and the attribute that
-        holds the value.
-    kind : {"ndim", "positive"}
-        ``"ndim"``: a TOML integer 1, 2 or 3; ``"positive"``: a number > 0.
+        TOML key under ``[motion]``; also the constructor keyword and, unless
+        ``attribute`` says otherwise, the attribute that holds the value.
+    kind : {"ndim", "positive", "real"}
+        ``"ndim"``: a TOML integer 1, 2 or 3; ``"positive"``: a number > 0; ``"real"``:
+        any finite number.
+    attribute : str, optional
+        The attribute that holds the value, where ``key`` names a protocol member
+        (``ConstantTurn``'s ``turn_rate`` is held in ``omega``: ``turn_rate(state)`` is
+        the protocol's method).
     """
 
     key: str
     kind: str
+    attribute: str | None = None
 
     def __post_init__(self) -> None:
-        if self.kind not in ("ndim", "positive"):
-            raise InputError(f"kind must be 'ndim' or 'positive', got {self.kind!r}")
+        if self.kind not in ("ndim", "positive", "real"):
+            raise InputError(f"kind must be 'ndim', 'positive' or 'real', got {self.kind!r}")
 
 
 @dataclass(frozen=True)
@@ -922,6 +1032,15 @@ register_motion_model(
         MotionSetting("turn_rate_noise_intensity", "positive"),
     ),
     context="for coordinated_turn (always 2-D)",
+)
+register_motion_model(
+    "constant_turn",
+    ConstantTurn,
+    (
+        MotionSetting("turn_rate", "real", attribute="omega"),
+        MotionSetting("noise_intensity", "positive"),
+    ),
+    context="for constant_turn (always 2-D)",
 )
 register_motion_model(
     "singer",

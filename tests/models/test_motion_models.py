@@ -38,6 +38,7 @@ EXAMPLES: dict[str, list[dict[str, object]]] = {
     "constant_acceleration": [{"ndim": d, "noise_intensity": 0.1} for d in (1, 2, 3)],
     "random_walk": [{"ndim": d, "noise_intensity": 0.35} for d in (1, 2, 3)],
     "coordinated_turn": [{"speed_noise_intensity": 0.01, "turn_rate_noise_intensity": 1e-4}],
+    "constant_turn": [{"turn_rate": w, "noise_intensity": 0.5} for w in (0.0, 0.05, -0.3)],
     "singer": [
         {"ndim": d, "time_constant": tau, "acceleration_std": 0.7}
         for d, tau in ((1, 5.0), (2, 20.0), (3, 0.3))
@@ -117,8 +118,8 @@ def test_registry_spec_matches_the_class(name: str, kwargs: dict[str, object]) -
     spec = motion_spec(model)
     assert spec is not None and spec.name == name and type(model) is spec.cls
     assert spec.keys == ("model", *kwargs)
-    for key, value in kwargs.items():
-        assert getattr(model, key) == value
+    for setting in spec.settings:
+        assert getattr(model, setting.attribute or setting.key) == kwargs[setting.key]
 
 
 def test_a_new_registration_is_read_and_written() -> None:
