@@ -384,19 +384,8 @@ def _reliability(
 
 def _only(tracks: TrackTable, ids: Sequence[int]) -> TrackTable:
     """The records of ``tracks`` whose track id is in ``ids``."""
-    from mapassoc.data.io import TrackTable  # noqa: F811
-
     keep = np.isin(tracks.track_ids, np.asarray(list(ids), dtype=np.int64))
-    return TrackTable(
-        track_ids=tracks.track_ids[keep],
-        times=tracks.times[keep],
-        sensors=tuple(s for s, k in zip(tracks.sensors, keep, strict=True) if k),
-        states=tracks.states[keep],
-        variances=tracks.variances[keep],
-        detection_rows=tracks.detection_rows[keep],
-        state_names=tracks.state_names,
-        existence=None if tracks.existence is None else tracks.existence[keep],
-    )
+    return tracks.select(keep)
 
 
 def _print_reliability(reliability: Sequence[tuple[float, bool]], say: object) -> None:

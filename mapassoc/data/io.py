@@ -74,8 +74,22 @@ into :class:`Origins` (false alarms get target id -1).
 per track per scan (``time``, ``sensor``) at which the track is alive; ``var_*`` are the
 marginal variances (diagonal of the covariance); ``detection_row`` is the id of the
 detection the track used at that scan (for a detections CSV file, its line), empty when
-the track missed.  An optional last column ``existence`` holds the track's existence
-probability (empty where unknown).  Read into :class:`TrackTable`.
+the track missed.  For a motion model that is a set of models (interacting multiple
+models), optional columns ``p_<model name>`` follow ``detection_row``, one per model
+(``p_constant_velocity_0,p_constant_velocity_1``: the names of
+:attr:`~mapassoc.models.interacting.InteractingModels.model_names`), holding each line's
+smoothed model probabilities: never empty, each in [0, 1], a line's summing to 1 within
+1e-6.  An optional last column ``existence`` holds the track's existence probability
+(empty where unknown); it stays last, after any model columns.  A file of one model has
+no model columns, so its bytes are those it had before the columns existed, and a
+reader that ignores unknown trailing columns still reads a set's file.  Read into
+:class:`TrackTable`.
+
+Example (a 1-D constant-velocity pair, refined tracks; the header is one line)::
+
+    track_id,time,sensor,x,vx,var_x,var_vx,detection_row,
+        p_constant_velocity_0,p_constant_velocity_1,existence
+    0,0.0,radar,1.5,0.0,1.0,4.0,2,0.5,0.5,0.98
 """
 
 from __future__ import annotations
@@ -99,6 +113,8 @@ from mapassoc.data.ingest import (
 )
 from mapassoc.data.records import (
     EXISTENCE_COLUMN,
+    MODEL_PROBABILITY_PREFIX,
+    MODEL_PROBABILITY_TOLERANCE,
     ORIGINS_COLUMNS,
     TRACK_FIXED_COLUMNS,
     TRACK_ROW_COLUMN,
@@ -112,6 +128,7 @@ from mapassoc.data.records import (
     check_scans_for_writing,
     check_sensors,
     measurement_columns,
+    track_model_names,
     track_state_names,
     truth_state_names,
 )
@@ -764,12 +781,15 @@ def read_origins(path: PathLike) -> Origins:
 # --------------------------------------------------------------------------- tracks
 
 
-def _tracks_header(state_names: Sequence[str], existence: bool = False) -> list[str]:
+def _tracks_header(
+    state_names: Sequence[str], existence: bool = False, model_names: Sequence[str] = ()
+) -> list[str]:
     return [
         *TRACK_FIXED_COLUMNS,
         *state_names,
         *(VARIANCE_PREFIX + name for name in state_names),
         TRACK_ROW_COLUMN,
+        *(MODEL_PROBABILITY_PREFIX + name for name in model_names),
         *((EXISTENCE_COLUMN,) if existence else ()),
     ]
 
@@ -788,6 +808,7 @@ def write_tracks(path: PathLike, table: TrackTable) -> None:
         raise InputError(f"table must be a TrackTable, got {table!r}")
 
     existence = table.existence
+    probabilities = table.model_probabilities
 
     def rows() -> Iterator[list[str]]:
         for index in range(table.size):
@@ -800,12 +821,15 @@ def write_tracks(path: PathLike, table: TrackTable) -> None:
                 *(_float_text(v) for v in table.variances[index]),
                 "" if row < 0 else str(row),
             ]
+            if probabilities is not None:
+                cells.extend(_float_text(v) for v in probabilities[index])
             if existence is not None:
                 value = float(existence[index])
                 cells.append("" if math.isnan(value) else _float_text(value))
             yield cells
 
-    _write_rows(path, _tracks_header(table.state_names, existence is not None), rows())
+    header = _tracks_header(table.state_names, existence is not None, table.model_names)
+    _write_rows(path, header, rows())
 
 
 ASSOCIATIONS_HEADER = ("detection_id", "track_id", "probability")
@@ -862,7 +886,8 @@ def read_tracks(path: PathLike) -> TrackTable:
     lines = _lines(path)
     header = _read_header(path, lines, TRACKS_HEADER)
     names, var_names = track_state_names(path, header, row=1)
-    has_existence = header[-1] == EXISTENCE_COLUMN
+    columns = _TrackColumns(names, var_names, track_model_names(header),
+                            header[-1] == EXISTENCE_COLUMN)  # fmt: skip
     records: list[_TrackLine] = []
     first_line: dict[tuple[int, float, str], int] = {}
     for line, cells in lines:
@@ -877,8 +902,9 @@ def read_tracks(path: PathLike) -> TrackTable:
                 column="time",
             )
         first_line[key] = line
-        records.append(_track_line(path, line, cells, key, names, var_names, has_existence))
+        records.append(_track_line(path, line, cells, key, columns))
     size, count = len(records), len(names)
+    models = columns.model_names
     return TrackTable(
         track_ids=np.array([r.track for r in records], dtype=np.int64),
         times=np.array([r.time for r in records], dtype=float),
@@ -888,9 +914,29 @@ def read_tracks(path: PathLike) -> TrackTable:
         detection_rows=np.array([r.detection_row for r in records], dtype=np.int64),
         state_names=tuple(names),
         existence=(
-            np.array([r.existence for r in records], dtype=float) if has_existence else None
+            np.array([r.existence for r in records], dtype=float)
+            if columns.has_existence
+            else None
         ),
+        model_probabilities=(
+            np.array([r.model_probabilities for r in records], dtype=float).reshape(
+                size, len(models)
+            )
+            if models
+            else None
+        ),
+        model_names=tuple(models),
     )
+
+
+@dataclass(frozen=True)
+class _TrackColumns:
+    """The columns of a tracks file after its key, from its header."""
+
+    names: Sequence[str]
+    var_names: Sequence[str]
+    model_names: Sequence[str]
+    has_existence: bool
 
 
 @dataclass(frozen=True)
@@ -904,6 +950,7 @@ class _TrackLine:
     variance: list[float]
     detection_row: int
     existence: float
+    model_probabilities: list[float]
 
 
 def _track_key(path: str, line: int, cells: list[str]) -> tuple[int, float, str]:
@@ -921,16 +968,15 @@ def _track_line(
     line: int,
     cells: list[str],
     key: tuple[int, float, str],
-    names: Sequence[str],
-    var_names: Sequence[str],
-    has_existence: bool,
+    columns: _TrackColumns,
 ) -> _TrackLine:
     """The cells of one tracks-file line after its key, parsed (format 4)."""
     track, time, sensor = key
+    names, var_names = columns.names, columns.var_names
     fixed, count = len(TRACK_FIXED_COLUMNS), len(names)
     state_cells = cells[fixed : fixed + count]
     existence = math.nan
-    if has_existence:
+    if columns.has_existence:
         cell = cells[-1]
         existence = math.nan if cell == "" else _float_cell(path, line, EXISTENCE_COLUMN, cell)
         if not (math.isnan(existence) or 0.0 <= existence <= 1.0):
@@ -941,6 +987,9 @@ def _track_line(
                 column=EXISTENCE_COLUMN,
             )
         cells = cells[:-1]
+    models = len(columns.model_names)
+    probabilities = _model_cells(path, line, columns.model_names, cells[len(cells) - models :])
+    cells = cells[: len(cells) - models]
     state = [_float_cell(path, line, n, c) for n, c in zip(names, state_cells, strict=True)]
     variance = []
     for name, cell in zip(var_names, cells[fixed + count : -1], strict=True):
@@ -955,4 +1004,37 @@ def _track_line(
     detection_row = (
         -1 if row_cell == "" else _int_cell(path, line, TRACK_ROW_COLUMN, row_cell, minimum=0)
     )
-    return _TrackLine(track, time, sensor, state, variance, detection_row, existence)
+    return _TrackLine(
+        track, time, sensor, state, variance, detection_row, existence, probabilities
+    )
+
+
+def _model_cells(
+    path: str, line: int, model_names: Sequence[str], cells: Sequence[str]
+) -> list[float]:
+    """A line's model probabilities: each a number in [0, 1] (an empty cell is an error:
+    every record of a set has its probabilities), summing to 1 within 1e-6."""
+    values = []
+    for name, cell in zip(model_names, cells, strict=True):
+        column = MODEL_PROBABILITY_PREFIX + name
+        if cell == "":
+            raise DataFileError(
+                path, "empty cell; expected a model probability in [0, 1]", row=line,
+                column=column,
+            )  # fmt: skip
+        value = _float_cell(path, line, column, cell)
+        if not 0.0 <= value <= 1.0:
+            raise DataFileError(
+                path, f"model probability {cell!r} is not in [0, 1]", row=line, column=column
+            )
+        values.append(value)
+    total = math.fsum(values)
+    if values and abs(total - 1.0) > MODEL_PROBABILITY_TOLERANCE:
+        raise DataFileError(
+            path,
+            f"model probabilities {','.join(cells)} sum to {total!r}; expected 1 within "
+            f"{MODEL_PROBABILITY_TOLERANCE:g}",
+            row=line,
+            column=MODEL_PROBABILITY_PREFIX + model_names[0],
+        )
+    return values

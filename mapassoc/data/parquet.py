@@ -17,8 +17,10 @@ The tables have the columns of the CSV files of :mod:`mapassoc.data.io`, typed:
 2. Truth: ``target_id`` (int64), ``time`` (float64), the state components (float64).
 3. Tracks: ``track_id`` (int64), ``time`` (float64), ``sensor`` (string), the state
    components, ``var_`` + each state component (float64), ``detection_row`` (int64, the id
-   of the detection used; null for a miss), and optionally ``existence`` (float64, the
-   track's existence probability; null where unknown).
+   of the detection used; null for a miss), for a set of motion models optionally
+   ``p_`` + each model name (float64, the smoothed model probabilities; never null, in
+   [0, 1], a row's summing to 1 within 1e-6), and optionally ``existence`` (float64, the
+   track's existence probability; null where unknown), last.
 
 Readers accept any integer type for integer columns and any numeric type for float
 columns, and string or dictionary-encoded string columns for ``sensor``; a column that
@@ -49,6 +51,8 @@ from mapassoc.data.ingest import (
 )
 from mapassoc.data.records import (
     EXISTENCE_COLUMN,
+    MODEL_PROBABILITY_PREFIX,
+    MODEL_PROBABILITY_TOLERANCE,
     ORIGINS_COLUMNS,
     TRACK_FIXED_COLUMNS,
     TRACK_ROW_COLUMN,
@@ -60,6 +64,7 @@ from mapassoc.data.records import (
     check_scans_for_writing,
     check_sensors,
     measurement_columns,
+    track_model_names,
     track_state_names,
     truth_state_names,
 )
@@ -325,6 +330,7 @@ def read_tracks_parquet(path: PathLike) -> TrackTable:
     path = check_path("read_tracks_parquet: path", path)
     reader = _Reader(path)
     names, var_names = track_state_names(path, list(reader.names), row=None)
+    model_names = track_model_names(list(reader.names))
     existence = None
     if reader.names and reader.names[-1] == EXISTENCE_COLUMN:
         values, missing = reader.floats(EXISTENCE_COLUMN, nullable=True)
@@ -348,6 +354,7 @@ def read_tracks_parquet(path: PathLike) -> TrackTable:
             raise _error(path, f"variance {float(values[i])!r} is negative; expected >= 0", name, i)
         variances.append(values)
     rows, _ = reader.ints(TRACK_ROW_COLUMN, nullable=True, minimum=0)
+    probabilities = _model_probabilities(reader, model_names)
     _pairs_repeated(
         path,
         list(zip(ids.tolist(), times.tolist(), sensors, strict=True)),
@@ -364,6 +371,8 @@ def read_tracks_parquet(path: PathLike) -> TrackTable:
             detection_rows=rows,
             state_names=tuple(names),
             existence=existence,
+            model_probabilities=probabilities,
+            model_names=tuple(model_names),
         )
     except InputError as exc:
         raise DataFileError(path, str(exc)) from None
@@ -513,6 +522,38 @@ def write_detections_parquet(
     _write(pq, pa, path, pa.table(columns))
 
 
+def _model_probabilities(reader: _Reader, model_names: Sequence[str]) -> FloatArray | None:
+    """The ``p_<model>`` columns as an ``(N, M)`` array (``None`` without them): never
+    null, each in [0, 1], each row summing to 1 within the tolerance of a TrackTable."""
+    if not model_names:
+        return None
+    columns = []
+    for name in model_names:
+        column = MODEL_PROBABILITY_PREFIX + name
+        values, _ = reader.floats(column, nullable=False)
+        bad = (values < 0) | (values > 1)
+        if np.any(bad):
+            i = _first(bad)
+            raise _error(
+                reader.path, f"model probability {float(values[i])!r} is not in [0, 1]",
+                column, i,
+            )  # fmt: skip
+        columns.append(values)
+    out = _stack(columns, reader.size)
+    sums = out.sum(axis=1)
+    off = np.abs(sums - 1.0) > MODEL_PROBABILITY_TOLERANCE
+    if np.any(off):
+        i = _first(off)
+        raise _error(
+            reader.path,
+            f"model probabilities sum to {float(sums[i])!r}; expected 1 within "
+            f"{MODEL_PROBABILITY_TOLERANCE:g}",
+            MODEL_PROBABILITY_PREFIX + model_names[0],
+            i,
+        )
+    return out
+
+
 def write_tracks_parquet(path: PathLike, table: TrackTable) -> None:
     """Write a tracks Parquet file (format 3) in the table's record order; a miss gets a
     null ``detection_row``.
@@ -537,6 +578,12 @@ def write_tracks_parquet(path: PathLike, table: TrackTable) -> None:
         **_float_columns(pa, table.state_names, table.variances, prefix=VARIANCE_PREFIX),
         TRACK_ROW_COLUMN: pa.array(rows, type=pa.int64(), mask=rows < 0),
     }
+    if table.model_probabilities is not None:
+        columns.update(
+            _float_columns(
+                pa, table.model_names, table.model_probabilities, prefix=MODEL_PROBABILITY_PREFIX
+            )
+        )
     if table.existence is not None:
         columns[EXISTENCE_COLUMN] = pa.array(
             table.existence, type=pa.float64(), mask=np.isnan(table.existence)

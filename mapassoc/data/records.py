@@ -33,6 +33,7 @@ __all__ = [
     "TRACK_ROW_COLUMN",
     "EXISTENCE_COLUMN",
     "VARIANCE_PREFIX",
+    "MODEL_PROBABILITY_PREFIX",
     "TRUTH_HEADER",
     "TRACKS_HEADER",
     "check_sensors",
@@ -40,6 +41,7 @@ __all__ = [
     "check_scans_for_writing",
     "truth_state_names",
     "track_state_names",
+    "track_model_names",
 ]
 
 TRUTH_FIXED_COLUMNS = ("target_id", "time")
@@ -54,6 +56,13 @@ EXISTENCE_COLUMN = "existence"
 """The tracks table's optional last column (the refined tracks' existence)."""
 VARIANCE_PREFIX = "var_"
 """Prefix of a state component's variance column in a tracks table."""
+MODEL_PROBABILITY_PREFIX = "p_"
+"""Prefix of a model's probability column in a tracks table of a model set: the optional
+columns ``p_<model name>`` after ``detection_row`` (and before ``existence``, which stays
+the last column, so that a reader that looks for it there still finds it)."""
+MODEL_PROBABILITY_TOLERANCE = 1e-6
+"""How far from 1 a record's model probabilities may sum (the smoother normalises in log
+space, so its rows are within rounding of 1; a file written by hand to 6 digits is too)."""
 
 
 def check_sensors(sensors: Mapping[str, Sensor]) -> list[Sensor]:
@@ -194,6 +203,69 @@ def _float_array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> FloatAr
     return arr
 
 
+def _check_model_names(value: object, state_names: tuple[str, ...]) -> tuple[str, ...]:
+    """``model_names`` as a tuple: plain, distinct names whose ``p_`` columns clash with
+    no other column of the table."""
+    if isinstance(value, str) or not isinstance(value, Sequence):
+        raise InputError(f"model_names must be a tuple of model names, got {value!r}")
+    out = tuple(value)
+    for name in out:
+        _check_plain_name("model", name, ',"\r\n', "commas, quotes, line breaks")
+    if len(set(out)) != len(out):
+        raise InputError(f"model_names must be distinct, got {out!r}")
+    taken = {
+        *TRACK_FIXED_COLUMNS, TRACK_ROW_COLUMN, EXISTENCE_COLUMN, *state_names,
+        *(VARIANCE_PREFIX + name for name in state_names),
+    }  # fmt: skip
+    for name in out:
+        if MODEL_PROBABILITY_PREFIX + name in taken:
+            raise InputError(
+                f"model_names entry {name!r} gives the column "
+                f"{MODEL_PROBABILITY_PREFIX + name!r}, which the table already has; expected "
+                "a name whose probability column is new"
+            )
+    return out
+
+
+def _check_model_probabilities(
+    value: ArrayLike | None, names: tuple[str, ...], count: int
+) -> FloatArray | None:
+    """``model_probabilities`` as a read-only ``(count, len(names))`` array of probability
+    rows, or ``None`` (then ``names`` must be empty)."""
+    if value is None:
+        if names:
+            raise InputError(
+                f"model_names is {names!r} but model_probabilities is None; expected no "
+                "model names without their probabilities"
+            )
+        return None
+    arr = check_numeric_array("model_probabilities", value)
+    if not names or arr.shape != (count, len(names)):
+        raise InputError(
+            f"model_probabilities must have shape ({count}, {len(names)}) (records, "
+            f"model_names), got {arr.shape}"
+            + ("; model_names must name its columns" if not names else "")
+        )
+    if not np.all(np.isfinite(arr)):
+        raise InputError("model_probabilities must contain only finite values, got nan or inf")
+    if np.any((arr < 0) | (arr > 1)):
+        bad = float(arr[(arr < 0) | (arr > 1)][0])
+        raise InputError(
+            f"model_probabilities must hold probabilities in [0, 1], got the value {bad!r}"
+        )
+    sums = arr.sum(axis=1)
+    off = np.abs(sums - 1.0) > MODEL_PROBABILITY_TOLERANCE
+    if np.any(off):
+        row = int(np.argmax(off))
+        raise InputError(
+            f"model_probabilities row {row} sums to {float(sums[row])!r}; expected each row "
+            f"to sum to 1 within {MODEL_PROBABILITY_TOLERANCE:g}"
+        )
+    out = arr.copy()
+    out.setflags(write=False)
+    return out
+
+
 def _positions(
     state_names: tuple[str, ...], states: FloatArray, position_names: Sequence[str]
 ) -> FloatArray:
@@ -332,6 +404,18 @@ class TrackTable(_StateRecords):
     existence : ndarray, shape (N,), optional
         The track's existence probability (the same on every record of a track; ``nan``
         where it is unknown), written as the optional last column ``existence``.
+    model_probabilities : ndarray, shape (N, M), optional
+        For a motion model that is a set of ``M`` models (interacting multiple models):
+        each record's smoothed model probabilities, a probability vector per row (entries
+        in [0, 1] summing to 1 within ``MODEL_PROBABILITY_TOLERANCE``), written as the
+        optional columns ``p_<model name>`` after ``detection_row``.  ``None`` (the
+        default) for a single model, whose files have no such columns.  Unlike
+        ``existence`` there is no ``nan`` for unknown: every smoothed record of a set
+        has its probabilities, and a partial row would not be a distribution.
+    model_names : tuple of str, length M
+        The models' names, naming the columns (``p_`` + name; for a set,
+        :attr:`mapassoc.models.interacting.InteractingModels.model_names`); empty exactly
+        when ``model_probabilities`` is ``None``.
 
     A (track_id, time, sensor) triple appears at most once.
     """
@@ -344,6 +428,8 @@ class TrackTable(_StateRecords):
     detection_rows: IntArray
     state_names: tuple[str, ...]
     existence: FloatArray | None = None
+    model_probabilities: FloatArray | None = None
+    model_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         names = _check_state_names(
@@ -391,6 +477,35 @@ class TrackTable(_StateRecords):
             existence = existence.copy()
             existence.setflags(write=False)
             object.__setattr__(self, "existence", existence)
+        model_names = _check_model_names(self.model_names, names)
+        object.__setattr__(self, "model_names", model_names)
+        object.__setattr__(
+            self,
+            "model_probabilities",
+            _check_model_probabilities(self.model_probabilities, model_names, count),
+        )
+
+    def select(self, keep: ArrayLike) -> TrackTable:
+        """The records where the boolean mask ``keep`` (shape ``(N,)``) is true, every
+        column carried along (existence and model probabilities included), in order."""
+        mask = np.asarray(keep)
+        if mask.dtype != np.bool_ or mask.shape != (self.size,):
+            raise InputError(
+                f"keep must be a boolean mask of shape ({self.size},), got dtype {mask.dtype} "
+                f"and shape {mask.shape}"
+            )
+        probabilities = self.model_probabilities
+        return dataclasses.replace(
+            self,
+            track_ids=self.track_ids[mask],
+            times=self.times[mask],
+            sensors=tuple(s for s, k in zip(self.sensors, mask.tolist(), strict=True) if k),
+            states=self.states[mask],
+            variances=self.variances[mask],
+            detection_rows=self.detection_rows[mask],
+            existence=None if self.existence is None else self.existence[mask],
+            model_probabilities=None if probabilities is None else probabilities[mask],
+        )
 
     def with_existence(self, by_track: Mapping[int, float]) -> TrackTable:
         """This table with each record's ``existence`` taken from ``by_track`` (track id ->
@@ -410,13 +525,16 @@ class TrackTable(_StateRecords):
         variances: Sequence[FloatArray],
         detection_rows: Sequence[int],
         state_names: tuple[str, ...],
+        model_probabilities: ArrayLike | None = None,
+        model_names: tuple[str, ...] = (),
     ) -> TrackTable:
         """A table from one record per (track, scan) in any order, sorted by (time, track
         id, scan index): the order every tracker writes.
 
         ``states`` and ``variances`` hold one ``(n,)`` vector per record, ``n =
         len(state_names)``; ``scan_indices`` only breaks ties between the scans of two
-        sensors at one time.
+        sensors at one time.  ``model_probabilities``, for a set of models, holds one
+        ``(M,)`` vector per record, ``M = len(model_names)``, sorted with the rest.
         """
         n = len(state_names)
         count = len(track_ids)
@@ -435,6 +553,14 @@ class TrackTable(_StateRecords):
             variances=np.asarray(variances, dtype=float).reshape(count, n)[order],
             detection_rows=np.asarray(detection_rows, dtype=np.int64)[order],
             state_names=tuple(state_names),
+            model_probabilities=(
+                None
+                if model_probabilities is None
+                else np.asarray(model_probabilities, dtype=float).reshape(
+                    count, len(model_names)
+                )[order]
+            ),
+            model_names=tuple(model_names),
         )
 
 
@@ -464,7 +590,8 @@ def truth_state_names(path: str, header: Sequence[str], *, row: int | None) -> l
     return names
 
 TRACKS_HEADER = (
-    "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row[,existence]"
+    "track_id,time,sensor,<state names>,<var_ + each state name>,detection_row"
+    "[,<p_ + each model name>][,existence]"
 )
 """The header of a tracks file, as error messages state it."""
 
@@ -477,6 +604,18 @@ def track_state_names(
     expected = TRACKS_HEADER
     if header and header[-1] == EXISTENCE_COLUMN:
         header = header[:-1]
+    end = _track_row_end(header)
+    for name in header[end:]:
+        if not name.startswith(MODEL_PROBABILITY_PREFIX) or name == MODEL_PROBABILITY_PREFIX:
+            raise DataFileError(
+                path,
+                f"column {name!r} after {TRACK_ROW_COLUMN!r}; expected only model probability "
+                f"columns {MODEL_PROBABILITY_PREFIX}<model name>, then {EXISTENCE_COLUMN!r} "
+                f"last (header {expected})",
+                row=row,
+                column=name,
+            )
+    header = header[:end]
     for position, name in enumerate(TRACK_FIXED_COLUMNS):
         if position >= len(header) or header[position] != name:
             found = header[position] if position < len(header) else None
@@ -515,3 +654,21 @@ def track_state_names(
             )
     var_names = middle[count:]
     return list(names), list(var_names)
+
+
+def _track_row_end(header: Sequence[str]) -> int:
+    """Index just after a tracks header's last ``detection_row`` column (``existence``
+    already left out), or its length when it has none: the model probability columns
+    follow.  ``detection_row`` cannot be a state name, so its position is unambiguous."""
+    for position in range(len(header) - 1, -1, -1):
+        if header[position] == TRACK_ROW_COLUMN:
+            return position + 1
+    return len(header)
+
+
+def track_model_names(header: Sequence[str]) -> list[str]:
+    """The model names of the ``p_<model name>`` columns of a tracks header already
+    checked by :func:`track_state_names` (empty for a single model's file)."""
+    if header and header[-1] == EXISTENCE_COLUMN:
+        header = header[:-1]
+    return [name[len(MODEL_PROBABILITY_PREFIX) :] for name in header[_track_row_end(header) :]]

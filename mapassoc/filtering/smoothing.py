@@ -47,6 +47,7 @@ works for any model that converts, with dimensions from ``state_dim``.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -70,7 +71,7 @@ from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
 from mapassoc.models.population import BirthModel
 
-__all__ = ["Associations", "smooth_track", "smooth_tracks"]
+__all__ = ["Associations", "SmoothedTrack", "smoothed_track", "smooth_track", "smooth_tracks"]
 
 #: Track id -> {scan index -> index of the track's detection in that scan}.
 Associations = Mapping[int, Mapping[int, int]]
@@ -166,12 +167,38 @@ def _to_model_space(
     return x, P
 
 
+@dataclass(frozen=True, eq=False)
+class SmoothedTrack:
+    """One track smoothed over the scans from its first to its last detection.
+
+    Attributes
+    ----------
+    scan_indices : list of int, length T
+    states : ndarray, shape (T, n)
+    covariances : ndarray, shape (T, n, n)
+    rows : list of int, length T
+        Detection id used at each scan, -1 for a miss.
+    model_probabilities : ndarray, shape (T, M), or None
+        For a set of models, Kim's smoothed model probabilities at each scan (each row a
+        probability vector); ``None`` for a single model, which has nothing to weigh.
+    """
+
+    scan_indices: list[int]
+    states: FloatArray
+    covariances: FloatArray
+    rows: list[int]
+    model_probabilities: FloatArray | None = None
+
+
 def smooth_track(
     scans: Sequence[Scan],
     detections: Mapping[int, int],
     config: Config,
 ) -> tuple[list[int], FloatArray, FloatArray, list[int]]:
     """Smoothed moments of one track over the scans from its first to its last detection.
+
+    The moments of :func:`smoothed_track` as a tuple (the model probabilities of a set
+    left out), kept for the callers that unpack four values.
 
     Parameters
     ----------
@@ -187,9 +214,37 @@ def smooth_track(
     covariances : ndarray, shape (T, n, n)
     rows : list of int, length T (-1 for a miss)
     """
+    track = smoothed_track(scans, detections, config)
+    return track.scan_indices, track.states, track.covariances, track.rows
+
+
+def smoothed_track(
+    scans: Sequence[Scan], detections: Mapping[int, int], config: Config
+) -> SmoothedTrack:
+    """One track smoothed (module docstring), with a set's model probabilities.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+    detections : mapping of int to int
+        Scan index -> index of the track's detection in that scan.
+    config : Config
+
+    Returns
+    -------
+    SmoothedTrack
+    """
     motion = config.motion
     if isinstance(motion, InteractingModels):
         return _smooth_interacting(scans, detections, config, motion)
+    return SmoothedTrack(*_smooth_single(scans, detections, config))
+
+
+def _smooth_single(
+    scans: Sequence[Scan], detections: Mapping[int, int], config: Config
+) -> tuple[list[int], FloatArray, FloatArray, list[int]]:
+    """:func:`smoothed_track` for one motion model: RTS, through a conversion if any."""
+    motion = config.motion
     birth = config.birth
     converts = needs_conversion(motion)
     model = initiation_model(motion)
@@ -249,13 +304,17 @@ def smooth_track(
 
 def _smooth_interacting(
     scans: Sequence[Scan], detections: Mapping[int, int], config: Config, motion: InteractingModels
-) -> tuple[list[int], FloatArray, FloatArray, list[int]]:
-    """:func:`smooth_track` for a model set: Kim's IMM smoother, the models' combination.
+) -> SmoothedTrack:
+    """:func:`smoothed_track` for a model set: Kim's IMM smoother, the models' combination
+    and their smoothed probabilities.
 
     The run starts every model at the single-point initiation of the first detection
     with the prior model probabilities (the trees start a track with the first model
     alone and enter the set at its second detection; the two differ only in the first
-    interval's process noise).
+    interval's process noise).  The probabilities are the smoother's log probabilities
+    exponentiated and each row divided by its sum: the smoother normalises in log space,
+    and the division removes the rounding of ``exp`` so that a row sums to 1 as closely
+    as floats allow.
     """
     first, last = min(detections), max(detections)
     scan_indices = list(range(first, last + 1))
@@ -275,7 +334,9 @@ def _smooth_interacting(
     run = imm_filter(motion.models, motion.switching, x0, P0, steps, log_mu0=log_mu0)
     smoothed = imm_smooth(motion.models, motion.switching, run)
     rows = [int(scans[k].rows[detections[k]]) if k in detections else -1 for k in scan_indices]
-    return scan_indices, smoothed.x, smoothed.P, rows
+    probabilities = np.exp(smoothed.log_probabilities)
+    probabilities /= probabilities.sum(axis=1, keepdims=True)
+    return SmoothedTrack(scan_indices, smoothed.x, smoothed.P, rows, probabilities)
 
 
 def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Config) -> TrackTable:
@@ -297,7 +358,10 @@ def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Con
         One row per track per scan from its first to its last detection (scans of every
         sensor count): ``states`` the smoothed mean in the motion model's state space,
         ``variances`` the smoothed covariance diagonal, ``detection_rows`` the row used or
-        ``-1``.  Sorted by (time, track_id), then scan order.
+        ``-1``, and for a set of models (:class:`InteractingModels`)
+        ``model_probabilities`` each record's smoothed model probabilities with
+        ``model_names`` from the set; ``None`` for a single model, so that its tracks
+        file keeps its columns.  Sorted by (time, track_id), then scan order.
 
     Raises
     ------
@@ -311,6 +375,7 @@ def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Con
     states: list[FloatArray] = []
     variances: list[FloatArray] = []
     rows: list[int] = []
+    probabilities: list[FloatArray] = []
     for track_id in sorted(associations):
         detections = associations[track_id]
         if not detections:
@@ -321,9 +386,11 @@ def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Con
                     f"track {track_id} names detection {j} of scan {k}, which does not exist "
                     f"({len(scans)} scans)"
                 )
-        scan_indices, means, covariances, track_rows = smooth_track(scans, detections, config)
+        track = smoothed_track(scans, detections, config)
+        if track.model_probabilities is not None:
+            probabilities.extend(track.model_probabilities)
         for k, mean, covariance, row in zip(
-            scan_indices, means, covariances, track_rows, strict=True
+            track.scan_indices, track.states, track.covariances, track.rows, strict=True
         ):
             ids.append(int(track_id))
             times.append(scans[k].time)
@@ -341,4 +408,20 @@ def smooth_tracks(scans: Sequence[Scan], associations: Associations, config: Con
         variances=variances,
         detection_rows=rows,
         state_names=tuple(config.motion.state_names),
+        model_probabilities=_model_probabilities(config.motion, probabilities),
+        model_names=_model_names(config.motion),
     )
+
+
+def _model_names(motion: MotionModel) -> tuple[str, ...]:
+    """A set's model names; none for a single model."""
+    return motion.model_names if isinstance(motion, InteractingModels) else ()
+
+
+def _model_probabilities(motion: MotionModel, rows: list[FloatArray]) -> FloatArray | None:
+    """The records' model probabilities, shape ``(N, M)``: a set's even without records
+    (so that the columns of a set's file do not depend on whether it has tracks), none
+    for a single model."""
+    if not isinstance(motion, InteractingModels):
+        return None
+    return np.array(rows, dtype=float).reshape(-1, motion.n_models)

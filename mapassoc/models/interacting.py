@@ -47,7 +47,7 @@ import numpy as np
 
 from mapassoc.array_types import FloatArray
 from mapassoc.errors import InputError
-from mapassoc.models.motion import MotionModel
+from mapassoc.models.motion import MotionModel, motion_spec
 from mapassoc.models.population import BirthModel
 from mapassoc.models.switching import SwitchingLaw
 
@@ -102,6 +102,26 @@ class InteractingModels(MotionModel):
     def n_models(self) -> int:
         """Number of models M."""
         return len(self.models)
+
+    @property
+    def model_names(self) -> tuple[str, ...]:
+        """One name per model, ``<registry name>_<index>`` (``constant_velocity_0``,
+        ``constant_velocity_1``): the tracks file's model probability columns are ``p_`` +
+        each.
+
+        The index makes the names distinct (two noise levels of one model share its
+        registry name, :data:`~mapassoc.models.motion.MOTION_REGISTRY`) and stable (the
+        position in ``models`` is what the configuration's ``[[motion.models]]`` order
+        fixes); the registry name says which model it is without the settings, which
+        would make column names change with every tuned noise level.  A model outside
+        the registry is named by its class in lower case.
+        """
+        out = []
+        for index, model in enumerate(self.models):
+            spec = motion_spec(model)
+            kind = spec.name if spec is not None else type(model).__name__.lower()
+            out.append(f"{kind}_{index}")
+        return tuple(out)
 
     @property
     def state_dim(self) -> int:
