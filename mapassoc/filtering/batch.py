@@ -258,10 +258,11 @@ def _mixture_innovation(
     d = np.asarray(measurement.residual(z_parts, z_hat[:, None, :]), dtype=np.float64)
     z_hat = z_hat + np.einsum("bj,bjd->bd", c, d)  # a wrapped angle's circular mean
     d = np.asarray(measurement.residual(z_parts, z_hat[:, None, :]), dtype=np.float64)
-    S = np.einsum("bj,bjde->bde", c, models.S) + np.einsum("bj,bjd,bje->bde", c, d, d)
+    B, M, dz, n = models.H.shape
+    S = (c[:, None, :] @ models.S.reshape(B, M, dz * dz)).reshape(B, dz, dz)
+    S = S + np.swapaxes(c[:, :, None] * d, 1, 2) @ d  # sum_j c_j d_j d_j^T
     S = 0.5 * (S + np.swapaxes(S, -1, -2))
     S_inv, logdet = inverse_and_logdet(S)
-    B, M, dz, n = models.H.shape
     weighted = np.swapaxes(c[:, :, None, None] * models.H, 1, 2).reshape(B, dz, M * n)
     H = np.concatenate([weighted, np.zeros((B, dz, M))], axis=2)
     return MixtureInnovation(measurement, z_hat, H, S, S_inv, logdet, models, log_c)

@@ -152,10 +152,14 @@ def mix(
         w = np.exp(log_joint - log_c[..., None, :])
     # A model no one can be in (c_j = 0) gets any weights: its probability stays 0.
     w = np.where(np.isfinite(log_c)[..., None, :], w, 1.0 / Pi.shape[0])
-    x0 = np.einsum("...ij,...in->...jn", w, x)
+    # Matrix products rather than einsum (numpy's einsum of three operands is a plain
+    # loop): x0_j = sum_i w_ij x_i, P0_j = sum_i w_ij (P_i + d_ji d_ji^T).
+    wt = np.swapaxes(w, -1, -2)  # (..., j, i)
+    x0 = wt @ x
     d = x[..., None, :, :] - x0[..., :, None, :]  # (..., j, i, n)
-    P0 = np.einsum("...ij,...inm->...jnm", w, P)
-    P0 = P0 + np.einsum("...ij,...jin,...jim->...jnm", w, d, d)
+    *lead, M, n = x.shape
+    P0 = (wt @ P.reshape(*lead, M, n * n)).reshape(*lead, M, n, n)
+    P0 = P0 + np.swapaxes(wt[..., :, :, None] * d, -1, -2) @ d
     return log_c, x0, 0.5 * (P0 + np.swapaxes(P0, -1, -2))
 
 
