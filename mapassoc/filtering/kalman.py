@@ -552,12 +552,11 @@ def rts_cross_covariances(
     """Lag-one smoothed cross-covariances ``Cov(x_k, x_{k-1} | all data)`` of an RTS run.
 
     ``C_k = P_{k|N} G_{k-1}^T`` with the smoother gain ``G_{k-1} = P_{k-1|k-1} F_k^T
-    P_{k|k-1}^{-1}`` (Shumway and Stoffer, "An approach to time series smoothing and
-    forecasting using the EM algorithm", J. Time Series Analysis 1982, property (iii); the
-    closed form of De Jong's "Smoothing and interpolation with the state-space model",
-    JASA 1989).  It is computed from :func:`rts_smooth`'s inputs and output, with the gain
-    formed exactly as there, so the smoother itself is left as it is: callers that do not
-    need the cross-covariances pay nothing for them.
+    P_{k|k-1}^{-1}`` (the lag-one covariance that Shumway and Stoffer's EM needs, "An
+    approach to time series smoothing and forecasting using the EM algorithm", J. Time
+    Series Analysis 1982).  It is computed from :func:`rts_smooth`'s inputs and output,
+    with the gain formed exactly as there, so the smoother itself is left as it is:
+    callers that do not need the cross-covariances pay nothing for them.
 
     Parameters
     ----------
