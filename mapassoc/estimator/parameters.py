@@ -50,6 +50,13 @@ not counted in ``max_passes``.  ``Pd`` starts at
 scans (:data:`MIN_INTERIOR_SCANS`; a recording without targets gives none) keeps its
 ``Pd``, each with a message that says so.
 
+Noise levels.  A configuration's ``"auto"`` process-noise intensity and position-sensor
+noise stds (:attr:`Config.auto`) are estimated in the same passes: each pass's tracks,
+smoothed, give their EM fixed point (:mod:`mapassoc.estimator.noise_levels`, where the
+starts and the choice of returning the last update are explained), and the next pass
+runs with it; the iteration has converged when they too moved by less than
+``rate_tolerance`` (relative).
+
 Long recordings are not run in full at every pass: the passes run on at most
 ``sample_scans`` scans, in blocks spread evenly over the recording (each block a
 recording of its own, so a track cut at a block's edge only loses its first and last
@@ -497,7 +504,8 @@ def estimate_parameters(
     detection_probability : mapping of str to float or None, optional
         The sensors whose ``Pd`` to estimate, each with its starting value (None:
         :data:`DEFAULT_PD_START`).  When neither is given, the configuration's
-        ``"auto"`` parameters (:attr:`Config.auto`) are estimated.
+        ``"auto"`` parameters (:attr:`Config.auto`) are estimated.  The noise levels
+        estimated are always the configuration's ``"auto"`` ones.
     rate_tolerance, pd_tolerance, max_passes, sample_scans, sample_blocks_count : optional
         Default: the configuration's (``config.estimator.parameters``, whose defaults are
         the values given below).
