@@ -1,7 +1,10 @@
 """``mapassoc estimate-parameters``: sensor parameters from a recording, next to the configured.
 
 Estimates every sensor's false-alarm rate and detection probability from the recording
-(:mod:`mapassoc.estimator.parameters`), prints them beside the configured values, warns
+(:mod:`mapassoc.estimator.parameters`), and the noise levels the configuration leaves
+"auto" (``[motion] noise_intensity``, a position sensor's ``noise_std``: only those, since
+a configured noise level is not a guess the way a clutter rate is), prints them beside
+the configured values, warns
 where a configured number and its estimate disagree by more than
 :data:`RATE_DISAGREEMENT` (a factor, either way) or :data:`PD_DISAGREEMENT` (an absolute
 difference), and writes a configuration with the estimates filled in.
@@ -67,7 +70,22 @@ class ParameterReport:
                 f"{_text(pd, '.3f'):>8s} "
                 f"{_text(found.detection_probability, '.3f', found.pd_estimated):>10s}"
             )
-        return "\n".join(lines)
+        return "\n".join(lines + self.noise_lines())
+
+    def noise_lines(self) -> list[str]:
+        """The "auto" noise levels, configured ("auto") beside estimated (none asked: no
+        line)."""
+        noise = self.estimate.noise
+        if noise is None:
+            return []
+        rows = [] if noise.noise_intensity is None else [
+            ("motion.noise_intensity", f"{noise.noise_intensity:.4g}")
+        ]  # fmt: skip
+        rows += [(f"sensor '{name}' noise_std", ", ".join(f"{v:.4g}" for v in stds))
+                 for name, stds in noise.noise_std.items()]  # fmt: skip
+        header = f"{'noise level':28s} {'configured':>10s} {'estimated':>12s}"
+        return ["", header, "-" * len(header),
+                *(f"{key:28s} {'auto':>10s} {value:>12s}" for key, value in rows)]  # fmt: skip
 
 
 def _text(value: float | None, spec: str, estimated: bool = True) -> str:

@@ -308,6 +308,11 @@ def estimate_with_progress(
             f"detection_probability {used[1]:.3f} -> {record.updated[name][1]:.3f}"
             for name, used in record.used.items()
         )
+        if record.noise_used is not None and record.noise_updated is not None:
+            moves += ("; " if moves else "") + (
+                f"noise {record.noise_used.vector().round(6).tolist()} -> "
+                f"{record.noise_updated.vector().round(6).tolist()}"
+            )
         print(
             f"mapassoc: parameters pass {record.index + 1}: {moves} ({record.tracks} tracks, "
             f"{record.seconds:.1f} s)",
@@ -331,13 +336,19 @@ def estimate_with_progress(
 
 def _with_estimates(config: Any, parameters: dict[str, Any]) -> Any:
     """``config`` with the sensor values of a ``parameters`` record (ParameterEstimate)."""
+    from mapassoc.estimator.noise_levels import NoiseLevels, with_noise_levels
     from mapassoc.estimator.parameters import with_sensor_parameters
 
     values = {
         name: (float(entry["false_alarms_per_scan"]), float(entry["detection_probability"]))
         for name, entry in parameters["sensors"].items()
     }
-    return with_sensor_parameters(config, values)
+    noise = parameters.get("noise")
+    levels = None if noise is None else NoiseLevels(
+        None if noise.get("noise_intensity") is None else float(noise["noise_intensity"]),
+        {name: tuple(float(v) for v in stds) for name, stds in noise["noise_std"].items()},
+    )  # fmt: skip
+    return with_noise_levels(with_sensor_parameters(config, values), levels)
 
 
 def _integer_solvers() -> tuple[str, ...]:

@@ -14,7 +14,9 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     model = "constant_velocity"   # constant_velocity | constant_acceleration | random_walk
                                   # | coordinated_turn | constant_turn | singer | imm
     ndim = 2                      # 1, 2 or 3; linear models only (coordinated_turn is 2-D)
-    noise_intensity = 0.5         # constant_velocity, constant_acceleration, random_walk
+    noise_intensity = 0.5         # constant_velocity, constant_acceleration, random_walk;
+                                  # or "auto" (estimated from the recording)
+    # noise_intensity_start = 2.0 # with "auto" only: the first pass's value
     # coordinated_turn instead: speed_noise_intensity = ..., turn_rate_noise_intensity = ...
     # singer instead: ndim, time_constant = ... (tau > 0), acceleration_std = ... (> 0)
     # constant_turn (2-D, constant_velocity's state) instead: turn_rate = ... (rad per
@@ -30,7 +32,10 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     name = "radar"
     measurement = "position"      # position | range_bearing (the keys of each:
                                   # mapassoc.models.measurement.MEASUREMENT_REGISTRY)
-    noise_std = 1.0               # position: a number, or one std per position component
+    noise_std = 1.0               # position: a number, or one std per position component,
+                                  # or "auto" (estimated: one std for all components)
+    # noise_std_start = 2.0       # with "auto" only: the first pass's std; one per
+                                  # component ([2.0, 3.0]) estimates each on its own
     # range_bearing instead: position = [x, y], range_std = ..., bearing_std = ... (radians);
     # needs a motion model with a 2-D position (ndim = 2, or coordinated_turn)
     detection_probability = 0.9   # Pd in (0, 1], or "auto" (estimated from the recording)
@@ -70,11 +75,18 @@ The ``[birth]`` and ``[estimator]`` sections are optional by design (every field
 default), but :func:`load_config` warns (``UserWarning``) when one is missing, naming
 the file and the defaults used: a forgotten section silently changes the model.
 
-``"auto"`` leaves a sensor's ``detection_probability`` or ``false_alarms_per_scan`` to
-be estimated from the recording (:mod:`mapassoc.estimator.parameters`, which ``mapassoc
-run`` calls before the run): :attr:`Config.auto` lists them, the sensor holds
-placeholders (``Pd`` = 1, no false alarms) until then, and :func:`check_config` refuses
-such a configuration to anything that would run on the placeholders.
+``"auto"`` leaves a sensor's ``detection_probability`` or ``false_alarms_per_scan``, a
+position sensor's ``noise_std`` or the ``[motion] noise_intensity`` of a model whose
+process noise is that number times a fixed matrix (:data:`AUTO_NOISE_MODELS`) to be
+estimated from the recording (:mod:`mapassoc.estimator.parameters`, which ``mapassoc
+run`` calls before the run): :attr:`Config.auto` lists them, the model holds
+placeholders (``Pd`` = 1, no false alarms, noise levels :data:`NOISE_PLACEHOLDER`) until
+then, and :func:`check_config` refuses such a configuration to anything that would run
+on the placeholders.  ``"auto"`` is refused, naming its key, for the noise of the other
+models (coordinated turn, Singer, the models of an IMM set) and of range-bearing sensors:
+their noise has no single scale the EM update takes.  A pooled ``noise_std`` is the
+default because the schema's one number already means ``R = sigma^2 I``; a
+``noise_std_start`` with one value per component asks for each to be estimated.
 
 ``[trackers.<name>]`` tables belong to the baseline trackers of ``mapassoc compare``
 (GNN, JPDA, MHT, network flow, LP relaxation): each holds options of that tracker's own
@@ -138,6 +150,8 @@ from mapassoc.validation import (
 __all__ = [
     "AUTO",
     "AutoParameters",
+    "AUTO_NOISE_MODELS",
+    "NOISE_PLACEHOLDER",
     "Config",
     "TrackerOption",
     "check_config",
@@ -168,6 +182,10 @@ _SECTIONS = ("recording", "motion", "sensors", "birth", "estimator", "trackers")
 
 TrackerOption = bool | int | float | str
 """The value of a tracker's option in a ``[trackers.<name>]`` table."""
+_StdStart = tuple[str, tuple[float, ...] | None]
+"""A sensor whose ``noise_std`` is "auto", with its start."""
+POSITION = "position"
+"""The measurement model whose ``noise_std`` may be ``"auto"``."""
 _SENSOR_COMMON_KEYS = (
     "name",
     "measurement",
@@ -177,7 +195,15 @@ _SENSOR_COMMON_KEYS = (
     "region",
 )
 AUTO = "auto"
-"""The value of a sensor parameter left to be estimated from the recording."""
+"""The value of a parameter left to be estimated from the recording."""
+NOISE_PLACEHOLDER = 1.0
+"""What a ``noise_intensity`` or ``noise_std`` of ``"auto"`` holds until it is estimated
+(any positive number builds the model; :func:`check_config` refuses to run on it)."""
+AUTO_NOISE_MODELS = ("constant_velocity", "constant_acceleration", "random_walk")
+"""The motion models whose ``noise_intensity`` may be ``"auto"``: their process noise is
+``noise_intensity`` times a fixed matrix, the form the EM update of
+:mod:`mapassoc.filtering.noise_estimation` takes (coordinated turn, Singer and model
+sets have no such single scale)."""
 _DOCUMENT_KEY = "<file>"
 """Key reported for problems with the whole document (unreadable file, TOML syntax)."""
 
@@ -193,19 +219,47 @@ class AutoParameters:
     detection_probability : tuple of (str, float or None)
         Sensors whose ``detection_probability`` is estimated, each with its
         ``detection_probability_start`` (None: the estimator's default start).
+    noise_intensity : bool
+        Whether ``[motion] noise_intensity`` is estimated (the motion model then holds
+        the placeholder :data:`NOISE_PLACEHOLDER`).
+    noise_intensity_start : float or None
+        Its ``noise_intensity_start`` (None: the estimator's default start).
+    noise_std : tuple of (str, tuple of float or None)
+        Position sensors whose ``noise_std`` is estimated, each with its
+        ``noise_std_start``: None (the estimator's default start, one pooled std), one
+        number (pooled) or one per position component (each estimated on its own).
     """
 
     false_alarms: tuple[str, ...] = ()
     detection_probability: tuple[tuple[str, float | None], ...] = ()
+    noise_intensity: bool = False
+    noise_intensity_start: float | None = None
+    noise_std: tuple[tuple[str, tuple[float, ...] | None], ...] = ()
 
     @property
     def pending(self) -> bool:
         """Whether any parameter is still to be estimated."""
-        return bool(self.false_alarms or self.detection_probability)
+        return bool(
+            self.false_alarms or self.detection_probability or self.noise_intensity
+            or self.noise_std
+        )  # fmt: skip
 
     def pd_starts(self) -> dict[str, float | None]:
         """``{sensor: start}`` of the sensors whose ``Pd`` is estimated."""
         return dict(self.detection_probability)
+
+    def noise_std_starts(self) -> dict[str, tuple[float, ...] | None]:
+        """``{sensor: start}`` of the position sensors whose ``noise_std`` is estimated
+        (a start of one value: one pooled std; of one per component: each its own)."""
+        return dict(self.noise_std)
+
+    def names(self) -> list[str]:
+        """The parameters still to be estimated, as messages name them."""
+        out = ['motion.noise_intensity'] if self.noise_intensity else []
+        out += [f"sensor '{n}' false_alarms_per_scan" for n in self.false_alarms]
+        out += [f"sensor '{n}' detection_probability" for n in self.pd_starts()]
+        out += [f"sensor '{n}' noise_std" for n in self.noise_std_starts()]
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -273,7 +327,8 @@ class Config:
             raise InputError(f"source must be a string or None, got {self.source!r}")
         if not isinstance(self.auto, AutoParameters):
             raise InputError(f"auto must be an AutoParameters, got {self.auto!r}")
-        for name in (*self.auto.false_alarms, *self.auto.pd_starts()):
+        for name in (*self.auto.false_alarms, *self.auto.pd_starts(),
+                     *self.auto.noise_std_starts()):  # fmt: skip
             if name not in self.sensors:
                 raise InputError(
                     f"auto names sensor {name!r}, which is not configured "
@@ -333,8 +388,7 @@ def check_config(
     """
     if isinstance(config, Config):
         if config.auto.pending and not allow_auto:
-            names = [f"sensor '{n}' false_alarms_per_scan" for n in config.auto.false_alarms]
-            names += [f"sensor '{n}' detection_probability" for n in config.auto.pd_starts()]
+            names = config.auto.names()
             raise InputError(
                 f"{argument} leaves {', '.join(names)} = \"auto\"; estimate them from the "
                 "recording first: mapassoc.estimate_parameters(config, scans).config (what "
@@ -464,13 +518,44 @@ def _leaf(key: str) -> str:
 _IMM_KEYS = ("model", "switch_probability", "matrix", "initial_probabilities", "models")
 
 
-def _parse_motion(parser: _Parser, data: Mapping[str, object]) -> MotionModel:
+def _parse_motion(
+    parser: _Parser, data: Mapping[str, object]
+) -> tuple[MotionModel, bool, float | None]:
+    """The motion model, whether its ``noise_intensity`` is "auto", and its start."""
     if "motion" not in data:
         raise parser.fail("motion", "missing required section [motion]")
     table = parser.table(data["motion"], "motion")
     if table.get("model") == IMM:
-        return _parse_imm(parser, table)
-    return _parse_single_motion(parser, table, "motion", (*MOTION_REGISTRY, IMM))
+        return _parse_imm(parser, table), False, None
+    table, auto, start = _auto_noise_intensity(parser, table)
+    return _parse_single_motion(parser, table, "motion", (*MOTION_REGISTRY, IMM)), auto, start
+
+
+def _auto_noise_intensity(
+    parser: _Parser, table: Mapping[str, object]
+) -> tuple[Mapping[str, object], bool, float | None]:
+    """``[motion]`` with an "auto" ``noise_intensity`` replaced by the placeholder and
+    ``noise_intensity_start`` taken out: ``(table, auto, start)``."""
+    auto = table.get("noise_intensity") == AUTO
+    start_key = "motion.noise_intensity_start"
+    start = None
+    if "noise_intensity_start" in table:
+        if not auto:
+            raise parser.fail(
+                start_key, 'only goes with noise_intensity = "auto"; remove it or write '
+                'noise_intensity = "auto"',
+            )  # fmt: skip
+        start = parser.positive(table["noise_intensity_start"], start_key)
+    if not auto:
+        return table, False, None
+    if table.get("model") not in AUTO_NOISE_MODELS:
+        raise parser.fail(
+            "motion.noise_intensity", f'"auto" needs model = one of {list(AUTO_NOISE_MODELS)}, '
+            f"got {table.get('model')!r}",
+        )  # fmt: skip
+    rest = {key: value for key, value in table.items() if key != "noise_intensity_start"}
+    rest["noise_intensity"] = NOISE_PLACEHOLDER
+    return rest, True, start
 
 
 def _parse_single_motion(
@@ -489,6 +574,12 @@ def _parse_single_motion(
     for setting in spec.settings:
         key = f"{prefix}.{setting.key}"
         raw = parser.required(table, prefix, setting.key)
+        if raw == AUTO:  # [motion] noise_intensity = "auto" was replaced before
+            raise parser.fail(
+                key, '"auto" is only for [motion] noise_intensity of '
+                f"{', '.join(AUTO_NOISE_MODELS)} (not coordinated_turn, singer or the models "
+                "of an imm); give a number",
+            )  # fmt: skip
         if setting.kind == "ndim":
             ndim = parser.integer(raw, key)
             if ndim not in (1, 2, 3):
@@ -639,8 +730,9 @@ class _SensorSettings:
 
 def _parse_sensor(
     parser: _Parser, item: object, index: int, motion: MotionModel
-) -> tuple[Sensor, bool, tuple[tuple[str, float | None], ...]]:
-    """The sensor, whether its rate is "auto", and its ``(name, start)`` when Pd is."""
+) -> tuple[Sensor, bool, tuple[tuple[str, float | None], ...], tuple[_StdStart, ...]]:
+    """The sensor, whether its rate is "auto", its ``(name, start)`` when Pd is, and its
+    ``(name, start)`` when ``noise_std`` is."""
     prefix = f"sensors[{index}]"
     table = parser.table(item, prefix)
     kind = parser.choice(
@@ -649,8 +741,9 @@ def _parse_sensor(
         tuple(MEASUREMENT_REGISTRY),
     )
     spec = MEASUREMENT_REGISTRY[kind]
-    allowed = _SENSOR_COMMON_KEYS + spec.keys
+    allowed = _SENSOR_COMMON_KEYS + spec.keys + (("noise_std_start",) if kind == POSITION else ())
     parser.only_keys(table, prefix, allowed, f"for a {kind} sensor")
+    table, auto_std = _auto_noise_std(parser, table, prefix, kind, len(motion.position_indices))
     name = parser.string(parser.required(table, prefix, "name"), f"{prefix}.name")
     if not name or name != name.strip() or "," in name:
         raise parser.fail(
@@ -680,7 +773,48 @@ def _parse_sensor(
         )
     except InputError as exc:
         raise parser.fail(_subkey(prefix, exc), str(exc)) from None
-    return sensor, auto_rate, ((name, start),) if auto_pd else ()
+    return sensor, auto_rate, ((name, start),) if auto_pd else (), (
+        ((name, auto_std[1]),) if auto_std[0] else ()
+    )
+
+
+def _auto_noise_std(
+    parser: _Parser, table: Mapping[str, object], prefix: str, kind: str, count: int
+) -> tuple[Mapping[str, object], tuple[bool, tuple[float, ...] | None]]:
+    """A sensor table with an "auto" ``noise_std`` replaced by the placeholder and
+    ``noise_std_start`` taken out: ``(table, (auto, start))``; "auto" anywhere else among
+    the measurement's keys is an error naming it."""
+    spec = MEASUREMENT_REGISTRY[kind]
+    for key in spec.keys:
+        if table.get(key) == AUTO and (kind, key) != (POSITION, "noise_std"):
+            raise parser.fail(
+                f"{prefix}.{key}", '"auto" is only for noise_std of a position sensor (and '
+                "detection_probability, false_alarms_per_scan); give a number",
+            )  # fmt: skip
+    auto = table.get("noise_std") == AUTO and kind == POSITION
+    start_key = f"{prefix}.noise_std_start"
+    start: tuple[float, ...] | None = None
+    if "noise_std_start" in table:
+        if not auto:
+            raise parser.fail(
+                start_key, 'only goes with noise_std = "auto"; remove it or write '
+                'noise_std = "auto"',
+            )  # fmt: skip
+        given = table["noise_std_start"]
+        if isinstance(given, list):
+            if len(given) != count:
+                raise parser.fail(
+                    start_key, f"has {len(given)} entries {given!r}; expected a number or one "
+                    f"standard deviation per position component ({count})",
+                )  # fmt: skip
+            start = tuple(parser.positive(v, f"{start_key}[{i}]") for i, v in enumerate(given))
+        else:
+            start = (parser.positive(given, start_key),)
+    if not auto:
+        return table, (False, None)
+    rest = {key: value for key, value in table.items() if key != "noise_std_start"}
+    rest["noise_std"] = NOISE_PLACEHOLDER
+    return rest, (True, start)
 
 
 def _sensor_rates(
@@ -821,14 +955,16 @@ def _parse_sensors(
     first_index: dict[str, int] = {}
     auto_rates: list[str] = []
     auto_pds: list[tuple[str, float | None]] = []
+    auto_stds: list[tuple[str, tuple[float, ...] | None]] = []
     sites: dict[str, GeodeticPoint] = {}
     for index, item in enumerate(items):
         item, site = _placed_sensor(parser, item, index, recording, sites)
-        sensor, auto_rate, auto_pd = _parse_sensor(parser, item, index, motion)
+        sensor, auto_rate, auto_pd, auto_std = _parse_sensor(parser, item, index, motion)
         if site is not None:
             sites[sensor.name] = site
         auto_rates += [sensor.name] if auto_rate else []
         auto_pds += auto_pd
+        auto_stds += auto_std
         if sensor.name in sensors:
             raise parser.fail(
                 f"sensors[{index}].name",
@@ -837,7 +973,8 @@ def _parse_sensors(
             )
         sensors[sensor.name] = sensor
         first_index[sensor.name] = index
-    return sensors, AutoParameters(tuple(auto_rates), tuple(auto_pds)), sites
+    auto = AutoParameters(tuple(auto_rates), tuple(auto_pds), noise_std=tuple(auto_stds))
+    return sensors, auto, sites
 
 
 def _field_kind(field: dataclasses.Field[object]) -> str:
@@ -1011,9 +1148,10 @@ def parse_config(
     parser = _Parser(source=source)
     document = parser.table(data, _DOCUMENT_KEY)
     parser.only_keys(document, "", _SECTIONS, "at the top level")
-    motion = _parse_motion(parser, document)
+    motion, auto_q, q_start = _parse_motion(parser, document)
     recording = _parse_recording(parser, document)
     sensors, auto, sites = _parse_sensors(parser, document, motion, recording)
+    auto = dataclasses.replace(auto, noise_intensity=auto_q, noise_intensity_start=q_start)
     if recording is not None and sites:
         recording = dataclasses.replace(recording, sites=sites)
     birth = _parse_birth(parser, document)
@@ -1223,6 +1361,35 @@ def _measurement_lines(measurement: MeasurementModel, motion: MotionModel, key: 
     return lines
 
 
+def _auto_motion_lines(config: Config) -> list[str]:
+    """:func:`_motion_lines`, with ``noise_intensity = "auto"`` (and its start) where the
+    configuration leaves it to the recording."""
+    lines = _motion_lines(config.motion)
+    if not config.auto.noise_intensity:
+        return lines
+    lines = [f"noise_intensity = {_toml_string(AUTO)}" if line.startswith("noise_intensity =")
+             else line for line in lines]  # fmt: skip
+    start = config.auto.noise_intensity_start
+    return lines + ([] if start is None else [f"noise_intensity_start = {_toml_float(start)}"])
+
+
+def _auto_measurement_lines(config: Config, name: str, key: str) -> list[str]:
+    """:func:`_measurement_lines` of sensor ``name``, with ``noise_std = "auto"`` (and its
+    start) where the configuration leaves it to the recording."""
+    lines = _measurement_lines(config.sensors[name].measurement, config.motion, key)
+    starts = config.auto.noise_std_starts()
+    if name not in starts:
+        return lines
+    lines = [f"noise_std = {_toml_string(AUTO)}" if line.startswith("noise_std =") else line
+             for line in lines]  # fmt: skip
+    start = starts[name]
+    if start is not None:
+        lines.append(
+            f"noise_std_start = {_toml_float(start[0]) if len(start) == 1 else _toml_floats(start)}"
+        )
+    return lines
+
+
 def config_to_toml(config: Config) -> str:
     """The configuration as a TOML document that :func:`parse_config` reads back.
 
@@ -1246,7 +1413,7 @@ def config_to_toml(config: Config) -> str:
     """
     check_config(config, allow_auto=True)
     lines = ["# mapassoc configuration", *_recording_lines(config.recording)]
-    lines += ["", "[motion]", *_motion_lines(config.motion)]
+    lines += ["", "[motion]", *_auto_motion_lines(config)]
     pd_starts = config.auto.pd_starts()
     for index, sensor in enumerate(config.sensors.values()):
         key = f"sensors[{index}]"
@@ -1267,7 +1434,7 @@ def config_to_toml(config: Config) -> str:
             "[[sensors]]",
             f"name = {_toml_string(sensor.name)}",
             *_site_lines(
-                _measurement_lines(sensor.measurement, config.motion, key),
+                _auto_measurement_lines(config, sensor.name, key),
                 None if config.recording is None else config.recording.sites.get(sensor.name),
             ),
             *pd_lines,

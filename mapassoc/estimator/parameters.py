@@ -50,6 +50,13 @@ not counted in ``max_passes``.  ``Pd`` starts at
 scans (:data:`MIN_INTERIOR_SCANS`; a recording without targets gives none) keeps its
 ``Pd``, each with a message that says so.
 
+Noise levels.  A configuration's ``"auto"`` process-noise intensity and position-sensor
+noise stds (:attr:`Config.auto`) are estimated in the same passes: each pass's tracks,
+smoothed, give their EM fixed point (:mod:`mapassoc.estimator.noise_levels`, where the
+starts and the choice of returning the last update are explained), and the next pass
+runs with it; the iteration has converged when they too moved by less than
+``rate_tolerance`` (relative).
+
 Long recordings are not run in full at every pass: the passes run on at most
 ``sample_scans`` scans, in blocks spread evenly over the recording (each block a
 recording of its own, so a track cut at a block's edge only loses its first and last
@@ -75,6 +82,15 @@ from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError, StopRequested
+from mapassoc.estimator.noise_levels import (
+    NoiseAsked,
+    NoiseLevels,
+    associations_of,
+    initial_noise,
+    noise_close,
+    noise_m_step,
+    with_noise_levels,
+)
 from mapassoc.log_space import json_number
 from mapassoc.models.sensor import Sensor
 from mapassoc.validation import check_positive, check_probability
@@ -283,6 +299,9 @@ class EstimationPass:
     scans : int
         Scans it ran on.
     seconds : float
+    noise_used, noise_updated : NoiseLevels or None
+        The "auto" noise levels the pass ran with and those its associations give
+        (:mod:`mapassoc.estimator.noise_levels`); None when none is asked for.
     """
 
     index: int
@@ -292,6 +311,8 @@ class EstimationPass:
     tracks: int
     scans: int
     seconds: float
+    noise_used: NoiseLevels | None = None
+    noise_updated: NoiseLevels | None = None
 
     def to_json(self, *, timings: bool = True) -> dict[str, object]:
         out: dict[str, object] = {
@@ -304,6 +325,9 @@ class EstimationPass:
             "tracks": self.tracks,
             "scans": self.scans,
         }  # fmt: skip
+        if self.noise_used is not None and self.noise_updated is not None:
+            out["noise_used"] = self.noise_used.to_json()
+            out["noise_updated"] = self.noise_updated.to_json()
         if timings:
             out["seconds"] = self.seconds
         return out
@@ -343,6 +367,8 @@ class ParameterEstimate:
         state, windows=reports)`` gives ``result``.  ``mapassoc run`` writes its windows
         and checkpoints the state before it refines, so a stop during the refinement
         loses no pass.
+    noise : NoiseLevels or None
+        The "auto" noise levels the last pass ran with (None when none was asked for).
     """
 
     config: Config
@@ -353,14 +379,18 @@ class ParameterEstimate:
     result: EstimateResult | None
     warnings: tuple[str, ...]
     last_run: tuple[RunState, tuple[WindowReport, ...]] | None = None
+    noise: NoiseLevels | None = None
 
     def to_json(self, *, timings: bool = True) -> dict[str, object]:
-        return {
+        out: dict[str, object] = {
             "sensors": {name: est.to_json() for name, est in self.sensors.items()},
             "passes": [p.to_json(timings=timings) for p in self.passes],
             "converged": self.converged,
             "sample_scans": self.sample_scans,
         }
+        if self.noise is not None:
+            out["noise"] = self.noise.to_json()
+        return out
 
 
 def sample_blocks(total: int, *, sample_scans: int, blocks: int) -> list[tuple[int, int]]:
@@ -474,7 +504,8 @@ def estimate_parameters(
     detection_probability : mapping of str to float or None, optional
         The sensors whose ``Pd`` to estimate, each with its starting value (None:
         :data:`DEFAULT_PD_START`).  When neither is given, the configuration's
-        ``"auto"`` parameters (:attr:`Config.auto`) are estimated.
+        ``"auto"`` parameters (:attr:`Config.auto`) are estimated.  The noise levels
+        estimated are always the configuration's ``"auto"`` ones.
     rate_tolerance, pd_tolerance, max_passes, sample_scans, sample_blocks_count : optional
         Default: the configuration's (``config.estimator.parameters``, whose defaults are
         the values given below).
@@ -606,6 +637,10 @@ class EMState:
     last_run : (WindowEstimator, RunState, list of WindowReport) or None
         The last pass's estimator, done run state and window reports when it covered the
         whole recording.
+    noise : NoiseLevels or None
+        The "auto" noise levels the next pass runs with (None: none asked for).
+    noise_notes : tuple of str
+        What the last pass could not estimate of them.
     """
 
     current: dict[str, tuple[float, float]]
@@ -618,6 +653,8 @@ class EMState:
     retried: bool = False
     converged: bool = False
     last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None = None
+    noise: NoiseLevels | None = None
+    noise_notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -632,11 +669,16 @@ class EStep:
         Tracks the runs found.
     last_run : (WindowEstimator, RunState, list of WindowReport) or None
         The run when it covered the whole recording.
+    associations : tuple of dict
+        Per block, its tracks as scan index -> detection index
+        (:func:`~mapassoc.estimator.noise_levels.associations_of`; empty when no noise
+        level is asked for).
     """
 
     counts: dict[str, AssociationCounts]
     tracks: int
     last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None
+    associations: tuple[dict[int, dict[int, int]], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -703,6 +745,7 @@ class ParameterEM:
         self.pieces = [self.scans[first:stop] for first, stop in blocks]
         self.sampled = [scan for piece in self.pieces for scan in piece]
         self.whole = len(self.pieces) == 1 and len(self.pieces[0]) == len(self.scans)
+        self.noise = NoiseAsked.from_config(config)
 
     def initialise(self) -> EMState:
         """The starting values: each estimated rate at its upper bound (the mean
@@ -735,6 +778,7 @@ class ParameterEM:
         return EMState(
             current=current, rates=tuple(rates), upper=upper, notes=notes,
             pd_estimable=dict.fromkeys(self.pds, False), no_clutter=dict.fromkeys(rates, 0),
+            noise=initial_noise(self.config, self.sampled, self.noise) if self.noise.any else None,
         )  # fmt: skip
 
     def e_step(self, state: EMState) -> EStep:
@@ -748,7 +792,7 @@ class ParameterEM:
         """
         from mapassoc.estimator.pipeline import WindowEstimator
 
-        estimator = WindowEstimator(config=with_sensor_parameters(self.config, state.current))
+        estimator = WindowEstimator(config=self._pass_config(state))
 
         def check_stop(done: int, total: int) -> None:
             if self.stop is not None and self.stop():
@@ -766,7 +810,15 @@ class ParameterEM:
             counts={name: _merge([counts[name] for counts in by_piece]) for name in self.asked},
             tracks=sum(len(result.track_rows) for result, _, _ in runs),
             last_run=(estimator, runs[0][1], runs[0][2]) if self.whole else None,
-        )
+            associations=tuple(
+                associations_of(piece, result.track_rows)
+                for piece, (result, _, _) in zip(self.pieces, runs, strict=True)
+            ) if self.noise.any else (),
+        )  # fmt: skip
+
+    def _pass_config(self, state: EMState) -> Config:
+        """The configuration a pass runs with: ``state``'s sensor values and noise levels."""
+        return with_noise_levels(with_sensor_parameters(self.config, state.current), state.noise)
 
     def m_step(self, state: EMState, counts: Mapping[str, AssociationCounts]) -> MStep:
         """The values that maximise the complete-data likelihood of ``counts``: per
@@ -816,16 +868,21 @@ class ParameterEM:
         started = time.perf_counter()
         e = self.e_step(state)
         m = self.m_step(state, e.counts)
+        noise, noise_notes = state.noise, state.noise_notes
+        if state.noise is not None:
+            noise, noise_notes = noise_m_step(
+                self._pass_config(state), self.pieces, e.associations, self.noise, state.noise
+            )
         record = EstimationPass(
             index=len(state.passes), used=dict(state.current), updated=m.updated,
             objective=m.objective, tracks=e.tracks, scans=len(self.sampled),
-            seconds=time.perf_counter() - started,
+            seconds=time.perf_counter() - started, noise_used=state.noise, noise_updated=noise,
         )  # fmt: skip
         if self.on_pass is not None:
             self.on_pass(record)
         after = dataclasses.replace(
             state, passes=(*state.passes, record), pd_estimable=m.pd_estimable,
-            no_clutter=m.no_clutter, last_run=e.last_run,
+            no_clutter=m.no_clutter, last_run=e.last_run, noise_notes=noise_notes,
         )  # fmt: skip
         current, upper = state.current, state.upper
         hidden = [
@@ -839,10 +896,12 @@ class ParameterEM:
                        m.updated[name][1])
                 for name in self.asked
             }  # fmt: skip
-            return dataclasses.replace(after, current=probe, retried=True)
-        if self.converged(current, m.updated):
+            return dataclasses.replace(after, current=probe, retried=True, noise=noise)
+        if self.converged(current, m.updated) and noise_close(
+            state.noise, noise, self.settings.rate_tolerance
+        ):
             return dataclasses.replace(after, converged=True)
-        return dataclasses.replace(after, current=m.updated)
+        return dataclasses.replace(after, current=m.updated, noise=noise)
 
     def finish(self, state: EMState, *, finish: bool = True) -> ParameterEstimate:
         """The estimates: the values the last pass ran with, each sensor's notes, and
@@ -856,20 +915,21 @@ class ParameterEM:
         """
         used = state.passes[-1].used
         estimates = {name: self._sensor_estimate(state, name) for name in self.asked}
+        noise, last_run = _final_noise(state)
         last_result = None
-        if state.last_run is not None and finish:
-            last_result = self._finished_run(state.last_run)
+        if last_run is not None and finish:
+            last_result = self._finished_run(last_run)
         return ParameterEstimate(
-            config=with_sensor_parameters(self.config, used),
+            config=with_noise_levels(with_sensor_parameters(self.config, used), noise),
             sensors=estimates,
             passes=state.passes,
             converged=state.converged,
             sample_scans=len(self.sampled),
             result=last_result,
-            warnings=tuple(note for estimate in estimates.values() for note in estimate.notes),
-            last_run=None
-            if state.last_run is None
-            else (state.last_run[1], tuple(state.last_run[2])),
+            warnings=tuple(note for estimate in estimates.values() for note in estimate.notes)
+            + state.noise_notes,
+            last_run=None if last_run is None else (last_run[1], tuple(last_run[2])),
+            noise=noise,
         )
 
     def _sensor_estimate(self, state: EMState, name: str) -> SensorEstimate:
@@ -913,6 +973,31 @@ class ParameterEM:
                 raise EstimationStopped(
                     f"stopped while estimating the sensor parameters ({exc.phase} of the last pass)"
                 ) from None
+
+
+def _final_noise(
+    state: EMState,
+) -> tuple[NoiseLevels | None, tuple[WindowEstimator, RunState, list[WindowReport]] | None]:
+    """The noise levels returned and the last run that goes with the estimates.
+
+    Unlike the sensor parameters, the noise levels returned are the last pass's update
+    (the fixed point of the noise EM on that pass's associations), not the values it
+    ran with: the update is an exact EM fixed point given the associations, and from a
+    start far from the truth three passes may not reach it.  When it moved the levels
+    by more than ``rate_tolerance``, the last pass's run is not the estimator's answer
+    under them and is dropped (the caller runs again, as after a sampled recording).
+    """
+    last = state.passes[-1]
+    if last.noise_used is None or last.noise_updated is None:
+        return None, state.last_run
+    if noise_close(last.noise_used, last.noise_updated, _NOISE_RUN_TOLERANCE):
+        return last.noise_used, state.last_run
+    return last.noise_updated, None
+
+
+_NOISE_RUN_TOLERANCE = 0.02
+"""Relative change of the noise levels below which the last pass's run is kept as the
+run under the returned levels (they are then the levels it ran with)."""
 
 
 def _asked(

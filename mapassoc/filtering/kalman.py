@@ -52,6 +52,7 @@ __all__ = [
     "strip_gate",
     "gate_threshold",
     "rts_smooth",
+    "rts_cross_covariances",
     "FilterStep",
     "FilterResult",
     "filter_sequence",
@@ -543,6 +544,39 @@ def rts_smooth(
         xs[k] = x_filt[k] + G @ (xs[k + 1] - x_pred[k + 1])
         Ps[k] = _symmetrize(P_filt[k] + G @ (Ps[k + 1] - P_pred[k + 1]) @ Gt)
     return xs, Ps
+
+
+def rts_cross_covariances(
+    P_filt: FloatArray, P_pred: FloatArray, F: FloatArray, P_smooth: FloatArray
+) -> FloatArray:
+    """Lag-one smoothed cross-covariances ``Cov(x_k, x_{k-1} | all data)`` of an RTS run.
+
+    ``C_k = P_{k|N} G_{k-1}^T`` with the smoother gain ``G_{k-1} = P_{k-1|k-1} F_k^T
+    P_{k|k-1}^{-1}`` (the lag-one covariance that Shumway and Stoffer's EM needs, "An
+    approach to time series smoothing and forecasting using the EM algorithm", J. Time
+    Series Analysis 1982).  It is computed from :func:`rts_smooth`'s inputs and output,
+    with the gain formed exactly as there, so the smoother itself is left as it is:
+    callers that do not need the cross-covariances pay nothing for them.
+
+    Parameters
+    ----------
+    P_filt, P_pred, F : ndarray, shape (T, n, n)
+        As :func:`rts_smooth`'s (entry 0 of ``P_pred`` and ``F`` unused).
+    P_smooth : ndarray, shape (T, n, n)
+        :func:`rts_smooth`'s smoothed covariances.
+
+    Returns
+    -------
+    ndarray, shape (T, n, n)
+        Entry k (k >= 1) is ``Cov(x_k, x_{k-1} | all data)``; entry 0 is zero.
+    """
+    T = P_filt.shape[0]
+    C = np.zeros_like(np.asarray(P_filt, dtype=float))
+    for k in range(1, T):
+        Lp = cholesky(P_pred[k], f"predicted covariance at step {k}")
+        Gt = np.linalg.solve(Lp.T, np.linalg.solve(Lp, F[k] @ P_filt[k - 1]))
+        C[k] = P_smooth[k] @ Gt
+    return C
 
 
 @dataclass(frozen=True)

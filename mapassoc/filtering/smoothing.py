@@ -58,7 +58,7 @@ from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.filtering.batch import KalmanFilter
 from mapassoc.filtering.imm import imm_filter, imm_smooth
-from mapassoc.filtering.kalman import FilterStep, rts_smooth
+from mapassoc.filtering.kalman import FilterStep, rts_cross_covariances, rts_smooth
 from mapassoc.models.birth import (
     birth_state,
     convert_initiated,
@@ -71,7 +71,15 @@ from mapassoc.models.measurement import MeasurementModel
 from mapassoc.models.motion import MotionModel
 from mapassoc.models.population import BirthModel
 
-__all__ = ["Associations", "SmoothedTrack", "smoothed_track", "smooth_track", "smooth_tracks"]
+__all__ = [
+    "Associations",
+    "LagOneTrack",
+    "SmoothedTrack",
+    "smooth_track",
+    "smooth_track_lag_one",
+    "smooth_tracks",
+    "smoothed_track",
+]
 
 #: Track id -> {scan index -> index of the track's detection in that scan}.
 Associations = Mapping[int, Mapping[int, int]]
@@ -190,6 +198,54 @@ class SmoothedTrack:
     model_probabilities: FloatArray | None = None
 
 
+def _filter_track(
+    scans: Sequence[Scan], detections: Mapping[int, int], config: Config
+) -> tuple[list[int], _Segment, _Segment | None]:
+    """The forward pass of :func:`smooth_track` (steps 1 and 2 of the module docstring).
+
+    Returns
+    -------
+    scan_indices : list of int
+        The scans from the first to the last detection.
+    early : _Segment
+        The steps before the conversion (all of them for a model that does not convert).
+    late : _Segment or None
+        The steps from the conversion on (``early`` itself for a model that does not
+        convert; None when a converting track never converted).
+    """
+    motion, birth = config.motion, config.birth
+    converts = needs_conversion(motion)
+    model = initiation_model(motion)
+    first, last = min(detections), max(detections)
+    scan_indices = list(range(first, last + 1))
+    first_scan = scans[first]
+    z0 = first_scan.detections[detections[first]]
+    x, P = birth_state(motion, config.sensors[first_scan.sensor].measurement, z0, birth)
+    early = _Segment(x=x, P=P)
+    late: _Segment | None = None if converts else early
+    for k in scan_indices[1:]:
+        scan = scans[k]
+        dt = scan.time - scans[k - 1].time
+        current_model = motion if late is not None else model
+        if dt > 0.0:
+            x_pred, P_pred, F = _predict(current_model, x, P, dt)
+        else:
+            x_pred, P_pred, F = x, P, np.eye(x.shape[0])
+        if k in detections:
+            measurement = config.sensors[scan.sensor].measurement
+            if late is None:
+                measurement = initiation_measurement(motion, measurement)
+            x, P = _update(measurement, x_pred, P_pred, scan.detections[detections[k]])
+        else:
+            x, P = x_pred, P_pred
+        segment = early if late is None else late
+        segment.append(x=x, P=P, x_pred=x_pred, P_pred=P_pred, F=F)
+        if late is None and k in detections and scan.time > first_scan.time:
+            x, P = convert_initiated(motion, x, P, birth)
+            late = _Segment(x=x, P=P)
+    return scan_indices, early, late
+
+
 def smooth_track(
     scans: Sequence[Scan],
     detections: Mapping[int, int],
@@ -247,36 +303,7 @@ def _smooth_single(
     motion = config.motion
     birth = config.birth
     converts = needs_conversion(motion)
-    model = initiation_model(motion)
-    first, last = min(detections), max(detections)
-    scan_indices = list(range(first, last + 1))
-    first_scan = scans[first]
-    z0 = first_scan.detections[detections[first]]
-    x, P = birth_state(motion, config.sensors[first_scan.sensor].measurement, z0, birth)
-    early = _Segment(x=x, P=P)
-    late: _Segment | None = None if converts else early
-
-    for k in scan_indices[1:]:
-        scan = scans[k]
-        dt = scan.time - scans[k - 1].time
-        current_model = motion if late is not None else model
-        if dt > 0.0:
-            x_pred, P_pred, F = _predict(current_model, x, P, dt)
-        else:
-            x_pred, P_pred, F = x, P, np.eye(x.shape[0])
-        if k in detections:
-            measurement = config.sensors[scan.sensor].measurement
-            if late is None:
-                measurement = initiation_measurement(motion, measurement)
-            x, P = _update(measurement, x_pred, P_pred, scan.detections[detections[k]])
-        else:
-            x, P = x_pred, P_pred
-        segment = early if late is None else late
-        segment.append(x=x, P=P, x_pred=x_pred, P_pred=P_pred, F=F)
-        if late is None and k in detections and scan.time > first_scan.time:
-            x, P = convert_initiated(motion, x, P, birth)
-            late = _Segment(x=x, P=P)
-
+    scan_indices, early, late = _filter_track(scans, detections, config)
     rows = [int(scans[k].rows[detections[k]]) if k in detections else -1 for k in scan_indices]
     if not converts:
         states, covariances = early.smooth()
@@ -300,6 +327,85 @@ def _smooth_single(
     )
     states, covariances = motion.canonical_states(states, covariances)
     return scan_indices, states, covariances, rows
+
+
+@dataclass(frozen=True)
+class LagOneTrack:
+    """One track's smoothed moments with the lag-one cross-covariances (the sufficient
+    statistics of the EM of noise levels, :mod:`mapassoc.filtering.noise_estimation`).
+
+    Attributes
+    ----------
+    scan_indices : list of int, length T
+        The scans from the track's first to its last detection.
+    means : ndarray, shape (T, n)
+    covariances : ndarray, shape (T, n, n)
+        As :func:`smooth_track`'s (identical to them).
+    cross_covariances : ndarray, shape (T, n, n)
+        Entry k (k >= 1): ``Cov(x_k, x_{k-1} | the track's detections)``; entry 0 zero.
+    transitions : ndarray, shape (T, n, n)
+        Entry k: the transition matrix from step k-1 to k (the identity where ``dt`` is
+        0); entry 0 the identity.
+    dts : ndarray, shape (T,)
+        Entry k: the time from step k-1 to k; entry 0 is 0.
+    detections : dict of int to int
+        Step index (0..T-1) -> index of the track's detection in that step's scan.
+    """
+
+    scan_indices: list[int]
+    means: FloatArray
+    covariances: FloatArray
+    cross_covariances: FloatArray
+    transitions: FloatArray
+    dts: FloatArray
+    detections: dict[int, int]
+
+
+def smooth_track_lag_one(
+    scans: Sequence[Scan], detections: Mapping[int, int], config: Config
+) -> LagOneTrack:
+    """:func:`smooth_track` of a model that does not convert, with the lag-one
+    cross-covariances (:func:`~mapassoc.filtering.kalman.rts_cross_covariances`).
+
+    The forward pass and the smoother are :func:`smooth_track`'s own, so ``means`` and
+    ``covariances`` are exactly its results.  Only single models that do not convert
+    their initiation state are taken (constant velocity or acceleration, random walk,
+    Singer): a converted track's early steps live in another state space, and a model
+    set's smoother gives a mixture, neither of which has one transition per step.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+    detections : mapping of int to int
+        Scan index -> index of the track's detection in that scan.
+    config : Config
+
+    Returns
+    -------
+    LagOneTrack
+
+    Raises
+    ------
+    InputError
+        A model set, or a motion model that converts its initiation state.
+    """
+    motion = config.motion
+    if isinstance(motion, InteractingModels) or needs_conversion(motion):
+        raise InputError(
+            f"smooth_track_lag_one: motion model {motion!r} is a model set or converts its "
+            "initiation state; expected a single model that does not (e.g. constant_velocity)"
+        )
+    scan_indices, segment, _ = _filter_track(scans, detections, config)
+    means, covariances = segment.smooth()
+    Pf, Pp, F = (np.array(a) for a in (segment.P_filtered, segment.P_predicted,
+                                        segment.transitions))  # fmt: skip
+    times = np.array([scans[k].time for k in scan_indices])
+    first = scan_indices[0]
+    return LagOneTrack(
+        scan_indices=scan_indices, means=means, covariances=covariances,
+        cross_covariances=rts_cross_covariances(Pf, Pp, F, covariances), transitions=F,
+        dts=np.r_[0.0, np.diff(times)], detections={k - first: j for k, j in detections.items()},
+    )  # fmt: skip
 
 
 def _smooth_interacting(

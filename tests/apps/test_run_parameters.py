@@ -183,3 +183,44 @@ def test_a_batch_estimates_each_recording_s_parameters(scenario: Path, tmp_path:
         RunOptions(timings=False, progress=False),
     )  # fmt: skip
     assert (single / "tracks.csv").read_bytes() == (out / "one" / "tracks.csv").read_bytes()
+
+
+def _auto_noise(folder: Path, tmp_path: Path) -> Path:
+    """The folder's config.toml with both noise levels "auto" (starts 4 q and 2 std)."""
+    lines = []
+    for line in (folder / "config.toml").read_text().splitlines():
+        if line.startswith("noise_intensity ="):
+            start = 4 * float(line.split("=")[1])
+            line = f'noise_intensity = "auto"\nnoise_intensity_start = {start!r}'
+        if line.startswith("noise_std ="):
+            line = 'noise_std = "auto"\nnoise_std_start = 2.0'
+        if line.startswith("time_limit ="):
+            line = "time_limit = 600.0"
+        lines.append(line)
+    out = tmp_path / "noise.toml"
+    out.write_text("\n".join(lines) + "\n")
+    return out
+
+
+def test_auto_noise_levels_are_printed_written_and_recorded(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mapassoc.data.config import load_config
+
+    config = _auto_noise(scenario, tmp_path)
+    written = tmp_path / "estimated.toml"
+    assert main(["estimate-parameters", str(config), str(scenario / "detections.csv"),
+                 "--write", str(written), "--no-progress"]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert "motion.noise_intensity" in out and "sensor 'pos' noise_std" in out
+    estimated = load_config(written)
+    assert not estimated.auto.pending
+    assert estimated.sensors["pos"].measurement.noise_covariance[0, 0] == pytest.approx(
+        1.0, rel=0.4
+    )  # a std within 20%
+    run = tmp_path / "run"
+    assert main(["run", str(config), str(scenario / "detections.csv"), "--out", str(run),
+                 "--no-timings", "--no-progress"]) == 0  # fmt: skip
+    noise = json.loads((run / "summary.json").read_text())["parameters"]["noise"]
+    assert set(noise) == {"noise_intensity", "noise_std"}
+    assert noise["noise_std"]["pos"][0] == pytest.approx(1.0, rel=0.2)

@@ -1,0 +1,331 @@
+"""Noise levels from the recording: the ``"auto"`` process and measurement noise of the
+parameter EM (:mod:`mapassoc.estimator.parameters`).
+
+The EM of the sensor parameters runs the window estimator (the E step of the
+associations) and counts what its tracks say; the noise levels join it there.  Given a
+pass's associations, the noise levels are the fixed point of Shumway and Stoffer's EM
+for linear state-space models ("An approach to time series smoothing and forecasting
+using the EM algorithm", J. Time Series Analysis 1982) on those tracks: every track is
+smoothed under the current levels with its lag-one cross-covariances, the M step of
+:mod:`mapassoc.filtering.noise_estimation` gives new levels, and the two alternate,
+accelerated by SQUAREM, until they settle (at most :data:`MAX_NOISE_UPDATES` smoothings
+of the tracks; they are cheap beside a pass of the window estimator).  Iterating to the
+fixed point within one pass, rather than making one M step per pass, is what lets three
+passes suffice: one update closes only a few per cent of the distance where the
+measurement noise hides the process noise.
+
+Decisions:
+
+* Only tracks with at least :data:`MIN_TRACK_DETECTIONS` detections enter the sums: a
+  short track is more often clutter joined by chance, whose residuals are not the
+  sensor's noise, and a two-detection track says little about either level.
+* Starts.  Without a configured start, a position sensor's std starts at
+  ``sqrt(median(r^2) / (2 d))``, ``r`` the distance of each detection to the nearest
+  detection of the sensor's previous scan and ``d`` the position components: for a
+  target that does not move between scans, ``r^2`` is the squared difference of two
+  measurement errors, ``2 sigma^2`` per component; motion and clutter only add
+  distance, so the start is from above, the side this EM starts every parameter from
+  (too small a std breaks tracks into single detections, which carry no information
+  about the noise and leave the iteration where it started).  A start from the region
+  size would be orders of magnitude too large and make every window combinatorial.
+  ``noise_intensity`` starts where the process noise over the recording's median scan
+  interval ``T`` moves a position as much as the measurement noise does: ``q Q1(T)[0,
+  0] = sigma^2`` (a tracking index of one in Kalata's sense), with ``sigma^2`` the mean
+  position variance of the position sensors (their starts where estimated).
+* Convergence: the levels moved by at most ``rate_tolerance`` (relative) from one pass
+  to the next, the tolerance of the false-alarm rates.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from mapassoc.array_types import FloatArray
+from mapassoc.data.config import Config
+from mapassoc.data.scans import Scan
+from mapassoc.errors import InputError
+from mapassoc.filtering.noise_estimation import (
+    NoiseSums,
+    accelerated_em,
+    noise_sums,
+    position_sensor,
+    scalable_process_noise,
+    unit_process_noise,
+)
+from mapassoc.models.measurement import LinearMeasurement
+from mapassoc.models.sensor import Sensor
+
+__all__ = [
+    "MAX_NOISE_UPDATES",
+    "MIN_TRACK_DETECTIONS",
+    "NOISE_TOLERANCE",
+    "NoiseAsked",
+    "NoiseLevels",
+    "associations_of",
+    "initial_noise",
+    "noise_m_step",
+    "noise_close",
+    "with_noise_levels",
+]
+
+MAX_NOISE_UPDATES = 30
+"""Most smoothings of a pass's tracks in one noise M step."""
+NOISE_TOLERANCE = 1e-3
+"""Relative change of every level below which the inner iteration stops."""
+MIN_TRACK_DETECTIONS = 5
+"""Fewest detections of a track whose smoothed moments enter the noise sums."""
+
+
+@dataclass(frozen=True)
+class NoiseAsked:
+    """The noise levels a configuration leaves to the recording.
+
+    Attributes
+    ----------
+    process : bool
+        Whether ``[motion] noise_intensity`` is "auto".
+    process_start : float or None
+    stds : dict of str to tuple of float or None
+        Position sensors whose ``noise_std`` is "auto", with their starts.
+    """
+
+    process: bool
+    process_start: float | None
+    stds: dict[str, tuple[float, ...] | None]
+
+    @classmethod
+    def from_config(cls, config: Config) -> NoiseAsked:
+        """What ``config.auto`` asks, checked.
+
+        Raises
+        ------
+        InputError
+            A process noise asked of a model without one scale, or a std of a sensor
+            that is not a position sensor (naming the key).
+        """
+        auto = config.auto
+        if auto.noise_intensity and not scalable_process_noise(config.motion):
+            unit_process_noise(config.motion, 1.0)  # raises, naming the key
+        for name in auto.noise_std_starts():
+            if not position_sensor(config.sensors[name].measurement):
+                raise InputError(
+                    f"sensor '{name}' noise_std = \"auto\" needs a position sensor, got "
+                    f"{config.sensors[name].measurement!r}", key="noise_std",
+                )  # fmt: skip
+        return cls(auto.noise_intensity, auto.noise_intensity_start, auto.noise_std_starts())
+
+    @property
+    def any(self) -> bool:
+        return self.process or bool(self.stds)
+
+    def pooled(self, name: str) -> bool:
+        """Whether sensor ``name``'s std is one value for all components."""
+        start = self.stds[name]
+        return start is None or len(start) == 1
+
+
+@dataclass(frozen=True)
+class NoiseLevels:
+    """Values of the levels asked for.
+
+    Attributes
+    ----------
+    noise_intensity : float or None
+        None when not asked for.
+    noise_std : dict of str to tuple of float
+        Per sensor asked for, one std per position component.
+    """
+
+    noise_intensity: float | None
+    noise_std: dict[str, tuple[float, ...]]
+
+    def vector(self) -> FloatArray:
+        """The values in one positive vector (``noise_intensity`` first)."""
+        head = [] if self.noise_intensity is None else [self.noise_intensity]
+        return np.array(head + [v for stds in self.noise_std.values() for v in stds], float)
+
+    def to_json(self) -> dict[str, object]:
+        out: dict[str, object] = {}
+        if self.noise_intensity is not None:
+            out["noise_intensity"] = self.noise_intensity
+        out["noise_std"] = {name: list(stds) for name, stds in self.noise_std.items()}
+        return out
+
+
+def _from_vector(asked: NoiseAsked, like: NoiseLevels, values: FloatArray) -> NoiseLevels:
+    """:meth:`NoiseLevels.vector` read back (a pooled std given once per component)."""
+    it = iter(values.tolist())
+    q = next(it) if like.noise_intensity is not None else None
+    return NoiseLevels(q, {name: tuple(next(it) for _ in stds) for name, stds in
+                           like.noise_std.items()})  # fmt: skip
+
+
+def with_noise_levels(config: Config, levels: NoiseLevels | None) -> Config:
+    """``config`` with the levels: the motion model rebuilt with ``noise_intensity``, the
+    sensors asked for with position measurements of their stds (the rest unchanged)."""
+    if levels is None:
+        return config
+    motion = config.motion
+    if levels.noise_intensity is not None:
+        motion = type(motion)(ndim=motion.ndim, noise_intensity=levels.noise_intensity)  # type: ignore[call-arg, attr-defined]
+    sensors = {}
+    for name, sensor in config.sensors.items():
+        measurement = sensor.measurement
+        if name in levels.noise_std:
+            measurement = LinearMeasurement.position(motion, noise_std=levels.noise_std[name])
+        sensors[name] = Sensor(
+            name=name, measurement=measurement, detection_probability=sensor.detection_probability,
+            false_alarms_per_scan=sensor.false_alarms_per_scan, region=sensor.region,
+        )  # fmt: skip
+    return Config(
+        motion=motion, sensors=sensors, birth=config.birth, estimator=config.estimator,
+        source=config.source, auto=config.auto, trackers=config.trackers,
+        recording=config.recording,
+    )  # fmt: skip
+
+
+def _std_start(scans: Sequence[Scan], name: str) -> float | None:
+    """The data's start of sensor ``name``'s std (module docstring); None without two
+    consecutive scans with detections."""
+    squares: list[FloatArray] = []
+    previous: FloatArray | None = None
+    for scan in scans:
+        if scan.sensor != name:
+            continue
+        if previous is not None and previous.size and scan.size:
+            diff = scan.detections[:, None, :] - previous[None, :, :]
+            squares.append(np.min(np.sum(diff**2, axis=-1), axis=1))
+        previous = scan.detections
+    if not squares:
+        return None
+    d = previous.shape[1] if previous is not None else 1
+    return float(np.sqrt(np.median(np.concatenate(squares)) / (2 * d))) or None
+
+
+def initial_noise(config: Config, scans: Sequence[Scan], asked: NoiseAsked) -> NoiseLevels:
+    """The first pass's levels: the configured starts, else the data's (module docstring).
+
+    Raises
+    ------
+    InputError
+        No start can be found (naming the start key to give).
+    """
+    stds: dict[str, tuple[float, ...]] = {}
+    for name, start in asked.stds.items():
+        d = config.sensors[name].measurement.measurement_dim
+        if start is None:
+            found = _std_start(scans, name)
+            if found is None:
+                raise InputError(
+                    f"sensor '{name}' noise_std = \"auto\": the recording has no two "
+                    "consecutive scans with detections to start from; give noise_std_start",
+                    key="noise_std_start",
+                )
+            start = (found,)
+        stds[name] = tuple(start) * d if len(start) == 1 else tuple(start)
+    q = None
+    if asked.process:
+        q = asked.process_start
+        if q is None:
+            q = _q_start(config, scans, stds)
+    return NoiseLevels(q, stds)
+
+
+def _q_start(config: Config, scans: Sequence[Scan], stds: Mapping[str, tuple[float, ...]]) -> float:
+    """``sigma^2 / Q1(T)[0, 0]`` (module docstring)."""
+    variances = [
+        np.array(stds[name]) ** 2 if name in stds else np.diag(sensor.measurement.noise_covariance)
+        for name, sensor in config.sensors.items()
+        if position_sensor(sensor.measurement)
+    ]
+    steps = np.diff(np.unique([scan.time for scan in scans]))
+    if not variances or steps.size == 0:
+        raise InputError(
+            'motion.noise_intensity = "auto" has no start: the recording needs a position '
+            "sensor and two scan times; give noise_intensity_start",
+            key="motion.noise_intensity_start",
+        )
+    unit = unit_process_noise(config.motion, float(np.median(steps)))
+    return float(np.mean(np.concatenate(variances)) / unit[0, 0])
+
+
+def associations_of(
+    scans: Sequence[Scan], track_rows: Mapping[int, Sequence[int]]
+) -> dict[int, dict[int, int]]:
+    """Track id -> {scan index -> detection index} of the tracks with at least
+    :data:`MIN_TRACK_DETECTIONS` detections, from their detection ids."""
+    where = {int(row): (k, j) for k, scan in enumerate(scans)
+             for j, row in enumerate(scan.rows.tolist())}  # fmt: skip
+    out: dict[int, dict[int, int]] = {}
+    for track_id, rows in track_rows.items():
+        if len(rows) >= MIN_TRACK_DETECTIONS:
+            out[int(track_id)] = dict(where[int(row)] for row in rows)
+    return out
+
+
+def noise_m_step(
+    config: Config,
+    pieces: Sequence[Sequence[Scan]],
+    associations: Sequence[Mapping[int, Mapping[int, int]]],
+    asked: NoiseAsked,
+    current: NoiseLevels,
+) -> tuple[NoiseLevels, tuple[str, ...]]:
+    """The levels the pass's associations give (module docstring), and notes of what
+    they could not estimate (a level without a transition or a detection stays).
+
+    Parameters
+    ----------
+    config : Config
+        The pass's configuration (sensor parameters filled in).
+    pieces : sequence of sequence of Scan
+        The sample's blocks.
+    associations : sequence of mapping
+        Per block, its tracks (:func:`associations_of`).
+    asked : NoiseAsked
+    current : NoiseLevels
+        The levels the pass ran with (the iteration's start).
+    """
+    notes: list[str] = []
+
+    def sums_at(levels: NoiseLevels) -> NoiseSums:
+        run = with_noise_levels(config, levels)
+        parts = [noise_sums(piece, assoc, run, list(asked.stds))
+                 for piece, assoc in zip(pieces, associations, strict=True)]  # fmt: skip
+        total = parts[0]
+        for part in parts[1:]:
+            total = total.plus(part)
+        return total
+
+    def update(values: FloatArray) -> FloatArray:
+        levels = _from_vector(asked, current, values)
+        sums = sums_at(levels)
+        q = levels.noise_intensity
+        if q is not None and sums.process.intensity is not None:
+            q = sums.process.intensity
+        stds = dict(levels.noise_std)
+        for name in stds:
+            found = sums.measurement[name].stds(pooled=asked.pooled(name))
+            if found is not None:
+                stds[name] = tuple(found.tolist())
+        return NoiseLevels(q, stds).vector()
+
+    probe = sums_at(current)
+    if current.noise_intensity is not None and probe.process.intensity is None:
+        notes.append("motion.noise_intensity not estimable: no track with a transition; kept")
+    notes += [f"sensor '{name}' noise_std not estimable: no track detection; kept"
+              for name in current.noise_std if probe.measurement[name].count == 0]  # fmt: skip
+    result = accelerated_em(update, current.vector(), tolerance=NOISE_TOLERANCE,
+                            max_updates=MAX_NOISE_UPDATES)  # fmt: skip
+    return _from_vector(asked, current, result.values), tuple(notes)
+
+
+def noise_close(a: NoiseLevels | None, b: NoiseLevels | None, tolerance: float) -> bool:
+    """Whether every level of ``a`` and ``b`` differs by at most ``tolerance`` of the
+    larger."""
+    if a is None or b is None:
+        return a is b
+    x, y = a.vector(), b.vector()
+    return bool(np.all(np.abs(x - y) <= tolerance * np.maximum(x, y)))

@@ -1,0 +1,96 @@
+"""The "auto" noise levels in the parameter EM (mapassoc.estimator.noise_levels).
+
+Starts, the rebuilt configuration, the associations of a run's tracks, and a simulated
+recording with clutter whose configuration leaves both noise levels to the recording:
+estimated within 20% of the truth, and the written configuration loads and runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+
+import numpy as np
+import pytest
+
+from mapassoc.data.config import AutoParameters, config_to_toml, parse_config
+from mapassoc.data.scans import Scan
+from mapassoc.errors import InputError
+from mapassoc.estimator.noise_levels import (
+    MIN_TRACK_DETECTIONS,
+    NoiseAsked,
+    NoiseLevels,
+    associations_of,
+    initial_noise,
+    with_noise_levels,
+)
+from mapassoc.estimator.parameters import estimate_parameters
+from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.evaluation.scenarios import build_scenario, generic_config
+
+
+def _auto(config, q_start=None, std_start=None):  # type: ignore[no-untyped-def]
+    auto = AutoParameters(
+        noise_intensity=True, noise_intensity_start=q_start,
+        noise_std=tuple((name, std_start) for name in config.sensors),
+    )  # fmt: skip
+    return dataclasses.replace(config, auto=auto)
+
+
+def test_starts_given_and_from_the_data() -> None:
+    built = build_scenario("crossing", 0, scans=40)
+    config = _auto(built.config, 0.5, (2.0,))
+    levels = initial_noise(config, built.scans, NoiseAsked.from_config(config))
+    assert levels == NoiseLevels(0.5, {"pos": (2.0, 2.0)})
+    config = _auto(built.config)
+    levels = initial_noise(config, built.scans, NoiseAsked.from_config(config))
+    std = levels.noise_std["pos"][0]
+    # From above (motion and clutter only add distance), and q where the process noise
+    # over one scan interval equals that measurement noise (T = 1: Q1[0, 0] = 1/3).
+    assert std > 1.0
+    assert levels.noise_intensity == pytest.approx(3 * std**2)
+    empty = [Scan(float(t), "pos", np.zeros((0, 2)), np.zeros(0, np.int64)) for t in range(3)]
+    with pytest.raises(InputError, match="give noise_std_start") as info:
+        initial_noise(config, empty, NoiseAsked.from_config(config))
+    assert info.value.key == "noise_std_start"
+
+
+def test_the_levels_rebuild_the_model() -> None:
+    config = build_scenario("crossing", 0, scans=5).config
+    rebuilt = with_noise_levels(config, NoiseLevels(0.25, {"pos": (2.0, 3.0)}))
+    assert rebuilt.motion.noise_intensity == 0.25  # type: ignore[attr-defined]
+    np.testing.assert_array_equal(rebuilt.sensors["pos"].measurement.noise_covariance,
+                                  np.diag([4.0, 9.0]))  # fmt: skip
+    assert with_noise_levels(config, None) is config
+    assert NoiseLevels(0.25, {"pos": (2.0, 3.0)}).vector().tolist() == [0.25, 2.0, 3.0]
+
+
+def test_associations_of_keep_the_longer_tracks() -> None:
+    scans = [Scan(float(t), "s", np.zeros((2, 2)), np.array([10 + 2 * t, 11 + 2 * t]))
+             for t in range(MIN_TRACK_DETECTIONS)]  # fmt: skip
+    long = tuple(10 + 2 * t for t in range(MIN_TRACK_DETECTIONS))
+    out = associations_of(scans, {1: long, 2: (11, 13)})
+    assert out == {1: dict.fromkeys(range(MIN_TRACK_DETECTIONS), 0)}
+
+
+@pytest.mark.slow
+def test_auto_noise_levels_are_estimated_and_the_written_configuration_runs() -> None:
+    """crossing (targets crossing, 10 false alarms per scan, Pd 0.9; q = 0.002, std 1),
+    600 scans, from four times q and twice the std: both within 20%."""
+    built = build_scenario("crossing", 0, scans=600)
+    truth = generic_config(built, time_limit=600.0)
+    q_true = truth.motion.noise_intensity  # type: ignore[attr-defined]
+    config = parse_config(tomllib.loads(config_to_toml(_auto(truth, 4 * q_true, (2.0,)))))
+    assert config.auto.noise_intensity and config.auto.noise_std_starts() == {"pos": (2.0,)}
+    estimate = estimate_parameters(config, built.scans, finish=False)
+    assert estimate.noise is not None and estimate.noise.noise_intensity is not None
+    assert estimate.noise.noise_intensity == pytest.approx(q_true, rel=0.2)
+    assert estimate.noise.noise_std["pos"][0] == pytest.approx(1.0, rel=0.2)
+    record = estimate.to_json(timings=False)
+    assert record["noise"] == estimate.noise.to_json()
+    assert all("noise_used" in p for p in record["passes"])  # type: ignore[union-attr]
+    written = parse_config(tomllib.loads(config_to_toml(estimate.config)))
+    assert not written.auto.pending
+    assert written.motion.noise_intensity == estimate.noise.noise_intensity  # type: ignore[attr-defined]
+    result = WindowEstimator(config=written).run(built.scans[:30])
+    assert len(result.track_rows) > 0
