@@ -44,7 +44,7 @@ class RecordingObjective(Protocol):
 
     def detect(self, state: PathState, m: int, j: int | IntArray) -> PathState: ...
 
-__all__ = ["converge_in_lockstep"]
+__all__ = ["ConvergeRequest", "converge_in_lockstep"]
 
 
 @dataclass

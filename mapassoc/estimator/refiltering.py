@@ -36,7 +36,7 @@ from mapassoc.filtering.compiled import ScanModel, filter_backend
 from mapassoc.models.measurement import LinearMeasurement, MeasurementModel
 from mapassoc.models.motion import MotionModel
 
-__all__ = ["Refiltering", "ConvergeRequest"]
+__all__ = ["Refiltering"]
 
 
 
