@@ -27,6 +27,7 @@ from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.errors import InputError
 from mapassoc.estimator.terms import ScanTerms
 from mapassoc.estimator.track_paths import CONVERGED, PathState, Trajectory
+from mapassoc.filtering.scan_steps import states_agree
 
 ConvergeRequest = tuple[PathState, Trajectory, int]
 """``(start, reference, first)``: tracks at ``start`` continued through
@@ -181,10 +182,7 @@ def _settle(walk: _Walk, state: PathState, out: FloatArray) -> bool:
     if state.initiated == bool(reference.initiated[k]):
         mean, cov = reference.means[k], reference.covariances[k]
         if state.means.shape[1:] == mean.shape:
-            same = np.all(
-                np.abs(state.means - mean) <= CONVERGED * (1.0 + np.abs(mean)), axis=1
-            ) & np.all(np.abs(state.covariances - cov) <= CONVERGED * (1.0 + np.abs(cov)),
-                       axis=(1, 2))  # fmt: skip
+            same = states_agree(state.means, state.covariances, mean, cov, CONVERGED)
             if np.any(same):
                 out[rows[same]] = state.value[same] + rest
                 keep = np.flatnonzero(~same)

@@ -32,7 +32,14 @@ from mapassoc.filtering.kalman import (
     predicted_covariance,
 )
 
-__all__ = ["ScanModel", "filter_along_path", "continue_along_references", "advance", "detect"]
+__all__ = [
+    "ScanModel",
+    "filter_along_path",
+    "continue_along_references",
+    "advance",
+    "detect",
+    "states_agree",
+]
 
 ScanModel = tuple[
     NDArray[np.bool_],
@@ -216,8 +223,31 @@ def _converged(
     same = np.zeros(x.shape[0], dtype=bool)
     check = np.flatnonzero(~leaving)
     if check.size:
-        m, c = mean[check], covariance[check]
-        same[check] = np.all(np.abs(x[check] - m) <= tolerance * (1.0 + np.abs(m)), axis=1) & (
-            np.all(np.abs(P[check] - c) <= tolerance * (1.0 + np.abs(c)), axis=(1, 2))
-        )
+        same[check] = states_agree(x[check], P[check], mean[check], covariance[check], tolerance)
     return same
+
+
+def states_agree(
+    x: FloatArray, P: FloatArray, mean: FloatArray, covariance: FloatArray, tolerance: float
+) -> BoolArray:
+    """Which states of a batch equal a reference's: every entry of the mean and the
+    covariance within ``tolerance`` relative to ``1 + |entry|`` (the convergence test of
+    the refinement's joins, here and in
+    :func:`mapassoc.estimator.converging.converge_in_lockstep`).
+
+    Parameters
+    ----------
+    x : ndarray, shape (B, n)
+    P : ndarray, shape (B, n, n)
+    mean : ndarray, shape (n,) or (B, n)
+    covariance : ndarray, shape (n, n) or (B, n, n)
+    tolerance : float
+
+    Returns
+    -------
+    ndarray of bool, shape (B,)
+    """
+    close_mean = np.all(np.abs(x - mean) <= tolerance * (1.0 + np.abs(mean)), axis=1)
+    close_cov = np.all(np.abs(P - covariance) <= tolerance * (1.0 + np.abs(covariance)),
+                       axis=(1, 2))  # fmt: skip
+    return close_mean & close_cov
