@@ -531,21 +531,31 @@ def _parse_motion(
     return _parse_single_motion(parser, table, "motion", (*MOTION_REGISTRY, IMM)), auto, start
 
 
+def _auto_start(
+    parser: _Parser, table: Mapping[str, object], prefix: str, key: str, auto: bool
+) -> object | None:
+    """The raw ``<key>_start`` of a table (None where absent), refused unless ``key`` is
+    "auto": a start is the first pass's value of an estimated parameter, and means
+    nothing for a given one."""
+    start_key = f"{key}_start"
+    if start_key not in table:
+        return None
+    if not auto:
+        raise parser.fail(
+            f"{prefix}.{start_key}", f'only goes with {key} = "auto"; remove it or write '
+            f'{key} = "auto"',
+        )  # fmt: skip
+    return table[start_key]
+
+
 def _auto_noise_intensity(
     parser: _Parser, table: Mapping[str, object]
 ) -> tuple[Mapping[str, object], bool, float | None]:
     """``[motion]`` with an "auto" ``noise_intensity`` replaced by the placeholder and
     ``noise_intensity_start`` taken out: ``(table, auto, start)``."""
     auto = table.get("noise_intensity") == AUTO
-    start_key = "motion.noise_intensity_start"
-    start = None
-    if "noise_intensity_start" in table:
-        if not auto:
-            raise parser.fail(
-                start_key, 'only goes with noise_intensity = "auto"; remove it or write '
-                'noise_intensity = "auto"',
-            )  # fmt: skip
-        start = parser.positive(table["noise_intensity_start"], start_key)
+    given = _auto_start(parser, table, "motion", "noise_intensity", auto)
+    start = None if given is None else parser.positive(given, "motion.noise_intensity_start")
     if not auto:
         return table, False, None
     if table.get("model") not in AUTO_NOISE_MODELS:
@@ -794,13 +804,8 @@ def _auto_noise_std(
     auto = table.get("noise_std") == AUTO and kind == POSITION
     start_key = f"{prefix}.noise_std_start"
     start: tuple[float, ...] | None = None
-    if "noise_std_start" in table:
-        if not auto:
-            raise parser.fail(
-                start_key, 'only goes with noise_std = "auto"; remove it or write '
-                'noise_std = "auto"',
-            )  # fmt: skip
-        given = table["noise_std_start"]
+    given = _auto_start(parser, table, prefix, "noise_std", auto)
+    if given is not None:
         if isinstance(given, list):
             if len(given) != count:
                 raise parser.fail(
@@ -835,13 +840,9 @@ def _sensor_rates(
     auto_pd = pd_value == AUTO
     start_key = f"{prefix}.detection_probability_start"
     start = None
-    if "detection_probability_start" in table:
-        if not auto_pd:
-            raise parser.fail(
-                start_key, 'only goes with detection_probability = "auto"; remove it or '
-                'write detection_probability = "auto"',
-            )  # fmt: skip
-        start = parser.probability(table["detection_probability_start"], start_key)
+    given = _auto_start(parser, table, prefix, "detection_probability", auto_pd)
+    if given is not None:
+        start = parser.probability(given, start_key)
         if start == 0:
             raise parser.fail(start_key, "must be a probability in (0, 1], got 0")
     detection_probability = (
