@@ -27,6 +27,7 @@ COMPILED_SWITCH = "MAPASSOC_COMPILED"
 KERNEL_MODULES = (
     "mapassoc.formulations.compiled_frontier",
     "mapassoc.filtering.compiled_kernels",
+    "mapassoc.filtering.compiled_imm",
 )
 """Every kernel module: each compiles (or loads from numba's cache) its kernels for the
 argument types the package passes when it is imported."""

@@ -477,7 +477,7 @@ class RecordingObjective:
         if first >= len(reference.path) or not bool(np.all(reference.initiated[first:])):
             return False
         rest = reference.path[first:]
-        return self._in_motion_space(start) and self.refiltering.linear_suffix(rest) == 0
+        return self._in_motion_space(start) and self.refiltering.converges(rest)
 
     def _in_motion_space(self, state: PathState) -> bool:
         """Whether ``state`` is an initiated track in the motion model's state space."""

@@ -32,7 +32,9 @@ from mapassoc.estimator.converging import ConvergeRequest
 from mapassoc.estimator.terms import ScanTerms
 from mapassoc.estimator.track_paths import CONVERGED, PathState, TrackPath
 from mapassoc.filtering.batch import KalmanFilter
-from mapassoc.filtering.compiled import ScanModel, filter_backend
+from mapassoc.filtering.compiled import ScanModel, filter_backend, imm_kernels
+from mapassoc.filtering.scan_steps import SetModel
+from mapassoc.models.interacting import InteractingModels
 from mapassoc.models.measurement import LinearMeasurement, MeasurementModel
 from mapassoc.models.motion import MotionModel
 
@@ -71,6 +73,10 @@ class Refiltering:
         self.kalman = kalman
         self.measurement_dim = max(m.measurement_dim for m in self.measurements)
         self._scan_model: ScanModel | None = None
+        self._set_model: SetModel | None = None
+        self._linear_set = isinstance(motion, InteractingModels) and all(
+            model.is_linear for model in motion.models
+        )
 
     def linear_suffix(self, path: TrackPath) -> int:
         """The first index of ``path`` from which every step is a linear Kalman step (a
@@ -82,6 +88,40 @@ class Refiltering:
         while k > 0 and isinstance(self.measurements[path[k - 1][0]], LinearMeasurement):
             k -= 1
         return k
+
+    def converges(self, path: TrackPath) -> bool:
+        """Whether :meth:`converge` takes a request along ``path``: every step a linear
+        Kalman step (:meth:`linear_suffix` is 0), or, for a set of linear motion models
+        with the compiled kernels loaded, every measurement linear (a set's numpy twin
+        is the objective's lockstep continuation, which takes everything)."""
+        if self._linear_set:
+            return imm_kernels() is not None and all(
+                isinstance(self.measurements[m], LinearMeasurement) for m, _ in path
+            )
+        return self.linear_suffix(path) == 0
+
+    def set_model(self) -> SetModel:
+        """What the compiled joins of a set read of the recording per scan
+        (:data:`~mapassoc.filtering.scan_steps.SetModel`), built once: each model's ``F``
+        and ``Q`` and the switching matrix of the step from each scan's predecessor
+        (zeros where the time step is not positive)."""
+        if self._set_model is None:
+            motion = self.motion
+            assert isinstance(motion, InteractingModels)
+            times, K, n = self.terms.times, motion.n_models, motion.state_dim
+            S = len(self.scans)
+            moves = np.zeros(S, dtype=bool)
+            F, Q, Pi = np.zeros((S, K, n, n)), np.zeros((S, K, n, n)), np.zeros((S, K, K))
+            for m in range(1, S):
+                dt = float(times[m] - times[m - 1])
+                if dt > 0:
+                    stacked = self.kalman.stacked_motion(motion, dt)
+                    assert stacked is not None  # every model is linear (converges)
+                    moves[m] = True
+                    F[m], Q[m] = stacked
+                    Pi[m] = self.kalman.switching(motion, dt)
+            self._set_model = (moves, F, Q, Pi)
+        return self._set_model
 
     def scan_model(self) -> ScanModel:
         """What the backends read of the recording per scan
@@ -174,15 +214,22 @@ class Refiltering:
         starts = [start for start, _, _ in requests]
         sizes = np.array([len(start) for start in starts], dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes)])
-        flat, positive = filter_backend().continue_along_references(
+        tracks = (
             np.ascontiguousarray(np.concatenate([s.means for s in starts]), dtype=np.float64),
             np.ascontiguousarray(np.concatenate([s.covariances for s in starts]), dtype=np.float64),
             np.ascontiguousarray(np.concatenate([s.value for s in starts]), dtype=np.float64),
             np.repeat(np.array([s.scan for s in starts], dtype=np.int64), sizes),
             np.repeat(np.arange(len(requests), dtype=np.int64), sizes),
             table.steps, table.scan, table.detection, table.rest, table.mean,
-            table.covariance, table.tail, self.scan_model(), CONVERGED,
+            table.covariance, table.tail, self.scan_model(),
         )  # fmt: skip
+        kernels = imm_kernels() if self._linear_set else None
+        if kernels is not None:
+            flat, positive = kernels.continue_sets_along_references(
+                *tracks, self.set_model(), CONVERGED
+            )
+        else:
+            flat, positive = filter_backend().continue_along_references(*tracks, CONVERGED)
         if not positive:
             raise InputError("innovation covariance S is not positive-definite")
         flat = np.asarray(flat, dtype=np.float64)

@@ -64,6 +64,7 @@ import numpy as np
 
 from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.errors import InputError
+from mapassoc.filtering.compiled import imm_kernels
 from mapassoc.filtering.imm import mix, model_log_probabilities
 from mapassoc.filtering.kalman import (
     gaussian_terms,
@@ -404,13 +405,16 @@ class KalmanFilter:
                 f"{models.filter_state_dim}, got {x.shape}"
             )
         key = float(dt)
-        Pi = self._switching.get(key)
-        if Pi is None or len(Pi) != models.n_models:
-            if len(self._switching) >= _MOTION_CACHE_SIZE:
-                self._switching.clear()
-            Pi = self._switching[key] = models.switching.at(key)
-        log_c, x0, P0 = mix(*unpack_models(x, P, models.n_models), Pi)
-        stacked = self._stacked_motion(models, key)
+        stacked = self.stacked_motion(models, key)
+        kernels = imm_kernels() if stacked is not None and x.ndim == 2 else None
+        if kernels is not None and stacked is not None:  # the same steps, compiled
+            x_new, P_new = kernels.predict_sets(
+                np.ascontiguousarray(x, dtype=np.float64),
+                np.ascontiguousarray(P, dtype=np.float64),
+                *stacked, self.switching(models, key),
+            )
+            return x_new, P_new, np.zeros((0, 0))
+        log_c, x0, P0 = mix(*unpack_models(x, P, models.n_models), self.switching(models, key))
         if stacked is not None:  # every model linear: one prediction for all of them
             F, Q = stacked
             xs = np.einsum("jab,...jb->...ja", F, x0)
@@ -425,7 +429,17 @@ class KalmanFilter:
         x_new, P_new = pack_models(log_c, xs, Ps)
         return x_new, P_new, np.zeros((0, 0))
 
-    def _stacked_motion(
+    def switching(self, models: InteractingModels, dt: float) -> FloatArray:
+        """The set's switching matrix over ``dt > 0``, shape ``(M, M)`` (cached)."""
+        key = float(dt)
+        Pi = self._switching.get(key)
+        if Pi is None or len(Pi) != models.n_models:
+            if len(self._switching) >= _MOTION_CACHE_SIZE:
+                self._switching.clear()
+            Pi = self._switching[key] = models.switching.at(key)
+        return Pi
+
+    def stacked_motion(
         self, models: InteractingModels, dt: float
     ) -> tuple[FloatArray, FloatArray] | None:
         """Every model's ``(F(dt), Q(dt))`` stacked, shapes ``(M, n, n)``, or None when

@@ -34,6 +34,7 @@ from mapassoc.filtering.kalman import (
 
 __all__ = [
     "ScanModel",
+    "SetModel",
     "filter_along_path",
     "continue_along_references",
     "advance",
@@ -70,6 +71,14 @@ ScanModel = tuple[
   sensor), so the numpy backend takes their tracks' steps together.
 
 Built once per recording by ``mapassoc.estimator.refiltering``."""
+
+SetModel = tuple[NDArray[np.bool_], FloatArray, FloatArray, FloatArray]
+"""What the compiled joins of a set of linear motion models read per scan ``m``
+(:mod:`mapassoc.filtering.compiled_imm`): ``moves`` (M,) as in :data:`ScanModel`; each
+model's ``F`` and ``Q`` (M, K, n, n) of the step from scan ``m - 1``; the switching
+matrix over that step (M, K, K), for the K models of the set.  Built once per recording
+by ``mapassoc.estimator.refiltering``; its numpy twin is the batched lockstep
+continuation, which reads the models themselves."""
 
 
 def advance(

@@ -18,6 +18,7 @@ from mapassoc.estimator.objective import RecordingObjective, paths_from_rows
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.scenarios import build_scenario
+from mapassoc.filtering.compiled import imm_kernels
 from mapassoc.filtering.imm import imm_filter
 from mapassoc.filtering.kalman import FilterStep, filter_sequence
 from mapassoc.models.birth import birth_state
@@ -220,14 +221,25 @@ def test_noise_levels_scales_the_models_noise_and_refuses_other_models() -> None
         noise_levels(cv, factors=(1.0, 0.0))
 
 
-@pytest.mark.parametrize("name", ["crossing", "two_sensors"])
-def test_joins_in_a_set_continued_in_lockstep_are_the_whole_re_filtering(name: str) -> None:
+@pytest.mark.parametrize(("name", "factors"), [
+    ("crossing", (1.0, 30.0)), ("crossing", (1.0, 3.0, 30.0)), ("two_sensors", (1.0, 30.0)),
+])  # fmt: skip
+def test_joins_in_a_set_continued_in_lockstep_are_the_whole_re_filtering(
+    name: str, factors: tuple[float, ...], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The refinement's joins in a model set (continue_converging_many: requests of
-    different starts and references stacked scan by scan, each stopped where its state
-    meets the reference's) give each track what re-filtering it along the whole rest of
-    the reference gives, and what each request alone gives."""
+    different starts and references stacked, each stopped where its state meets the
+    reference's; with numba, in the compiled kernel of a set of linear models) give each
+    track what re-filtering it along the whole rest of the reference gives, and what
+    each request alone gives (the lockstep continuation, the kernel's numpy twin)."""
+    kernels = imm_kernels()
+    calls = []
+    if kernels is not None:
+        kernel = kernels.continue_sets_along_references
+        monkeypatch.setattr(kernels, "continue_sets_along_references",
+                            lambda *a: calls.append(1) or kernel(*a))  # fmt: skip
     scenario = build_scenario(name, seed=1)
-    config = _with_set(scenario.config, (1.0, 30.0))
+    config = _with_set(scenario.config, factors)
     scans = scenario.scans[:25]
     forward = dataclasses.replace(scenario.config, estimator=dataclasses.replace(
         scenario.config.estimator, refine_passes=0))  # fmt: skip
@@ -253,3 +265,5 @@ def test_joins_in_a_set_continued_in_lockstep_are_the_whole_re_filtering(name: s
         np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-6)
         finite += int(np.isfinite(got).sum())
     assert finite >= len(paths)
+    # two_sensors has a range-bearing sensor: its joins stay in the lockstep path.
+    assert len(calls) == (kernels is not None and name == "crossing")
