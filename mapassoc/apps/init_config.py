@@ -13,17 +13,9 @@ the run is written as ``"auto"``:
   box would dilute the clutter density the run estimates), or of its ranges and
   bearings (a range-bearing sensor; all bearings when they span nearly the circle);
 * the scan period (the median time between a sensor's scans);
-* the measurement noise ``r`` and the process noise ``q`` of a constant-velocity model
-  from the second differences of nearest-neighbour chains of detections: for positions
-  ``x_{k-1}, x_k, x_{k+1}`` a time ``T`` apart, the second difference has variance
-  ``V = (2/3) q T^3 + 6 r`` and lag-one autocovariance ``C = q T^3 / 6 - 4 r``, so
-  ``r = (V - 4 C) / 22`` and ``q T^3 = 6 (C + 4 r)`` (floored at ``r / 100``), from the
-  second differences within three robust standard deviations: a method of moments on the
-  innovations' autocovariances in the spirit of Odelson, Rajamani and Rawlings, "A new
-  autocovariance least-squares method for estimating noise covariances" (Automatica,
-  2006);
-* the birth model's velocity spread: the robust spread (1.4826 times the median
-  absolute value) of the chains' scan-to-scan velocities;
+* the measurement noise ``r`` and the process noise ``q`` of a constant-velocity model,
+  and the birth model's velocity spread, from the moments of nearest-neighbour chains of
+  detections (:func:`mapassoc.filtering.noise_moments.chain_moments`, which says how);
 * ``detection_probability`` and ``false_alarms_per_scan`` as ``"auto"`` (estimated by
   the run's EM, :mod:`mapassoc.estimator.parameters`).
 
@@ -46,14 +38,13 @@ import numpy as np
 
 from mapassoc.data.frames import GeodeticPoint
 from mapassoc.errors import DataFileError, InputError, OutputError
+from mapassoc.filtering.noise_moments import ChainMoments, chain_moments
 
 __all__ = ["SensorGuess", "infer_config_text", "init_config", "parse_site"]
 
 _MARGIN = 0.05
 _MIN_NOISE_STD = 0.1
 """Metres: the least noise written (a recording of exact positions gives none)."""
-_MIN_PROCESS_NOISE = 1e-4
-"""m^2/s^3: the least process noise written."""
 
 
 @dataclass(frozen=True)
@@ -220,69 +211,6 @@ def _positions(scans: Sequence[Any], sensor: Any) -> list[Any]:
     return out
 
 
-def _links(a: Any, b: Any) -> list[tuple[int, int]]:
-    """Mutual nearest neighbours of the rows of ``a`` and ``b``."""
-    if len(a) == 0 or len(b) == 0:
-        return []
-    d = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=-1)
-    ab, ba = np.argmin(d, axis=1), np.argmin(d, axis=0)
-    return [(i, int(j)) for i, j in enumerate(ab) if ba[j] == i]
-
-
-def _robust_variance(values: Any) -> float:
-    """Variance from the median of squares (median of chi-square(1) is 0.4549)."""
-    return float(np.median(np.square(values)) / 0.4549) if len(values) else math.nan
-
-
-@dataclass(frozen=True)
-class Moments:
-    """Per-sensor estimates from nearest-neighbour chains (module docstring)."""
-
-    measurement_variance: float
-    process_noise: float
-    speed_spread: float
-    period: float
-
-
-def chain_moments(times: Sequence[float], positions: Sequence[Any]) -> Moments:
-    """``r``, ``q``, the velocity spread and the median scan period of one sensor."""
-    period = float(np.median(np.diff(times))) if len(times) > 1 else 1.0
-    nxt = [dict(_links(positions[k], positions[k + 1])) for k in range(len(positions) - 1)]
-    velocities, second, pairs = [], [], []
-    for k in range(len(nxt) - 2):
-        for i, j in nxt[k].items():
-            dt = times[k + 1] - times[k]
-            velocities.append((positions[k + 1][j] - positions[k][i]) / dt)
-            third = nxt[k + 1].get(j)
-            fourth = None if third is None else nxt[k + 2].get(third)
-            if third is None or fourth is None:
-                continue
-            d1 = positions[k + 2][third] - 2 * positions[k + 1][j] + positions[k][i]
-            d2 = positions[k + 3][fourth] - 2 * positions[k + 2][third] + positions[k + 1][j]
-            second.append(d1)
-            pairs.append((d1, d2))
-    v = np.concatenate(velocities) if velocities else np.zeros(1)
-    spread = max(math.sqrt(_robust_variance(v)), 1e-3)
-    if not pairs:
-        return Moments(1.0, 1.0, spread, period)
-    d1s, d2s = np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
-    # clutter in a chain gives second differences far out in the tails: keep the pairs
-    # within 3 robust standard deviations, then the moments of what is left
-    scale = 3.0 * math.sqrt(_robust_variance(np.concatenate(second)))
-    keep = (np.abs(d1s) <= scale).all(axis=1) & (np.abs(d2s) <= scale).all(axis=1)
-    if np.any(keep):
-        d1s, d2s = d1s[keep], d2s[keep]
-    d1s, d2s = d1s.ravel(), d2s.ravel()
-    variance = _robust_variance(np.concatenate([d1s, d2s]))
-    lag = (_robust_variance(d1s + d2s) - _robust_variance(d1s - d2s)) / 4
-    r = max((variance - 4 * lag) / 22, variance / 200)
-    # q T^3 = 6 (C + 4 r) is the small difference of two large numbers when the noise
-    # dominates the motion within a scan; it is floored at r / 100 (a nearly constant
-    # velocity), never left at zero or below
-    q_t3 = max(6 * (lag + 4 * r), r / 100)
-    return Moments(r, max(q_t3 / period**3, _MIN_PROCESS_NOISE), spread, period)
-
-
 def _region(scans: Sequence[Any], positions: Sequence[Any], sensor: Any) -> list[list[float]]:
     """The extent of a sensor's detections with a margin of ``_MARGIN`` of it each side:
     of their positions, or of their ranges and bearings (all bearings when they span
@@ -303,7 +231,7 @@ def _region(scans: Sequence[Any], positions: Sequence[Any], sensor: Any) -> list
     return [[float(a), float(b)] for a, b in zip(low - margin, high + margin, strict=True)]
 
 
-def _noise(moments: Moments, positions: Sequence[Any], sensor: Any) -> tuple[float, float]:
+def _noise(moments: ChainMoments, positions: Sequence[Any], sensor: Any) -> tuple[float, float]:
     from mapassoc.models.measurement import RangeBearing
 
     std = max(math.sqrt(moments.measurement_variance), _MIN_NOISE_STD)
@@ -374,7 +302,7 @@ def _header_lines(name: str, base: Any) -> list[str]:
     ]
 
 
-def _model_lines(moments: Sequence[Moments], dim: int, scans: Sequence[Any]) -> list[str]:
+def _model_lines(moments: Sequence[ChainMoments], dim: int, scans: Sequence[Any]) -> list[str]:
     q = float(np.median([m.process_noise for m in moments]))
     spread = float(max(m.speed_spread for m in moments))
     period = float(np.median([m.period for m in moments]))

@@ -8,6 +8,7 @@ estimated within 20% of the truth, and the written configuration loads and runs.
 from __future__ import annotations
 
 import dataclasses
+import math
 import tomllib
 
 import numpy as np
@@ -27,6 +28,10 @@ from mapassoc.estimator.noise_levels import (
 from mapassoc.estimator.parameters import estimate_parameters
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.evaluation.scenarios import build_scenario, generic_config
+from mapassoc.filtering.noise_moments import chain_moments
+from mapassoc.models.measurement import LinearMeasurement
+from mapassoc.models.motion import RandomWalk
+from mapassoc.models.sensor import Sensor
 
 
 def _auto(config, q_start=None, std_start=None):  # type: ignore[no-untyped-def]
@@ -44,11 +49,31 @@ def test_starts_given_and_from_the_data() -> None:
     assert levels == NoiseLevels(0.5, {"pos": (2.0, 2.0)})
     config = _auto(built.config)
     levels = initial_noise(config, built.scans, NoiseAsked.from_config(config))
-    std = levels.noise_std["pos"][0]
-    # From above (motion and clutter only add distance), and q where the process noise
+    # From the chains' moments (true std 1, q 0.002): near or above, never far below.
+    chains = chain_moments([s.time for s in built.scans], [s.detections for s in built.scans])
+    assert chains.pairs > 0
+    assert levels.noise_std["pos"] == (math.sqrt(chains.measurement_variance),) * 2
+    assert levels.noise_intensity == chains.process_noise
+    assert 0.9 < levels.noise_std["pos"][0] < 1.5
+    assert 0.002 < levels.noise_intensity < 0.2
+    # Three scans hold no chain of four detections: the std from nearest neighbours
+    # (from above: motion and clutter only add distance) and q where the process noise
     # over one scan interval equals that measurement noise (T = 1: Q1[0, 0] = 1/3).
+    levels = initial_noise(config, built.scans[:3], NoiseAsked.from_config(config))
+    std = levels.noise_std["pos"][0]
     assert std > 1.0
     assert levels.noise_intensity == pytest.approx(3 * std**2)
+    # A random walk's q is not a chain's (a constant-velocity model's): T = 1, Q1 = I.
+    rw = RandomWalk(ndim=2, noise_intensity=1.0)
+    pos = config.sensors["pos"]
+    sensor = Sensor(
+        name="pos", measurement=LinearMeasurement.position(rw, noise_std=1.0),
+        detection_probability=pos.detection_probability,
+        false_alarms_per_scan=pos.false_alarms_per_scan, region=pos.region,
+    )  # fmt: skip
+    walk = dataclasses.replace(config, motion=rw, sensors={"pos": sensor})
+    levels = initial_noise(walk, built.scans, NoiseAsked.from_config(walk))
+    assert levels.noise_intensity == pytest.approx(levels.noise_std["pos"][0] ** 2)
     empty = [Scan(float(t), "pos", np.zeros((0, 2)), np.zeros(0, np.int64)) for t in range(3)]
     with pytest.raises(InputError, match="give noise_std_start") as info:
         initial_noise(config, empty, NoiseAsked.from_config(config))
