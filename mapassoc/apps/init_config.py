@@ -13,9 +13,12 @@ the run is written as ``"auto"``:
   box would dilute the clutter density the run estimates), or of its ranges and
   bearings (a range-bearing sensor; all bearings when they span nearly the circle);
 * the scan period (the median time between a sensor's scans);
-* the measurement noise ``r`` and the process noise ``q`` of a constant-velocity model,
-  and the birth model's velocity spread, from the moments of nearest-neighbour chains of
-  detections (:func:`mapassoc.filtering.noise_moments.chain_moments`, which says how);
+* the birth model's velocity spread from the moments of nearest-neighbour chains of
+  detections (:func:`mapassoc.filtering.noise_moments.chain_moments`, which says how),
+  and, from the same chains, a range-bearing sensor's noise; a position sensor's
+  ``noise_std`` and the constant-velocity model's ``noise_intensity`` are written as
+  ``"auto"`` with the chains' values in a comment (the run's EM starts from the same
+  chains, :mod:`mapassoc.estimator.noise_levels`);
 * ``detection_probability`` and ``false_alarms_per_scan`` as ``"auto"`` (estimated by
   the run's EM, :mod:`mapassoc.estimator.parameters`).
 
@@ -160,7 +163,10 @@ def _draft_toml(
         region = (regions or {}).get(guess.name)
         lines += ["[[sensors]]", f"name = {_quote(guess.name)}"]
         if guess.kind in ("geo_position", "position"):
-            lines += ['measurement = "position"', f"noise_std = {r_std!r}  # metres"]
+            lines += [
+                'measurement = "position"',
+                f'noise_std = "auto"   # estimated by the run; the chains give {r_std!r} m',
+            ]
         else:
             lines += ['measurement = "range_bearing"']
             if guess.kind == "geo_radar":
@@ -310,10 +316,11 @@ def _model_lines(moments: Sequence[ChainMoments], dim: int, scans: Sequence[Any]
     initial = sum(s.size for s in scans if s.time == first.time)
     return [
         "[motion]",
-        f"# scan period {period!r} s; process noise from the chains' second differences",
+        f"# scan period {period!r} s; the process noise is estimated by the run (the",
+        f"# chains' second differences give {q!r} m^2/s^3)",
         'model = "constant_velocity"',
         f"ndim = {dim}",
-        f"noise_intensity = {q!r}",
+        'noise_intensity = "auto"',
         "",
         "[birth]",
         "# velocity_std: the spread of the detections' scan-to-scan velocities (m/s)",

@@ -72,6 +72,7 @@ from mapassoc.models.motion import ConstantVelocity
 from mapassoc.models.sensor import Sensor
 
 __all__ = [
+    "LEVEL_FLOOR",
     "MAX_NOISE_UPDATES",
     "MIN_TRACK_DETECTIONS",
     "NOISE_TOLERANCE",
@@ -88,6 +89,11 @@ MAX_NOISE_UPDATES = 30
 """Most smoothings of a pass's tracks in one noise M step."""
 NOISE_TOLERANCE = 1e-3
 """Relative change of every level below which the inner iteration stops."""
+LEVEL_FLOOR = 1e-6
+"""The least level one pass's noise M step returns, as a share of the level the pass ran
+with: the EM update of a noise-free recording is 0 and, by rounding, below it, which no
+Gaussian model takes; a floor relative to the start keeps the scale of the data's units
+and lets each pass move the levels by six orders of magnitude."""
 MIN_TRACK_DETECTIONS = 5
 """Fewest detections of a track whose smoothed moments enter the noise sums."""
 
@@ -261,7 +267,7 @@ def _chains(config: Config, scans: Sequence[Scan]) -> dict[str, ChainMoments]:
             continue
         own = [scan for scan in scans if scan.sensor == name]
         moments = chain_moments([scan.time for scan in own], [scan.detections for scan in own])
-        if moments.pairs:
+        if moments.pairs and moments.measurement_variance > 0:
             out[name] = moments
     return out
 
@@ -342,8 +348,10 @@ def noise_m_step(
             found = sums.measurement[name].stds(pooled=asked.pooled(name))
             if found is not None:
                 stds[name] = tuple(found.tolist())
-        return NoiseLevels(q, stds).vector()
+        # A noise-free recording drives the levels to 0, and rounding below it.
+        return np.maximum(NoiseLevels(q, stds).vector(), floor)
 
+    floor = LEVEL_FLOOR * current.vector()
     probe = sums_at(current)
     if current.noise_intensity is not None and probe.process.intensity is None:
         notes.append("motion.noise_intensity not estimable: no track with a transition; kept")
@@ -351,6 +359,11 @@ def noise_m_step(
               for name in current.noise_std if probe.measurement[name].count == 0]  # fmt: skip
     result = accelerated_em(update, current.vector(), tolerance=NOISE_TOLERANCE,
                             max_updates=MAX_NOISE_UPDATES)  # fmt: skip
+    if np.any(result.values <= floor * (1 + 1e-9)):  # exp(log(floor)) may round above
+        notes.append(
+            f"noise levels at their floor ({LEVEL_FLOOR!r} of the pass's start): the tracks "
+            "are nearly noise-free"
+        )
     return _from_vector(asked, current, result.values), tuple(notes)
 
 

@@ -14,8 +14,9 @@ import pytest
 pytest.importorskip("pyproj")
 
 from mapassoc.apps.cli import main  # noqa: E402
-from mapassoc.apps.init_config import chain_moments, infer_config_text  # noqa: E402
+from mapassoc.apps.init_config import infer_config_text  # noqa: E402
 from mapassoc.data.config import parse_config  # noqa: E402
+from mapassoc.filtering.noise_moments import chain_moments  # noqa: E402
 
 
 def _cv_chain(rng: np.random.Generator, scans: int, q: float, r: float, period: float) -> list:
@@ -64,6 +65,8 @@ def test_a_lat_lon_file_gives_a_geodetic_configuration_with_auto_rates(tmp_path:
     (sensor,) = data["sensors"]
     assert sensor["detection_probability"] == "auto" and sensor["false_alarms_per_scan"] == "auto"
     assert config.auto.false_alarms == ("adsb",)
+    assert sensor["noise_std"] == "auto" and data["motion"]["noise_intensity"] == "auto"
+    assert config.auto.noise_intensity and "adsb" in config.auto.noise_std_starts()
     assert "# scan period 2.0 s" in text
     # region: the extent of the data (0.1088 deg of longitude, 7.4 km) and 5 % each side
     (low, high), _ = sensor["region"]

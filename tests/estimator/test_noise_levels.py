@@ -18,11 +18,13 @@ from mapassoc.data.config import AutoParameters, config_to_toml, parse_config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.estimator.noise_levels import (
+    LEVEL_FLOOR,
     MIN_TRACK_DETECTIONS,
     NoiseAsked,
     NoiseLevels,
     associations_of,
     initial_noise,
+    noise_m_step,
     with_noise_levels,
 )
 from mapassoc.estimator.parameters import estimate_parameters
@@ -119,3 +121,19 @@ def test_auto_noise_levels_are_estimated_and_the_written_configuration_runs() ->
     assert written.motion.noise_intensity == estimate.noise.noise_intensity  # type: ignore[attr-defined]
     result = WindowEstimator(config=written).run(built.scans[:30])
     assert len(result.track_rows) > 0
+
+
+def test_a_noise_free_track_stops_the_levels_at_their_floor() -> None:
+    """Exact constant-velocity positions: the EM update of both levels is 0 (and, by
+    rounding, below it); the M step returns the floor, with a note, not an error."""
+    config = _auto(build_scenario("crossing", 0, scans=5).config, 0.5, (2.0,))
+    scans = [Scan(float(t), "pos", np.array([[1.0 * t, 2.0 * t]]), np.array([t]))
+             for t in range(12)]  # fmt: skip
+    asked = NoiseAsked.from_config(config)
+    start = NoiseLevels(0.5, {"pos": (2.0, 2.0)})
+    levels, notes = noise_m_step(config, [scans], [{1: {k: 0 for k in range(12)}}], asked, start)
+    assert levels.noise_intensity is not None
+    floor = LEVEL_FLOOR * start.vector()
+    assert np.all(levels.vector() >= floor)
+    assert np.any(np.isclose(levels.vector(), floor))  # the update went down to it
+    assert any("floor" in note for note in notes)
