@@ -505,9 +505,13 @@ def _number(value: float) -> str:
 
 
 def _error_text(error: float | None, absolute: bool) -> str:
+    """An absolute error as a number, a relative one in per cent, or past 100% as the
+    estimate over the truth (an estimate below the truth is less than 100% off)."""
     if error is None:
         return "no truth"
-    return f"{error:.3f}" if absolute else f"{100 * error:.0f}%"
+    if absolute:
+        return f"{error:.3f}"
+    return f"{100 * error:.0f}%" if error < 1 else f"{1 + error:.3g}x the truth"
 
 
 def estimates_line(values: Sequence[EstimatedValue]) -> str:
