@@ -178,6 +178,12 @@ def auto_fields(config: Config) -> tuple[AutoField, ...]:
     The process noise is listed for a single model with one scale only (a set of models,
     ``InteractingModels``, cannot be ``"auto"``; ``motion="imm"`` wraps the estimated
     single model after the estimation).
+
+    A value the configuration reader and writer take as ``"auto"`` joins with one line
+    here, for instance (once ``AutoParameters`` has such a field) ``fields.append(
+    AutoField("birth.rate", "birth rate", lambda c: c.birth.rate, lambda a:
+    dataclasses.replace(a, birth_rate=True)))``: :func:`auto_config`, the estimation, the
+    printed estimates, the JSON and the summaries follow from the list.
     """
     motion = config.motion
     fields: list[AutoField] = []
