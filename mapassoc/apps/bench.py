@@ -41,7 +41,12 @@ By default every family runs with the same untuned configuration,
 :func:`mapassoc.evaluation.scenarios.generic_config`; ``config="scenario"`` uses each scenario's
 own configuration (fitted to its truth) instead.  Either way only ``k_prior`` is set by
 the benchmark (``"poisson"`` keeps the configuration's ``k_prior_mean``; ``"weights"``
-needs weights per configuration and is not offered).  Lines are printed (and flushed) as
+needs weights per configuration and is not offered).  ``parameters=("auto",)`` estimates
+every model parameter from the recording before each run instead of giving the
+configuration's (:mod:`mapassoc.apps.bench_auto`), and prints the estimates beside the
+truth under the run's line; with ``("given", "auto")`` every run is made both ways and
+each family's summary adds the ``"auto"`` GOSPA over the given values' with the
+estimates' errors, beside their goals.  Lines are printed (and flushed) as
 soon as each run finishes: the whole benchmark can take minutes per prior.
 """
 
@@ -59,6 +64,18 @@ from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
+from mapassoc.apps.bench_auto import (
+    AutoSummary,
+    EstimatedValue,
+    auto_config,
+    auto_goals_text,
+    auto_summary_line,
+    check_parameter_choice,
+    check_parameter_choices,
+    estimates_line,
+    run_auto,
+    summarize_auto,
+)
 from mapassoc.apps.bench_defaults import DEFAULT_FAMILIES, DEFAULT_K_PRIORS
 from mapassoc.apps.run_folders import write_json
 from mapassoc.data.config import Config
@@ -237,6 +254,11 @@ class RunResult:
         existence probabilities it reports (1 where it reports none).  The oracle reports
         none, so its P-GOSPA is its GOSPA, ``oracle_gospa.total``.  ``None`` for runs
         built without it.
+    parameters : {"given", "auto"}
+        Whether the run was given the configuration's values or estimated them first
+        (:mod:`mapassoc.apps.bench_auto`; its ``seconds`` then include the estimation).
+    estimates : tuple of EstimatedValue or None
+        With ``"auto"``: the estimates beside the truth (the scenario's configuration).
     """
 
     family: str
@@ -277,6 +299,8 @@ class RunResult:
     forward_scans_per_second: float | None = None
     tgospa_ratio: float | None = None
     pgospa: float | None = None
+    parameters: str = "given"
+    estimates: tuple[EstimatedValue, ...] | None = None
 
     @property
     def ids_per_target(self) -> float:
@@ -324,6 +348,8 @@ class FamilySummary:
     pgospa_ratio_mean : float or None
         Mean over seeds of the run's P-GOSPA over the oracle's GOSPA (the oracle's
         P-GOSPA: it reports no existence); ``None`` when a run lacks P-GOSPA.
+    parameters : {"given", "auto"}
+        ``RunResult.parameters`` of the runs.
     """
 
     family: str
@@ -348,6 +374,7 @@ class FamilySummary:
     id_switches_mean: float | None = None
     tgospa_ratio_mean: float | None = None
     pgospa_ratio_mean: float | None = None
+    parameters: str = "given"
 
     @property
     def speed_met(self) -> bool | None:
@@ -402,13 +429,17 @@ class BenchmarkResult:
     settings : dict
         The benchmark's arguments.
     runs : tuple of RunResult
-        Family by family, prior by prior (in the order of ``k_priors``), seed by seed.
+        Family by family, prior by prior (in the order of ``k_priors``), parameters by
+        parameters (in the order of ``parameters``), seed by seed.
     families : tuple of FamilySummary
-        One per (family, prior), in the order of the runs.
+        One per (family, prior, parameters), in the order of the runs.
     growth : ScaleGrowth or None
         ``None`` unless at least two scale families ran; from the runs with the first
-        prior of ``k_priors``.
+        prior of ``k_priors`` and the first of ``parameters``.
     gating_pairs_per_second : float
+    auto : tuple of AutoSummary
+        One per (family, prior) with ``"auto"`` runs: their GOSPA over the given
+        values' runs and their estimates' errors (:func:`~.bench_auto.summarize_auto`).
     """
 
     settings: dict[str, object]
@@ -416,6 +447,7 @@ class BenchmarkResult:
     families: tuple[FamilySummary, ...]
     growth: ScaleGrowth | None
     gating_pairs_per_second: float
+    auto: tuple[AutoSummary, ...] = ()
 
     def to_json(self) -> dict[str, object]:
         """A JSON-ready dictionary; non-finite numbers become ``None``."""
@@ -435,7 +467,12 @@ class BenchmarkResult:
             if self.growth is None
             else {**asdict(self.growth), "linear_or_better": self.growth.linear_or_better},
             "gating_pairs_per_second": self.gating_pairs_per_second,
-        }
+            "auto": [
+                {**asdict(summary), "gospa_met": summary.gospa_met,
+                 "estimates_met": summary.estimates_met}
+                for summary in self.auto
+            ],
+        }  # fmt: skip
         return _finite(data)  # type: ignore[return-value]
 
 
@@ -558,6 +595,7 @@ def bench_scenario(
     scans: int | None = None,
     k_prior: str = "birth",
     motion: str = "configured",
+    parameters: str = "given",
 ) -> RunResult:
     """Simulate one family with one seed, estimate, and measure speed, GOSPA and p(K | Z).
 
@@ -587,6 +625,13 @@ def bench_scenario(
     motion : {"configured", "imm"}
         The configuration's motion model, or a set of it at two process-noise levels
         (:func:`~mapassoc.models.interacting.noise_levels`, its defaults).
+    parameters : {"given", "auto"}
+        ``"auto"``: every sensor's false-alarm rate and ``Pd``, every position sensor's
+        ``noise_std`` and the motion's ``noise_intensity`` (where the model has one
+        scale) are estimated from the scenario's scans first, and the run uses the
+        estimates (:func:`~mapassoc.apps.bench_auto.run_auto`; the seconds include the
+        estimation).  With ``motion="imm"`` the configured single model is estimated
+        and then wrapped in the set: a set's models cannot be ``"auto"``.
 
     Returns
     -------
@@ -597,7 +642,9 @@ def bench_scenario(
     InputError
         An unknown scenario or a bad argument (checked before anything runs).
     """
-    setup = _bench_setup(name, seed, window_length, time_limit, config, scans, k_prior, motion)
+    setup = _bench_setup(
+        name, seed, window_length, time_limit, config, scans, k_prior, motion, parameters
+    )
     timed = _timed_run(setup)
     return _run_result(name, seed, setup, timed)
 
@@ -610,11 +657,16 @@ class _BenchSetup:
     ----------
     scenario : Scenario
     config : Config
-        With the run's window length, time limit and prior on K.
+        With the run's window length, time limit and prior on K (with ``"auto"``
+        parameters: their placeholders, :func:`~mapassoc.apps.bench_auto.auto_config`;
+        with ``motion="imm"``: the set, unless the parameters are ``"auto"``, whose
+        single model is wrapped once estimated).
     choice : {"generic", "scenario"}
     prior : str
     limit : float
         The time limit in seconds.
+    motion : {"configured", "imm"}
+    parameters : {"given", "auto"}
     """
 
     scenario: Scenario
@@ -622,6 +674,8 @@ class _BenchSetup:
     choice: str
     prior: str
     limit: float
+    motion: str = "configured"
+    parameters: str = "given"
 
 
 def _bench_setup(
@@ -633,6 +687,7 @@ def _bench_setup(
     scans: int | None,
     k_prior: str,
     motion: str = "configured",
+    parameters: str = "given",
 ) -> _BenchSetup:
     """Check the arguments of :func:`bench_scenario`, build the scenario and its config."""
     prior = _check_k_prior("k_prior", k_prior)
@@ -640,6 +695,7 @@ def _bench_setup(
     limit = _check_time_limit(time_limit)
     if window_length is not None:
         check_integer("window_length", window_length, minimum=1)
+    motion, parameters = _check_motion_choice(motion), check_parameter_choice(parameters)
     scenario = build_scenario(name, seed)
     if scans is not None:
         scenario = truncate_scenario(scenario, check_integer("scans", scans, minimum=1))
@@ -649,22 +705,31 @@ def _bench_setup(
         run_config = _bench_config(scenario.config, window_length, limit)
     count = replace(run_config.estimator.count, k_prior=prior)
     run_config = replace(run_config, estimator=replace(run_config.estimator, count=count))
-    if _check_motion_choice(motion) == "imm":
+    if parameters == "auto":
+        run_config = auto_config(run_config)
+    elif motion == "imm":
         run_config = replace(run_config, motion=noise_levels(run_config.motion))
-    return _BenchSetup(scenario, run_config, choice, prior, limit)
+    return _BenchSetup(scenario, run_config, choice, prior, limit, motion, parameters)
 
 
 @dataclass(frozen=True)
 class _TimedRun:
-    """The estimator's result with its wall time, whole and up to the last window's commit."""
+    """The estimator's result with its wall time, whole and up to the last window's commit
+    (with ``"auto"`` parameters, the estimation included), and the estimates."""
 
     result: EstimateResult
     seconds: float
     forward_seconds: float
+    estimates: tuple[EstimatedValue, ...] | None = None
 
 
 def _timed_run(setup: _BenchSetup) -> _TimedRun:
-    """Run the window estimator on the scenario, timing the run and its forward pass."""
+    """Run the window estimator on the scenario, timing the run and its forward pass
+    (with ``"auto"`` parameters: estimate them first, :func:`~.bench_auto.run_auto`)."""
+    if setup.parameters == "auto":
+        scenario = setup.scenario
+        auto = run_auto(setup.config, scenario.scans, scenario.config, imm=setup.motion == "imm")
+        return _TimedRun(auto.result, auto.seconds, auto.forward_seconds, auto.values)
     estimator = WindowEstimator(config=setup.config)
     committed = [0.0]  # when the last window was committed: the forward pass's end
 
@@ -800,6 +865,8 @@ def _run_result(name: str, seed: int, setup: _BenchSetup, timed: _TimedRun) -> R
         if accuracy.tgospa is None or accuracy.oracle_tgospa is None
         else _ratio(accuracy.tgospa, accuracy.oracle_tgospa),
         pgospa=accuracy.pgospa,
+        parameters=setup.parameters,
+        estimates=timed.estimates,
     )
 
 
@@ -812,12 +879,13 @@ def _ordered(counts: Counter[str]) -> tuple[tuple[str, int], ...]:
 
 
 def summarize_family(runs: Sequence[RunResult]) -> FamilySummary:
-    """Combine the runs of one family with one prior on K over its seeds.
+    """Combine the runs of one family with one prior on K (and one ``parameters``) over
+    its seeds.
 
     Raises
     ------
     InputError
-        No runs, or runs of different families or different priors.
+        No runs, or runs of different families, priors or parameters.
     """
     runs = list(runs)
     if not runs:
@@ -828,6 +896,9 @@ def summarize_family(runs: Sequence[RunResult]) -> FamilySummary:
     priors = {run.k_prior for run in runs}
     if len(priors) != 1:
         raise InputError(f"runs must all be of one k_prior, got {sorted(priors)}")
+    choices = {run.parameters for run in runs}
+    if len(choices) != 1:
+        raise InputError(f"runs must all be of one parameters choice, got {sorted(choices)}")
     family = runs[0].family
     ratios = np.array([run.gospa_ratio for run in runs])
     statuses: Counter[str] = Counter()
@@ -861,6 +932,7 @@ def summarize_family(runs: Sequence[RunResult]) -> FamilySummary:
                 for run in runs
             ]
         ),
+        parameters=runs[0].parameters,
     )
 
 
@@ -937,6 +1009,7 @@ def _gospa_cell(r: RunResult) -> str:
 _COLUMNS: tuple[_Column, ...] = (
     _Column("seed", 4, lambda r: f"{r.seed:d}"),
     _Column("k_prior", 7, lambda r: r.k_prior, left=True),
+    _Column("param", 5, lambda r: r.parameters, left=True),
     _Column("tgts", 4, lambda r: f"{r.targets:d}"),
     _Column("det/scn", 7, lambda r: f"{r.detections_per_scan:.1f}"),
     _Column("scans", 5, lambda r: f"{r.scans:d}"),
@@ -1003,7 +1076,9 @@ def _family_line(s: FamilySummary, time_limit: float) -> str:
     if s.speed_goal is not None:
         speed += f" [goal >= {s.speed_goal:g}: {_mark(s.speed_met)}]"
     return (
-        f"  => {s.family} (k_prior {s.k_prior}), {len(s.seeds)} seed(s): {speed}; GOSPA "
+        f"  => {s.family} (k_prior {s.k_prior}"
+        + ("" if s.parameters == "given" else f", parameters {s.parameters}")
+        + f"), {len(s.seeds)} seed(s): {speed}; GOSPA "
         f"{s.gospa_ratio_mean:.2f}x oracle (min {s.gospa_ratio_min:.2f}, max "
         f"{s.gospa_ratio_max:.2f}) [goal <= {GOSPA_RATIO_GOAL:g}x: {_mark(s.gospa_met)}]; "
         f"{_identity_text(s)}"
@@ -1110,6 +1185,7 @@ def run_benchmark(
     out: TextIO | None = None,
     k_priors: Sequence[str] = DEFAULT_K_PRIORS,
     motion: str = "configured",
+    parameters: Sequence[str] = ("given",),
 ) -> BenchmarkResult:
     """Run and print the benchmark; optionally write the results as JSON.
 
@@ -1140,6 +1216,12 @@ def run_benchmark(
         the goals and the scale growth use the first only.
     motion : {"configured", "imm"}
         The motion model of every run (see :func:`bench_scenario`).
+    parameters : sequence of {"given", "auto"}
+        Distinct; every family, prior and seed runs with each (see
+        :func:`bench_scenario`).  The goals, the scale growth and the comparison of the
+        priors use the first; with ``"auto"`` every family's ``"auto"`` summary follows
+        its runs (:func:`~.bench_auto.summarize_auto`: its GOSPA over the given values'
+        when ``"given"`` ran too) and the goals of ``"auto"`` are printed last.
 
     Returns
     -------
@@ -1151,7 +1233,7 @@ def run_benchmark(
         An unknown family or a bad argument (checked before anything runs).
     """
     settings = _check_benchmark_arguments(
-        families, k_priors, seeds, window_length, time_limit, config, scans, motion
+        families, k_priors, seeds, window_length, time_limit, config, scans, motion, parameters
     )
     stream = sys.stdout if out is None else out
 
@@ -1161,13 +1243,18 @@ def run_benchmark(
     say(settings.heading())
     say(_header(_family_width(settings.families)))
     runs, summaries = _run_families(settings, say)
-    growth, pairs = _print_totals(summaries, settings.priors, gating, say)
+    first = [s for s in summaries if s.parameters == settings.parameters[0]]
+    growth, pairs = _print_totals(first, settings.priors, gating, say)
+    auto = summarize_auto(runs)
+    if auto:
+        say(auto_goals_text([s for s in auto if s.k_prior == settings.priors[0]]))
     result = BenchmarkResult(
         settings=settings.as_dict(),
         runs=tuple(runs),
         families=tuple(summaries),
         growth=growth,
         gating_pairs_per_second=pairs,
+        auto=tuple(auto),
     )
     if json_path is not None:
         write_json(Path(json_path), result.to_json())
@@ -1190,6 +1277,7 @@ class _BenchSettings:
     choice : {"generic", "scenario"}
     scans : int or None
     motion : {"configured", "imm"}
+    parameters : tuple of {"given", "auto"}
     """
 
     families: list[str]
@@ -1200,6 +1288,7 @@ class _BenchSettings:
     choice: str
     scans: int | None
     motion: str = "configured"
+    parameters: tuple[str, ...] = ("given",)
 
     def as_dict(self) -> dict[str, object]:
         """The settings as :attr:`BenchmarkResult.settings` holds them."""
@@ -1212,6 +1301,7 @@ class _BenchSettings:
             "k_priors": self.priors,
             "scans": self.scans,
             "motion": self.motion,
+            "parameters": list(self.parameters),
             "gospa_cutoff": GOSPA_CUTOFF,
         }
 
@@ -1222,8 +1312,9 @@ class _BenchSettings:
             f"window length {window}, "
             f"time limit {self.limit:g} s, {self.choice} configuration, "
             + ("" if self.motion == "configured" else f"motion {self.motion}, ")
-            +
-            f"k_priors {','.join(self.priors)}, seeds 0..{self.seeds - 1}"
+            + ("" if self.parameters == ("given",)
+               else f"parameters {','.join(self.parameters)}, ")
+            + f"k_priors {','.join(self.priors)}, seeds 0..{self.seeds - 1}"
             + (f", first {self.scans} scans" if self.scans is not None else "")
             + f", GOSPA cut-off {GOSPA_CUTOFF:g}"
         )
@@ -1238,6 +1329,7 @@ def _check_benchmark_arguments(
     config: str,
     scans: int | None,
     motion: str = "configured",
+    parameters: Sequence[str] = ("given",),
 ) -> _BenchSettings:
     """The arguments of :func:`run_benchmark`, checked before anything runs."""
     names = _check_families(families)
@@ -1250,36 +1342,45 @@ def _check_benchmark_arguments(
     if scans is not None:
         check_integer("scans", scans, minimum=1)
     return _BenchSettings(names, priors, n_seeds, window_length, limit, choice, scans,
-                          _check_motion_choice(motion))  # fmt: skip
+                          _check_motion_choice(motion),
+                          check_parameter_choices(parameters))  # fmt: skip
 
 
 def _run_families(
     settings: _BenchSettings, say: Callable[[str], None]
 ) -> tuple[list[RunResult], list[FamilySummary]]:
-    """Every family with every prior and seed, each run's line and each family's summary
-    printed as it finishes."""
+    """Every family with every prior, parameters and seed, each run's line (and its
+    estimates' line) and each family's summaries printed as they finish."""
     runs: list[RunResult] = []
     summaries: list[FamilySummary] = []
     for name in settings.families:
         for prior in settings.priors:
-            family_runs = []
-            for seed in range(settings.seeds):
-                run = bench_scenario(
-                    name,
-                    seed,
-                    settings.window_length,
-                    time_limit=settings.limit,
-                    config=settings.choice,
-                    scans=settings.scans,
-                    k_prior=prior,
-                    motion=settings.motion,
-                )
-                family_runs.append(run)
-                say(_run_line(run, _family_width(settings.families)))
-            summary = summarize_family(family_runs)
-            summaries.append(summary)
-            runs.extend(family_runs)
-            say(_family_line(summary, settings.limit))
+            prior_runs: list[RunResult] = []
+            for parameters in settings.parameters:
+                family_runs = []
+                for seed in range(settings.seeds):
+                    run = bench_scenario(
+                        name,
+                        seed,
+                        settings.window_length,
+                        time_limit=settings.limit,
+                        config=settings.choice,
+                        scans=settings.scans,
+                        k_prior=prior,
+                        motion=settings.motion,
+                        parameters=parameters,
+                    )
+                    family_runs.append(run)
+                    say(_run_line(run, _family_width(settings.families)))
+                    if run.estimates is not None:
+                        say(estimates_line(run.estimates))
+                summary = summarize_family(family_runs)
+                summaries.append(summary)
+                prior_runs.extend(family_runs)
+                say(_family_line(summary, settings.limit))
+            for auto in summarize_auto(prior_runs):
+                say(auto_summary_line(auto))
+            runs.extend(prior_runs)
     return runs, summaries
 
 
@@ -1308,7 +1409,9 @@ def _goals_text(summaries: Sequence[FamilySummary], growth: ScaleGrowth | None) 
 
     ``summaries`` are of one prior (the first of ``k_priors``), named in the heading.
     """
-    lines = [f"goals (k_prior {summaries[0].k_prior}):"]
+    first = summaries[0]
+    parameters = "" if first.parameters == "given" else f", parameters {first.parameters}"
+    lines = [f"goals (k_prior {first.k_prior}{parameters}):"]
     for s in summaries:
         if s.speed_goal is not None:
             lines.append(

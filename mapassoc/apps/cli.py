@@ -267,7 +267,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from mapassoc.apps.bench import run_benchmark
 
     run_benchmark(
-        families=args.families,
+        # "crossing parallel" or "crossing,parallel", as other commands take families
+        families=[name for item in args.families for name in _comma_separated(item)],
         seeds=args.seeds,
         window_length=args.window_length,
         time_limit=args.time_limit,
@@ -276,6 +277,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         json_path=Path(args.json) if args.json else None,
         k_priors=args.k_priors,
         motion=args.motion,
+        parameters=args.parameters,
     )
     return 0
 
@@ -766,6 +768,18 @@ def _add_bench_command(sub: Subcommands) -> None:
         help="the motion model of every run: the configuration's, or a set of it at two "
         "process-noise levels (interacting multiple models; default configured)",
     )
+    p.add_argument(
+        "--parameters",
+        type=_comma_separated,
+        default="given",
+        metavar="CHOICE,...",
+        help="comma-separated: given (the configuration's values) and/or auto (every "
+        "sensor's false-alarm rate and Pd, position sensors' noise_std and the motion's "
+        "noise_intensity estimated from the recording first, the estimates printed beside "
+        "the truth; with --motion imm the configured model is estimated, then wrapped); "
+        "with given,auto each family's summary adds auto's GOSPA over given's "
+        "(default given)",
+    )
     p.add_argument("--json", metavar="PATH", help="also write the results to this JSON file")
     p.set_defaults(func=_cmd_bench)
 
@@ -778,7 +792,8 @@ def _add_bench_run_options(p: argparse.ArgumentParser) -> None:
         nargs="+",
         default=list(DEFAULT_FAMILIES),
         metavar="NAME",
-        help=f"scenario families to run (default: {' '.join(DEFAULT_FAMILIES)})",
+        help="scenario families to run, space- or comma-separated (default: "
+        f"{' '.join(DEFAULT_FAMILIES)})",
     )
     p.add_argument(
         "--seeds", type=int, default=5, metavar="N", help="seeds 0..N-1 per family (default 5)"
