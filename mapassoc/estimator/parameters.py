@@ -534,7 +534,7 @@ def estimate_parameters(
         The sensors whose ``Pd`` to estimate, each with its starting value (None:
         :data:`DEFAULT_PD_START`).  When neither is given, the configuration's
         ``"auto"`` parameters (:attr:`Config.auto`) are estimated.  The noise levels
-        estimated are always the configuration's ``"auto"`` ones.
+        and birth keys estimated are always the configuration's ``"auto"`` ones.
     rate_tolerance, pd_tolerance, max_passes, sample_scans, sample_blocks_count : optional
         Default: the configuration's (``config.estimator.parameters``, whose defaults are
         the values given below).

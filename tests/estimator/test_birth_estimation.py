@@ -80,6 +80,17 @@ def test_a_block_that_does_not_start_the_recording_has_no_initial_count() -> Non
     assert rate == pytest.approx(0.5, rel=1e-6)
 
 
+def test_sampled_blocks_pool_births_and_leave_out_a_later_block_s_first_scan() -> None:
+    """The first block as above; a later one (nuisance start) with two tracks at its
+    first scan and four after it.  rate = (5 + 3 r / (u0 + r) + 4) / (11 + 10) with
+    u0 + r = 3, so rate = 9 / 20 and initial_count = 3 - 9 / 20."""
+    later = _block([0, 0, 1, 4, 6, 8], [5, 10, 3, 9, 10, 10], starts=False)
+    initial, rate, estimable = count_update([_block(FIRSTS, LASTS), later], 0.9, 1.0, 0.1)
+    assert estimable
+    assert rate == pytest.approx(9 / 20, rel=1e-6)
+    assert initial == pytest.approx(3 - 9 / 20, rel=1e-6)
+
+
 def test_without_tracks_the_counts_go_to_the_unseen_floor() -> None:
     initial, rate, _ = count_update([_block([], [], pd=0.5)], 0.9, 3.0, 0.4)
     assert rate == pytest.approx(UNSEEN_EVENTS / 11)
