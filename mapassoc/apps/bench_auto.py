@@ -10,7 +10,9 @@ estimates them from the run's own scans, and the run uses the estimates
 * every position sensor's ``noise_std``;
 * ``[motion] noise_intensity`` where the motion model has one scale
   (:data:`~mapassoc.data.config.AUTO_NOISE_MODELS`: constant velocity, constant
-  acceleration, random walk).
+  acceleration, random walk);
+* the birth model's ``rate``, ``initial_count`` and ``survival_probability``
+  (:data:`BIRTH_FIELDS`, which says why ``velocity_std`` is not among them).
 
 No start is given: each value starts where :mod:`mapassoc.estimator.parameters` and
 :mod:`mapassoc.estimator.noise_levels` start an ``"auto"`` value without one (the rate at
@@ -66,6 +68,7 @@ __all__ = [
     "RELATIVE_GOAL",
     "PD_GOAL",
     "AutoField",
+    "BIRTH_FIELDS",
     "EstimatedValue",
     "AutoRun",
     "FieldErrors",
@@ -180,10 +183,8 @@ def auto_fields(config: Config) -> tuple[AutoField, ...]:
     single model after the estimation).
 
     A value the configuration reader and writer take as ``"auto"`` joins with one line
-    here, for instance (once ``AutoParameters`` has such a field) ``fields.append(
-    AutoField("birth.rate", "birth rate", lambda c: c.birth.rate, lambda a:
-    dataclasses.replace(a, birth_rate=True)))``: :func:`auto_config`, the estimation, the
-    printed estimates, the JSON and the summaries follow from the list.
+    here (as the birth model's, :data:`BIRTH_FIELDS`): :func:`auto_config`, the
+    estimation, the printed estimates, the JSON and the summaries follow from the list.
     """
     motion = config.motion
     fields: list[AutoField] = []
@@ -199,7 +200,25 @@ def auto_fields(config: Config) -> tuple[AutoField, ...]:
         if position_sensor(sensor.measurement):
             fields.append(AutoField(f"{key}.noise_std", f"{name} std", _std(name),
                                     _mark_std(name)))  # fmt: skip
+    for key, label in BIRTH_FIELDS:
+        fields.append(AutoField(f"birth.{key}", label, _birth(key), _mark_birth(key)))
     return tuple(fields)
+
+
+BIRTH_FIELDS = (("rate", "births"), ("initial_count", "initial"),
+                ("survival_probability", "survival"))  # fmt: skip
+"""The birth model's values an "auto" run estimates, with their printed names.
+``velocity_std`` stays as configured: the scenarios configure it as a prior spread (1.5
+times the top speed), not as the spread of the simulated velocities its estimate is, so
+no truth to compare it with exists."""
+
+
+def _birth(key: str) -> Callable[[Config], float]:
+    return lambda config: float(getattr(config.birth, key))
+
+
+def _mark_birth(key: str) -> Callable[[AutoParameters], AutoParameters]:
+    return lambda auto: dataclasses.replace(auto, birth=(*auto.birth, (key, None)))
 
 
 def auto_config(config: Config) -> Config:

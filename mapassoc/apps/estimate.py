@@ -3,7 +3,9 @@
 Estimates every sensor's false-alarm rate and detection probability from the recording
 (:mod:`mapassoc.estimator.parameters`), and the noise levels the configuration leaves
 "auto" (``[motion] noise_intensity``, a position sensor's ``noise_std``: only those, since
-a configured noise level is not a guess the way a clutter rate is), prints them beside
+a configured noise level is not a guess the way a clutter rate is) and the ``[birth]``
+keys it leaves "auto" (``rate``, ``initial_count``, ``survival_probability``,
+``velocity_std``, likewise only those), prints them beside
 the configured values, warns
 where a configured number and its estimate disagree by more than
 :data:`RATE_DISAGREEMENT` (a factor, either way) or :data:`PD_DISAGREEMENT` (an absolute
@@ -70,7 +72,7 @@ class ParameterReport:
                 f"{_text(pd, '.3f'):>8s} "
                 f"{_text(found.detection_probability, '.3f', found.pd_estimated):>10s}"
             )
-        return "\n".join(lines + self.noise_lines())
+        return "\n".join(lines + self.noise_lines() + self.birth_lines())
 
     def noise_lines(self) -> list[str]:
         """The "auto" noise levels, configured ("auto") beside estimated (none asked: no
@@ -86,6 +88,17 @@ class ParameterReport:
         header = f"{'noise level':28s} {'configured':>10s} {'estimated':>12s}"
         return ["", header, "-" * len(header),
                 *(f"{key:28s} {'auto':>10s} {value:>12s}" for key, value in rows)]  # fmt: skip
+
+    def birth_lines(self) -> list[str]:
+        """The "auto" birth keys, configured ("auto") beside estimated (none asked: no
+        line)."""
+        birth = self.estimate.birth
+        if birth is None:
+            return []
+        header = f"{'birth':28s} {'configured':>10s} {'estimated':>12s}"
+        return ["", header, "-" * len(header),
+                *(f"{'birth.' + key:28s} {'auto':>10s} {value:>12.4g}"
+                  for key, value in birth.values.items())]  # fmt: skip
 
 
 def _text(value: float | None, spec: str, estimated: bool = True) -> str:

@@ -313,6 +313,11 @@ def estimate_with_progress(
                 f"noise {record.noise_used.vector().round(6).tolist()} -> "
                 f"{record.noise_updated.vector().round(6).tolist()}"
             )
+        if record.birth_used is not None and record.birth_updated is not None:
+            moves += ("; " if moves else "") + "birth " + ", ".join(
+                f"{key} {value:.4g} -> {record.birth_updated.values[key]:.4g}"
+                for key, value in record.birth_used.values.items()
+            )
         print(
             f"mapassoc: parameters pass {record.index + 1}: {moves} ({record.tracks} tracks, "
             f"{record.seconds:.1f} s)",
@@ -335,7 +340,9 @@ def estimate_with_progress(
 
 
 def _with_estimates(config: Any, parameters: dict[str, Any]) -> Any:
-    """``config`` with the sensor values of a ``parameters`` record (ParameterEstimate)."""
+    """``config`` with the sensor values, noise levels and birth keys of a ``parameters``
+    record (ParameterEstimate)."""
+    from mapassoc.estimator.birth_estimation import BirthLevels, with_birth_levels
     from mapassoc.estimator.noise_levels import NoiseLevels, with_noise_levels
     from mapassoc.estimator.parameters import with_sensor_parameters
 
@@ -348,7 +355,10 @@ def _with_estimates(config: Any, parameters: dict[str, Any]) -> Any:
         None if noise.get("noise_intensity") is None else float(noise["noise_intensity"]),
         {name: tuple(float(v) for v in stds) for name, stds in noise["noise_std"].items()},
     )  # fmt: skip
-    return with_noise_levels(with_sensor_parameters(config, values), levels)
+    birth = parameters.get("birth")
+    found = None if birth is None else BirthLevels({k: float(v) for k, v in birth.items()})
+    config = with_noise_levels(with_sensor_parameters(config, values), levels)
+    return with_birth_levels(config, found)
 
 
 def _integer_solvers() -> tuple[str, ...]:

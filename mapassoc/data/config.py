@@ -45,6 +45,8 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     region = [[-100.0, 100.0], [-100.0, 100.0]]   # one [low, high] per measured component
 
     [birth]        # optional; keys and defaults: the fields of mapassoc.data.settings.BirthModel
+    # rate, initial_count, survival_probability and velocity_std may each be "auto"
+    # (estimated from the recording), with an optional <key>_start (the first pass's value)
 
     # optional: the estimator's settings, one table per component it configures; keys
     # and defaults: the fields of each record of mapassoc.data.settings.EstimatorSettings
@@ -82,11 +84,16 @@ estimated from the recording (:mod:`mapassoc.estimator.parameters`, which ``mapa
 run`` calls before the run): :attr:`Config.auto` lists them, the model holds
 placeholders (``Pd`` = 1, no false alarms, noise levels :data:`NOISE_PLACEHOLDER`) until
 then, and :func:`check_config` refuses such a configuration to anything that would run
-on the placeholders.  ``"auto"`` is refused, naming its key, for the noise of the other
-models (coordinated turn, Singer, the models of an IMM set) and of range-bearing sensors:
-their noise has no single scale the EM update takes.  A pooled ``noise_std`` is the
-default because the schema's one number already means ``R = sigma^2 I``; a
-``noise_std_start`` with one value per component asks for each to be estimated.
+on the placeholders.  The ``[birth]`` model's ``rate``, ``initial_count``,
+``survival_probability`` and ``velocity_std`` may be ``"auto"`` too, each on its own
+(:data:`AUTO_BIRTH_KEYS`, estimated by :mod:`mapassoc.estimator.birth_estimation`;
+``velocity_std`` only for a motion model with velocity components); until then the
+birth model holds :data:`BIRTH_PLACEHOLDERS`.  ``"auto"`` is refused, naming its key,
+for the noise of the other models (coordinated turn, Singer, the models of an IMM set)
+and of range-bearing sensors: their noise has no single scale the EM update takes.  A
+pooled ``noise_std`` is the default because the schema's one number already means ``R =
+sigma^2 I``; a ``noise_std_start`` with one value per component asks for each to be
+estimated.
 
 ``[trackers.<name>]`` tables belong to the baseline trackers of ``mapassoc compare``
 (GNN, JPDA, MHT, network flow, LP relaxation): each holds options of that tracker's own
@@ -152,6 +159,8 @@ __all__ = [
     "AutoParameters",
     "AUTO_NOISE_MODELS",
     "NOISE_PLACEHOLDER",
+    "AUTO_BIRTH_KEYS",
+    "BIRTH_PLACEHOLDERS",
     "Config",
     "TrackerOption",
     "check_config",
@@ -204,6 +213,14 @@ AUTO_NOISE_MODELS = ("constant_velocity", "constant_acceleration", "random_walk"
 ``noise_intensity`` times a fixed matrix, the form the EM update of
 :mod:`mapassoc.filtering.noise_estimation` takes (coordinated turn, Singer and model
 sets have no such single scale)."""
+AUTO_BIRTH_KEYS = ("rate", "initial_count", "survival_probability", "velocity_std")
+"""The ``[birth]`` keys that may be ``"auto"``: the others (``acceleration_std``,
+``speed_std``, ``turn_rate_std``) have no M step from the tracks yet."""
+BIRTH_PLACEHOLDERS = {
+    "rate": 0.0, "initial_count": 0.0, "survival_probability": 1.0, "velocity_std": 1.0,
+}  # fmt: skip
+"""What an ``"auto"`` ``[birth]`` key holds until it is estimated (valid values of
+:class:`BirthModel`; :func:`check_config` refuses to run on them)."""
 _DOCUMENT_KEY = "<file>"
 """Key reported for problems with the whole document (unreadable file, TOML syntax)."""
 
@@ -228,6 +245,10 @@ class AutoParameters:
         Position sensors whose ``noise_std`` is estimated, each with its
         ``noise_std_start``: None (the estimator's default start, one pooled std), one
         number (pooled) or one per position component (each estimated on its own).
+    birth : tuple of (str, float or None)
+        The ``[birth]`` keys estimated (of :data:`AUTO_BIRTH_KEYS`, in that order), each
+        with its ``<key>_start`` (None: the estimator's default start); the birth model
+        holds :data:`BIRTH_PLACEHOLDERS` for them.
     """
 
     false_alarms: tuple[str, ...] = ()
@@ -235,14 +256,19 @@ class AutoParameters:
     noise_intensity: bool = False
     noise_intensity_start: float | None = None
     noise_std: tuple[tuple[str, tuple[float, ...] | None], ...] = ()
+    birth: tuple[tuple[str, float | None], ...] = ()
 
     @property
     def pending(self) -> bool:
         """Whether any parameter is still to be estimated."""
         return bool(
             self.false_alarms or self.detection_probability or self.noise_intensity
-            or self.noise_std
+            or self.noise_std or self.birth
         )  # fmt: skip
+
+    def birth_starts(self) -> dict[str, float | None]:
+        """``{key: start}`` of the ``[birth]`` keys estimated."""
+        return dict(self.birth)
 
     def pd_starts(self) -> dict[str, float | None]:
         """``{sensor: start}`` of the sensors whose ``Pd`` is estimated."""
@@ -259,6 +285,7 @@ class AutoParameters:
         out += [f"sensor '{n}' false_alarms_per_scan" for n in self.false_alarms]
         out += [f"sensor '{n}' detection_probability" for n in self.pd_starts()]
         out += [f"sensor '{n}' noise_std" for n in self.noise_std_starts()]
+        out += [f"birth.{key}" for key in self.birth_starts()]
         return out
 
 
@@ -1030,10 +1057,40 @@ def _parse_record(
         raise parser.fail(_subkey(prefix, exc), str(exc)) from None
 
 
-def _parse_birth(parser: _Parser, data: Mapping[str, object]) -> BirthModel:
+def _parse_birth(
+    parser: _Parser, data: Mapping[str, object], motion: MotionModel
+) -> tuple[BirthModel, tuple[tuple[str, float | None], ...]]:
+    """The birth model and its ``"auto"`` keys with their starts (module docstring):
+    an "auto" key holds its placeholder, its ``<key>_start`` is taken out."""
     if "birth" not in data:
-        return BirthModel()
-    return _parse_record(parser, data["birth"], "birth", BirthModel())[0]
+        return BirthModel(), ()
+    table = parser.table(data["birth"], "birth")
+    rest = dict(table)
+    auto: list[tuple[str, float | None]] = []
+    for key in AUTO_BIRTH_KEYS:
+        asked = table.get(key) == AUTO
+        given = _auto_start(parser, table, "birth", key, asked)
+        rest.pop(f"{key}_start", None)
+        if not asked:
+            continue
+        if key == "velocity_std" and not getattr(motion, "velocity_indices", ()):
+            raise parser.fail(
+                "birth.velocity_std", '"auto" needs a motion model with velocity components '
+                f"(constant velocity or acceleration, Singer, constant turn), got {motion!r}",
+            )  # fmt: skip
+        start_key = f"birth.{key}_start"
+        start = None if given is None else (
+            parser.probability(given, start_key) if key == "survival_probability"
+            else parser.positive(given, start_key)
+        )  # fmt: skip
+        auto.append((key, start))
+        rest[key] = BIRTH_PLACEHOLDERS[key]
+    for key, value in rest.items():
+        if value == AUTO:
+            raise parser.fail(
+                f"birth.{key}", f'"auto" is only for [birth] {", ".join(AUTO_BIRTH_KEYS)}'
+            )
+    return _parse_record(parser, rest, "birth", BirthModel())[0], tuple(auto)
 
 
 def _parse_estimator(
@@ -1155,7 +1212,8 @@ def parse_config(
     auto = dataclasses.replace(auto, noise_intensity=auto_q, noise_intensity_start=q_start)
     if recording is not None and sites:
         recording = dataclasses.replace(recording, sites=sites)
-    birth = _parse_birth(parser, document)
+    birth, auto_birth = _parse_birth(parser, document, motion)
+    auto = dataclasses.replace(auto, birth=auto_birth)
     estimator, flat = _parse_estimator(parser, document)
     if flat:
         warnings.warn(_deprecation_message(source, flat), DeprecationWarning, stacklevel=2)
@@ -1447,7 +1505,7 @@ def config_to_toml(config: Config) -> str:
             )
             + "]",
         ]
-    lines += ["", "[birth]", *_record_lines(config.birth)]
+    lines += ["", "[birth]", *_auto_birth_lines(config)]
     for name in COMPONENTS:
         lines += ["", f"[estimator.{name}]", *_record_lines(getattr(config.estimator, name))]
     for name, options in config.trackers.items():
@@ -1481,6 +1539,23 @@ def _site_lines(lines: list[str], site: GeodeticPoint | None) -> list[str]:
     if site is None:
         return lines
     return [line for line in lines if not line.startswith("position =")] + _place_text(site)
+
+
+def _auto_birth_lines(config: Config) -> list[str]:
+    """:func:`_record_lines` of the birth model, with ``<key> = "auto"`` (and its start)
+    for the keys still to be estimated."""
+    starts = config.auto.birth_starts()
+    lines = []
+    for line in _record_lines(config.birth):
+        key = line.split(" = ", 1)[0]
+        if key not in starts:
+            lines.append(line)
+            continue
+        lines.append(f"{key} = {_toml_string(AUTO)}")
+        start = starts[key]
+        if start is not None:
+            lines.append(f"{key}_start = {_toml_float(start)}")
+    return lines
 
 
 def _record_lines(settings: object) -> list[str]:

@@ -291,15 +291,18 @@ def _q_start(config: Config, scans: Sequence[Scan], stds: Mapping[str, tuple[flo
 
 
 def associations_of(
-    scans: Sequence[Scan], track_rows: Mapping[int, Sequence[int]]
+    scans: Sequence[Scan],
+    track_rows: Mapping[int, Sequence[int]],
+    min_detections: int = MIN_TRACK_DETECTIONS,
 ) -> dict[int, dict[int, int]]:
     """Track id -> {scan index -> detection index} of the tracks with at least
-    :data:`MIN_TRACK_DETECTIONS` detections, from their detection ids."""
+    ``min_detections`` detections (default :data:`MIN_TRACK_DETECTIONS`), from their
+    detection ids."""
     where = {int(row): (k, j) for k, scan in enumerate(scans)
              for j, row in enumerate(scan.rows.tolist())}  # fmt: skip
     out: dict[int, dict[int, int]] = {}
     for track_id, rows in track_rows.items():
-        if len(rows) >= MIN_TRACK_DETECTIONS:
+        if len(rows) >= min_detections:
             out[int(track_id)] = dict(where[int(row)] for row in rows)
     return out
 

@@ -57,6 +57,14 @@ starts and the choice of returning the last update are explained), and the next 
 runs with it; the iteration has converged when they too moved by less than
 ``rate_tolerance`` (relative).
 
+Birth model.  The ``"auto"`` keys of ``[birth]`` (``rate``, ``initial_count``,
+``survival_probability``, ``velocity_std``) join the passes the same way: each pass's
+tracks, counted under the birth model and smoothed, give their M step
+(:mod:`mapassoc.estimator.birth_estimation`, where the starts are explained), the next
+pass runs with it, and they too must move by less than ``rate_tolerance`` (relative) for
+the iteration to have converged; like the noise levels, the last pass's update is what
+is returned.
+
 Long recordings are not run in full at every pass: the passes run on at most
 ``sample_scans`` scans, in blocks spread evenly over the recording (each block a
 recording of its own, so a track cut at a block's edge only loses its first and last
@@ -82,7 +90,16 @@ from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scans
 from mapassoc.errors import InputError, StopRequested
+from mapassoc.estimator.birth_estimation import (
+    BirthAsked,
+    BirthLevels,
+    birth_close,
+    birth_m_step,
+    initial_birth,
+    with_birth_levels,
+)
 from mapassoc.estimator.noise_levels import (
+    MIN_TRACK_DETECTIONS,
     NoiseAsked,
     NoiseLevels,
     associations_of,
@@ -302,6 +319,8 @@ class EstimationPass:
     noise_used, noise_updated : NoiseLevels or None
         The "auto" noise levels the pass ran with and those its associations give
         (:mod:`mapassoc.estimator.noise_levels`); None when none is asked for.
+    birth_used, birth_updated : BirthLevels or None
+        Likewise for the "auto" birth keys (:mod:`mapassoc.estimator.birth_estimation`).
     """
 
     index: int
@@ -313,6 +332,8 @@ class EstimationPass:
     seconds: float
     noise_used: NoiseLevels | None = None
     noise_updated: NoiseLevels | None = None
+    birth_used: BirthLevels | None = None
+    birth_updated: BirthLevels | None = None
 
     def to_json(self, *, timings: bool = True) -> dict[str, object]:
         out: dict[str, object] = {
@@ -328,6 +349,9 @@ class EstimationPass:
         if self.noise_used is not None and self.noise_updated is not None:
             out["noise_used"] = self.noise_used.to_json()
             out["noise_updated"] = self.noise_updated.to_json()
+        if self.birth_used is not None and self.birth_updated is not None:
+            out["birth_used"] = self.birth_used.to_json()
+            out["birth_updated"] = self.birth_updated.to_json()
         if timings:
             out["seconds"] = self.seconds
         return out
@@ -368,7 +392,9 @@ class ParameterEstimate:
         and checkpoints the state before it refines, so a stop during the refinement
         loses no pass.
     noise : NoiseLevels or None
-        The "auto" noise levels the last pass ran with (None when none was asked for).
+        The "auto" noise levels returned (None when none was asked for).
+    birth : BirthLevels or None
+        The "auto" birth keys returned (None when none was asked for).
     """
 
     config: Config
@@ -380,6 +406,7 @@ class ParameterEstimate:
     warnings: tuple[str, ...]
     last_run: tuple[RunState, tuple[WindowReport, ...]] | None = None
     noise: NoiseLevels | None = None
+    birth: BirthLevels | None = None
 
     def to_json(self, *, timings: bool = True) -> dict[str, object]:
         out: dict[str, object] = {
@@ -390,6 +417,8 @@ class ParameterEstimate:
         }
         if self.noise is not None:
             out["noise"] = self.noise.to_json()
+        if self.birth is not None:
+            out["birth"] = self.birth.to_json()
         return out
 
 
@@ -505,7 +534,7 @@ def estimate_parameters(
         The sensors whose ``Pd`` to estimate, each with its starting value (None:
         :data:`DEFAULT_PD_START`).  When neither is given, the configuration's
         ``"auto"`` parameters (:attr:`Config.auto`) are estimated.  The noise levels
-        estimated are always the configuration's ``"auto"`` ones.
+        and birth keys estimated are always the configuration's ``"auto"`` ones.
     rate_tolerance, pd_tolerance, max_passes, sample_scans, sample_blocks_count : optional
         Default: the configuration's (``config.estimator.parameters``, whose defaults are
         the values given below).
@@ -641,6 +670,8 @@ class EMState:
         The "auto" noise levels the next pass runs with (None: none asked for).
     noise_notes : tuple of str
         What the last pass could not estimate of them.
+    birth, birth_notes : BirthLevels or None, tuple of str
+        Likewise for the "auto" birth keys.
     """
 
     current: dict[str, tuple[float, float]]
@@ -655,6 +686,8 @@ class EMState:
     last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None = None
     noise: NoiseLevels | None = None
     noise_notes: tuple[str, ...] = ()
+    birth: BirthLevels | None = None
+    birth_notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -670,9 +703,9 @@ class EStep:
     last_run : (WindowEstimator, RunState, list of WindowReport) or None
         The run when it covered the whole recording.
     associations : tuple of dict
-        Per block, its tracks as scan index -> detection index
+        Per block, every track as scan index -> detection index
         (:func:`~mapassoc.estimator.noise_levels.associations_of`; empty when no noise
-        level is asked for).
+        level or birth key is asked for).
     """
 
     counts: dict[str, AssociationCounts]
@@ -743,9 +776,11 @@ class ParameterEM:
             len(self.scans), sample_scans=settings.sample_scans, blocks=settings.sample_blocks_count
         )
         self.pieces = [self.scans[first:stop] for first, stop in blocks]
+        self.starts_recording = [first == 0 for first, _ in blocks]
         self.sampled = [scan for piece in self.pieces for scan in piece]
         self.whole = len(self.pieces) == 1 and len(self.pieces[0]) == len(self.scans)
         self.noise = NoiseAsked.from_config(config)
+        self.birth = BirthAsked.from_config(config)
 
     def initialise(self) -> EMState:
         """The starting values: each estimated rate at its upper bound (the mean
@@ -779,6 +814,7 @@ class ParameterEM:
             current=current, rates=tuple(rates), upper=upper, notes=notes,
             pd_estimable=dict.fromkeys(self.pds, False), no_clutter=dict.fromkeys(rates, 0),
             noise=initial_noise(self.config, self.sampled, self.noise) if self.noise.any else None,
+            birth=initial_birth(self.config, self.sampled, self.birth) if self.birth.any else None,
         )  # fmt: skip
 
     def e_step(self, state: EMState) -> EStep:
@@ -811,14 +847,16 @@ class ParameterEM:
             tracks=sum(len(result.track_rows) for result, _, _ in runs),
             last_run=(estimator, runs[0][1], runs[0][2]) if self.whole else None,
             associations=tuple(
-                associations_of(piece, result.track_rows)
+                associations_of(piece, result.track_rows, min_detections=1)
                 for piece, (result, _, _) in zip(self.pieces, runs, strict=True)
-            ) if self.noise.any else (),
+            ) if self.noise.any or self.birth.any else (),
         )  # fmt: skip
 
     def _pass_config(self, state: EMState) -> Config:
-        """The configuration a pass runs with: ``state``'s sensor values and noise levels."""
-        return with_noise_levels(with_sensor_parameters(self.config, state.current), state.noise)
+        """The configuration a pass runs with: ``state``'s sensor values, noise levels and
+        birth keys."""
+        config = with_sensor_parameters(self.config, state.current)
+        return with_birth_levels(with_noise_levels(config, state.noise), state.birth)
 
     def m_step(self, state: EMState, counts: Mapping[str, AssociationCounts]) -> MStep:
         """The values that maximise the complete-data likelihood of ``counts``: per
@@ -870,19 +908,29 @@ class ParameterEM:
         m = self.m_step(state, e.counts)
         noise, noise_notes = state.noise, state.noise_notes
         if state.noise is not None:
+            longer = [{i: d for i, d in tracks.items() if len(d) >= MIN_TRACK_DETECTIONS}
+                      for tracks in e.associations]  # fmt: skip
             noise, noise_notes = noise_m_step(
-                self._pass_config(state), self.pieces, e.associations, self.noise, state.noise
+                self._pass_config(state), self.pieces, longer, self.noise, state.noise
             )
+        birth, birth_notes = state.birth, state.birth_notes
+        if state.birth is not None:
+            birth, birth_notes = birth_m_step(
+                self._pass_config(state), self.pieces, self.starts_recording, e.associations,
+                state.birth,
+            )  # fmt: skip
         record = EstimationPass(
             index=len(state.passes), used=dict(state.current), updated=m.updated,
             objective=m.objective, tracks=e.tracks, scans=len(self.sampled),
             seconds=time.perf_counter() - started, noise_used=state.noise, noise_updated=noise,
+            birth_used=state.birth, birth_updated=birth,
         )  # fmt: skip
         if self.on_pass is not None:
             self.on_pass(record)
         after = dataclasses.replace(
             state, passes=(*state.passes, record), pd_estimable=m.pd_estimable,
             no_clutter=m.no_clutter, last_run=e.last_run, noise_notes=noise_notes,
+            birth_notes=birth_notes,
         )  # fmt: skip
         current, upper = state.current, state.upper
         hidden = [
@@ -896,12 +944,15 @@ class ParameterEM:
                        m.updated[name][1])
                 for name in self.asked
             }  # fmt: skip
-            return dataclasses.replace(after, current=probe, retried=True, noise=noise)
-        if self.converged(current, m.updated) and noise_close(
-            state.noise, noise, self.settings.rate_tolerance
-        ):
+            return dataclasses.replace(after, current=probe, retried=True, noise=noise,
+                                       birth=birth)  # fmt: skip
+        tolerance = self.settings.rate_tolerance
+        if (
+            self.converged(current, m.updated) and noise_close(state.noise, noise, tolerance)
+            and birth_close(state.birth, birth, tolerance)
+        ):  # fmt: skip
             return dataclasses.replace(after, converged=True)
-        return dataclasses.replace(after, current=m.updated, noise=noise)
+        return dataclasses.replace(after, current=m.updated, noise=noise, birth=birth)
 
     def finish(self, state: EMState, *, finish: bool = True) -> ParameterEstimate:
         """The estimates: the values the last pass ran with, each sensor's notes, and
@@ -915,21 +966,24 @@ class ParameterEM:
         """
         used = state.passes[-1].used
         estimates = {name: self._sensor_estimate(state, name) for name in self.asked}
-        noise, last_run = _final_noise(state)
+        noise, birth, last_run = _final_levels(state)
         last_result = None
         if last_run is not None and finish:
             last_result = self._finished_run(last_run)
         return ParameterEstimate(
-            config=with_noise_levels(with_sensor_parameters(self.config, used), noise),
+            config=with_birth_levels(
+                with_noise_levels(with_sensor_parameters(self.config, used), noise), birth
+            ),
             sensors=estimates,
             passes=state.passes,
             converged=state.converged,
             sample_scans=len(self.sampled),
             result=last_result,
             warnings=tuple(note for estimate in estimates.values() for note in estimate.notes)
-            + state.noise_notes,
+            + state.noise_notes + state.birth_notes,
             last_run=None if last_run is None else (last_run[1], tuple(last_run[2])),
             noise=noise,
+            birth=birth,
         )
 
     def _sensor_estimate(self, state: EMState, name: str) -> SensorEstimate:
@@ -975,24 +1029,30 @@ class ParameterEM:
                 ) from None
 
 
-def _final_noise(
+def _final_levels(
     state: EMState,
-) -> tuple[NoiseLevels | None, tuple[WindowEstimator, RunState, list[WindowReport]] | None]:
-    """The noise levels returned and the last run that goes with the estimates.
+) -> tuple[
+    NoiseLevels | None,
+    BirthLevels | None,
+    tuple[WindowEstimator, RunState, list[WindowReport]] | None,
+]:
+    """The noise levels and birth keys returned, and the last run that goes with the
+    estimates.
 
-    Unlike the sensor parameters, the noise levels returned are the last pass's update
-    (the fixed point of the noise EM on that pass's associations), not the values it
-    ran with: the update is an exact EM fixed point given the associations, and from a
-    start far from the truth three passes may not reach it.  When it moved the levels
-    by more than ``rate_tolerance``, the last pass's run is not the estimator's answer
-    under them and is dropped (the caller runs again, as after a sampled recording).
+    Unlike the sensor parameters, the noise levels and birth keys returned are the last
+    pass's update (the fixed point of their EM on that pass's associations), not the
+    values it ran with: the update is an exact EM fixed point given the associations,
+    and from a start far from the truth three passes may not reach it.  When it moved
+    them by more than :data:`_NOISE_RUN_TOLERANCE`, the last pass's run is not the
+    estimator's answer under them and is dropped (the caller runs again, as after a
+    sampled recording); within it, the values the pass ran with are returned with it.
     """
     last = state.passes[-1]
-    if last.noise_used is None or last.noise_updated is None:
-        return None, state.last_run
-    if noise_close(last.noise_used, last.noise_updated, _NOISE_RUN_TOLERANCE):
-        return last.noise_used, state.last_run
-    return last.noise_updated, None
+    if noise_close(last.noise_used, last.noise_updated, _NOISE_RUN_TOLERANCE) and birth_close(
+        last.birth_used, last.birth_updated, _NOISE_RUN_TOLERANCE
+    ):
+        return last.noise_used, last.birth_used, state.last_run
+    return last.noise_updated, last.birth_updated, None
 
 
 _NOISE_RUN_TOLERANCE = 0.02

@@ -57,7 +57,10 @@ def test_the_auto_run_estimates_near_the_truth(both) -> None:  # type: ignore[no
     assert given.estimates is None
     truth = build_scenario("crossing", 0).config
     values = {v.label: v for v in auto.estimates}
-    assert list(values) == ["q", "pos rate", "pos Pd", "pos std"]
+    assert list(values) == ["q", "pos rate", "pos Pd", "pos std", "births", "initial",
+                            "survival"]  # fmt: skip
+    assert values["survival"].truth == truth.birth.survival_probability
+    assert 0.0 < values["survival"].estimate <= 1.0 and values["births"].estimate >= 0.0
     sensor = truth.sensors["pos"]
     assert values["pos rate"].truth == sensor.false_alarms_per_scan
     assert values["pos Pd"].truth == sensor.detection_probability
@@ -105,20 +108,22 @@ def test_the_json_holds_the_estimates_and_the_ratio(both) -> None:  # type: igno
     estimates = data["runs"][1]["estimates"]
     assert [e["key"] for e in estimates] == [
         "motion.noise_intensity", "sensors.pos.false_alarms_per_scan",
-        "sensors.pos.detection_probability", "sensors.pos.noise_std",
+        "sensors.pos.detection_probability", "sensors.pos.noise_std", "birth.rate",
+        "birth.initial_count", "birth.survival_probability",
     ]  # fmt: skip
     assert estimates[1]["truth"] == 10.0 and estimates[1]["goal"] == 0.2
     assert [f["parameters"] for f in data["families"]] == ["given", "auto"]
     (auto,) = data["auto"]
     assert auto["gospa_ratio_mean"] == pytest.approx(result.auto[0].gospa_ratio_mean)
     assert auto["gospa_met"] == (auto["gospa_ratio_mean"] <= AUTO_GOSPA_GOAL)
-    assert [e["label"] for e in auto["errors"]] == ["q", "pos rate", "pos Pd", "pos std"]
+    assert [e["label"] for e in auto["errors"]] == ["q", "pos rate", "pos Pd", "pos std",
+                                                    "births", "initial", "survival"]  # fmt: skip
 
 
 def test_the_auto_configuration_holds_placeholders_and_the_run_none() -> None:
     setup = _bench_setup("crossing", 0, WINDOW, 5.0, "scenario", 12, "birth", "configured", "auto")
     config = setup.config
-    assert config.auto.pending and len(config.auto.names()) == 4
+    assert config.auto.pending and len(config.auto.names()) == 7
     sensor = config.sensors["pos"]
     # The reader's placeholders: nothing of the true values (rate 10, Pd 0.9, q 0.002).
     assert (sensor.false_alarms_per_scan, sensor.detection_probability) == (0.0, 1.0)
@@ -144,9 +149,11 @@ def test_the_auto_configuration_holds_placeholders_and_the_run_none() -> None:
 
 def test_the_fields_follow_the_models() -> None:
     turning = [f.label for f in auto_fields(build_scenario("turning", 0, scans=5).config)]
-    assert turning == ["pos rate", "pos Pd", "pos std"]  # a coordinated turn: no one scale
+    # a coordinated turn: no one scale
+    assert turning == ["pos rate", "pos Pd", "pos std", "births", "initial", "survival"]
     two = [f.label for f in auto_fields(build_scenario("two_sensors", 0, scans=5).config)]
-    assert two == ["q", "pos rate", "pos Pd", "pos std", "radar rate", "radar Pd"]
+    assert two == ["q", "pos rate", "pos Pd", "pos std", "radar rate", "radar Pd", "births",
+                   "initial", "survival"]  # fmt: skip
 
 
 def test_without_given_runs_the_ratio_is_not_run(both) -> None:  # type: ignore[no-untyped-def]

@@ -224,3 +224,41 @@ def test_auto_noise_levels_are_printed_written_and_recorded(
     noise = json.loads((run / "summary.json").read_text())["parameters"]["noise"]
     assert set(noise) == {"noise_intensity", "noise_std"}
     assert noise["noise_std"]["pos"][0] == pytest.approx(1.0, rel=0.2)
+
+
+def _auto_birth(folder: Path, tmp_path: Path) -> Path:
+    """The folder's config.toml with [birth] rate and survival_probability "auto"."""
+    lines = []
+    for line in (folder / "config.toml").read_text().splitlines():
+        if line.startswith(("rate =", "survival_probability =")):
+            line = line.split(" =")[0] + ' = "auto"'
+        if line.startswith("time_limit ="):
+            line = "time_limit = 600.0"
+        lines.append(line)
+    out = tmp_path / "birth.toml"
+    out.write_text("\n".join(lines) + "\n")
+    return out
+
+
+def test_auto_birth_keys_are_printed_written_and_recorded(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mapassoc.data.config import load_config
+
+    config = _auto_birth(scenario, tmp_path)
+    truth = load_config(scenario / "config.toml").birth
+    written = tmp_path / "estimated.toml"
+    assert main(["estimate-parameters", str(config), str(scenario / "detections.csv"),
+                 "--write", str(written), "--no-progress"]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert "birth.rate" in out and "birth.survival_probability" in out
+    estimated = load_config(written)
+    assert not estimated.auto.pending
+    assert estimated.birth.rate == pytest.approx(truth.rate, rel=0.3)
+    run = tmp_path / "run"
+    assert main(["run", str(config), str(scenario / "detections.csv"), "--out", str(run),
+                 "--no-timings"]) == 0  # fmt: skip
+    assert "birth rate" in capsys.readouterr().err  # the pass's line
+    birth = json.loads((run / "summary.json").read_text())["parameters"]["birth"]
+    assert set(birth) == {"rate", "survival_probability"}
+    assert birth["survival_probability"] == pytest.approx(truth.survival_probability, abs=0.01)
