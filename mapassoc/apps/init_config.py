@@ -13,12 +13,14 @@ the run is written as ``"auto"``:
   box would dilute the clutter density the run estimates), or of its ranges and
   bearings (a range-bearing sensor; all bearings when they span nearly the circle);
 * the scan period (the median time between a sensor's scans);
-* the birth model's velocity spread from the moments of nearest-neighbour chains of
-  detections (:func:`mapassoc.filtering.noise_moments.chain_moments`, which says how),
-  and, from the same chains, a range-bearing sensor's noise; a position sensor's
-  ``noise_std`` and the constant-velocity model's ``noise_intensity`` are written as
-  ``"auto"`` with the chains' values in a comment (the run's EM starts from the same
-  chains, :mod:`mapassoc.estimator.noise_levels`);
+* a range-bearing sensor's noise from the moments of nearest-neighbour chains of
+  detections (:func:`mapassoc.filtering.noise_moments.chain_moments`, which says how); a
+  position sensor's ``noise_std`` and the constant-velocity model's ``noise_intensity``
+  are written as ``"auto"`` with the chains' values in a comment (the run's EM starts
+  from the same chains, :mod:`mapassoc.estimator.noise_levels`);
+* the birth model's ``rate``, ``initial_count``, ``survival_probability`` and
+  ``velocity_std`` as ``"auto"`` (:mod:`mapassoc.estimator.birth_estimation`), the last
+  with the chains' velocity spread as its start;
 * ``detection_probability`` and ``false_alarms_per_scan`` as ``"auto"`` (estimated by
   the run's EM, :mod:`mapassoc.estimator.parameters`).
 
@@ -323,10 +325,14 @@ def _model_lines(moments: Sequence[ChainMoments], dim: int, scans: Sequence[Any]
         'noise_intensity = "auto"',
         "",
         "[birth]",
-        "# velocity_std: the spread of the detections' scan-to-scan velocities (m/s)",
-        f"velocity_std = {spread!r}",
-        f"initial_count = {float(initial)!r}  # detections in the first scan",
-        "rate = 0.1",
+        "# estimated by the run; the first pass starts velocity_std at the spread of the",
+        "# chains' scan-to-scan velocities (m/s); the first scan holds "
+        f"{initial} detections",
+        'rate = "auto"',
+        'initial_count = "auto"',
+        'survival_probability = "auto"',
+        'velocity_std = "auto"',
+        f"velocity_std_start = {spread!r}",
         "",
         "[estimator.windows]",
         "# scans per window; the other [estimator.*] tables are left at their defaults",

@@ -19,25 +19,28 @@ Decisions:
 * Only tracks with at least :data:`MIN_TRACK_DETECTIONS` detections enter the sums: a
   short track is more often clutter joined by chance, whose residuals are not the
   sensor's noise, and a two-detection track says little about either level.
-* Starts.  Without a configured start, a position sensor's std starts at
-  ``sqrt(r)`` and a constant-velocity model's ``noise_intensity`` at the median ``q``
-  of the position sensors, both from the moments of nearest-neighbour chains of
-  detections (:func:`mapassoc.filtering.noise_moments.chain_moments`, what ``mapassoc
-  init-config`` writes).  Clutter in the chains and targets that manoeuvre only add to
-  both, so the starts are from above or near, the side this EM starts every parameter
-  from (too small a std breaks tracks into single detections, which carry no
-  information about the noise and leave the iteration where it started); the chains
-  are far better starts than the scale of the data: on ``crossing`` (200 scans, q =
-  0.002, std 1) three passes from the chains' start ended at q within 30% and the std
-  within 3%, and from the older start (std from nearest neighbours alone, q at a
-  tracking index of one) at q 137 times too high (the changelog has the numbers).
-  Without a chain of four detections the std starts at ``sqrt(median(r^2) / (2 d))``,
-  ``r`` the distance of each detection to the nearest detection of the sensor's
-  previous scan and ``d`` the position components (for a target that does not move
-  between scans ``r^2`` is the squared difference of two measurement errors, ``2
-  sigma^2`` per component; motion and clutter only add distance).  The other models'
+* Starts.  Without a configured start, a position sensor's std starts at ``sqrt(r)``
+  from the moments of nearest-neighbour chains of detections
+  (:func:`mapassoc.filtering.noise_moments.chain_moments`, what ``mapassoc init-config``
+  writes): clutter in the chains and manoeuvres only add to it, so it is near the truth
+  or above, the side the std must start from (too small a std breaks tracks into single
+  detections, which carry no information about the noise).  A constant-velocity model's
+  ``noise_intensity`` starts low, at :data:`QUIET_START` ``r / T^3`` with ``T`` the
+  chains' median scan interval (nearly constant velocity: the floor of the chains'
+  estimate), and not at the chains' ``q``: from above, the wide gates of a large ``q``
+  take false alarms into the tracks, whose residuals then confirm the large ``q`` (and a
+  ``Pd`` near 1) pass after pass, while from below the tracks' pieces still measure the
+  targets' accelerations and the EM rises.  On seed 0 (scenario truth in brackets) the
+  chains' ``q`` ended at 1.62 (0.0005) on ``dense_pd08``, with ``Pd`` 1.00 (0.8), and
+  the low start at 0.000503, ``Pd`` 0.851; on ``aircraft`` (turning, 50 m noise) the low
+  start rose from 0.66 to 16 and gave a lower GOSPA than the configured values; the
+  changelog has every number.  Without a chain of four detections the std starts at
+  ``sqrt(median(r^2) / (2 d))``, ``r`` the distance of each detection to the nearest
+  detection of the sensor's previous scan and ``d`` the position components (for a
+  target that does not move between scans ``r^2`` is the squared difference of two
+  measurement errors, ``2 sigma^2`` per component).  Then, and for the other models'
   ``noise_intensity`` (random walk, constant acceleration: the chains' moments are a
-  constant-velocity model's) starts where the process noise over the recording's
+  constant-velocity model's), ``q`` starts where the process noise over the recording's
   median scan interval ``T`` moves a position as much as the measurement noise does:
   ``q Q1(T)[0, 0] = sigma^2`` (a tracking index of one in Kalata's sense), with
   ``sigma^2`` the mean position variance of the position sensors (their starts where
@@ -73,6 +76,7 @@ from mapassoc.models.sensor import Sensor
 
 __all__ = [
     "LEVEL_FLOOR",
+    "QUIET_START",
     "MAX_NOISE_UPDATES",
     "MIN_TRACK_DETECTIONS",
     "NOISE_TOLERANCE",
@@ -89,6 +93,10 @@ MAX_NOISE_UPDATES = 30
 """Most smoothings of a pass's tracks in one noise M step."""
 NOISE_TOLERANCE = 1e-3
 """Relative change of every level below which the inner iteration stops."""
+QUIET_START = 0.01
+"""A constant-velocity model's ``noise_intensity`` starts at ``QUIET_START r / T^3``:
+the process noise moves a position over one scan interval ``T`` by a tenth of the
+measurement noise's std (module docstring, starts)."""
 LEVEL_FLOOR = 1e-6
 """The least level one pass's noise M step returns, as a share of the level the pass ran
 with: the EM update of a noise-free recording is 0 and, by rounding, below it, which no
@@ -252,7 +260,8 @@ def initial_noise(config: Config, scans: Sequence[Scan], asked: NoiseAsked) -> N
     if asked.process:
         q = asked.process_start
         if q is None and chains and isinstance(config.motion, ConstantVelocity):
-            q = float(np.median([moments.process_noise for moments in chains.values()]))
+            q = float(np.median([QUIET_START * m.measurement_variance / m.period**3
+                                 for m in chains.values()]))  # fmt: skip
         if q is None:
             q = _q_start(config, scans, stds)
     return NoiseLevels(q, stds)

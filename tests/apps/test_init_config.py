@@ -72,7 +72,10 @@ def test_a_lat_lon_file_gives_a_geodetic_configuration_with_auto_rates(tmp_path:
     (low, high), _ = sensor["region"]
     assert 1.08 < (high - low) / 7400 < 1.12
     # a speed of ~ 0.001 deg lat per 2 s (55 m/s north) and 0.0008 deg lon (27 m/s east)
-    assert 20.0 < data["birth"]["velocity_std"] < 70.0
+    assert 20.0 < data["birth"]["velocity_std_start"] < 70.0
+    assert all(data["birth"][key] == "auto"
+               for key in ("rate", "initial_count", "survival_probability", "velocity_std"))
+    assert len(config.auto.names()) == 8  # every value a run can estimate: all "auto"
 
 
 def test_init_config_then_run_on_a_users_file(tmp_path: Path) -> None:

@@ -20,6 +20,7 @@ from mapassoc.errors import InputError
 from mapassoc.estimator.noise_levels import (
     LEVEL_FLOOR,
     MIN_TRACK_DETECTIONS,
+    QUIET_START,
     NoiseAsked,
     NoiseLevels,
     associations_of,
@@ -55,9 +56,10 @@ def test_starts_given_and_from_the_data() -> None:
     chains = chain_moments([s.time for s in built.scans], [s.detections for s in built.scans])
     assert chains.pairs > 0
     assert levels.noise_std["pos"] == (math.sqrt(chains.measurement_variance),) * 2
-    assert levels.noise_intensity == chains.process_noise
+    # q low: QUIET_START r / T^3 (T = 1), a tenth of the std moved per scan.
+    assert levels.noise_intensity == pytest.approx(QUIET_START * chains.measurement_variance)
     assert 0.9 < levels.noise_std["pos"][0] < 1.5
-    assert 0.002 < levels.noise_intensity < 0.2
+    assert levels.noise_intensity < 0.02
     # Three scans hold no chain of four detections: the std from nearest neighbours
     # (from above: motion and clutter only add distance) and q where the process noise
     # over one scan interval equals that measurement noise (T = 1: Q1[0, 0] = 1/3).
