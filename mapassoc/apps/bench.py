@@ -11,9 +11,9 @@ the window estimator and reports
 * mean hypotheses and the largest cluster per window;
 * the mix of window statuses (counted as the pipeline names them, whatever they are)
   and the smallest ``captured_mass``;
-* GOSPA (cut-off :data:`GOSPA_CUTOFF`, with the localisation / missed / false parts of
-  GOSPA^2) next to the oracle's (Kalman smoother on the true associations) and their
-  ratio;
+* GOSPA (cut-off :data:`GOSPA_CUTOFF` position-noise standard deviations, with the
+  localisation / missed / false parts of GOSPA^2) next to the oracle's (Kalman smoother
+  on the true associations) and their ratio;
 * identity: P-GOSPA (Xia, García-Fernández, Karlsson, Yuan, Chang and Svensson,
   "Probabilistic GOSPA"), which also scores the existence probabilities the estimate
   reports; T-GOSPA of the trajectories (c = gamma = :data:`GOSPA_CUTOFF`, p = 2) next to
@@ -88,6 +88,7 @@ from mapassoc.evaluation.oracle import oracle_tracks
 from mapassoc.evaluation.scenarios import (
     build_scenario,
     generic_config,
+    length_unit,
     scenario_names,
     truncate_scenario,
 )
@@ -128,7 +129,9 @@ BENCH_K_PRIORS: tuple[str, ...] = tuple(name for name in K_PRIORS if name != "we
 #: ``generic``: :func:`~mapassoc.evaluation.scenarios.generic_config`; ``scenario``: each
 #: scenario's own configuration.
 CONFIG_CHOICES: tuple[str, ...] = ("generic", "scenario")
-#: GOSPA cut-off c (length units, noise standard deviations).
+#: GOSPA cut-off c and T-GOSPA's switch cost, in position-noise standard deviations
+#: (:func:`~mapassoc.evaluation.scenarios.length_unit` of the scenario: 10 in the native
+#: families, 10 x 50 m in ``aircraft``).
 GOSPA_CUTOFF = 10.0
 #: Goal: mean GOSPA over seeds at most this many times the oracle's.
 GOSPA_RATIO_GOAL = 1.2
@@ -791,19 +794,20 @@ class _Accuracy:
 
 def _accuracy(scenario: Scenario, tracks: TrackTable) -> _Accuracy:
     """The estimate's ``tracks`` and the oracle's scored against the scenario's truth."""
-    estimate = evaluate_tables(scenario.truth, tracks, c=GOSPA_CUTOFF, switch_cost=GOSPA_CUTOFF)
+    c = GOSPA_CUTOFF * length_unit(scenario.config)
+    estimate = evaluate_tables(scenario.truth, tracks, c=c, switch_cost=c)
     oracle = evaluate_tables(
         scenario.truth,
         oracle_tracks(scenario.scans, scenario.origins, scenario.config),
-        c=GOSPA_CUTOFF,
-        switch_cost=GOSPA_CUTOFF,
+        c=c,
+        switch_cost=c,
     )
     trajectory, oracle_trajectory = estimate.tgospa, oracle.tgospa
     fragmentation = estimate.fragmentation
     with warnings.catch_warnings():
         # evaluate_tables has warned about these tables already.
         warnings.simplefilter("ignore", UserWarning)
-        probabilistic = pgospa_tables(scenario.truth, tracks, c=GOSPA_CUTOFF)
+        probabilistic = pgospa_tables(scenario.truth, tracks, c=c)
     return _Accuracy(
         gospa=GospaParts.from_series(estimate.gospa),
         oracle_gospa=GospaParts.from_series(oracle.gospa),
@@ -1316,7 +1320,7 @@ class _BenchSettings:
                else f"parameters {','.join(self.parameters)}, ")
             + f"k_priors {','.join(self.priors)}, seeds 0..{self.seeds - 1}"
             + (f", first {self.scans} scans" if self.scans is not None else "")
-            + f", GOSPA cut-off {GOSPA_CUTOFF:g}"
+            + f", GOSPA cut-off {GOSPA_CUTOFF:g} noise stds"
         )
 
 

@@ -201,7 +201,7 @@ def _one_seed(
     """Every method on one family and seed, scored; and each refined track's (existence,
     whether it follows a true target)."""
     from mapassoc.estimator.objective import RecordingObjective  # noqa: F811
-    from mapassoc.evaluation.scenarios import build_scenario, generic_config
+    from mapassoc.evaluation.scenarios import build_scenario, generic_config, length_unit
 
     scenario = build_scenario(family, seed, scans=scans)
     config = dataclasses.replace(generic_config(scenario, time_limit=time_limit), trackers=tables)
@@ -211,7 +211,7 @@ def _one_seed(
     existence = confidence.existence if confidence else {}
     reliability = _reliability(outputs.refined.track_rows, existence, scenario.origins)
     targets = len(np.unique(scenario.truth.target_ids))
-    cutoff = GOSPA_CUTOFF * _length_unit(config)
+    cutoff = GOSPA_CUTOFF * length_unit(config)
     runs = [
         _score(family, seed, run.method, scenario, run.tracks, targets, run.seconds,
                run.objective, cutoff)
@@ -233,21 +233,6 @@ class _Outputs:
     mht_seconds: float
     gnn: TrackTable | None
     gnn_seconds: float
-
-
-def _length_unit(config: Config) -> float:
-    """The largest position-noise standard deviation of the linear sensors (1 if none).
-
-    The built-in families measure lengths in that unit; the manoeuvring ones in metres.
-    """
-    from mapassoc.models.measurement import LinearMeasurement
-
-    stds = [
-        float(np.sqrt(np.max(np.diag(sensor.measurement.R))))
-        for sensor in config.sensors.values()
-        if isinstance(sensor.measurement, LinearMeasurement)
-    ]
-    return max(stds) if stds else 1.0
 
 
 def _stonesoup_gnn(scenario: Scenario, config: Config) -> tuple[TrackTable | None, float]:

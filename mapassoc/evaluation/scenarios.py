@@ -70,6 +70,7 @@ __all__ = [
     "birth_model_for",
     "max_tracks_for",
     "generic_config",
+    "length_unit",
     "top_initial_speed",
     "add_false_alarms",
     "truncate_scenario",
@@ -1369,6 +1370,22 @@ def top_initial_speed(scenario: Scenario) -> float:
     first = order[np.concatenate([[True], ids[1:] != ids[:-1]])]
     motion = scenario.config.motion
     return max(_speed(motion, truth.states[i]) for i in first)
+
+
+def length_unit(config: Config) -> float:
+    """The largest position-noise standard deviation of the configuration's linear
+    sensors (1 if none): the unit the benchmarks' GOSPA cut-offs are given in.
+
+    The native families measure lengths in that unit (a noise std of 1), the manoeuvring
+    ones in metres (30-60 m), so a cut-off of ``10`` means ten noise standard deviations
+    in both.
+    """
+    stds = [
+        float(np.sqrt(np.max(np.diag(sensor.measurement.noise_covariance))))
+        for sensor in config.sensors.values()
+        if isinstance(sensor.measurement, LinearMeasurement)
+    ]
+    return max(stds) if stds else 1.0
 
 
 def generic_config(
