@@ -125,7 +125,6 @@ __all__ = [
     "velocity_update",
     "initial_birth",
     "birth_m_step",
-    "birth_close",
     "with_birth_levels",
 ]
 
@@ -522,12 +521,3 @@ def initial_birth(config: Config, scans: Sequence[Scan], asked: BirthAsked) -> B
                     )  # fmt: skip
         values[key] = float(start)
     return BirthLevels(values)
-
-
-def birth_close(a: BirthLevels | None, b: BirthLevels | None, tolerance: float) -> bool:
-    """Whether every value of ``a`` and ``b`` differs by at most ``tolerance`` of the
-    larger."""
-    if a is None or b is None:
-        return a is b
-    x, y = a.vector(), b.vector()
-    return bool(np.all(np.abs(x - y) <= tolerance * np.maximum(x, y)))

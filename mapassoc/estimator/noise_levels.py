@@ -54,6 +54,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -85,7 +86,8 @@ __all__ = [
     "associations_of",
     "initial_noise",
     "noise_m_step",
-    "noise_close",
+    "Levels",
+    "levels_close",
     "with_noise_levels",
 ]
 
@@ -379,9 +381,19 @@ def noise_m_step(
     return _from_vector(asked, current, result.values), tuple(notes)
 
 
-def noise_close(a: NoiseLevels | None, b: NoiseLevels | None, tolerance: float) -> bool:
-    """Whether every level of ``a`` and ``b`` differs by at most ``tolerance`` of the
-    larger."""
+class Levels(Protocol):
+    """Estimated values that read as one positive vector (:class:`NoiseLevels`,
+    :class:`~mapassoc.estimator.birth_estimation.BirthLevels`)."""
+
+    def vector(self) -> FloatArray:
+        """The values, in a fixed order."""
+        ...
+
+
+def levels_close(a: Levels | None, b: Levels | None, tolerance: float) -> bool:
+    """Whether every value of ``a`` and ``b`` (both None, or of one kind and layout)
+    differs by at most ``tolerance`` of the larger: the parameter EM's convergence test
+    of the noise levels and of the birth model."""
     if a is None or b is None:
         return a is b
     x, y = a.vector(), b.vector()

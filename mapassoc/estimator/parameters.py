@@ -93,7 +93,6 @@ from mapassoc.errors import InputError, StopRequested
 from mapassoc.estimator.birth_estimation import (
     BirthAsked,
     BirthLevels,
-    birth_close,
     birth_m_step,
     initial_birth,
     with_birth_levels,
@@ -104,7 +103,7 @@ from mapassoc.estimator.noise_levels import (
     NoiseLevels,
     associations_of,
     initial_noise,
-    noise_close,
+    levels_close,
     noise_m_step,
     with_noise_levels,
 )
@@ -948,8 +947,8 @@ class ParameterEM:
                                        birth=birth)  # fmt: skip
         tolerance = self.settings.rate_tolerance
         if (
-            self.converged(current, m.updated) and noise_close(state.noise, noise, tolerance)
-            and birth_close(state.birth, birth, tolerance)
+            self.converged(current, m.updated) and levels_close(state.noise, noise, tolerance)
+            and levels_close(state.birth, birth, tolerance)
         ):  # fmt: skip
             return dataclasses.replace(after, converged=True)
         return dataclasses.replace(after, current=m.updated, noise=noise, birth=birth)
@@ -1048,7 +1047,7 @@ def _final_levels(
     sampled recording); within it, the values the pass ran with are returned with it.
     """
     last = state.passes[-1]
-    if noise_close(last.noise_used, last.noise_updated, _NOISE_RUN_TOLERANCE) and birth_close(
+    if levels_close(last.noise_used, last.noise_updated, _NOISE_RUN_TOLERANCE) and levels_close(
         last.birth_used, last.birth_updated, _NOISE_RUN_TOLERANCE
     ):
         return last.noise_used, last.birth_used, state.last_run

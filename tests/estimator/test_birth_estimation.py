@@ -30,7 +30,6 @@ from mapassoc.estimator.birth_estimation import (
     BirthAsked,
     BirthLevels,
     BlockTracks,
-    birth_close,
     birth_m_step,
     block_tracks,
     count_update,
@@ -38,6 +37,7 @@ from mapassoc.estimator.birth_estimation import (
     survival_update,
     with_birth_levels,
 )
+from mapassoc.estimator.noise_levels import levels_close
 from mapassoc.estimator.parameters import estimate_parameters
 from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.evaluation.scenarios import build_scenario
@@ -210,9 +210,9 @@ def test_levels_rebuild_the_birth_model_and_compare() -> None:
     assert rebuilt.birth.rate == 0.25 and rebuilt.auto.birth == (("velocity_std", 2.0),)
     assert rebuilt.birth.survival_probability == config.birth.survival_probability
     assert with_birth_levels(config, None) is config
-    assert birth_close(BirthLevels({"rate": 1.0}), BirthLevels({"rate": 1.0005}), 1e-3)
-    assert not birth_close(BirthLevels({"rate": 1.0}), BirthLevels({"rate": 1.01}), 1e-3)
-    assert birth_close(None, None, 1e-3) and not birth_close(None, BirthLevels({}), 1e-3)
+    assert levels_close(BirthLevels({"rate": 1.0}), BirthLevels({"rate": 1.0005}), 1e-3)
+    assert not levels_close(BirthLevels({"rate": 1.0}), BirthLevels({"rate": 1.01}), 1e-3)
+    assert levels_close(None, None, 1e-3) and not levels_close(None, BirthLevels({}), 1e-3)
 
 
 def test_block_tracks_count_tracks_of_two_detections_and_read_pd() -> None:
