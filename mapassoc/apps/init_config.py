@@ -17,7 +17,8 @@ the run is written as ``"auto"``:
   detections (:func:`mapassoc.filtering.noise_moments.chain_moments`, which says how); a
   position sensor's ``noise_std`` and the constant-velocity model's ``noise_intensity``
   are written as ``"auto"`` with the chains' values in a comment (the run's EM starts
-  from the same chains, :mod:`mapassoc.estimator.noise_levels`);
+  from the same chains, :mod:`mapassoc.estimator.noise_levels`), the latter only with a
+  position sensor (the EM's start of ``q`` needs one), else as the chains' number;
 * the birth model's ``rate``, ``initial_count``, ``survival_probability`` and
   ``velocity_std`` as ``"auto"`` (:mod:`mapassoc.estimator.birth_estimation`), the last
   with the chains' velocity spread as its start;
@@ -291,7 +292,8 @@ def infer_config_text(path: str | os.PathLike[str], *, sites: Mapping[str, Geode
         moments.append(moment)
     origin = None if base.frame is None else base.frame.origin
     lines = _header_lines(name, base) + _draft_toml(guesses, sites, origin, noise, regions)
-    lines += _model_lines(moments, dim, scans)
+    has_position = any(guess.kind in ("geo_position", "position") for guess in guesses)
+    lines += _model_lines(moments, dim, scans, auto_q=has_position)
     document = "\n".join(lines) + "\n"
     parse_config(tomllib.loads(document), source=name)  # what is written must read back
     return document
@@ -310,7 +312,11 @@ def _header_lines(name: str, base: Any) -> list[str]:
     ]
 
 
-def _model_lines(moments: Sequence[ChainMoments], dim: int, scans: Sequence[Any]) -> list[str]:
+def _model_lines(
+    moments: Sequence[ChainMoments], dim: int, scans: Sequence[Any], *, auto_q: bool
+) -> list[str]:
+    """``[motion]``, ``[birth]`` and the window length; ``noise_intensity`` "auto" when
+    ``auto_q`` (a position sensor, which the noise EM's start needs), else the chains'."""
     q = float(np.median([m.process_noise for m in moments]))
     spread = float(max(m.speed_spread for m in moments))
     period = float(np.median([m.period for m in moments]))
@@ -318,11 +324,11 @@ def _model_lines(moments: Sequence[ChainMoments], dim: int, scans: Sequence[Any]
     initial = sum(s.size for s in scans if s.time == first.time)
     return [
         "[motion]",
-        f"# scan period {period!r} s; the process noise is estimated by the run (the",
-        f"# chains' second differences give {q!r} m^2/s^3)",
+        f"# scan period {period!r} s; the chains' second differences give a process noise",
+        f"# of {q!r} m^2/s^3" + ("; the run estimates it" if auto_q else ""),
         'model = "constant_velocity"',
         f"ndim = {dim}",
-        'noise_intensity = "auto"',
+        'noise_intensity = "auto"' if auto_q else f"noise_intensity = {q!r}",
         "",
         "[birth]",
         "# estimated by the run; the first pass starts velocity_std at the spread of the",
