@@ -190,7 +190,14 @@ def test_the_m_step_recovers_simulated_birth_parameters_and_tracks_three_times_t
 def test_starts_are_the_rules_or_the_configured_values() -> None:
     built = build_scenario("crossing", 0, scans=40)
     levels = initial_birth(built.config, built.scans, BirthAsked(dict.fromkeys(AUTO_BIRTH_KEYS)))
-    assert levels.values["rate"] == pytest.approx(1 / 40)
+    # crossing: ~13 detections per scan, so min(0.1, 0.01 x 13) = 0.1 births per scan
+    assert levels.values["rate"] == pytest.approx(0.1)
+    long = build_scenario("crossing", 0, scans=200)
+    sparse = [Scan(s.time, s.sensor, s.detections[:2], s.rows[:2]) for s in long.scans]
+    rule = initial_birth(long.config, sparse, BirthAsked({"rate": None}))
+    assert rule.values["rate"] == pytest.approx(0.01 * 2)  # below 2 detections' clutter
+    few = initial_birth(long.config, sparse[:40], BirthAsked({"rate": None}))
+    assert few.values["rate"] == pytest.approx(1 / 40)  # at least one birth over the sample
     assert levels.values["initial_count"] == 1.0
     assert levels.values["survival_probability"] == pytest.approx(math.exp(-1 / 39))
     assert levels.values["velocity_std"] > 1.0  # targets' speeds ~1 plus the noise
