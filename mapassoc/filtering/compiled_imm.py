@@ -60,14 +60,14 @@ def _log_sum_exp(values: FloatArray, count: int) -> float:
 @njit(cache=True)
 def _mix(
     log_mu: FloatArray, x: FloatArray, P: FloatArray, Pi: FloatArray,
-    x0: FloatArray, P0: FloatArray, joint: FloatArray, w: FloatArray,
+    x0: FloatArray, P0: FloatArray, joint: FloatArray, w: FloatArray, log_c: FloatArray,
 ) -> None:  # fmt: skip
     """IMM mixing in place: ``log_mu`` becomes the predicted log-probabilities
     ``log c_j``, ``x0``, ``P0`` (M, n), (M, n, n) the mixed moments
-    (:func:`mapassoc.filtering.imm.mix`); ``joint`` and ``w`` (M,) are work arrays.  A
-    model no one can be in (``c_j = 0``) mixes with equal weights, as numpy's does."""
+    (:func:`mapassoc.filtering.imm.mix`); ``joint``, ``w`` and ``log_c`` (M,) are work
+    arrays (passed in: the kernels call this once per track and step).  A model no one
+    can be in (``c_j = 0``) mixes with equal weights, as numpy's does."""
     M, n = x.shape
-    log_c = np.empty(M)
     for j in range(M):
         for i in range(M):
             joint[i] = log_mu[i] + math.log(Pi[i, j]) if Pi[i, j] > 0 else -math.inf
@@ -105,7 +105,7 @@ def _predict_set(
     ``Q`` (M, n, n), ``Pi`` (M, M) of the step; ``work`` is :func:`_set_work`'s."""
     M = x.shape[0]
     x0, P0, joint, w, x_tmp, P_tmp, FP = work[:7]
-    _mix(log_mu, x, P, Pi, x0, P0, joint, w)
+    _mix(log_mu, x, P, Pi, x0, P0, joint, w, work[14])
     for j in range(M):
         _predict_one(x0[j], P0[j], F[j], Q[j], x_tmp, P_tmp, FP)
     x[:] = x0
@@ -115,30 +115,32 @@ def _predict_set(
 @njit(cache=True)
 def _set_work(M: int, n: int, dz: int) -> tuple[FloatArray, ...]:
     """Work arrays of one track's set steps: mixed moments, weights, prediction work,
-    each model's predicted measurement and ``S``, the mixture's ``S`` and inverse, and
-    each model's posterior."""
+    each model's predicted measurement and ``S``, the mixture's ``S`` and inverse, each
+    model's posterior and scores, the mixing's ``log c`` and the mixture's mean and
+    shift."""
     return (
         np.empty((M, n)), np.empty((M, n, n)), np.empty(M), np.empty(M), np.empty(n),
         np.empty((n, n)), np.empty((n, n)), np.empty((M, dz)), np.empty((M, dz, dz)),
         np.empty((dz, dz)), np.empty((dz, dz)), np.empty((M, n)), np.empty((M, n, n)),
-        np.empty(M),
+        np.empty(M), np.empty(M), np.empty(dz), np.empty(dz),
     )  # fmt: skip
 
 
 @njit(cache=True)
 def _mixture_d2(
     log_c: FloatArray, z: FloatArray, z_hat: FloatArray, S_parts: FloatArray, d: int,
-    S: FloatArray, S_inv: FloatArray,
+    S: FloatArray, S_inv: FloatArray, mean: FloatArray, shift: FloatArray,
 ) -> tuple[float, bool]:  # fmt: skip
     """``d2 = nu^T S^-1 nu`` of the moment-matched predicted measurement: ``z_hat``
     (M, dz) and ``S_parts`` (M, dz, dz) each model's, weighted by ``c = exp(log_c)``
-    (``batch._mixture_innovation``'s algebra); returns ``(d2, positive)``."""
+    (``batch._mixture_innovation``'s algebra); ``mean`` and ``shift`` (at least d,) are
+    work arrays; returns ``(d2, positive)``."""
     M = log_c.shape[0]
-    mean = np.zeros(d)
+    mean[:d] = 0.0
     for j in range(M):
         for i in range(d):
             mean[i] += math.exp(log_c[j]) * z_hat[j, i]
-    shift = np.zeros(d)  # the circular-mean correction, zero up to rounding here
+    shift[:d] = 0.0  # the circular-mean correction, zero up to rounding here
     for j in range(M):
         for i in range(d):
             shift[i] += math.exp(log_c[j]) * (z_hat[j, i] - mean[i])
@@ -185,7 +187,7 @@ def _update_set(
             z_hat[j, i] = z[i] - scratch[2][i]  # nu_j = z - H x_j
             for k in range(d):
                 S_parts[j, i, k] = scratch[1][i, k]
-    d2, positive = _mixture_d2(log_mu, z, z_hat, S_parts, d, S, S_inv)
+    d2, positive = _mixture_d2(log_mu, z, z_hat, S_parts, d, S, S_inv, work[15], work[16])
     if not positive:
         return 0.0, 0.0, False
     loglik = _log_sum_exp(scores, M)
