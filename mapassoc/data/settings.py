@@ -375,6 +375,13 @@ class RefinementSettings:
         They run once the sweeps have converged (or at the last pass), and if they change
         the set the sweeps go on: they cost little beside a sweep and catch what a window
         cannot see, such as two pieces of one target further apart than ``link_gap``.
+    group_moves : bool
+        After the identity moves, re-track each group of closely spaced tracks together
+        (:mod:`mapassoc.estimator.group_moves`: a beam over joint assignments from a
+        start scan to the group's end, applied only where J rises). Off by default: it
+        lifts J and the identity where several targets travel together for longer than
+        a window, at several times the forward pass's time there (the changelog has the
+        measurements).
     min_existence : float
         After the refinement, report only the tracks whose existence probability
         (:meth:`mapassoc.estimator.refinement.Refiner.confidence`) is at least this, in
@@ -391,13 +398,14 @@ class RefinementSettings:
     prune_log_ratio: float = 18.0
     long_prune_log_ratio: float | None = None
     identity_moves: bool = True
+    group_moves: bool = False
     min_existence: float = 0.0
 
     def __post_init__(self) -> None:
         _set_int(self, "passes", minimum=0)
         for name in ("window_length", "long_window_length", "stride"):
             _set_int(self, name, minimum=1, optional=True)
-        for name in ("scan_windows", "identity_moves"):
+        for name in ("scan_windows", "identity_moves", "group_moves"):
             if not isinstance(getattr(self, name), bool):
                 raise InputError(
                     f"{name} must be true or false, got {getattr(self, name)!r}", key=name

@@ -86,6 +86,7 @@ from mapassoc.estimator.confidence import (
     TrackConfidence,
 )
 from mapassoc.estimator.hypotheses import HypothesisGenerator
+from mapassoc.estimator.group_moves import regroup_tracks
 from mapassoc.estimator.identity_moves import identity_moves
 from mapassoc.estimator.linking import link_fragments
 from mapassoc.estimator.objective import RecordingObjective, TrackPath, rows_from_paths
@@ -132,6 +133,9 @@ class RefinementReport:
         Identity moves made (:mod:`mapassoc.estimator.identity_moves`; 0 unless
         ``identity_moves`` is set): tail exchanges, cuts, free detections taken after a
         track's end or before its start, and joins over any gap.
+    regroups : int
+        Group re-solves made (:mod:`mapassoc.estimator.group_moves`; 0 unless
+        ``group_moves`` is set): closely spaced tracks re-tracked together.
     stopped : str
         Why the sweeps ended: ``"converged"`` (a sweep of every window length changed
         nothing: no move the refinement makes raises J) or ``"pass_limit"`` (``passes``
@@ -153,6 +157,7 @@ class RefinementReport:
     splits: int = 0
     extensions: int = 0
     merges: int = 0
+    regroups: int = 0
     dropped: int = 0
     stopped: str = "converged"
     seconds: float = 0.0
@@ -179,6 +184,7 @@ class RefinementReport:
             "splits": self.splits,
             "extensions": self.extensions,
             "merges": self.merges,
+            "regroups": self.regroups,
             "tracks_dropped": self.dropped,
             "stopped": self.stopped,
         }
@@ -371,23 +377,28 @@ class Refiner:
         report: RefinementReport,
         stop: Callable[[], bool] | None,
     ) -> bool:
-        """The identity moves over the whole recording (when ``identity_moves`` is set);
-        whether any was made."""
-        if not self.settings.identity_moves:
-            return False
-        counts, self._next_id = identity_moves(
-            self.objective,
-            current,
-            values,
-            next_id=self._next_id,
-            refilter_detections=self.settings.refilter_detections,
-            stop=stop,
-        )
-        report.switches += counts.switches
-        report.splits += counts.splits
-        report.extensions += counts.extensions
-        report.merges += counts.merges
-        return counts.total > 0
+        """The identity moves over the whole recording (when ``identity_moves`` is set),
+        then the group re-solves (when ``group_moves`` is); whether any was made."""
+        made = 0
+        if self.settings.identity_moves:
+            counts, self._next_id = identity_moves(
+                self.objective,
+                current,
+                values,
+                next_id=self._next_id,
+                refilter_detections=self.settings.refilter_detections,
+                stop=stop,
+            )
+            report.switches += counts.switches
+            report.splits += counts.splits
+            report.extensions += counts.extensions
+            report.merges += counts.merges
+            made += counts.total
+        if self.settings.group_moves:
+            regroups = regroup_tracks(self.objective, current, values, stop=stop)
+            report.regroups += regroups
+            made += regroups
+        return made > 0
 
     def window_starts(self, length: int | None = None) -> list[int]:
         """First scans of the re-solved windows of ``length`` scans (default

@@ -81,6 +81,7 @@ BAD_REFINEMENT: dict[str, tuple[object, dict[str, object]]] = {
     "prune_log_ratio": (-1.0, {}),
     "long_prune_log_ratio": (-1.0, {}),
     "identity_moves": (1, {}),
+    "group_moves": (1, {}),
     "min_existence": (1.5, {}),
 }
 BAD_PARAMETERS: dict[str, tuple[object, dict[str, object]]] = {
