@@ -5,7 +5,9 @@ known: the expected false alarms per scan ``lambda_bar`` of each sensor (it depe
 thresholds, weather and terrain) and its detection probability ``Pd``.  A factor-2 error
 in ``lambda_bar`` floods dense recordings with false tracks or erases their targets.  An
 offline recording holds the answer, and this module finds it by expectation-maximisation
-around the estimator itself (hard, or classification, EM):
+around the estimator itself: the track set each pass finds fixes the associations, as in
+hard (classification) EM, and with ``soft_counts`` the statistics counted are their
+expectations under the confidence pass's marginals around that set:
 
 1. *E step*: run the window estimator's forward pass with the current parameters; its
    committed, smoothed tracks say which detection is a target's
@@ -831,7 +833,7 @@ class MStep:
 
 
 class ParameterEM:
-    """The hard EM of sensor parameters (module docstring), one method per step.
+    """The EM of sensor parameters (module docstring), one method per step.
 
     :meth:`initialise` gives the starting :class:`EMState`; :meth:`step` makes one pass
     (:meth:`e_step`, :meth:`m_step`, then the probe or the :meth:`converged` test) and
