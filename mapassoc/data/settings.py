@@ -435,6 +435,10 @@ class ParameterSettings:
         Most scans a pass runs on (>= 1); a longer recording is sampled in blocks.
     sample_blocks_count : int
         Blocks the sample of a longer recording is cut into (>= 1).
+    soft_counts : bool
+        Whether each pass counts association probabilities (a confidence pass over its
+        tracks) rather than hard associations when it updates ``Pd`` and the false-alarm
+        rate.
     """
 
     rate_tolerance: float = 0.02
@@ -442,8 +446,13 @@ class ParameterSettings:
     max_passes: int = 3
     sample_scans: int = 600
     sample_blocks_count: int = 6
+    soft_counts: bool = True
 
     def __post_init__(self) -> None:
+        if not isinstance(self.soft_counts, bool):
+            raise InputError(
+                f"soft_counts must be true or false, got {self.soft_counts!r}", key="soft_counts"
+            )
         check_positive("rate_tolerance", self.rate_tolerance, key="rate_tolerance")
         check_positive("pd_tolerance", self.pd_tolerance, key="pd_tolerance")
         _set_int(self, "max_passes", minimum=1)

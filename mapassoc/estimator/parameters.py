@@ -5,13 +5,19 @@ known: the expected false alarms per scan ``lambda_bar`` of each sensor (it depe
 thresholds, weather and terrain) and its detection probability ``Pd``.  A factor-2 error
 in ``lambda_bar`` floods dense recordings with false tracks or erases their targets.  An
 offline recording holds the answer, and this module finds it by expectation-maximisation
-around the estimator itself (hard, or classification, EM):
+around the estimator itself: the track set each pass finds fixes the associations, as in
+hard (classification) EM, and with ``soft_counts`` the statistics counted are their
+expectations under the confidence pass's marginals around that set:
 
 1. *E step*: run the window estimator's forward pass with the current parameters; its
    committed, smoothed tracks say which detection is a target's
    (:func:`association_counts`).  The whole recording's refinement is left out of the
    passes (it would cost one to three times each pass again) and runs once, on the last
-   pass's run.
+   pass's run.  With ``soft_counts`` (the default) the confidence pass
+   (:mod:`mapassoc.estimator.confidence`) runs over each pass's forward tracks
+   (:func:`~mapassoc.estimator.refinement.track_confidence`, a fraction of a pass's
+   cost) and the counts below are expected counts under its association
+   probabilities; without it, or where a run has no confidence, they are hard.
 2. *M step*: the parameters that maximise the complete-data likelihood of those
    associations under the sensor model of the n-object measurement model (Poisson false
    alarms, uniform over the region; each target detected with probability ``Pd``):
@@ -24,11 +30,23 @@ around the estimator itself (hard, or classification, EM):
      construction; given where they are, the scans between are independent Bernoulli(Pd)
      draws, so this ratio is unbiased where the associations are right.
 
-   Soft weights were tried in place of the hard associations (the PDA probability that
-   the target was detected at each scan, from the track's smoothed state): they settled
-   further from the truth (``Pd`` 0.61 instead of 0.74 from a start of 0.65 on
-   ``dense_pd08``, 1.00 instead of 0.97 on ``parallel``, true values 0.8 and 0.9),
-   because they let closely spaced targets explain each other's misses.
+   Why soft counts.  On closely spaced targets the MAP track set takes a neighbour's
+   detection or a false alarm at a scan where its own target was missed, so a hard count
+   sees a detection at nearly every interior track-scan and overstates ``Pd`` (and,
+   through the tracks it keeps, the process noise).  The confidence pass's posterior
+   marginals spread such a scan over the detection taken, the neighbour's and the miss,
+   so the interior track-scan counts the probability that the track was detected there
+   (the sum of its association probabilities over the scan's detections, capped at 1)
+   and a detection the probability that it is clutter (1 minus the sum of its
+   probabilities over the tracks): the expected complete-data statistics of EM
+   (Dempster, Laird and Rubin, "Maximum likelihood from incomplete data via the EM
+   algorithm"), here under the marginals of one window with the set outside held, not
+   of the whole recording.  Soft weights of another kind were tried before and dropped:
+   the PDA probability that the target was detected, from the track's smoothed state
+   alone, let closely spaced targets explain each other's misses, since each track's
+   weight ignored the others; the confidence pass's marginals are joint over the
+   window's tracks, so one detection's probabilities over the tracks sum to at most 1.
+   Soft counts are the default by measurement (CHANGELOG.md).
 
 3. Repeat until a pass's update moves every estimate by less than the tolerance (a
    relative ``rate_tolerance`` on ``lambda_bar``, an absolute ``pd_tolerance`` on ``Pd``),
@@ -84,8 +102,10 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.special import gammaln
 
+from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan, check_scans
@@ -97,6 +117,7 @@ from mapassoc.estimator.birth_estimation import (
     initial_birth,
     with_birth_levels,
 )
+from mapassoc.estimator.confidence import TrackConfidence
 from mapassoc.estimator.noise_levels import (
     MIN_TRACK_DETECTIONS,
     NoiseAsked,
@@ -107,6 +128,7 @@ from mapassoc.estimator.noise_levels import (
     noise_m_step,
     with_noise_levels,
 )
+from mapassoc.estimator.refinement import track_confidence
 from mapassoc.log_space import json_number
 from mapassoc.models.sensor import Sensor
 from mapassoc.validation import check_positive, check_probability
@@ -173,7 +195,9 @@ class EstimationStopped(StopRequested):
 
 @dataclass(frozen=True)
 class AssociationCounts:
-    """What the hard associations of one run say about one sensor.
+    """What the associations of one run say about one sensor: hard (each detection a
+    track's or clutter) or soft (expected counts under the confidence pass's
+    probabilities; :func:`association_counts`).
 
     Attributes
     ----------
@@ -181,32 +205,48 @@ class AssociationCounts:
         Scans of the sensor (empty ones included).
     detections : int
         Its detections.
-    explained : int
-        Its detections some track uses.
+    explained : float
+        Its detections some track uses (soft: their expected number).
     interior_scans : int
         Its scans strictly between a track's first and last detection, over every track.
-    interior_detections : int
-        Those of them at which the track has a detection.
-    clutter_per_scan : tuple of int
-        Per scan of the sensor, the detections no track uses (for the objective).
+    interior_detections : float
+        Those of them at which the track has a detection (soft: the sum over them of the
+        probability that it has one).
+    clutter_per_scan : tuple of float
+        Per scan of the sensor, the detections no track uses (soft: their expected
+        number; for the objective).
     """
 
     scans: int
     detections: int
-    explained: int
+    explained: float
     interior_scans: int
-    interior_detections: int
-    clutter_per_scan: tuple[int, ...]
+    interior_detections: float
+    clutter_per_scan: tuple[float, ...]
 
     @property
-    def unexplained(self) -> int:
+    def unexplained(self) -> float:
         return self.detections - self.explained
 
 
 def association_counts(
-    scans: Sequence[Scan], tracks: TrackTable, sensors: Collection[str]
+    scans: Sequence[Scan],
+    tracks: TrackTable,
+    sensors: Collection[str],
+    confidence: TrackConfidence | None = None,
 ) -> dict[str, AssociationCounts]:
     """Per sensor, the counts the M step needs from a run's tracks (module docstring).
+
+    Without ``confidence`` the counts are hard: an interior track-scan counts 1 where the
+    track has a detection and 0 where it has none, a detection is clutter when no track
+    uses it.  With it they are soft, expected counts under its association
+    probabilities: an interior track-scan counts the probability that the track was
+    detected there (the sum of its probabilities over the scan's detections, capped at
+    1: the confidence pass may give a target both its carried tree and a new tree rooted
+    at one of its detections), and a detection the probability that it is clutter (1
+    minus the sum of its probabilities over the tracks, capped at 1).  Where every
+    probability is 0 or 1 the two agree.  A track the confidence does not cover is
+    counted hard.
 
     Parameters
     ----------
@@ -217,19 +257,49 @@ def association_counts(
         ``detection_rows`` the detection used (-1 for a miss).
     sensors : collection of str
         The sensors to count (a sensor without scans gets zeros).
+    confidence : TrackConfidence, optional
+        The confidence pass over the same tracks (track ids and detection ids as in
+        ``tracks``).
 
     Returns
     -------
     dict of str to AssociationCounts
     """
-    used = {int(row) for row in tracks.detection_rows.tolist() if row >= 0}
-    per_sensor: dict[str, list[int]] = {name: [] for name in sensors}
+    hard = tracks.detection_rows >= 0
+    if confidence is None:
+        used = dict.fromkeys((int(r) for r in tracks.detection_rows[hard].tolist()), 1.0)
+        detected = hard.astype(float)
+    else:
+        used, detected = _soft_uses(scans, tracks, confidence)
+    per_sensor: dict[str, list[float]] = {name: [] for name in sensors}
     detections = dict.fromkeys(sensors, 0)
     for scan in scans:
         if scan.sensor in per_sensor:
             rows = scan.rows.tolist()
-            per_sensor[scan.sensor].append(sum(1 for row in rows if row not in used))
+            per_sensor[scan.sensor].append(
+                math.fsum(1.0 - used.get(row, 0.0) for row in rows) if rows else 0.0
+            )
             detections[scan.sensor] += len(rows)
+    interior = _interior(tracks)
+    sensor_of_row = np.asarray(tracks.sensors, dtype=object)
+    out = {}
+    for name in sensors:
+        inside = interior & (sensor_of_row == name) if tracks.track_ids.size else interior
+        clutter = per_sensor[name]
+        out[name] = AssociationCounts(
+            scans=len(clutter),
+            detections=detections[name],
+            explained=detections[name] - math.fsum(clutter),
+            interior_scans=int(np.count_nonzero(inside)),
+            interior_detections=math.fsum(detected[inside].tolist()),
+            clutter_per_scan=tuple(clutter),
+        )
+    return out
+
+
+def _interior(tracks: TrackTable) -> NDArray[np.bool_]:
+    """Whether each row of ``tracks`` is strictly inside its track (neither its first
+    nor its last scan)."""
     interior = np.zeros(tracks.track_ids.size, dtype=bool)
     if tracks.track_ids.size:
         order = np.lexsort((tracks.times, tracks.track_ids))
@@ -237,21 +307,37 @@ def association_counts(
         starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
         stops = np.r_[starts[1:], ids.size]
         for first, stop in zip(starts.tolist(), stops.tolist(), strict=True):
-            interior[order[first + 1 : stop - 1]] = True  # strictly inside the track
-    sensor_of_row = np.asarray(tracks.sensors, dtype=object)
-    detected = tracks.detection_rows >= 0
-    out = {}
-    for name in sensors:
-        inside = interior & (sensor_of_row == name) if tracks.track_ids.size else interior
-        out[name] = AssociationCounts(
-            scans=len(per_sensor[name]),
-            detections=detections[name],
-            explained=detections[name] - sum(per_sensor[name]),
-            interior_scans=int(np.count_nonzero(inside)),
-            interior_detections=int(np.count_nonzero(inside & detected)),
-            clutter_per_scan=tuple(per_sensor[name]),
-        )
-    return out
+            interior[order[first + 1 : stop - 1]] = True
+    return interior
+
+
+def _soft_uses(
+    scans: Sequence[Scan], tracks: TrackTable, confidence: TrackConfidence
+) -> tuple[dict[int, float], FloatArray]:
+    """Per detection id, the probability that some track uses it (capped at 1), and
+    per row of ``tracks``, the probability that its track has a detection at the row's
+    scan (capped at 1).  A track without probabilities counts hard: 1 where it has a
+    detection, else 0, and its detections as used."""
+    scan_of_row = {int(row): k for k, scan in enumerate(scans) for row in scan.rows.tolist()}
+    scan_of_key = {(scan.time, scan.sensor): k for k, scan in enumerate(scans)}
+    used: dict[int, float] = {}
+    per_scan: dict[tuple[int, int], float] = {}
+    for tid, probabilities in confidence.associations.items():
+        for row, p in probabilities.items():
+            used[row] = used.get(row, 0.0) + p
+            key = (tid, scan_of_row[row])
+            per_scan[key] = per_scan.get(key, 0.0) + p
+    rows = tracks.detection_rows.tolist()
+    detected = (tracks.detection_rows >= 0).astype(float)
+    covered = set(confidence.associations)
+    for i, (tid, at, sensor) in enumerate(
+        zip(tracks.track_ids.tolist(), tracks.times.tolist(), tracks.sensors, strict=True)
+    ):
+        if tid in covered:
+            detected[i] = min(1.0, per_scan.get((tid, scan_of_key[(at, sensor)]), 0.0))
+        elif rows[i] >= 0:
+            used[rows[i]] = used.get(rows[i], 0.0) + 1.0
+    return {row: min(1.0, p) for row, p in used.items()}, detected
 
 
 @dataclass(frozen=True)
@@ -511,6 +597,7 @@ def estimate_parameters(
     max_passes: int | None = None,
     sample_scans: int | None = None,
     sample_blocks_count: int | None = None,
+    soft_counts: bool | None = None,
     on_pass: Callable[[EstimationPass], None] | None = None,
     stop: Callable[[], bool] | None = None,
     finish: bool = True,
@@ -551,6 +638,10 @@ def estimate_parameters(
         Most scans a pass runs on (>= 1); see the module docstring.
     sample_blocks_count : int
         Blocks the sample of a longer recording is cut into (>= 1).
+    soft_counts : bool, optional
+        Whether each pass counts the association probabilities of a confidence pass over
+        its tracks rather than its hard associations (module docstring); default: the
+        configuration's.
     on_pass : callable, optional
         Called with each :class:`EstimationPass` as it ends.
     stop : callable, optional
@@ -578,7 +669,7 @@ def estimate_parameters(
         settings=EMSettings.resolve(
             config, rate_tolerance=rate_tolerance, pd_tolerance=pd_tolerance,
             max_passes=max_passes, sample_scans=sample_scans,
-            sample_blocks_count=sample_blocks_count,
+            sample_blocks_count=sample_blocks_count, soft_counts=soft_counts,
         ),
         on_pass=on_pass, stop=stop,
     )  # fmt: skip
@@ -600,6 +691,9 @@ class EMSettings:
         Absolute change of every ``Pd`` below which it stops (> 0).
     max_passes, sample_scans, sample_blocks_count : int
         Most passes, most scans a pass runs on, blocks of that sample (each >= 1).
+    soft_counts : bool
+        Whether the E step counts the association probabilities of a confidence pass
+        over each pass's tracks (True) or its hard associations (False).
 
     Raises
     ------
@@ -612,8 +706,13 @@ class EMSettings:
     max_passes: int
     sample_scans: int
     sample_blocks_count: int
+    soft_counts: bool
 
     def __post_init__(self) -> None:
+        if not isinstance(self.soft_counts, bool):
+            raise InputError(
+                f"soft_counts must be true or false, got {self.soft_counts!r}", key="soft_counts"
+            )
         check = check_positive("rate_tolerance", self.rate_tolerance, key="rate_tolerance")
         object.__setattr__(self, "rate_tolerance", check)
         check = check_positive("pd_tolerance", self.pd_tolerance, key="pd_tolerance")
@@ -624,7 +723,7 @@ class EMSettings:
                 raise InputError(f"{name} must be an integer >= 1, got {count!r}", key=name)
 
     @classmethod
-    def resolve(cls, config: Config, **given: float | int | None) -> EMSettings:
+    def resolve(cls, config: Config, **given: float | int | bool | None) -> EMSettings:
         """The values ``given``, the configuration's ``[estimator.parameters]`` for those
         None (or not given)."""
         own = config.estimator.parameters
@@ -734,7 +833,7 @@ class MStep:
 
 
 class ParameterEM:
-    """The hard EM of sensor parameters (module docstring), one method per step.
+    """The EM of sensor parameters (module docstring), one method per step.
 
     :meth:`initialise` gives the starting :class:`EMState`; :meth:`step` makes one pass
     (:meth:`e_step`, :meth:`m_step`, then the probe or the :meth:`converged` test) and
@@ -838,7 +937,9 @@ class ParameterEM:
 
         runs = [_forward_run(estimator, piece, check_stop) for piece in self.pieces]
         by_piece = [
-            association_counts(piece, result.tracks, self.asked)
+            association_counts(
+                piece, result.tracks, self.asked, self._confidence(state, piece, result)
+            )
             for piece, (result, _, _) in zip(self.pieces, runs, strict=True)
         ]
         return EStep(
@@ -850,6 +951,29 @@ class ParameterEM:
                 for piece, (result, _, _) in zip(self.pieces, runs, strict=True)
             ) if self.noise.any or self.birth.any else (),
         )  # fmt: skip
+
+    def _confidence(
+        self, state: EMState, piece: Sequence[Scan], result: EstimateResult
+    ) -> TrackConfidence | None:
+        """The confidence pass over a pass's forward tracks on ``piece``, for soft counts
+        (None: hard counts asked for, or no track to count).
+
+        Raises
+        ------
+        EstimationStopped
+            ``stop`` returned True before one of its windows.
+        """
+        if not self.settings.soft_counts or not result.track_rows:
+            return None
+        try:
+            return track_confidence(
+                self._pass_config(state), piece, result.track_rows, stop=self.stop
+            )
+        except StopRequested as exc:
+            raise EstimationStopped(
+                "stopped while estimating the sensor parameters (pass "
+                f"{len(state.passes) + 1}, {exc.phase})"
+            ) from None
 
     def _pass_config(self, state: EMState) -> Config:
         """The configuration a pass runs with: ``state``'s sensor values, noise levels and
@@ -870,7 +994,8 @@ class ParameterEM:
             merged = counts[name]
             rate, pd = state.current[name]
             if name in state.rates:
-                no_clutter[name] = merged.scans if merged.unexplained == 0 else 0
+                unseen = merged.unexplained < UNSEEN_FALSE_ALARMS  # the rate _clutter_rate floors
+                no_clutter[name] = merged.scans if unseen else 0
                 rate = _clutter_rate(merged.unexplained, merged.scans)
             if name in self.pds:
                 pd_estimable[name] = (
@@ -1093,7 +1218,7 @@ def _asked(
     return rates, pds
 
 
-def _clutter_rate(count: int, scans: int) -> float:
+def _clutter_rate(count: float, scans: int) -> float:
     """False alarms per scan from ``count`` over ``scans`` scans, never 0: a count of 0 is
     taken as :data:`UNSEEN_FALSE_ALARMS` (the estimator needs a rate > 0)."""
     return max(count, UNSEEN_FALSE_ALARMS) / max(scans, 1)

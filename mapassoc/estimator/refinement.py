@@ -99,6 +99,7 @@ __all__ = [
     "Refiner",
     "RefinedTracks",
     "refine_track_rows",
+    "track_confidence",
     "REFINEMENT_PHASE",
     "CONFIDENCE_PHASE",
 ]
@@ -580,3 +581,40 @@ def refine_track_rows(
         dropped = tuple(tid for tid in refined if sure.existence.get(tid, math.nan) < min_existence)
         refined = {tid: path for tid, path in refined.items() if tid not in dropped}
     return RefinedTracks(rows_from_paths(scans, refined), report, sure, dropped)
+
+
+def track_confidence(
+    config: Config,
+    scans: Sequence[Scan],
+    track_rows: Mapping[int, Sequence[int]],
+    *,
+    stop: Callable[[], bool] | None = None,
+) -> TrackConfidence:
+    """The confidence pass over a track set as it is, without refining it first.
+
+    The passes of the EM of ``"auto"`` parameters count soft associations from the
+    forward pass's tracks (:func:`mapassoc.estimator.parameters.association_counts`):
+    they need the pass's probabilities, not the refinement, which would cost one to
+    three times the pass again, so only the pass runs (with the configuration's
+    refinement settings, as :func:`refine_track_rows` runs it).
+
+    Parameters
+    ----------
+    config : Config
+    scans : sequence of Scan
+        The recording the tracks are of.
+    track_rows : mapping of int to sequence of int
+        Detection ids of every track, by track id.
+    stop : callable, optional
+        Polled before every window (:meth:`Refiner.confidence`).
+
+    Returns
+    -------
+    TrackConfidence
+    """
+    objective = RecordingObjective(config=config, scans=scans)
+    paths = {tid: objective.path_of_rows(rows) for tid, rows in track_rows.items() if len(rows)}
+    refiner = Refiner(
+        config=config, scans=scans, settings=config.estimator.refinement, objective=objective
+    )
+    return refiner.confidence(paths, stop=stop)

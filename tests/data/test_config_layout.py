@@ -75,6 +75,7 @@ NON_DEFAULT: dict[str, dict[str, Any]] = {
         "max_passes": 5,
         "sample_scans": 300,
         "sample_blocks_count": 3,
+        "soft_counts": False,
     },
 }
 

@@ -48,7 +48,7 @@ def test_a_missing_estimator_section_warns_with_the_file_and_the_defaults(
         "refinement.group_moves False, refinement.min_existence 0.0, "
         "parameters.rate_tolerance 0.02, parameters.pd_tolerance 0.005, "
         "parameters.max_passes 3, parameters.sample_scans 600, "
-        "parameters.sample_blocks_count 6)"
+        "parameters.sample_blocks_count 6, parameters.soft_counts True)"
     ]
     assert config.estimator == EstimatorSettings()  # still optional: the defaults are used
     assert config.birth.rate == 0.2

@@ -90,6 +90,7 @@ BAD_PARAMETERS: dict[str, tuple[object, dict[str, object]]] = {
     "max_passes": (0, {}),
     "sample_scans": (0, {}),
     "sample_blocks_count": (0, {}),
+    "soft_counts": (1, {}),
 }
 # The old flat keys of EstimatorSettings (FLAT_KEYS): an error names the key as given.
 BAD_FLAT: dict[str, tuple[object, dict[str, object]]] = {
