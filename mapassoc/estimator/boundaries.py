@@ -33,7 +33,15 @@ from mapassoc.estimator.objective import (
 from mapassoc.estimator.window_program import Joins, packing_problem
 from mapassoc.formulations.packing import PackingProblem
 
-__all__ = ["Anchor", "Carried", "WindowBoundaries", "IMPROVEMENT", "REFINEMENT_PHASE", "rises"]
+__all__ = [
+    "Anchor",
+    "Carried",
+    "WindowBoundaries",
+    "IMPROVEMENT",
+    "REFINEMENT_PHASE",
+    "TREE_CACHE_NODES",
+    "rises",
+]
 
 REFINEMENT_PHASE = "the refinement of the whole recording"
 """The phase a stop during the refinement names (in its StopRequested)."""
@@ -43,6 +51,13 @@ IMPROVEMENT = 1e-6
 changed tracks|``: below it, the change is rounding (and the 1e-9 agreement at which
 :meth:`~mapassoc.estimator.objective.RecordingObjective.continue_converging` stops
 re-filtering)."""
+
+
+TREE_CACHE_NODES = 1_000_000
+"""Tree nodes :class:`WindowBoundaries` keeps of the windows it grew (the least recently
+used windows' trees go first): a window re-solved with the same carried states and end
+gain takes its trees from there (see :meth:`WindowBoundaries.hypotheses`).  About 200
+bytes a node for a four-dimensional state."""
 
 
 def rises(old: float, new: float) -> bool:
@@ -97,6 +112,10 @@ class WindowBoundaries:
     gain_bounds : ndarray, shape (M,)
         Per scan, a bound on what continuing a track there can add (the new trees'
         bound pruning allows for the most a join can add).
+    reuse_trees : bool
+        Whether a window's trees are kept and given again while their inputs are
+        unchanged (:meth:`hypotheses`; at most :data:`TREE_CACHE_NODES` nodes).  False
+        grows them anew every time (the same trees, only slower: the tests compare).
     """
 
     def __init__(
@@ -106,11 +125,18 @@ class WindowBoundaries:
         scans: Sequence[Scan],
         refilter_detections: int,
         gain_bounds: FloatArray,
+        reuse_trees: bool = True,
     ) -> None:
         self.objective = objective
         self.scans = tuple(scans)
         self._refilter = int(refilter_detections)
         self._gain_bounds = gain_bounds
+        self.reuse_trees = bool(reuse_trees)
+        # (a, b, generator) -> (the trees' inputs, the trees), oldest first.
+        self._trees: dict[
+            tuple[int, int, HypothesisGenerator], tuple[tuple[object, ...], WindowHypotheses]
+        ] = {}
+        self._nodes = 0  # tree nodes held in self._trees
 
     def hypotheses(
         self,
@@ -121,21 +147,55 @@ class WindowBoundaries:
         generator: HypothesisGenerator,
     ) -> tuple[WindowHypotheses, list[Carried], list[Anchor], list[int]]:
         """The hypothesis trees of scans ``a..b-1`` with both boundaries (module docstring),
-        grown and pruned by ``generator``."""
+        grown and pruned by ``generator``.
+
+        The trees depend on nothing else than the window, the generator, the carried
+        tracks' states and the end gain (the bound of what a join after the window can
+        add): with ``reuse_trees``, a window asked for again with those equal to the bit
+        gets the trees it was given last time (the same object: the callers only read
+        it), which sweeps over the same windows and the confidence pass after them do
+        where a change elsewhere made a window dirty but left what enters it alone.  The
+        anchors are made anew every time, the joins' scores with them.
+        """
         obj = self.objective
         carried, anchors, touched = self.split(tracks, values, a, b)
-        window_scans = self.scans[a:b]
         carried_states = [c.state for c in carried]
-        undetected = obj.terms.undetected_after[a - 1] if a > 0 else None
-        population = generator.population(window_scans, carried_states, undetected)
         end_gain = 0.0
         for anchor in anchors:
             first = anchor.path[0][0]
             end_gain = max(end_gain, self._gain_bounds[first] - obj.terms.birth[first])
-        hyps = generator.generate(
-            window_scans, carried_states, population=population, end_gain=end_gain
-        )
+        inputs = _tree_inputs(carried_states, end_gain)
+        place = (a, b, generator)
+        cached = self._trees.get(place) if self.reuse_trees else None
+        if cached is not None and cached[0] == inputs:
+            hyps = cached[1]
+        else:
+            window_scans = self.scans[a:b]
+            undetected = obj.terms.undetected_after[a - 1] if a > 0 else None
+            population = generator.population(window_scans, carried_states, undetected)
+            hyps = generator.generate(
+                window_scans, carried_states, population=population, end_gain=end_gain
+            )
+        if self.reuse_trees:
+            self._remember(place, inputs, hyps)
         return hyps, carried, anchors, touched
+
+    def _remember(
+        self,
+        place: tuple[int, int, HypothesisGenerator],
+        inputs: tuple[object, ...],
+        hyps: WindowHypotheses,
+    ) -> None:
+        """Keep a window's trees as its most recent, dropping the least recently used
+        windows' trees past :data:`TREE_CACHE_NODES` nodes."""
+        old = self._trees.pop(place, None)
+        if old is not None:
+            self._nodes -= old[1].nodes.score.size
+        self._trees[place] = (inputs, hyps)
+        self._nodes += hyps.nodes.score.size
+        while self._nodes > TREE_CACHE_NODES and len(self._trees) > 1:
+            _, dropped = self._trees.pop(next(iter(self._trees)))
+            self._nodes -= dropped.nodes.score.size
 
     def split(
         self, tracks: Mapping[int, TrackPath], values: Mapping[int, float], a: int, b: int
@@ -413,3 +473,17 @@ class WindowBoundaries:
             pieces.append((tid, anchor.path))
         return pieces
 
+
+
+def _tree_inputs(carried: Sequence[CarriedTrack], end_gain: float) -> tuple[object, ...]:
+    """Everything a window's trees depend on besides the window and the generator: the
+    carried tracks' states, to the bit, and the end gain (the population follows from
+    the carried tracks' times)."""
+    states = tuple(
+        (
+            c.track_id, c.mean.tobytes(), c.covariance.tobytes(), c.time, c.initiated,
+            c.num_detections, c.first_detection_time,
+        )
+        for c in carried
+    )  # fmt: skip
+    return (end_gain, states)
