@@ -71,6 +71,7 @@ from mapassoc.formulations.clusters import cluster_hypotheses
 from mapassoc.formulations.frontier import frontier_search
 from mapassoc.formulations.marginals import (
     ENUMERATION_MAX_HYPOTHESES,
+    FrontierMarginals,
     enumerated_marginals,
     frontier_marginals,
 )
@@ -172,6 +173,14 @@ a lower one more).  The exact search of a cluster of
 its work beforehand and needs no projection (it stops at once or runs whole); the
 projection still applies to smaller clusters and to the window marginals."""
 
+BEAM_WIDENING = 4
+"""Factor by which the window marginals' beam widens when it kept no feasible set."""
+
+BEAM_WIDENINGS = 3
+"""Most widenings of that beam; after them the cluster's marginals stay the beam's
+(a total of ``-inf``: :meth:`ClusterSolver.marginals` then gives its hypotheses
+``nan``, and the confidence pass leaves that window's probabilities unknown)."""
+
 DEFAULT_BEAM_ENTRY_MARGIN = SearchSettings().beam_entry_margin
 """The beam's entry margin when none is given (``SearchSettings.beam_entry_margin``)."""
 
@@ -194,6 +203,7 @@ costs less than the bounds); larger ones go straight to the narrow beam."""
 BOUND_PRUNE_MIN_HYPOTHESES = 100
 """Clusters with fewer merged hypotheses skip the LP-bound pruning: the exact search of
 such a cluster costs about as much as the LP."""
+
 
 def default_lp_solver(solver: ProgramSolver) -> RelaxationSolver:
     """The LP-relaxation backend that goes with an integer-program backend.
@@ -559,10 +569,7 @@ class ClusterSolver:
         """
         started = time.perf_counter()
         kmax = min(kmax, int(np.count_nonzero(problem.counts)))
-        if (
-            problem.num_hypotheses >= _SMALL_AFTER_DEADLINE
-            and time.perf_counter() >= deadline
-        ):
+        if problem.num_hypotheses >= _SMALL_AFTER_DEADLINE and time.perf_counter() >= deadline:
             return self._bounded_search().tables(problem, kmax, deadline, 0, started)
         try:
             table = exact_cardinality_table(
@@ -614,7 +621,9 @@ class ClusterSolver:
                 continue
             try:
                 found = frontier_search(
-                    free.subproblem(members), 0, work_limit=self.exact_work_limit,
+                    free.subproblem(members),
+                    0,
+                    work_limit=self.exact_work_limit,
                     deadline=deadline,
                 )
             except SearchLimitExceeded:
@@ -679,14 +688,31 @@ class ClusterSolver:
                         sub, seed, work_limit=work_limit, work_projection=WORK_PROJECTION
                     )
             except SearchLimitExceeded:
-                found = frontier_marginals(
-                    sub, seed, max_frontiers=beam_width, entry_margin=self.beam_entry_margin
-                )
+                found = self._beam_marginals(sub, seed, beam_width)
             if not found.exact:
                 status = ClusterStatus.BOUNDED
-            out[members] = np.exp(found.log_containing[0] - found.log_total[0])
+            with np.errstate(invalid="ignore"):  # no set found: nan, see BEAM_WIDENINGS
+                out[members] = np.exp(found.log_containing[0] - found.log_total[0])
             clusters.append((members, float(found.log_total[0]) if found.exact else math.nan))
         return WindowMarginals(out, status, tuple(clusters), cluster_of, free)
+
+    def _beam_marginals(
+        self, sub: PackingProblem, seed: FloatArray, beam_width: int
+    ) -> FrontierMarginals:
+        """The beam's marginals of a cluster the exact search could not finish, the beam
+        widened (by :data:`BEAM_WIDENING` each time, at most :data:`BEAM_WIDENINGS` times)
+        while it kept no feasible set (a total of ``-inf``: every frontier that could
+        still meet the cluster's exactly-once resources fell out of the beam, as on a
+        window of six closely spaced tracks with thousands of hypotheses)."""
+        width = beam_width
+        for _ in range(BEAM_WIDENINGS + 1):
+            found = frontier_marginals(
+                sub, seed, max_frontiers=width, entry_margin=self.beam_entry_margin
+            )
+            if np.isfinite(found.log_total[0]):
+                break
+            width *= BEAM_WIDENING
+        return found
 
     @staticmethod
     def any_of(marginals: WindowMarginals, chosen: IntArray, *, work_limit: int) -> float:

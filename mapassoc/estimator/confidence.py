@@ -142,7 +142,6 @@ class _Uses:
         return float(np.max(sums, initial=0.0))
 
 
-
 def _add_associations(
     associations: dict[int, dict[int, float]],
     uses: _Uses,
@@ -178,7 +177,6 @@ def _add_associations(
     for (tid, row), total in zip(pairs.T.tolist(), sums.tolist(), strict=True):
         into = associations[tid]
         into[row] = into.get(row, 0.0) + total
-
 
 
 class ConfidencePass:
@@ -269,7 +267,8 @@ class ConfidencePass:
         associations: dict[int, dict[int, float]],
     ) -> bool:
         """One window's probabilities added to ``existence`` and ``associations``;
-        whether its marginals were exact."""
+        whether its marginals were exact (False, and nothing added, where a cluster's
+        beam found no feasible set)."""
         hyps, carried, anchors, _ = self.boundaries.hypotheses(
             current, values, a, b, self.generator
         )
@@ -280,6 +279,11 @@ class ConfidencePass:
             return True
         found = self.solver.marginals(problem, work_limit=MARGINALS_WORK, beam_width=MARGINALS_BEAM)
         probabilities = found.probabilities
+        if not np.all(np.isfinite(probabilities)):
+            # A cluster whose beam kept no feasible set, even widened: this window's
+            # probabilities are unknown (its tracks' existence stays nan, as for a
+            # pruned first tree) rather than a stopped run.
+            return False
         base = np.r_[np.arange(hyps.count), np.array([h for h, _ in joins], dtype=np.int64)]
         owner = _tree_owners(hyps, carried, track_of, a)
         uses = _Uses.of(hyps, base)
@@ -326,4 +330,3 @@ def _tree_owners(
         if tid is not None:
             owner[int(nodes.tree[v])] = tid
     return owner
-
