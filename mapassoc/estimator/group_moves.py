@@ -348,7 +348,9 @@ def _best_children(
     """
     B, K, _ = gain.shape
     options, rest = _head_options(gain)
-    heap = [(-(float(score[b]) + rest[b, 0]), b, 0, float(score[b]), 0, ()) for b in range(B)]
+    heap: list[tuple[float, int, int, float, int, tuple[int, ...]]] = [
+        (-(float(score[b]) + rest[b, 0]), b, 0, float(score[b]), 0, ()) for b in range(B)
+    ]
     heapq.heapify(heap)
     out: list[tuple[float, int, tuple[int, ...]]] = []
     seen: set[object] = set()

@@ -85,8 +85,8 @@ from mapassoc.estimator.confidence import (
     ConfidencePass,
     TrackConfidence,
 )
-from mapassoc.estimator.hypotheses import HypothesisGenerator
 from mapassoc.estimator.group_moves import regroup_tracks
+from mapassoc.estimator.hypotheses import HypothesisGenerator
 from mapassoc.estimator.identity_moves import identity_moves
 from mapassoc.estimator.linking import link_fragments
 from mapassoc.estimator.objective import RecordingObjective, TrackPath, rows_from_paths
