@@ -139,11 +139,15 @@ def regroup_tracks(
     made = 0
     for group in close_groups(objective, tracks):
         for a in range(group.first, max(group.first, group.last - START_STEP // 2) + 1, START_STEP):
+            tried: list[list[int]] = []
             for dissolve in (True, False):
                 check_stop(stop, REFINEMENT_PHASE)
                 members = [
                     t for t in group.tracks if t in tracks and (dissolve or tracks[t][0][0] <= a)
                 ]
+                if members in tried:
+                    continue  # no track starts after ``a``: the same re-solve again
+                tried.append(members)
                 if _try_group(objective, tracks, values, members, a):
                     made += 1
                     break
