@@ -52,7 +52,7 @@ from mapassoc.errors import check_stop
 from mapassoc.estimator.boundaries import REFINEMENT_PHASE, rises
 from mapassoc.estimator.identity_moves import close_approaches
 from mapassoc.estimator.objective import RecordingObjective, TrackPath
-from mapassoc.estimator.track_paths import PathState
+from mapassoc.estimator.track_paths import PathState, Trajectory
 
 __all__ = [
     "GROUP_BEAM",
@@ -169,8 +169,8 @@ def _try_group(
     runs = [objective.trajectory(p) for p in prefixes]
     if not all(bool(run.initiated[-1]) for run in runs):
         return False  # a head not yet in the motion model's space: batches need one space
-    offered = _offered(objective, tracks, members, a)
     end = max(tracks[t][-1][0] for t in members)
+    offered = _offered(objective, tracks, members, a, end)
     added = _beam(objective, runs, a, end, offered)
     new = {t: prefixes[i] + tuple(added[i]) for i, t in enumerate(heads)}
     new_values = {t: objective.track_value(p) for t, p in new.items()}
@@ -186,19 +186,23 @@ def _try_group(
 
 
 def _offered(
-    objective: RecordingObjective, tracks: dict[int, TrackPath], members: Sequence[int], a: int
+    objective: RecordingObjective,
+    tracks: dict[int, TrackPath],
+    members: Sequence[int],
+    a: int,
+    end: int,
 ) -> dict[int, IntArray]:
-    """Per scan after ``a``: the detections (indices in the scan) no track outside
+    """Per scan ``a + 1 .. end``: the detections (indices in the scan) no track outside
     ``members`` uses."""
     outside: dict[int, set[int]] = {}
     chosen = set(members)
     for tid, path in tracks.items():
         if tid not in chosen:
             for m, j in path:
-                if m > a:
+                if a < m <= end:
                     outside.setdefault(m, set()).add(j)
     offered = {}
-    for m in range(a + 1, len(objective.scans)):
+    for m in range(a + 1, end + 1):
         taken = outside.get(m, set())
         free = [j for j in range(len(objective.scans[m].rows)) if j not in taken]
         offered[m] = np.asarray(free, dtype=np.int64)
@@ -224,7 +228,7 @@ class _Beam:
 
 def _beam(
     objective: RecordingObjective,
-    runs: Sequence[object],
+    runs: Sequence[Trajectory],
     a: int,
     end: int,
     offered: dict[int, IntArray],
@@ -237,13 +241,13 @@ def _beam(
     return beam.added[int(np.argmax(beam.score))]
 
 
-def _start(objective: RecordingObjective, runs: Sequence[object], a: int) -> _Beam:
+def _start(objective: RecordingObjective, runs: Sequence[Trajectory], a: int) -> _Beam:
     """One hypothesis: the heads as they are, predicted to scan ``a``."""
-    states = [run.state(len(run.path) - 1) for run in runs]  # type: ignore[attr-defined]
+    states = [run.state(len(run.path) - 1) for run in runs]
     moved = [objective.advance_missed(s, a) for s in states]
     tails = objective.terms.tails
-    last_value = np.array([[run.values[-1] for run in runs]])  # type: ignore[attr-defined]
-    last_scan = np.array([[run.path[-1][0] for run in runs]], dtype=np.int64)  # type: ignore[attr-defined]
+    last_value = np.array([[run.values[-1] for run in runs]])
+    last_scan = np.array([[run.path[-1][0] for run in runs]], dtype=np.int64)
     return _Beam(
         states=PathState(
             scan=a,
@@ -276,13 +280,19 @@ def _advance(objective: RecordingObjective, beam: _Beam, m: int, offered: IntArr
             detected[(row, d)] = n
 
     def recent(b: int, choice: tuple[int, ...]) -> tuple[object, ...]:
-        return tuple(
-            (tuple(x for x in beam.added[b][i] if x[0] > m - MERGE_SCANS), choice[i])
-            for i in range(K)
-        )
+        return tuple((_since(beam.added[b][i], m - MERGE_SCANS), choice[i]) for i in range(K))
 
     children = _best_children(beam.score, gain.reshape(B, K, -1), recent)
     return _children_beam(beam, children, missed, found, detected, m, offered)
+
+
+def _since(path: list[tuple[int, int]], scan: int) -> tuple[tuple[int, int], ...]:
+    """The detections of ``path`` (in scan order) after ``scan``, read from its end: the
+    merging key looks at the last scans only, and a path grows over the whole span."""
+    first = len(path)
+    while first > 0 and path[first - 1][0] > scan:
+        first -= 1
+    return tuple(path[first:])
 
 
 def _children_beam(
