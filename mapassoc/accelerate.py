@@ -28,6 +28,7 @@ KERNEL_MODULES = (
     "mapassoc.formulations.compiled_frontier",
     "mapassoc.filtering.compiled_kernels",
     "mapassoc.filtering.compiled_imm",
+    "mapassoc.estimator.compiled_beam",
 )
 """Every kernel module: each compiles (or loads from numba's cache) its kernels for the
 argument types the package passes when it is imported."""

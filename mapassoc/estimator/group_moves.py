@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mapassoc.accelerate import compiled_module
 from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.errors import check_stop
 from mapassoc.estimator.boundaries import REFINEMENT_PHASE, rises
@@ -209,6 +210,11 @@ def _offered(
     return offered
 
 
+_Chain = tuple[tuple[int, int], "_Chain"] | None
+"""A head's detections since the start scan, newest first: ``((scan, j), older)``, shared
+between a hypothesis and its children (a child adds one cell instead of copying paths)."""
+
+
 @dataclass(eq=False)
 class _Beam:
     """The joint hypotheses after one scan: B hypotheses of K heads each.
@@ -216,14 +222,17 @@ class _Beam:
     ``states`` (B*K rows) are the heads predicted to the scan with their running value;
     ``last_value``/``last_scan`` (B, K) each head's value at, and scan of, its last
     detection; ``score`` (B,) the hypotheses' J; ``added`` each hypothesis's detections
-    per head since the start.
+    per head since the start (:data:`_Chain`); ``recent`` (B, K, :data:`MERGE_SCANS` - 1)
+    each head's detection (its index in the scan, -1 none) at the scans before, newest
+    first.
     """
 
     states: PathState
     last_value: FloatArray
     last_scan: IntArray
     score: FloatArray
-    added: list[list[list[tuple[int, int]]]]
+    added: list[list[_Chain]]
+    recent: IntArray
 
 
 def _beam(
@@ -238,7 +247,16 @@ def _beam(
     beam = _start(objective, runs, a)
     for m in range(a + 1, end + 1):
         beam = _advance(objective, beam, m, offered[m])
-    return beam.added[int(np.argmax(beam.score))]
+    return [_unrolled(chain) for chain in beam.added[int(np.argmax(beam.score))]]
+
+
+def _unrolled(chain: _Chain) -> list[tuple[int, int]]:
+    """A chain's detections in scan order."""
+    out = []
+    while chain is not None:
+        out.append(chain[0])
+        chain = chain[1]
+    return out[::-1]
 
 
 def _start(objective: RecordingObjective, runs: Sequence[Trajectory], a: int) -> _Beam:
@@ -260,7 +278,8 @@ def _start(objective: RecordingObjective, runs: Sequence[Trajectory], a: int) ->
         last_value=last_value,
         last_scan=last_scan,
         score=(last_value + tails[last_scan]).sum(axis=1),
-        added=[[[] for _ in runs]],
+        added=[[None for _ in runs]],
+        recent=np.full((1, len(runs), MERGE_SCANS - 1), -1, dtype=np.int64),
     )
 
 
@@ -271,94 +290,115 @@ def _advance(objective: RecordingObjective, beam: _Beam, m: int, offered: IntArr
     tails = objective.terms.tails
     missed = objective.advance_missed(beam.states, m)
     gain = np.full((B * K, offered.size), -np.inf)
-    detected: dict[tuple[int, int], int] = {}
     found = objective.continue_each(beam.states, [(m, int(j)) for j in offered])
     flat_last = (beam.last_value + tails[beam.last_scan]).reshape(-1)
+    where = np.full((B * K, offered.size), -1, dtype=np.int64)  # row in found[d][1]
     for d, (rows, state) in enumerate(found):
         gain[rows, d] = state.value + tails[m] - flat_last[rows]
-        for n, row in enumerate(rows.tolist()):
-            detected[(row, d)] = n
-
-    def recent(b: int, choice: tuple[int, ...]) -> tuple[object, ...]:
-        return tuple((_since(beam.added[b][i], m - MERGE_SCANS), choice[i]) for i in range(K))
-
-    children = _best_children(beam.score, gain.reshape(B, K, -1), recent)
-    return _children_beam(beam, children, missed, found, detected, m, offered)
+        where[rows, d] = np.arange(rows.size)
+    history = _history(beam.recent)
+    parents, choices, scores = _children(beam.score, gain.reshape(B, K, offered.size), history)
+    return _children_beam(beam, parents, choices, scores, missed, found, where, m, offered)
 
 
-def _since(path: list[tuple[int, int]], scan: int) -> tuple[tuple[int, int], ...]:
-    """The detections of ``path`` (in scan order) after ``scan``, read from its end: the
-    merging key looks at the last scans only, and a path grows over the whole span."""
-    first = len(path)
-    while first > 0 and path[first - 1][0] > scan:
-        first -= 1
-    return tuple(path[first:])
+def _history(recent: IntArray) -> IntArray:
+    """(B, K) ids of the rows of ``recent`` (B, K, :data:`MERGE_SCANS` - 1): equal ids,
+    equal detections at the last scans (the merging key's part of the past)."""
+    B, K, S = recent.shape
+    if S == 0:
+        return np.zeros((B, K), dtype=np.int64)
+    _, ids = np.unique(recent.reshape(B * K, S), axis=0, return_inverse=True)
+    return ids.reshape(B, K).astype(np.int64)
 
 
 def _children_beam(
     beam: _Beam,
-    children: list[tuple[float, int, tuple[int, ...]]],
+    parents: IntArray,
+    choices: IntArray,
+    scores: FloatArray,
     missed: PathState,
     found: list[tuple[IntArray, PathState]],
-    detected: dict[tuple[int, int], int],
+    where: IntArray,
     m: int,
     offered: IntArray,
 ) -> _Beam:
-    """The kept children as the next beam."""
+    """The kept children (``parents`` (C,), ``choices`` (C, K), ``scores`` (C,)) as the
+    next beam: each head's state is its miss's or its detection's, gathered at once."""
     K = beam.last_value.shape[1]
-    pick_state, pick_row = [], []  # per child head: which state array (-1 missed) and row
-    last_value = np.empty((len(children), K))
-    last_scan = np.empty((len(children), K), dtype=np.int64)
-    added = []
-    for c, (_, b, choice) in enumerate(children):
-        paths = [list(p) for p in beam.added[b]]
-        for i, d in enumerate(choice):
-            row = b * K + i
-            if d < 0:
-                pick_state.append(-1)
-                pick_row.append(row)
-                last_value[c, i], last_scan[c, i] = beam.last_value[b, i], beam.last_scan[b, i]
-                continue
-            n = detected[(row, d)]
-            pick_state.append(d)
-            pick_row.append(n)
-            last_value[c, i], last_scan[c, i] = found[d][1].value[n], m
-            paths[i].append((m, int(offered[d])))
-        added.append(paths)
+    rows = (parents[:, None] * K + np.arange(K)).reshape(-1)  # the parent head of each child head
+    picked = choices.reshape(-1)
     sources = [missed] + [state for _, state in found]
-    means = np.stack([sources[s + 1].means[r] for s, r in zip(pick_state, pick_row, strict=True)])
-    covs = np.stack(
-        [sources[s + 1].covariances[r] for s, r in zip(pick_state, pick_row, strict=True)]
-    )
-    value = np.array([sources[s + 1].value[r] for s, r in zip(pick_state, pick_row, strict=True)])
-    first_time = np.tile(missed.first_time[:K], len(children))
+    offsets = np.cumsum([0] + [len(state) for state in sources])
+    detected = picked >= 0
+    index = rows.copy()
+    index[detected] = offsets[picked[detected] + 1] + where[rows[detected], picked[detected]]
+    values = np.concatenate([state.value for state in sources])[index]
+    last_value = np.where(detected, values, beam.last_value.reshape(-1)[rows]).reshape(-1, K)
+    last_scan = np.where(detected, m, beam.last_scan.reshape(-1)[rows]).reshape(-1, K)
+    added = []
+    for b, choice in zip(parents.tolist(), choices.tolist(), strict=True):
+        heads = beam.added[b]
+        added.append(
+            [heads[i] if d < 0 else ((m, int(offered[d])), heads[i]) for i, d in enumerate(choice)]
+        )
     return _Beam(
         states=PathState(
             scan=m,
-            means=means,
-            covariances=covs,
+            means=np.concatenate([state.means for state in sources])[index],
+            covariances=np.concatenate([state.covariances for state in sources])[index],
             initiated=True,
-            first_time=first_time,
-            value=value,
-        ),  # fmt: skip
+            first_time=np.tile(missed.first_time[:K], len(parents)),
+            value=values,
+        ),
         last_value=last_value,
-        last_scan=last_scan,
-        score=np.array([score for score, _, _ in children]),
+        last_scan=last_scan.astype(np.int64),
+        score=scores,
         added=added,
+        recent=_recent(beam.recent[parents], choices, offered),
+    )
+
+
+def _recent(parents: IntArray, choices: IntArray, offered: IntArray) -> IntArray:
+    """The children's ``recent`` (C, K, S): the detections just chosen (``choices``
+    (C, K) into ``offered``, -1 a miss), then their parents' (``parents`` (C, K, S))
+    without the oldest."""
+    chosen = np.full(choices.shape, -1, dtype=np.int64)
+    chosen[choices >= 0] = offered[choices[choices >= 0]]
+    return np.concatenate([chosen[:, :, None], parents], axis=2)[:, :, : parents.shape[2]]
+
+
+def _children(
+    score: FloatArray, gain: FloatArray, history: IntArray
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """The kept children's parents (C,), choices (C, K) and scores (C,): the compiled
+    search (:mod:`mapassoc.estimator.compiled_beam`) where numba loads, else its twin
+    :func:`_best_children`."""
+    kernels = compiled_module("mapassoc.estimator.compiled_beam")
+    if kernels is not None:
+        return kernels.best_children(
+            score, np.ascontiguousarray(gain), history, GROUP_BEAM, GROUP_BRANCH
+        )
+    children = _best_children(score, gain, history)
+    K = gain.shape[1]
+    return (
+        np.array([b for _, b, _ in children], dtype=np.int64),
+        np.array([c for _, _, c in children], dtype=np.int64).reshape(-1, K),
+        np.array([total for total, _, _ in children]),
     )
 
 
 def _best_children(
-    score: FloatArray, gain: FloatArray, key: Callable[[int, tuple[int, ...]], object]
+    score: FloatArray, gain: FloatArray, history: IntArray
 ) -> list[tuple[float, int, tuple[int, ...]]]:
     """The :data:`GROUP_BEAM` best children ``(score, parent, choice)`` over all parents.
 
     ``score`` (B,) the parents' scores, ``gain`` (B, K, D) each head's gain from each
-    offered detection (``-inf`` outside its gate; a miss gains 0); ``choice[i]`` is head
-    ``i``'s detection (-1 missed), no detection twice.  A best-first search over partial
-    assignments in order of their score plus every undecided head's largest gain (an
-    upper bound), so children come out best first; a child whose ``key`` an earlier one
-    had is merged into it, and a parent stops at :data:`GROUP_BRANCH` children.
+    offered detection (``-inf`` outside its gate; a miss gains 0), ``history`` (B, K) an
+    id of each parent head's recent detections; ``choice[i]`` is head ``i``'s detection
+    (-1 missed), no detection twice.  A best-first search over partial assignments in
+    order of their score plus every undecided head's largest gain (an upper bound), so
+    children come out best first; a child whose history and choice per head an earlier
+    one had is merged into it, and a parent stops at :data:`GROUP_BRANCH` children.
     """
     B, K, _ = gain.shape
     options, rest = _head_options(gain)
@@ -369,12 +409,13 @@ def _best_children(
     out: list[tuple[float, int, tuple[int, ...]]] = []
     seen: set[object] = set()
     per_parent = np.zeros(B, dtype=np.int64)
+    pasts = [tuple(row) for row in history.tolist()]
     while heap and len(out) < GROUP_BEAM:
         _, b, i, total, used, choice = heapq.heappop(heap)
         if per_parent[b] >= GROUP_BRANCH:
             continue
         if i == K:
-            merged = key(b, choice)
+            merged = (pasts[b], choice)
             if merged not in seen:
                 seen.add(merged)
                 out.append((total, b, choice))

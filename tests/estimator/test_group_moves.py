@@ -8,6 +8,7 @@ import itertools
 import numpy as np
 import pytest
 
+from mapassoc.accelerate import compiled_module
 from mapassoc.estimator import group_moves
 from mapassoc.estimator.group_moves import close_groups, regroup_tracks
 from mapassoc.estimator.objective import RecordingObjective
@@ -42,7 +43,8 @@ def test_best_children_are_the_enumerated_best(seed: int, monkeypatch: pytest.Mo
     score = rng.normal(size=B)
     gain = rng.normal(size=(B, K, D))
     gain[rng.random((B, K, D)) < 0.4] = -np.inf
-    children = group_moves._best_children(score, gain, lambda b, choice: (b, choice))
+    history = np.arange(B * K).reshape(B, K)  # every parent its own past: no merging
+    children = group_moves._best_children(score, gain, history)
     expected = _enumerated(score, gain, group_moves.GROUP_BRANCH, group_moves.GROUP_BEAM)
     got = [total for total, _, _ in children]
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
@@ -54,15 +56,53 @@ def test_best_children_are_the_enumerated_best(seed: int, monkeypatch: pytest.Mo
 
 
 def test_merged_children_keep_the_best_of_each_key() -> None:
-    # Two parents whose children share keys: only the first (best) of a key is kept.
+    # Two parents with the same recent past, whose children share keys: only the first
+    # (best) of a key is kept.
     score = np.array([0.0, -0.5])
     gain = np.array([[[1.0, 0.5]], [[1.0, 0.5]]])  # one head, two detections
-    children = group_moves._best_children(score, gain, lambda b, choice: choice)
+    children = group_moves._best_children(score, gain, np.zeros((2, 1), dtype=np.int64))
     assert [(total, b, c) for total, b, c in children] == [
         (1.0, 0, (0,)),
         (0.5, 0, (1,)),
         (0.0, 0, (-1,)),
     ]
+    # Different pasts: nothing merges; best first, a tie to the first parent.
+    children = group_moves._best_children(score, gain, np.array([[0], [1]]))
+    assert [(total, b) for total, b, _ in children] == [
+        (1.0, 0), (0.5, 0), (0.5, 1), (0.0, 0), (0.0, 1), (-0.5, 1)
+    ]  # fmt: skip
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_compiled_child_selection_equals_its_twin(seed: int) -> None:
+    kernels = compiled_module("mapassoc.estimator.compiled_beam")
+    if kernels is None:
+        pytest.skip("numba is not installed (the accelerate extra)")
+    rng = np.random.default_rng(seed)
+    B, K, D = int(rng.integers(1, 7)), int(rng.integers(1, 5)), int(rng.integers(0, 7))
+    score = rng.normal(size=B)
+    gain = rng.normal(size=(B, K, D))
+    gain[rng.random((B, K, D)) < 0.4] = -np.inf
+    history = rng.integers(0, 2, size=(B, K))
+    twin = group_moves._best_children(score, gain, history)
+    parents, choices, scores = kernels.best_children(
+        score, gain, history, group_moves.GROUP_BEAM, group_moves.GROUP_BRANCH
+    )
+    assert [(t, b, c) for t, b, c in twin] == [
+        (float(t), int(b), tuple(int(d) for d in c))
+        for t, b, c in zip(scores, parents, choices, strict=True)
+    ]
+
+
+def test_recent_detections_shift_by_one_scan(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Two heads, three scans kept: the new detection first, the oldest dropped.
+    parents = np.array([[[4, 5, 6], [-1, 2, 3]]])
+    choices = np.array([[1, -1]])
+    offered = np.array([7, 9])
+    got = group_moves._recent(parents, choices, offered)
+    np.testing.assert_array_equal(got, [[[9, 4, 5], [-1, -1, 2]]])
+    history = group_moves._history(np.array([[[1, 2], [1, 2]], [[1, 3], [1, 2]]]))
+    assert history[0, 0] == history[0, 1] == history[1, 1] != history[1, 0]
 
 
 @pytest.mark.slow
