@@ -217,22 +217,27 @@ between a hypothesis and its children (a child adds one cell instead of copying 
 
 @dataclass(eq=False)
 class _Beam:
-    """The joint hypotheses after one scan: B hypotheses of K heads each.
+    """The joint hypotheses after one scan: B hypotheses of K heads each, over U distinct
+    head histories.
 
-    ``states`` (B*K rows) are the heads predicted to the scan with their running value;
-    ``last_value``/``last_scan`` (B, K) each head's value at, and scan of, its last
-    detection; ``score`` (B,) the hypotheses' J; ``added`` each hypothesis's detections
-    per head since the start (:data:`_Chain`); ``recent`` (B, K, :data:`MERGE_SCANS` - 1)
-    each head's detection (its index in the scan, -1 none) at the scans before, newest
-    first.
+    A head's state depends only on its detections, and hypotheses share most heads'
+    histories (a child changes some heads of its parent; siblings share the rest), so the
+    heads are stored once per distinct history (a *row*) and ``slot`` (B, K) names each
+    hypothesis head's row: the Kalman steps run once per row, not per hypothesis head.
+    Per row: ``states`` (U rows) predicted to the scan with their running value,
+    ``last_value``/``last_scan`` (U,) its value at, and scan of, its last detection,
+    ``chains`` its detections since the start (:data:`_Chain`), ``recent`` (U,
+    :data:`MERGE_SCANS` - 1) its detections (indices in their scans, -1 none) at the
+    scans before, newest first.  ``score`` (B,) the hypotheses' J.
     """
 
     states: PathState
+    slot: IntArray
     last_value: FloatArray
     last_scan: IntArray
-    score: FloatArray
-    added: list[list[_Chain]]
+    chains: list[_Chain]
     recent: IntArray
+    score: FloatArray
 
 
 def _beam(
@@ -247,7 +252,8 @@ def _beam(
     beam = _start(objective, runs, a)
     for m in range(a + 1, end + 1):
         beam = _advance(objective, beam, m, offered[m])
-    return [_unrolled(chain) for chain in beam.added[int(np.argmax(beam.score))]]
+    best = beam.slot[int(np.argmax(beam.score))]
+    return [_unrolled(beam.chains[row]) for row in best.tolist()]
 
 
 def _unrolled(chain: _Chain) -> list[tuple[int, int]]:
@@ -264,8 +270,8 @@ def _start(objective: RecordingObjective, runs: Sequence[Trajectory], a: int) ->
     states = [run.state(len(run.path) - 1) for run in runs]
     moved = [objective.advance_missed(s, a) for s in states]
     tails = objective.terms.tails
-    last_value = np.array([[run.values[-1] for run in runs]])
-    last_scan = np.array([[run.path[-1][0] for run in runs]], dtype=np.int64)
+    last_value = np.array([run.values[-1] for run in runs])
+    last_scan = np.array([run.path[-1][0] for run in runs], dtype=np.int64)
     return _Beam(
         states=PathState(
             scan=a,
@@ -275,96 +281,85 @@ def _start(objective: RecordingObjective, runs: Sequence[Trajectory], a: int) ->
             first_time=np.concatenate([s.first_time for s in moved]),
             value=np.concatenate([s.value for s in moved]),
         ),
+        slot=np.arange(len(runs), dtype=np.int64)[None, :],
         last_value=last_value,
         last_scan=last_scan,
-        score=(last_value + tails[last_scan]).sum(axis=1),
-        added=[[None for _ in runs]],
-        recent=np.full((1, len(runs), MERGE_SCANS - 1), -1, dtype=np.int64),
+        chains=[None for _ in runs],
+        recent=np.full((len(runs), MERGE_SCANS - 1), -1, dtype=np.int64),
+        score=np.array([(last_value + tails[last_scan]).sum()]),
     )
 
 
 def _advance(objective: RecordingObjective, beam: _Beam, m: int, offered: IntArray) -> _Beam:
     """The beam after scan ``m``: every hypothesis's heads missed or detected by one of
     ``offered`` each, the best children kept (module docstring)."""
-    B, K = beam.last_value.shape
+    U = len(beam.states)
     tails = objective.terms.tails
     missed = objective.advance_missed(beam.states, m)
-    gain = np.full((B * K, offered.size), -np.inf)
     found = objective.continue_each(beam.states, [(m, int(j)) for j in offered])
-    flat_last = (beam.last_value + tails[beam.last_scan]).reshape(-1)
-    where = np.full((B * K, offered.size), -1, dtype=np.int64)  # row in found[d][1]
+    base = beam.last_value + tails[beam.last_scan]
+    gain = np.full((U, offered.size), -np.inf)
+    where = np.full((U, offered.size), -1, dtype=np.int64)  # row in found[d][1]
     for d, (rows, state) in enumerate(found):
-        gain[rows, d] = state.value + tails[m] - flat_last[rows]
+        gain[rows, d] = state.value + tails[m] - base[rows]
         where[rows, d] = np.arange(rows.size)
-    history = _history(beam.recent)
-    parents, choices, scores = _children(beam.score, gain.reshape(B, K, offered.size), history)
-    return _children_beam(beam, parents, choices, scores, missed, found, where, m, offered)
-
-
-def _history(recent: IntArray) -> IntArray:
-    """(B, K) ids of the rows of ``recent`` (B, K, :data:`MERGE_SCANS` - 1): equal ids,
-    equal detections at the last scans (the merging key's part of the past)."""
-    B, K, S = recent.shape
-    if S == 0:
-        return np.zeros((B, K), dtype=np.int64)
-    _, ids = np.unique(recent.reshape(B * K, S), axis=0, return_inverse=True)
-    return ids.reshape(B, K).astype(np.int64)
-
-
-def _children_beam(
-    beam: _Beam,
-    parents: IntArray,
-    choices: IntArray,
-    scores: FloatArray,
-    missed: PathState,
-    found: list[tuple[IntArray, PathState]],
-    where: IntArray,
-    m: int,
-    offered: IntArray,
-) -> _Beam:
-    """The kept children (``parents`` (C,), ``choices`` (C, K), ``scores`` (C,)) as the
-    next beam: each head's state is its miss's or its detection's, gathered at once."""
-    K = beam.last_value.shape[1]
-    rows = (parents[:, None] * K + np.arange(K)).reshape(-1)  # the parent head of each child head
-    picked = choices.reshape(-1)
+    history = _history(beam.recent)[beam.slot]
+    parents, choices, scores = _children(beam.score, gain[beam.slot], history)
+    rows, picks, slot = _child_rows(beam.slot[parents], choices, offered.size)
     sources = [missed] + [state for _, state in found]
     offsets = np.cumsum([0] + [len(state) for state in sources])
-    detected = picked >= 0
+    detected = picks >= 0
     index = rows.copy()
-    index[detected] = offsets[picked[detected] + 1] + where[rows[detected], picked[detected]]
-    values = np.concatenate([state.value for state in sources])[index]
-    last_value = np.where(detected, values, beam.last_value.reshape(-1)[rows]).reshape(-1, K)
-    last_scan = np.where(detected, m, beam.last_scan.reshape(-1)[rows]).reshape(-1, K)
-    added = []
-    for b, choice in zip(parents.tolist(), choices.tolist(), strict=True):
-        heads = beam.added[b]
-        added.append(
-            [heads[i] if d < 0 else ((m, int(offered[d])), heads[i]) for i, d in enumerate(choice)]
-        )
+    index[detected] = offsets[picks[detected] + 1] + where[rows[detected], picks[detected]]
+    value = np.concatenate([state.value for state in sources])[index]
     return _Beam(
         states=PathState(
             scan=m,
             means=np.concatenate([state.means for state in sources])[index],
             covariances=np.concatenate([state.covariances for state in sources])[index],
             initiated=True,
-            first_time=np.tile(missed.first_time[:K], len(parents)),
-            value=values,
+            first_time=missed.first_time[rows],
+            value=value,
         ),
-        last_value=last_value,
-        last_scan=last_scan.astype(np.int64),
+        slot=slot,
+        last_value=np.where(detected, value, beam.last_value[rows]),
+        last_scan=np.where(detected, m, beam.last_scan[rows]).astype(np.int64),
+        chains=[
+            beam.chains[r] if d < 0 else ((m, int(offered[d])), beam.chains[r])
+            for r, d in zip(rows.tolist(), picks.tolist(), strict=True)
+        ],
+        recent=_recent(beam.recent[rows], picks, offered),
         score=scores,
-        added=added,
-        recent=_recent(beam.recent[parents], choices, offered),
     )
 
 
-def _recent(parents: IntArray, choices: IntArray, offered: IntArray) -> IntArray:
-    """The children's ``recent`` (C, K, S): the detections just chosen (``choices``
-    (C, K) into ``offered``, -1 a miss), then their parents' (``parents`` (C, K, S))
-    without the oldest."""
-    chosen = np.full(choices.shape, -1, dtype=np.int64)
-    chosen[choices >= 0] = offered[choices[choices >= 0]]
-    return np.concatenate([chosen[:, :, None], parents], axis=2)[:, :, : parents.shape[2]]
+def _child_rows(
+    parent_rows: IntArray, choices: IntArray, D: int
+) -> tuple[IntArray, IntArray, IntArray]:
+    """The distinct (parent row, choice) pairs of the children's heads: their parent rows
+    (U',), their detections (U',; -1 a miss) and each child head's pair (C, K)."""
+    keys = parent_rows * (D + 1) + choices + 1
+    unique, inverse = np.unique(keys.reshape(-1), return_inverse=True)
+    return unique // (D + 1), unique % (D + 1) - 1, inverse.reshape(keys.shape).astype(np.int64)
+
+
+def _history(recent: IntArray) -> IntArray:
+    """(U,) ids of the rows of ``recent`` (U, :data:`MERGE_SCANS` - 1): equal ids, equal
+    detections at the last scans (the merging key's part of the past)."""
+    U, S = recent.shape
+    if S == 0:
+        return np.zeros(U, dtype=np.int64)
+    _, ids = np.unique(recent, axis=0, return_inverse=True)
+    return ids.reshape(U).astype(np.int64)
+
+
+def _recent(parents: IntArray, picks: IntArray, offered: IntArray) -> IntArray:
+    """The new rows' ``recent`` (U', S): the detection just chosen (``picks`` (U',) into
+    ``offered``, -1 a miss), then the parent row's (``parents`` (U', S)) without the
+    oldest."""
+    chosen = np.full(picks.shape, -1, dtype=np.int64)
+    chosen[picks >= 0] = offered[picks[picks >= 0]]
+    return np.concatenate([chosen[:, None], parents], axis=1)[:, : parents.shape[1]]
 
 
 def _children(

@@ -94,15 +94,22 @@ def test_compiled_child_selection_equals_its_twin(seed: int) -> None:
     ]
 
 
-def test_recent_detections_shift_by_one_scan(monkeypatch: pytest.MonkeyPatch) -> None:
-    # Two heads, three scans kept: the new detection first, the oldest dropped.
-    parents = np.array([[[4, 5, 6], [-1, 2, 3]]])
-    choices = np.array([[1, -1]])
-    offered = np.array([7, 9])
-    got = group_moves._recent(parents, choices, offered)
-    np.testing.assert_array_equal(got, [[[9, 4, 5], [-1, -1, 2]]])
-    history = group_moves._history(np.array([[[1, 2], [1, 2]], [[1, 3], [1, 2]]]))
-    assert history[0, 0] == history[0, 1] == history[1, 1] != history[1, 0]
+def test_recent_detections_shift_by_one_scan() -> None:
+    # Two rows, three scans kept: the new detection first, the oldest dropped.
+    parents = np.array([[4, 5, 6], [-1, 2, 3]])
+    got = group_moves._recent(parents, np.array([1, -1]), np.array([7, 9]))
+    np.testing.assert_array_equal(got, [[9, 4, 5], [-1, -1, 2]])
+    history = group_moves._history(np.array([[1, 2], [1, 2], [1, 3]]))
+    assert history[0] == history[1] != history[2]
+
+
+def test_children_share_rows_of_equal_histories() -> None:
+    # Parent rows 0 and 1; children (0: miss, 1: detection 2) and (0: miss, 1: miss).
+    rows, picks, slot = group_moves._child_rows(
+        np.array([[0, 1], [0, 1]]), np.array([[-1, 2], [-1, -1]]), 3
+    )
+    assert list(zip(rows.tolist(), picks.tolist(), strict=True)) == [(0, -1), (1, -1), (1, 2)]
+    np.testing.assert_array_equal(slot, [[0, 2], [0, 1]])  # the first heads share a row
 
 
 @pytest.mark.slow
