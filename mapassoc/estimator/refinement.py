@@ -135,8 +135,8 @@ class RefinementReport:
         ``identity_moves`` is set): tail exchanges, cuts, free detections taken after a
         track's end or before its start, and joins over any gap.
     regroups : int
-        Group re-solves made (:mod:`mapassoc.estimator.group_moves`; 0 unless
-        ``group_moves`` is set): closely spaced tracks re-tracked together.
+        Group re-solves made (:mod:`mapassoc.estimator.group_moves`; 0 when
+        ``group_moves`` is off): closely spaced tracks re-tracked together.
     stopped : str
         Why the sweeps ended: ``"converged"`` (a sweep of every window length changed
         nothing: no move the refinement makes raises J) or ``"pass_limit"`` (``passes``

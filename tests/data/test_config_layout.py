@@ -66,7 +66,7 @@ NON_DEFAULT: dict[str, dict[str, Any]] = {
         "prune_log_ratio": 20.0,
         "long_prune_log_ratio": 6.0,
         "identity_moves": False,
-        "group_moves": True,
+        "group_moves": False,
         "min_existence": 0.3,
     },
     "parameters": {

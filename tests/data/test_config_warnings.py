@@ -45,7 +45,7 @@ def test_a_missing_estimator_section_warns_with_the_file_and_the_defaults(
         "refinement.passes 6, refinement.scan_windows True, refinement.link_gap 10, "
         "refinement.refilter_detections 15, refinement.prune_log_ratio 18.0, "
         "refinement.long_prune_log_ratio 9.0, refinement.identity_moves True, "
-        "refinement.group_moves False, refinement.min_existence 0.0, "
+        "refinement.group_moves True, refinement.min_existence 0.0, "
         "parameters.rate_tolerance 0.02, parameters.pd_tolerance 0.005, "
         "parameters.max_passes 3, parameters.sample_scans 600, "
         "parameters.sample_blocks_count 6, parameters.soft_counts True)"
