@@ -3,6 +3,7 @@ against enumeration, and the move's exact, monotone J on a converging recording.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -116,7 +117,13 @@ def test_children_share_rows_of_equal_histories() -> None:
 def test_regroup_raises_the_exact_objective_on_converging_targets() -> None:
     scenario = build_scenario("converging", 0, scans=30)
     config = generic_config(scenario, time_limit=2.0)
-    result = WindowEstimator(config=config).run(scenario.scans)
+    forward = dataclasses.replace(  # the forward pass's set: no refinement has regrouped it
+        config.estimator,
+        refinement=dataclasses.replace(config.estimator.refinement, passes=0),
+    )
+    result = WindowEstimator(config=dataclasses.replace(config, estimator=forward)).run(
+        scenario.scans
+    )
     objective = RecordingObjective(config=config, scans=scenario.scans)
     tracks = {t: objective.path_of_rows(rows) for t, rows in result.track_rows.items()}
     values = {t: objective.track_value(path) for t, path in tracks.items()}
