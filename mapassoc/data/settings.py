@@ -372,9 +372,13 @@ class RefinementSettings:
         two tracks' tails at close approaches, splits before detections that cost their
         track more than they pay, extensions by free detections next to a track's end or
         start, and merges over any gap; each only where J rises.
-        They run once the sweeps have converged (or at the last pass), and if they change
-        the set the sweeps go on: they cost little beside a sweep and catch what a window
-        cannot see, such as two pieces of one target further apart than ``link_gap``.
+        They run after each round of sweeps (one of every window length), where the
+        sweeps have converged and at the last pass, and if they change the set the sweeps
+        go on: they cost little beside a sweep and catch what a window cannot see, such
+        as two pieces of one target further apart than ``link_gap``.  Not only once
+        converged: where targets travel closely spaced the sweeps go on changing the set
+        to the last pass, and moves made only then would leave no sweep to polish what
+        they open.
     group_moves : bool
         After the identity moves, re-track each group of closely spaced tracks together
         (:mod:`mapassoc.estimator.group_moves`: a beam over joint assignments from a

@@ -119,8 +119,8 @@ class RefinementReport:
         J of the forward pass's track set.
     objective_after_pass : list of float
         J after each sweep (window re-solves, then fragment linking; with
-        ``identity_moves``, the moves after the sweep where the sweeps have converged or
-        the last pass is reached); non-decreasing.
+        ``identity_moves``, the moves after each round of sweeps of every window length,
+        where the sweeps have converged and at the last pass); non-decreasing.
     windows_solved, windows_improved : int
     windows_time_limited : int
         Re-solves whose window solve the deadline cut short (status ``time_limit``; its
@@ -310,7 +310,8 @@ class Refiner:
             changed = self._sweep(current, values, N, order, starts, dirty, report, stop)
             unchanged = 0 if changed else unchanged + 1
             last = sweep == self.settings.passes - 1
-            if (unchanged >= len(lengths) or last) and self._identity_moves(
+            round_done = (sweep + 1) % len(lengths) == 0  # a sweep of every window length
+            if (unchanged >= len(lengths) or round_done or last) and self._identity_moves(
                 current, values, report, stop
             ):
                 unchanged = 0  # the moves changed the set: every window may pay again
