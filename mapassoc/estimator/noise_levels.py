@@ -45,6 +45,23 @@ Decisions:
   ``q Q1(T)[0, 0] = sigma^2`` (a tracking index of one in Kalata's sense), with
   ``sigma^2`` the mean position variance of the position sensors (their starts where
   estimated).
+* Association weights (``soft_counts``, the default).  A hard association puts every
+  detection a track took into its noise sums, and a false alarm taken at a scan where
+  the target was missed (or a neighbour's detection) leaves a residual of many noise
+  stds and bends the smoothed path: its acceleration inflates ``q``, the wider gates of
+  the next pass take more false alarms, and the EM confirms itself (on ``parallel`` the
+  hard estimate of ``q`` ended 34 to 166 times the truth).  The confidence pass the
+  soft counts run (:mod:`mapassoc.estimator.confidence`) gives each detection the
+  probability ``w`` that it is the track's own, and the noise sums take it as an EM
+  takes an uncertain association (Dempster, Laird and Rubin, "Maximum likelihood from
+  incomplete data via the EM algorithm", 1977): the detection is smoothed with noise
+  covariance ``R / w`` (the synthetic measurement of Streit and Luginbuhl's
+  probabilistic multi-hypothesis tracking, 1995) and counts ``w`` in the ``sigma``
+  sums (:mod:`mapassoc.filtering.noise_estimation`), so a detection of low probability
+  acts nearly as a miss.  The other detections the track could have taken are left
+  out (PMHT would blend them in): the MAP set's choice is kept, only its certainty is
+  weighed.  Weights are floored at :data:`MIN_DETECTION_WEIGHT`; a track the confidence
+  does not cover counts hard.
 * Convergence: the levels moved by at most ``rate_tolerance`` (relative) from one pass
   to the next, the tolerance of the false-alarm rates.
 """
@@ -80,6 +97,8 @@ __all__ = [
     "QUIET_START",
     "MAX_NOISE_UPDATES",
     "MIN_TRACK_DETECTIONS",
+    "MIN_DETECTION_WEIGHT",
+    "association_weights",
     "NOISE_TOLERANCE",
     "NoiseAsked",
     "NoiseLevels",
@@ -106,6 +125,11 @@ Gaussian model takes; a floor relative to the start keeps the scale of the data'
 and lets each pass move the levels by six orders of magnitude."""
 MIN_TRACK_DETECTIONS = 5
 """Fewest detections of a track whose smoothed moments enter the noise sums."""
+MIN_DETECTION_WEIGHT = 1e-3
+"""The least weight of a track's detection in the noise sums (module docstring): the
+confidence pass leaves out probabilities below 1e-4, and a weight must be > 0 (the
+smoother divides ``R`` by it); at 1e-3 the detection's noise is 30 stds, a miss in all
+but name."""
 
 
 @dataclass(frozen=True)
@@ -318,12 +342,46 @@ def associations_of(
     return out
 
 
+def association_weights(
+    scans: Sequence[Scan],
+    track_rows: Mapping[int, Sequence[int]],
+    probabilities: Mapping[int, Mapping[int, float]],
+) -> dict[int, dict[int, float]]:
+    """Track id -> {scan index -> weight of its detection there}: the probability that the
+    detection is the track's own (module docstring), within
+    [:data:`MIN_DETECTION_WEIGHT`, 1].
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+        The scans the tracks were found on.
+    track_rows : mapping of int to sequence of int
+        Track id -> its detection ids.
+    probabilities : mapping of int to mapping of int to float
+        Track id -> {detection id -> probability that the track uses it}
+        (:attr:`~mapassoc.estimator.confidence.TrackConfidence.associations`); a track
+        without an entry is left out (its detections count 1).
+    """
+    scan_of = {int(row): k for k, scan in enumerate(scans) for row in scan.rows.tolist()}
+    out: dict[int, dict[int, float]] = {}
+    for track_id, rows in track_rows.items():
+        own = probabilities.get(int(track_id))
+        if own is None:
+            continue
+        out[int(track_id)] = {
+            scan_of[int(row)]: min(1.0, max(MIN_DETECTION_WEIGHT, own.get(int(row), 0.0)))
+            for row in rows
+        }
+    return out
+
+
 def noise_m_step(
     config: Config,
     pieces: Sequence[Sequence[Scan]],
     associations: Sequence[Mapping[int, Mapping[int, int]]],
     asked: NoiseAsked,
     current: NoiseLevels,
+    weights: Sequence[Mapping[int, Mapping[int, float]]] | None = None,
 ) -> tuple[NoiseLevels, tuple[str, ...]]:
     """The levels the pass's associations give (module docstring), and notes of what
     they could not estimate (a level without a transition or a detection stays).
@@ -339,13 +397,18 @@ def noise_m_step(
     asked : NoiseAsked
     current : NoiseLevels
         The levels the pass ran with (the iteration's start).
+    weights : sequence of mapping, optional
+        Per block, track id -> {scan index -> weight of its detection}
+        (:func:`association_weights`); default: every detection counts 1.
     """
     notes: list[str] = []
+    per_block = [None] * len(pieces) if weights is None else list(weights)
 
     def sums_at(levels: NoiseLevels) -> NoiseSums:
         run = with_noise_levels(config, levels)
-        parts = [noise_sums(piece, assoc, run, list(asked.stds))
-                 for piece, assoc in zip(pieces, associations, strict=True)]  # fmt: skip
+        parts = [noise_sums(piece, assoc, run, list(asked.stds), weight)
+                 for piece, assoc, weight in zip(pieces, associations, per_block,
+                                                 strict=True)]  # fmt: skip
         total = parts[0]
         for part in parts[1:]:
             total = total.plus(part)

@@ -122,6 +122,7 @@ from mapassoc.estimator.noise_levels import (
     MIN_TRACK_DETECTIONS,
     NoiseAsked,
     NoiseLevels,
+    association_weights,
     associations_of,
     initial_noise,
     levels_close,
@@ -804,12 +805,18 @@ class EStep:
         Per block, every track as scan index -> detection index
         (:func:`~mapassoc.estimator.noise_levels.associations_of`; empty when no noise
         level or birth key is asked for).
+    weights : tuple of dict
+        Per block, track id -> {scan index -> probability that its detection there is
+        its own} (:func:`~mapassoc.estimator.noise_levels.association_weights`; a block
+        without a confidence pass, hard counts, gives an empty dict; empty when no noise
+        level is asked for).
     """
 
     counts: dict[str, AssociationCounts]
     tracks: int
     last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None
     associations: tuple[dict[int, dict[int, int]], ...] = ()
+    weights: tuple[dict[int, dict[int, float]], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -936,12 +943,15 @@ class ParameterEM:
                 )
 
         runs = [_forward_run(estimator, piece, check_stop) for piece in self.pieces]
-        by_piece = [
-            association_counts(
-                piece, result.tracks, self.asked, self._confidence(state, piece, result)
-            )
+        confidences = [
+            self._confidence(state, piece, result)
             for piece, (result, _, _) in zip(self.pieces, runs, strict=True)
         ]
+        by_piece = [
+            association_counts(piece, result.tracks, self.asked, confidence)
+            for piece, (result, _, _), confidence in zip(self.pieces, runs, confidences,
+                                                          strict=True)
+        ]  # fmt: skip
         return EStep(
             counts={name: _merge([counts[name] for counts in by_piece]) for name in self.asked},
             tracks=sum(len(result.track_rows) for result, _, _ in runs),
@@ -950,6 +960,12 @@ class ParameterEM:
                 associations_of(piece, result.track_rows, min_detections=1)
                 for piece, (result, _, _) in zip(self.pieces, runs, strict=True)
             ) if self.noise.any or self.birth.any else (),
+            weights=tuple(
+                {} if confidence is None
+                else association_weights(piece, result.track_rows, confidence.associations)
+                for piece, (result, _, _), confidence in zip(self.pieces, runs, confidences,
+                                                              strict=True)
+            ) if self.noise.any else (),
         )  # fmt: skip
 
     def _confidence(
@@ -1035,7 +1051,8 @@ class ParameterEM:
             longer = [{i: d for i, d in tracks.items() if len(d) >= MIN_TRACK_DETECTIONS}
                       for tracks in e.associations]  # fmt: skip
             noise, noise_notes = noise_m_step(
-                self._pass_config(state), self.pieces, longer, self.noise, state.noise
+                self._pass_config(state), self.pieces, longer, self.noise, state.noise,
+                e.weights or None,
             )
         birth, birth_notes = state.birth, state.birth_notes
         if state.birth is not None:
