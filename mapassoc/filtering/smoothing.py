@@ -58,7 +58,13 @@ from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.filtering.batch import KalmanFilter
 from mapassoc.filtering.imm import imm_filter, imm_smooth
-from mapassoc.filtering.kalman import FilterStep, rts_cross_covariances, rts_smooth
+from mapassoc.filtering.kalman import (
+    FilterStep,
+    innovation,
+    inverse_and_logdet,
+    rts_cross_covariances,
+    rts_smooth,
+)
 from mapassoc.models.birth import (
     birth_state,
     convert_initiated,
@@ -79,6 +85,7 @@ __all__ = [
     "SmoothedTrack",
     "smooth_track",
     "smooth_track_lag_one",
+    "track_log_likelihood",
     "smooth_tracks",
     "smoothed_track",
 ]
@@ -466,6 +473,52 @@ def smooth_track_lag_one(
         weights={k - first: float(w) for k, w in (weights or {}).items()
                  if k in detections and w != 1.0},
     )  # fmt: skip
+
+
+def track_log_likelihood(
+    scans: Sequence[Scan],
+    detections: Mapping[int, int],
+    config: Config,
+    weights: DetectionWeights | None = None,
+) -> float:
+    """The log-likelihood of a track's detections after its first, given the first:
+    the prediction-error decomposition of the forward pass of :func:`smooth_track`,
+    ``sum_k log N(z_k; H x_k|k-1, H P_k|k-1 H^T + R / w_k)``.
+
+    The observed-data likelihood of the noise levels given the associations (the first
+    detection's term, the birth prior, does not depend on them), which the noise-level
+    EM maximises over the process noise directly (ECME,
+    :mod:`mapassoc.estimator.noise_levels`).  Models as :func:`smooth_track_lag_one`'s.
+
+    Raises
+    ------
+    InputError
+        A model set, or a motion model that converts its initiation state.
+    """
+    motion = config.motion
+    if isinstance(motion, InteractingModels) or needs_conversion(motion):
+        raise InputError(
+            f"track_log_likelihood: motion model {motion!r} is a model set or converts its "
+            "initiation state; expected a single model that does not (e.g. constant_velocity)"
+        )
+    scan_indices, segment, _ = _filter_track(scans, detections, config, weights)
+    weight = {} if weights is None else weights
+    total = 0.0
+    for step, k in enumerate(scan_indices[1:], start=1):
+        if k not in detections:
+            continue
+        scan = scans[k]
+        measurement = weighted_measurement(
+            config.sensors[scan.sensor].measurement, weight.get(k, 1.0)
+        )
+        x, P = segment.x_predicted[step], segment.P_predicted[step]
+        nu, S, _ = innovation(measurement, x, P, scan.detections[detections[k]])
+        S_inv, logdet = inverse_and_logdet(S[None])
+        total -= 0.5 * (float(nu @ S_inv[0] @ nu) + float(logdet[0]) + nu.size * _LOG_2PI)
+    return total
+
+
+_LOG_2PI = float(np.log(2.0 * np.pi))
 
 
 def _smooth_interacting(
