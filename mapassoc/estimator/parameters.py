@@ -810,6 +810,9 @@ class EStep:
         its own} (:func:`~mapassoc.estimator.noise_levels.association_weights`; a block
         without a confidence pass, hard counts, gives an empty dict; empty when no noise
         level is asked for).
+    existence : tuple of dict or None
+        Per block, track id -> the confidence pass's probability that the track is a
+        target (None: no confidence pass; empty when no birth key is asked for).
     """
 
     counts: dict[str, AssociationCounts]
@@ -817,6 +820,7 @@ class EStep:
     last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None
     associations: tuple[dict[int, dict[int, int]], ...] = ()
     weights: tuple[dict[int, dict[int, float]], ...] = ()
+    existence: tuple[dict[int, float] | None, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -966,6 +970,9 @@ class ParameterEM:
                 for piece, (result, _, _), confidence in zip(self.pieces, runs, confidences,
                                                               strict=True)
             ) if self.noise.any else (),
+            existence=tuple(
+                None if confidence is None else confidence.existence for confidence in confidences
+            ) if self.birth.any else (),
         )  # fmt: skip
 
     def _confidence(
@@ -1058,7 +1065,7 @@ class ParameterEM:
         if state.birth is not None:
             birth, birth_notes = birth_m_step(
                 self._pass_config(state), self.pieces, self.starts_recording, e.associations,
-                state.birth,
+                state.birth, e.existence or None,
             )  # fmt: skip
         record = EstimationPass(
             index=len(state.passes), used=dict(state.current), updated=m.updated,
