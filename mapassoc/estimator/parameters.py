@@ -73,7 +73,11 @@ noise stds (:attr:`Config.auto`) are estimated in the same passes: each pass's t
 smoothed, give their EM fixed point (:mod:`mapassoc.estimator.noise_levels`, where the
 starts and the choice of returning the last update are explained), and the next pass
 runs with it; the iteration has converged when they too moved by less than
-``rate_tolerance`` (relative).
+``rate_tolerance`` (relative).  With ``soft_counts`` each detection of a track enters
+the noise sums weighted by the confidence pass's probability that it is the track's
+own (:func:`~mapassoc.estimator.noise_levels.association_weights`), so a false alarm or
+a neighbour's detection the MAP set took does not count as the target's motion or the
+sensor's noise.
 
 Birth model.  The ``"auto"`` keys of ``[birth]`` (``rate``, ``initial_count``,
 ``survival_probability``, ``velocity_std``) join the passes the same way: each pass's
@@ -81,7 +85,9 @@ tracks, counted under the birth model and smoothed, give their M step
 (:mod:`mapassoc.estimator.birth_estimation`, where the starts are explained), the next
 pass runs with it, and they too must move by less than ``rate_tolerance`` (relative) for
 the iteration to have converged; like the noise levels, the last pass's update is what
-is returned.
+is returned.  With ``soft_counts`` each track counts as much as the confidence pass's
+probability that it is a target (its existence), so clutter joined by chance and
+fragments of a target's track do not count as births.
 
 Long recordings are not run in full at every pass: the passes run on at most
 ``sample_scans`` scans, in blocks spread evenly over the recording (each block a
@@ -694,7 +700,8 @@ class EMSettings:
         Most passes, most scans a pass runs on, blocks of that sample (each >= 1).
     soft_counts : bool
         Whether the E step counts the association probabilities of a confidence pass
-        over each pass's tracks (True) or its hard associations (False).
+        over each pass's tracks (True: for ``Pd``, the rate, the noise levels and the
+        birth keys) or its hard associations (False).
 
     Raises
     ------
