@@ -117,6 +117,7 @@ __all__ = [
     "MIN_DETECTION_WEIGHT",
     "ECME_ROUNDS",
     "ECME_SPAN",
+    "ECME_NEAR_SPAN",
     "ECME_LOG_TOLERANCE",
     "association_weights",
     "NOISE_TOLERANCE",
@@ -486,31 +487,38 @@ def _ecme(
     """The EM's levels refined by ECME rounds (module docstring): each an EM update of
     every level, then ``noise_intensity`` replaced by the maximiser of the tracks'
     observed-data log-likelihood at the updated stds (:func:`_best_intensity`), until a
-    round moves every level by at most :data:`NOISE_TOLERANCE` (relative) or
-    :data:`ECME_ROUNDS` rounds."""
+    round moves ``noise_intensity`` by at most the search's own resolution
+    (:data:`ECME_LOG_TOLERANCE` in ``log q``; a finer test would never pass) and every
+    std by at most :data:`NOISE_TOLERANCE` (relative), or :data:`ECME_ROUNDS` rounds.
+    After the first round the search spans :data:`ECME_NEAR_SPAN` either side."""
+    span = ECME_SPAN
     for _ in range(ECME_ROUNDS):
         stds = _from_vector(asked, like, update(values)).noise_std
 
         def at_stds(q: float, stds: dict[str, tuple[float, ...]] = stds) -> float:
             return log_likelihood(NoiseLevels(q, stds))
 
-        q = _best_intensity(at_stds, float(values[0]), floor)
+        q = _best_intensity(at_stds, float(values[0]), floor, span)
         new = NoiseLevels(q, stds).vector()
-        moved = bool(np.all(np.abs(new - values) <= NOISE_TOLERANCE * np.maximum(new, values)))
-        values = new
-        if moved:
+        settled = abs(math.log(q / values[0])) <= ECME_LOG_TOLERANCE and bool(
+            np.all(np.abs(new[1:] - values[1:]) <= NOISE_TOLERANCE * np.maximum(new, values)[1:])
+        )
+        values, span = new, ECME_NEAR_SPAN
+        if settled:
             break
     return values
 
 
-def _best_intensity(log_likelihood: Callable[[float], float], q: float, floor: float) -> float:
-    """The ``noise_intensity`` in ``[q / ECME_SPAN, q * ECME_SPAN]`` (and at least
+def _best_intensity(
+    log_likelihood: Callable[[float], float], q: float, floor: float, span: float
+) -> float:
+    """The ``noise_intensity`` in ``[q / span, q * span]`` (and at least
     ``floor``) that maximises ``log_likelihood``: golden-section search on ``log q`` to
     :data:`ECME_LOG_TOLERANCE` (the profile likelihood of the process noise given the
     tracks is unimodal in the cases measured and flat on a wide range near its top, where
     the EM creeps)."""
-    low = max(math.log(q) - math.log(ECME_SPAN), math.log(floor))
-    high = math.log(q) + math.log(ECME_SPAN)
+    low = max(math.log(q) - math.log(span), math.log(floor))
+    high = math.log(q) + math.log(span)
     ratio = (math.sqrt(5.0) - 1.0) / 2.0
     a, b = high - ratio * (high - low), low + ratio * (high - low)
     fa, fb = log_likelihood(math.exp(a)), log_likelihood(math.exp(b))
@@ -523,13 +531,18 @@ def _best_intensity(log_likelihood: Callable[[float], float], q: float, floor: f
             low, a, fa = a, b, fb
             b = low + ratio * (high - low)
             fb = log_likelihood(math.exp(b))
+    if low <= math.log(floor):  # at the floor: return it, so the M step notes it
+        return floor
     return math.exp((low + high) / 2.0)
 
 
 ECME_ROUNDS = 4
 """Most ECME rounds after the EM in one noise M step (each an EM update and a search)."""
 ECME_SPAN = 1e3
-"""The search for ``noise_intensity`` spans this factor either side of the round's start."""
+"""The first round's search for ``noise_intensity`` spans this factor either side of the
+EM's result."""
+ECME_NEAR_SPAN = 10.0
+"""A later round's search spans this factor either side of the last round's result."""
 ECME_LOG_TOLERANCE = 0.02
 """Width in ``log q`` at which the search stops (2 per cent in ``q``)."""
 

