@@ -441,8 +441,10 @@ class ParameterSettings:
         Blocks the sample of a longer recording is cut into (>= 1).
     soft_counts : bool
         Whether each pass counts association probabilities (a confidence pass over its
-        tracks) rather than hard associations when it updates ``Pd`` and the false-alarm
-        rate.
+        tracks) rather than hard associations when it updates ``Pd``, the false-alarm
+        rate, the "auto" noise levels (each detection weighted by the probability that
+        it is its track's) and the "auto" birth keys (each track weighted by its
+        existence probability).
     """
 
     rate_tolerance: float = 0.02

@@ -67,6 +67,14 @@ Decisions:
 * Only tracks with at least :data:`MIN_BIRTH_DETECTIONS` detections are counted: a
   single detection is as much a false alarm as a target's, and counting the estimator's
   single-detection tracks as targets would confirm whatever birth intensity made them.
+* Existence weights (``soft_counts``, the default).  A track of the MAP set may be
+  clutter joined by chance or a piece of a target's track; the confidence pass gives
+  each the probability that its first detection starts a target
+  (:attr:`~mapassoc.estimator.confidence.TrackConfidence.existence`), and each track's
+  responsibilities, end and exposure count that much: the expected counts of the
+  complete-data Poisson likelihood under the track set's uncertainty (Dempster, Laird
+  and Rubin, "Maximum likelihood from incomplete data via the EM algorithm", 1977).
+  ``velocity_std`` stays unweighted (its tracks have five detections or more).
 * No event is never observed: where the tracks give no births or no ends, half of one is
   counted (:data:`UNSEEN_EVENTS`; the posterior mean of a Poisson count of 0 under
   Jeffreys' prior), since a rate of 0 lets no track start after the first scan and a
@@ -237,6 +245,9 @@ class BlockTracks:
     starts_recording : bool
         Whether the block starts at the recording's first scan (its population at the
         first scan is ``initial_count``; else a nuisance parameter).
+    weights : ndarray, shape (M,), optional
+        Each counted track's probability of being a target (module docstring, existence
+        weights); None: 1 each.
     """
 
     times: FloatArray
@@ -244,6 +255,12 @@ class BlockTracks:
     firsts: np.ndarray
     lasts: np.ndarray
     starts_recording: bool
+    weights: FloatArray | None = None
+
+    @property
+    def track_weights(self) -> FloatArray:
+        """:attr:`weights`, ones where None."""
+        return np.ones(self.firsts.size) if self.weights is None else self.weights
 
     @property
     def birth_scans(self) -> int:
@@ -256,18 +273,26 @@ def block_tracks(
     scans: Sequence[Scan],
     tracks: Mapping[int, Mapping[int, int]],
     starts_recording: bool,
+    existence: Mapping[int, float] | None = None,
 ) -> BlockTracks:
-    """One block's :class:`BlockTracks` from its tracks (scan index -> detection index),
-    those with at least :data:`MIN_BIRTH_DETECTIONS` detections; ``Pd`` from
-    ``config``'s sensors."""
-    counted = [sorted(t) for t in tracks.values() if len(t) >= MIN_BIRTH_DETECTIONS]
+    """One block's :class:`BlockTracks` from its tracks (track id -> scan index ->
+    detection index), those with at least :data:`MIN_BIRTH_DETECTIONS` detections;
+    ``Pd`` from ``config``'s sensors; with ``existence`` (track id -> probability of
+    being a target), each track weighted by it (a track not given, or nan: 1)."""
+    ids = [i for i, t in tracks.items() if len(t) >= MIN_BIRTH_DETECTIONS]
+    counted = [sorted(tracks[i]) for i in ids]
     pd = np.array([config.sensors[scan.sensor].detection_probability for scan in scans], float)
+    weights = None
+    if existence is not None:
+        given = [existence.get(i, 1.0) for i in ids]
+        weights = np.clip(np.nan_to_num(np.array(given, float), nan=1.0), 0.0, 1.0)
     return BlockTracks(
         times=np.array([scan.time for scan in scans], dtype=float),
         missed=np.maximum(1.0 - pd, _TINY),
         firsts=np.array([t[0] for t in counted], dtype=np.int64),
         lasts=np.array([t[-1] for t in counted], dtype=np.int64),
         starts_recording=starts_recording,
+        weights=weights,
     )
 
 
@@ -328,9 +353,10 @@ def count_update(
         births, new_starts = 0.0, []
         for block, q_b, start in zip(blocks, q, nuisance, strict=True):
             share = _initial_share(block, survival, start, rate)
-            new_starts.append(float(share.sum()) + start * q_b[0])
+            weight = block.track_weights
+            new_starts.append(float(weight @ share) + start * q_b[0])
             unseen = float(q_b[block.times.size - block.birth_scans :].sum())
-            births += float((1.0 - share).sum()) + rate * unseen
+            births += float(weight @ (1.0 - share)) + rate * unseen
         new_rate = max(births, UNSEEN_EVENTS) / max(scans, 1) if fit_rate else rate
         new_starts = [
             value if (fit_initial or not block.starts_recording) else initial_count
@@ -374,10 +400,12 @@ def _survival_sums(block: BlockTracks, survival: float) -> tuple[float, float]:
     die = np.r_[-np.expm1(log_step), 1.0]  # dead before c + 1; the last: censored
     weights = np.exp(log_w) * die[None, :]
     weights /= weights.sum(axis=1, keepdims=True)
+    weights *= block.track_weights[:, None]  # each track's end counts as it exists
     half = np.r_[dt / 2.0, 0.0]
     extra = (times[None, :] - times[block.lasts][:, None] + half[None, :]) * weights
     ends = float(weights[:, :-1].sum())
-    exposure = float((times[block.lasts] - times[block.firsts]).sum() + extra.sum())
+    span = block.track_weights @ (times[block.lasts] - times[block.firsts])
+    exposure = float(span + extra.sum())
     return ends, exposure
 
 
@@ -425,6 +453,7 @@ def birth_m_step(
     starts_recording: Sequence[bool],
     associations: Sequence[Mapping[int, Mapping[int, int]]],
     current: BirthLevels,
+    existence: Sequence[Mapping[int, float] | None] | None = None,
 ) -> tuple[BirthLevels, tuple[str, ...]]:
     """The birth keys the pass's tracks give (module docstring), and notes of what they
     could not estimate (kept).
@@ -441,10 +470,14 @@ def birth_m_step(
         Per block, every track as scan index -> detection index.
     current : BirthLevels
         The values the pass ran with.
+    existence : sequence of mapping or None, optional
+        Per block, track id -> probability that the track is a target (the confidence
+        pass's existence; module docstring); None: every track counts 1.
     """
     values, notes = dict(current.values), []
-    blocks = [block_tracks(config, piece, tracks, first) for piece, tracks, first
-              in zip(pieces, associations, starts_recording, strict=True)]  # fmt: skip
+    exist = [None] * len(pieces) if existence is None else list(existence)
+    blocks = [block_tracks(config, piece, tracks, first, e) for piece, tracks, first, e
+              in zip(pieces, associations, starts_recording, exist, strict=True)]  # fmt: skip
     birth = config.birth
     survival = birth.survival_probability
     if "survival_probability" in values:

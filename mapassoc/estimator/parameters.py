@@ -73,7 +73,11 @@ noise stds (:attr:`Config.auto`) are estimated in the same passes: each pass's t
 smoothed, give their EM fixed point (:mod:`mapassoc.estimator.noise_levels`, where the
 starts and the choice of returning the last update are explained), and the next pass
 runs with it; the iteration has converged when they too moved by less than
-``rate_tolerance`` (relative).
+``rate_tolerance`` (relative).  With ``soft_counts`` each detection of a track enters
+the noise sums weighted by the confidence pass's probability that it is the track's
+own (:func:`~mapassoc.estimator.noise_levels.association_weights`), so a false alarm or
+a neighbour's detection the MAP set took does not count as the target's motion or the
+sensor's noise.
 
 Birth model.  The ``"auto"`` keys of ``[birth]`` (``rate``, ``initial_count``,
 ``survival_probability``, ``velocity_std``) join the passes the same way: each pass's
@@ -81,7 +85,9 @@ tracks, counted under the birth model and smoothed, give their M step
 (:mod:`mapassoc.estimator.birth_estimation`, where the starts are explained), the next
 pass runs with it, and they too must move by less than ``rate_tolerance`` (relative) for
 the iteration to have converged; like the noise levels, the last pass's update is what
-is returned.
+is returned.  With ``soft_counts`` each track counts as much as the confidence pass's
+probability that it is a target (its existence), so clutter joined by chance and
+fragments of a target's track do not count as births.
 
 Long recordings are not run in full at every pass: the passes run on at most
 ``sample_scans`` scans, in blocks spread evenly over the recording (each block a
@@ -122,6 +128,7 @@ from mapassoc.estimator.noise_levels import (
     MIN_TRACK_DETECTIONS,
     NoiseAsked,
     NoiseLevels,
+    association_weights,
     associations_of,
     initial_noise,
     levels_close,
@@ -693,7 +700,8 @@ class EMSettings:
         Most passes, most scans a pass runs on, blocks of that sample (each >= 1).
     soft_counts : bool
         Whether the E step counts the association probabilities of a confidence pass
-        over each pass's tracks (True) or its hard associations (False).
+        over each pass's tracks (True: for ``Pd``, the rate, the noise levels and the
+        birth keys) or its hard associations (False).
 
     Raises
     ------
@@ -804,12 +812,22 @@ class EStep:
         Per block, every track as scan index -> detection index
         (:func:`~mapassoc.estimator.noise_levels.associations_of`; empty when no noise
         level or birth key is asked for).
+    weights : tuple of dict
+        Per block, track id -> {scan index -> probability that its detection there is
+        its own} (:func:`~mapassoc.estimator.noise_levels.association_weights`; a block
+        without a confidence pass, hard counts, gives an empty dict; empty when no noise
+        level is asked for).
+    existence : tuple of dict or None
+        Per block, track id -> the confidence pass's probability that the track is a
+        target (None: no confidence pass; empty when no birth key is asked for).
     """
 
     counts: dict[str, AssociationCounts]
     tracks: int
     last_run: tuple[WindowEstimator, RunState, list[WindowReport]] | None
     associations: tuple[dict[int, dict[int, int]], ...] = ()
+    weights: tuple[dict[int, dict[int, float]], ...] = ()
+    existence: tuple[dict[int, float] | None, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -936,12 +954,15 @@ class ParameterEM:
                 )
 
         runs = [_forward_run(estimator, piece, check_stop) for piece in self.pieces]
-        by_piece = [
-            association_counts(
-                piece, result.tracks, self.asked, self._confidence(state, piece, result)
-            )
+        confidences = [
+            self._confidence(state, piece, result)
             for piece, (result, _, _) in zip(self.pieces, runs, strict=True)
         ]
+        by_piece = [
+            association_counts(piece, result.tracks, self.asked, confidence)
+            for piece, (result, _, _), confidence in zip(self.pieces, runs, confidences,
+                                                          strict=True)
+        ]  # fmt: skip
         return EStep(
             counts={name: _merge([counts[name] for counts in by_piece]) for name in self.asked},
             tracks=sum(len(result.track_rows) for result, _, _ in runs),
@@ -950,6 +971,15 @@ class ParameterEM:
                 associations_of(piece, result.track_rows, min_detections=1)
                 for piece, (result, _, _) in zip(self.pieces, runs, strict=True)
             ) if self.noise.any or self.birth.any else (),
+            weights=tuple(
+                {} if confidence is None
+                else association_weights(piece, result.track_rows, confidence.associations)
+                for piece, (result, _, _), confidence in zip(self.pieces, runs, confidences,
+                                                              strict=True)
+            ) if self.noise.any else (),
+            existence=tuple(
+                None if confidence is None else confidence.existence for confidence in confidences
+            ) if self.birth.any else (),
         )  # fmt: skip
 
     def _confidence(
@@ -1035,13 +1065,14 @@ class ParameterEM:
             longer = [{i: d for i, d in tracks.items() if len(d) >= MIN_TRACK_DETECTIONS}
                       for tracks in e.associations]  # fmt: skip
             noise, noise_notes = noise_m_step(
-                self._pass_config(state), self.pieces, longer, self.noise, state.noise
+                self._pass_config(state), self.pieces, longer, self.noise, state.noise,
+                e.weights or None,
             )
         birth, birth_notes = state.birth, state.birth_notes
         if state.birth is not None:
             birth, birth_notes = birth_m_step(
                 self._pass_config(state), self.pieces, self.starts_recording, e.associations,
-                state.birth,
+                state.birth, e.existence or None,
             )  # fmt: skip
         record = EstimationPass(
             index=len(state.passes), used=dict(state.current), updated=m.updated,

@@ -42,6 +42,18 @@ likelihood through that prior exactly as a detection does; it is counted as one,
 formula above is the exact maximiser.  Models whose noise is not one scaled matrix
 (coordinated turn, Singer, a model set) are refused by :func:`unit_process_noise`.
 
+Association weights.  A track's detection may enter with a weight ``w`` in (0, 1], the
+probability that it is the track's own (the parameter EM takes it from the confidence
+pass, :mod:`mapassoc.estimator.noise_levels`): the smoother then sees it with noise
+covariance ``R / w`` (:func:`~mapassoc.filtering.smoothing.weighted_measurement`, the
+synthetic measurement of Streit and Luginbuhl's probabilistic multi-hypothesis tracking)
+and the ``sigma`` sums count ``w`` times its squares over ``sum w`` detections: the
+expected complete-data statistics under the association probabilities, as in the EM of
+Dempster, Laird and Rubin ("Maximum likelihood from incomplete data via the EM
+algorithm", JRSS B 1977).  A false alarm taken into a track with a low weight then neither
+bends the smoothed path (whose accelerations are the ``q`` sums) nor counts its residual
+as the sensor's noise.  Without weights every detection counts 1.
+
 Sums rather than estimates are returned so that tracks, sample blocks and passes can be
 pooled before dividing (:meth:`ProcessNoiseSums.plus`).
 """
@@ -49,7 +61,7 @@ pooled before dividing (:meth:`ProcessNoiseSums.plus`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,7 +70,12 @@ from mapassoc.array_types import FloatArray
 from mapassoc.data.config import Config
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
-from mapassoc.filtering.smoothing import Associations, LagOneTrack, smooth_track_lag_one
+from mapassoc.filtering.smoothing import (
+    Associations,
+    DetectionWeights,
+    LagOneTrack,
+    smooth_track_lag_one,
+)
 from mapassoc.models.interacting import InteractingModels
 from mapassoc.models.measurement import LinearMeasurement, MeasurementModel
 from mapassoc.models.motion import ConstantAcceleration, ConstantVelocity, MotionModel, RandomWalk
@@ -118,13 +135,13 @@ class MeasurementNoiseSums:
     Attributes
     ----------
     squares : ndarray, shape (d,)
-        Per position component, ``sum [(z - H x)_i^2 + (H P H^T)_ii]``.
-    count : int
-        Detections summed.
+        Per position component, ``sum w [(z - H x)_i^2 + (H P H^T)_ii]``.
+    count : float
+        Detections summed (their weights ``w`` summed; 1 each without weights).
     """
 
     squares: FloatArray
-    count: int = 0
+    count: float = 0.0
 
     def plus(self, other: MeasurementNoiseSums) -> MeasurementNoiseSums:
         """The sums of both (same number of components)."""
@@ -267,7 +284,7 @@ def process_noise_sums(
 
 
 def measurement_noise_sums(
-    *, residuals: FloatArray, projected_covariances: FloatArray
+    *, residuals: FloatArray, projected_covariances: FloatArray, weights: FloatArray | None = None
 ) -> MeasurementNoiseSums:
     """The sums of a sensor's ``sigma`` update (module docstring).
 
@@ -277,6 +294,8 @@ def measurement_noise_sums(
         ``z - H x`` of each detection, ``x`` the smoothed mean at its scan.
     projected_covariances : ndarray, shape (m, d, d)
         ``H P H^T``, ``P`` the smoothed covariance there.
+    weights : ndarray, shape (m,), optional
+        Each detection's weight in (0, 1] (module docstring); default 1 each.
 
     Returns
     -------
@@ -293,15 +312,19 @@ def measurement_noise_sums(
     m, d = r.shape
     S = _check_stack("projected_covariances", projected_covariances, (m, d, d))
     _check_stack("residuals", r, (m, d))
-    squares = (r**2).sum(axis=0) + np.diagonal(S, axis1=-2, axis2=-1).sum(axis=0)
-    return MeasurementNoiseSums(squares=squares, count=m)
+    w = np.ones(m) if weights is None else _check_stack("weights", weights, (m,))
+    if np.any(w <= 0) or np.any(w > 1):
+        raise InputError("weights must be in (0, 1]")
+    squares = w @ (r**2) + w @ np.diagonal(S, axis1=-2, axis2=-1)
+    return MeasurementNoiseSums(squares=squares, count=float(w.sum()))
 
 
 def track_noise_sums(
     scans: Sequence[Scan], track: LagOneTrack, config: Config, sensors: Collection[str]
 ) -> NoiseSums:
     """The sums of one smoothed track: its transitions (when the motion model's noise is
-    scalable; else none) and its detections by the ``sensors`` (position sensors)."""
+    scalable; else none) and its detections by the ``sensors`` (position sensors), each
+    weighted by ``track.weights`` (module docstring)."""
     motion = config.motion
     process = ProcessNoiseSums()
     if scalable_process_noise(motion):
@@ -313,6 +336,7 @@ def track_noise_sums(
         )  # fmt: skip
     residuals: dict[str, list[FloatArray]] = {name: [] for name in sensors}
     projected: dict[str, list[FloatArray]] = {name: [] for name in sensors}
+    weights: dict[str, list[float]] = {name: [] for name in sensors}
     for step, j in track.detections.items():
         scan = scans[track.scan_indices[step]]
         if scan.sensor not in residuals:
@@ -320,18 +344,24 @@ def track_noise_sums(
         H = config.sensors[scan.sensor].measurement.H  # type: ignore[attr-defined]
         residuals[scan.sensor].append(scan.detections[j] - H @ track.means[step])
         projected[scan.sensor].append(H @ track.covariances[step] @ H.T)
+        weights[scan.sensor].append(track.weights.get(step, 1.0))
     measurement = {}
     for name in sensors:
         d = config.sensors[name].measurement.measurement_dim
         measurement[name] = measurement_noise_sums(
             residuals=np.array(residuals[name]).reshape(-1, d),
             projected_covariances=np.array(projected[name]).reshape(-1, d, d),
+            weights=np.array(weights[name], dtype=float),
         )
     return NoiseSums(process, measurement)
 
 
 def noise_sums(
-    scans: Sequence[Scan], associations: Associations, config: Config, sensors: Collection[str]
+    scans: Sequence[Scan],
+    associations: Associations,
+    config: Config,
+    sensors: Collection[str],
+    weights: Mapping[int, DetectionWeights] | None = None,
 ) -> NoiseSums:
     """The sums of every track of ``associations``, each smoothed under ``config``
     (:func:`~mapassoc.filtering.smoothing.smooth_track_lag_one`).
@@ -346,6 +376,9 @@ def noise_sums(
         The current parameters.
     sensors : collection of str
         The position sensors whose ``sigma`` sums to collect.
+    weights : mapping of int to mapping of int to float, optional
+        Track id -> {scan index -> weight in (0, 1] of its detection there} (module
+        docstring); a track or scan not given counts 1.
 
     Returns
     -------
@@ -374,7 +407,9 @@ def noise_sums(
     for track_id in sorted(associations):
         detections = associations[track_id]
         if detections:
-            track = smooth_track_lag_one(scans, detections, config)
+            track = smooth_track_lag_one(
+                scans, detections, config, None if weights is None else weights.get(track_id)
+            )
             out = out.plus(track_noise_sums(scans, track, config, sensors))
     return out
 

@@ -47,7 +47,7 @@ works for any model that converts, with dimensions from ``state_dim``.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -58,7 +58,13 @@ from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.filtering.batch import KalmanFilter
 from mapassoc.filtering.imm import imm_filter, imm_smooth
-from mapassoc.filtering.kalman import FilterStep, rts_cross_covariances, rts_smooth
+from mapassoc.filtering.kalman import (
+    FilterStep,
+    innovation,
+    inverse_and_logdet,
+    rts_cross_covariances,
+    rts_smooth,
+)
 from mapassoc.models.birth import (
     birth_state,
     convert_initiated,
@@ -67,22 +73,28 @@ from mapassoc.models.birth import (
     needs_conversion,
 )
 from mapassoc.models.interacting import InteractingModels
-from mapassoc.models.measurement import MeasurementModel
+from mapassoc.models.measurement import LinearMeasurement, MeasurementModel
 from mapassoc.models.motion import MotionModel
 from mapassoc.models.population import BirthModel
 
 __all__ = [
     "Associations",
+    "DetectionWeights",
     "LagOneTrack",
+    "weighted_measurement",
     "SmoothedTrack",
     "smooth_track",
     "smooth_track_lag_one",
+    "track_log_likelihood",
     "smooth_tracks",
     "smoothed_track",
 ]
 
 #: Track id -> {scan index -> index of the track's detection in that scan}.
 Associations = Mapping[int, Mapping[int, int]]
+
+#: Scan index -> weight in (0, 1] of the track's detection there (absent: 1).
+DetectionWeights = Mapping[int, float]
 
 _KALMAN = KalmanFilter()
 """The batched filter interface, on batches of one track (the steps of the trees)."""
@@ -104,6 +116,35 @@ def _update(
     nu = innovation.residuals(z[None])
     x_post, P_post = _KALMAN.update(x[None], P[None], innovation, np.zeros(1, np.int64), nu)
     return x_post[0], P_post[0]
+
+
+def weighted_measurement(measurement: MeasurementModel, weight: float) -> MeasurementModel:
+    """``measurement`` with its noise covariance ``R / weight``: a detection that is the
+    track's own with probability ``weight``.
+
+    This is the synthetic measurement of Streit and Luginbuhl's probabilistic
+    multi-hypothesis tracking ("Probabilistic multi-hypothesis tracking", NUWC-NPT
+    Technical Report 10,428, 1995): in the EM's expected complete-data log-likelihood a
+    detection assigned with probability ``w`` enters as ``w (z - Hx)^T R^-1 (z - Hx)``,
+    which is a Gaussian measurement of covariance ``R / w``, so a smoother run with it is
+    the exact E step under those weights.  Only linear measurements are weighted (the
+    noise-level EM takes position sensors only); a weight of 1 returns ``measurement``.
+
+    Raises
+    ------
+    InputError
+        A weight outside (0, 1], or a weight below 1 for a measurement that is not linear.
+    """
+    if not 0.0 < weight <= 1.0:
+        raise InputError(f"a detection weight must be in (0, 1], got {weight!r}")
+    if weight == 1.0:
+        return measurement
+    if not isinstance(measurement, LinearMeasurement):
+        raise InputError(f"only a linear measurement can be weighted, got {measurement!r}")
+    return LinearMeasurement(
+        H=measurement.H, R=measurement.R / weight, component_names=measurement.component_names,
+        position_indices=measurement.position_indices,
+    )  # fmt: skip
 
 
 class _Segment:
@@ -199,9 +240,14 @@ class SmoothedTrack:
 
 
 def _filter_track(
-    scans: Sequence[Scan], detections: Mapping[int, int], config: Config
+    scans: Sequence[Scan],
+    detections: Mapping[int, int],
+    config: Config,
+    weights: DetectionWeights | None = None,
 ) -> tuple[list[int], _Segment, _Segment | None]:
-    """The forward pass of :func:`smooth_track` (steps 1 and 2 of the module docstring).
+    """The forward pass of :func:`smooth_track` (steps 1 and 2 of the module docstring),
+    each detection's noise covariance divided by its weight (:func:`weighted_measurement`;
+    the first detection's too, through the birth state's position covariance).
 
     Returns
     -------
@@ -220,7 +266,13 @@ def _filter_track(
     scan_indices = list(range(first, last + 1))
     first_scan = scans[first]
     z0 = first_scan.detections[detections[first]]
-    x, P = birth_state(motion, config.sensors[first_scan.sensor].measurement, z0, birth)
+    weight = {} if weights is None else weights
+    x, P = birth_state(
+        motion,
+        weighted_measurement(config.sensors[first_scan.sensor].measurement, weight.get(first, 1.0)),
+        z0,
+        birth,
+    )
     early = _Segment(x=x, P=P)
     late: _Segment | None = None if converts else early
     for k in scan_indices[1:]:
@@ -232,7 +284,9 @@ def _filter_track(
         else:
             x_pred, P_pred, F = x, P, np.eye(x.shape[0])
         if k in detections:
-            measurement = config.sensors[scan.sensor].measurement
+            measurement = weighted_measurement(
+                config.sensors[scan.sensor].measurement, weight.get(k, 1.0)
+            )
             if late is None:
                 measurement = initiation_measurement(motion, measurement)
             x, P = _update(measurement, x_pred, P_pred, scan.detections[detections[k]])
@@ -350,6 +404,9 @@ class LagOneTrack:
         Entry k: the time from step k-1 to k; entry 0 is 0.
     detections : dict of int to int
         Step index (0..T-1) -> index of the track's detection in that step's scan.
+    weights : dict of int to float
+        Step index -> weight of the detection there, for the detections smoothed with a
+        weight below 1 (:func:`weighted_measurement`); absent: 1.
     """
 
     scan_indices: list[int]
@@ -359,10 +416,14 @@ class LagOneTrack:
     transitions: FloatArray
     dts: FloatArray
     detections: dict[int, int]
+    weights: dict[int, float] = field(default_factory=dict)
 
 
 def smooth_track_lag_one(
-    scans: Sequence[Scan], detections: Mapping[int, int], config: Config
+    scans: Sequence[Scan],
+    detections: Mapping[int, int],
+    config: Config,
+    weights: DetectionWeights | None = None,
 ) -> LagOneTrack:
     """:func:`smooth_track` of a model that does not convert, with the lag-one
     cross-covariances (:func:`~mapassoc.filtering.kalman.rts_cross_covariances`).
@@ -379,6 +440,10 @@ def smooth_track_lag_one(
     detections : mapping of int to int
         Scan index -> index of the track's detection in that scan.
     config : Config
+    weights : mapping of int to float, optional
+        Scan index -> weight in (0, 1] of the detection there (absent: 1): the
+        probability that it is the track's own, its noise covariance divided by it
+        (:func:`weighted_measurement`).
 
     Returns
     -------
@@ -395,7 +460,7 @@ def smooth_track_lag_one(
             f"smooth_track_lag_one: motion model {motion!r} is a model set or converts its "
             "initiation state; expected a single model that does not (e.g. constant_velocity)"
         )
-    scan_indices, segment, _ = _filter_track(scans, detections, config)
+    scan_indices, segment, _ = _filter_track(scans, detections, config, weights)
     means, covariances = segment.smooth()
     Pf, Pp, F = (np.array(a) for a in (segment.P_filtered, segment.P_predicted,
                                         segment.transitions))  # fmt: skip
@@ -405,7 +470,55 @@ def smooth_track_lag_one(
         scan_indices=scan_indices, means=means, covariances=covariances,
         cross_covariances=rts_cross_covariances(Pf, Pp, F, covariances), transitions=F,
         dts=np.r_[0.0, np.diff(times)], detections={k - first: j for k, j in detections.items()},
+        weights={k - first: float(w) for k, w in (weights or {}).items()
+                 if k in detections and w != 1.0},
     )  # fmt: skip
+
+
+def track_log_likelihood(
+    scans: Sequence[Scan],
+    detections: Mapping[int, int],
+    config: Config,
+    weights: DetectionWeights | None = None,
+) -> float:
+    """The log-likelihood of a track's detections after its first, given the first:
+    the prediction-error decomposition of the forward pass of :func:`smooth_track`,
+    ``sum_k log N(z_k; H x_k|k-1, H P_k|k-1 H^T + R / w_k)``.
+
+    The observed-data likelihood of the noise levels given the associations (the first
+    detection's term, the birth prior, does not depend on them), which the noise-level
+    EM maximises over the process noise directly (ECME,
+    :mod:`mapassoc.estimator.noise_levels`).  Models as :func:`smooth_track_lag_one`'s.
+
+    Raises
+    ------
+    InputError
+        A model set, or a motion model that converts its initiation state.
+    """
+    motion = config.motion
+    if isinstance(motion, InteractingModels) or needs_conversion(motion):
+        raise InputError(
+            f"track_log_likelihood: motion model {motion!r} is a model set or converts its "
+            "initiation state; expected a single model that does not (e.g. constant_velocity)"
+        )
+    scan_indices, segment, _ = _filter_track(scans, detections, config, weights)
+    weight = {} if weights is None else weights
+    total = 0.0
+    for step, k in enumerate(scan_indices[1:], start=1):
+        if k not in detections:
+            continue
+        scan = scans[k]
+        measurement = weighted_measurement(
+            config.sensors[scan.sensor].measurement, weight.get(k, 1.0)
+        )
+        x, P = segment.x_predicted[step], segment.P_predicted[step]
+        nu, S, _ = innovation(measurement, x, P, scan.detections[detections[k]])
+        S_inv, logdet = inverse_and_logdet(S[None])
+        total -= 0.5 * (float(nu @ S_inv[0] @ nu) + float(logdet[0]) + nu.size * _LOG_2PI)
+    return total
+
+
+_LOG_2PI = float(np.log(2.0 * np.pi))
 
 
 def _smooth_interacting(

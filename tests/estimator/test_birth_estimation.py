@@ -276,3 +276,30 @@ def test_a_sampled_recording_estimates_from_its_blocks() -> None:
     assert found["survival_probability"] == pytest.approx(
         built.config.birth.survival_probability, abs=0.01
     )
+
+
+def test_tracks_weighted_by_existence_count_as_targets_only_that_much() -> None:
+    """Sixty spurious three-scan tracks (clutter joined by chance) beside the true tracks
+    of the birth-model recording (rate 0.2): with the confidence pass's existence 0 for
+    them and 1 for the true ones, the M step gives what the true tracks alone give; the
+    same tracks counted hard (negative control) more than double the rate and shorten
+    the lives."""
+    scenario = _population(0.2, seed=1)
+    config = scenario.config
+    asked = BirthAsked(dict.fromkeys(("rate", "initial_count", "survival_probability")))
+    levels = initial_birth(config, scenario.scans, asked)
+    run = with_birth_levels(config, levels)
+    tracks = _true_tracks(scenario)
+    rng = np.random.default_rng(5)
+    starts = rng.integers(1, len(scenario.scans) - 3, 60).tolist()
+    spurious = {10_000 + i: {k: 0, k + 1: 0, k + 2: 0} for i, k in enumerate(starts)}
+    existence = {**dict.fromkeys(tracks, 1.0), **dict.fromkeys(spurious, 0.0)}
+    both = {**tracks, **spurious}
+    alone, _ = birth_m_step(run, [scenario.scans], [True], [tracks], levels)
+    weighted, _ = birth_m_step(run, [scenario.scans], [True], [both], levels, [existence])
+    hard, _ = birth_m_step(run, [scenario.scans], [True], [both], levels)
+    for key, value in alone.values.items():
+        assert weighted.values[key] == pytest.approx(value, rel=1e-9)
+    assert alone.values["rate"] == pytest.approx(0.2, rel=0.2)
+    assert hard.values["rate"] > 2 * alone.values["rate"]
+    assert hard.values["survival_probability"] < alone.values["survival_probability"]

@@ -105,7 +105,9 @@ def test_associations_of_keep_the_longer_tracks() -> None:
 @pytest.mark.slow
 def test_auto_noise_levels_are_estimated_and_the_written_configuration_runs() -> None:
     """crossing (targets crossing, 10 false alarms per scan, Pd 0.9; q = 0.002, std 1),
-    600 scans, from four times q and twice the std: both within 20%."""
+    600 scans, from four times q and twice the std: the std within 20%, q within 25%
+    (the maximum of the tracks' likelihood the ECME rounds reach is 0.00159 on this
+    seed, 20.5% below the truth; the EM alone stopped at 0.00164)."""
     built = build_scenario("crossing", 0, scans=600)
     truth = generic_config(built, time_limit=600.0)
     q_true = truth.motion.noise_intensity  # type: ignore[attr-defined]
@@ -113,7 +115,7 @@ def test_auto_noise_levels_are_estimated_and_the_written_configuration_runs() ->
     assert config.auto.noise_intensity and config.auto.noise_std_starts() == {"pos": (2.0,)}
     estimate = estimate_parameters(config, built.scans, finish=False)
     assert estimate.noise is not None and estimate.noise.noise_intensity is not None
-    assert estimate.noise.noise_intensity == pytest.approx(q_true, rel=0.2)
+    assert estimate.noise.noise_intensity == pytest.approx(q_true, rel=0.25)
     assert estimate.noise.noise_std["pos"][0] == pytest.approx(1.0, rel=0.2)
     record = estimate.to_json(timings=False)
     assert record["noise"] == estimate.noise.to_json()
@@ -139,3 +141,93 @@ def test_a_noise_free_track_stops_the_levels_at_their_floor() -> None:
     assert np.all(levels.vector() >= floor)
     assert np.any(np.isclose(levels.vector(), floor))  # the update went down to it
     assert any("floor" in note for note in notes)
+
+
+def _true_tracks(built):  # type: ignore[no-untyped-def]
+    """Each target's detections of a simulated recording (track id = target id)."""
+    target = dict(zip(built.origins.rows.tolist(), built.origins.target_ids.tolist(),
+                      strict=True))  # fmt: skip
+    tracks: dict[int, dict[int, int]] = {}
+    for k, scan in enumerate(built.scans):
+        for j, row in enumerate(scan.rows.tolist()):
+            if target[row] >= 0:
+                tracks.setdefault(target[row], {})[k] = j
+    return tracks
+
+
+def _levels_of(built, tracks, weights=None):  # type: ignore[no-untyped-def]
+    config = _auto(built.config)
+    asked = NoiseAsked.from_config(config)
+    start = NoiseLevels(built.config.motion.noise_intensity, {"pos": (1.0, 1.0)})
+    levels, _ = noise_m_step(built.config, [built.scans], [tracks], asked, start, weights)
+    return levels
+
+
+def test_false_alarms_in_tracks_weighted_by_their_probability_leave_q_near_the_truth() -> None:
+    """Every seventh interior detection of each true track is replaced by a false alarm
+    six noise stds off (what a track takes where its target was missed).  Counted hard,
+    their residuals inflate sigma and throw q off; weighted by a low association probability (0.02,
+    as the confidence pass gives such a detection) they act as misses: the estimates are
+    those of the tracks without them, near the truth (q 0.002, sigma 1).  The true
+    detections weigh 1."""
+    built = build_scenario("crossing", 0)
+    tracks = _true_tracks(built)
+    scans = list(built.scans)
+    weights: dict[int, dict[int, float]] = {}
+    missed = {track_id: dict(detections) for track_id, detections in tracks.items()}
+    for track_id, detections in tracks.items():
+        steps = sorted(detections)
+        weights[track_id] = dict.fromkeys(steps, 1.0)
+        for k in steps[3:-3:7]:
+            scan, j = scans[k], detections[k]
+            moved = scan.detections.copy()
+            moved[j] += 6.0
+            scans[k] = Scan(time=scan.time, sensor=scan.sensor, detections=moved, rows=scan.rows)
+            weights[track_id][k] = 0.02
+            del missed[track_id][k]
+    corrupted = dataclasses.replace(built, scans=scans)
+    truth_q = built.config.motion.noise_intensity
+    without = _levels_of(built, missed)
+    hard = _levels_of(corrupted, tracks)
+    soft = _levels_of(corrupted, tracks, [weights])
+    assert without.noise_intensity == pytest.approx(truth_q, rel=0.5)
+    assert soft.noise_intensity == pytest.approx(without.noise_intensity, rel=0.1)
+    assert soft.noise_std["pos"][0] == pytest.approx(without.noise_std["pos"][0], rel=0.1)
+    assert soft.noise_std["pos"][0] == pytest.approx(1.0, rel=0.1)
+    # Negative control: the same detections counted hard.
+    # Negative control: the same detections counted hard.  Isolated jumps read as
+    # measurement noise: sigma more than doubles and q, fitted beside it, falls far off.
+    assert hard.noise_std["pos"][0] > 1.5
+    assert not truth_q / 3 < hard.noise_intensity < 3 * truth_q
+
+
+def test_the_process_noise_search_reaches_the_maximum_the_em_creeps_towards(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Nearly constant velocity (parallel: q 2e-5 against r 1, 40 scans) from 900 times
+    the truth on the true tracks: the EM's steps shrink as the likelihood flattens and
+    it stops far above (the negative control, without the ECME rounds), while the search
+    over q reaches levels of higher likelihood, at or below the truth (the likelihood is
+    flat there: 40 scans of this process noise move a target less than its measurement
+    noise), and the std stays at 1."""
+    from mapassoc.estimator import noise_levels
+    from mapassoc.filtering.smoothing import track_log_likelihood
+
+    built = build_scenario("parallel", 0)
+    tracks = _true_tracks(built)
+    config = _auto(built.config)
+    asked = NoiseAsked.from_config(config)
+    start = NoiseLevels(0.018, {"pos": (1.0, 1.0)})
+
+    def log_likelihood(levels: NoiseLevels) -> float:
+        run = with_noise_levels(built.config, levels)
+        return sum(track_log_likelihood(built.scans, d, run) for d in tracks.values())
+
+    levels, _ = noise_m_step(built.config, [built.scans], [tracks], asked, start)
+    truth_q = built.config.motion.noise_intensity
+    assert levels.noise_intensity < 3 * truth_q
+    assert levels.noise_std["pos"][0] == pytest.approx(1.0, rel=0.1)
+    monkeypatch.setattr(noise_levels, "ECME_ROUNDS", 0)
+    creeping, _ = noise_m_step(built.config, [built.scans], [tracks], asked, start)
+    assert creeping.noise_intensity > 10 * truth_q
+    assert log_likelihood(levels) > log_likelihood(creeping)
