@@ -434,68 +434,6 @@ def _trace_best_sets(
 
 
 @njit(cache=True)
-def search_work(
-    relative: NDArray[np.uint64],
-    by_start: IntArray,
-    bounds: IntArray,
-    exactly_one: NDArray[np.bool_],
-    counts: IntArray,
-    kmax: int,
-    work_limit: int,
-    entries_per_transition: int,
-    pair_block_entries: int,
-) -> int:
-    """:func:`mapassoc.formulations.frontier.exact_search_work` on the frontier words
-    alone (arguments as for :func:`exact_search`; ``work_limit`` >= 0): the work the
-    exact search would charge, or the work at the step past ``work_limit`` (or at a step
-    with no candidate), where it stops.
-
-    Each step is :func:`_step_pairs` and :func:`_grows` as the searches take them (the
-    same kept frontiers, the same pairs found block by block and the same cut after the
-    block that passes what the limit leaves), so the counts, and the work, are the numpy
-    count's; the distinct next words are ordered by :func:`_stable_order`.
-    """
-    R = bounds.shape[0] - 1
-    covers = np.zeros(1, dtype=np.uint64)
-    span = 1  # k columns, k = 0..span - 1
-    work = 0
-    for step in range(R):
-        keep, n_keep, pair_row, pair_h, n_pairs = _step_pairs(
-            covers,
-            relative,
-            by_start,
-            bounds[step],
-            bounds[step + 1] - bounds[step],
-            exactly_one[step],
-            work_limit,
-            work,
-            span,
-            entries_per_transition,
-            pair_block_entries,
-        )
-        span += _grows(counts, pair_h, n_pairs, span, kmax)
-        rows = n_keep + n_pairs
-        work += -(-rows * span // entries_per_transition)
-        if work > work_limit or rows == 0:
-            return work
-        words = np.empty(rows, dtype=np.uint64)
-        for c in range(n_keep):
-            words[c] = covers[keep[c]] >> np.uint64(1)
-        for p in range(n_pairs):
-            words[n_keep + p] = (covers[pair_row[p]] | relative[pair_h[p]]) >> np.uint64(1)
-        ranked = _stable_order(words)
-        distinct = np.empty(rows, dtype=np.uint64)
-        n_new = 0
-        for i in range(rows):
-            word = words[ranked[i]]
-            if n_new == 0 or word != distinct[n_new - 1]:
-                distinct[n_new] = word
-                n_new += 1
-        covers = distinct[:n_new].copy()
-    return work
-
-
-@njit(cache=True)
 def exact_search(
     relative: NDArray[np.uint64],
     by_start: IntArray,
@@ -711,8 +649,9 @@ def _row_step_pairs(
     most: int,
     pair_block_entries: int,
 ) -> tuple[IntArray, int, IntArray, IntArray, int]:
-    """:func:`_step_pairs` over rows of words, with the pairs' budget ``most`` (``-1``
-    and no limit: :func:`_pair_budget`; ``work_limit < 0`` passes ``_INT64_MAX``)."""
+    """:func:`_step_pairs` over rows of words; ``most`` is the most candidate rows
+    (kept frontiers and pairs) the work limit leaves the step (:func:`_pair_budget`),
+    so the pairs stop after the same block."""
     F = covers.shape[0]
     keep = np.empty(F, dtype=np.int64)
     n_keep = 0
@@ -1224,8 +1163,8 @@ def forward_backward(
 
 
 def _warm_up() -> None:
-    """Compile (or load) :func:`forward_backward`, :func:`exact_search` and
-    :func:`search_work` for the argument types their callers pass."""
+    """Compile (or load) :func:`forward_backward` and :func:`exact_search` for the
+    argument types their callers pass."""
     forward_backward(
         np.array([[1], [1]], dtype=np.uint64),
         np.arange(2, dtype=np.int64),
@@ -1238,17 +1177,6 @@ def _warm_up() -> None:
         30.0,
         100,
         math.inf,
-        8,
-        1 << 18,
-    )
-    search_work(
-        np.array([1, 1], dtype=np.uint64),
-        np.arange(2, dtype=np.int64),
-        np.array([0, 1, 2], dtype=np.int64),
-        np.array([True, False]),
-        np.ones(2, dtype=np.int64),
-        1,
-        100,
         8,
         1 << 18,
     )

@@ -696,31 +696,12 @@ def exact_search_work(
     It stops as soon as the sum passes ``work_limit`` and returns it (the search would
     raise there, with that work), or returns the whole search's work.  ``None`` where
     the vectorised search does not apply.
-
-    Without a ``deadline`` and with numba installed the count runs compiled
-    (:func:`mapassoc.formulations.compiled_frontier.search_work`: the same steps, the
-    same work); a deadline keeps it here, where it is checked at every step.
     """
     layout = _word_layout(problem, order)
     if layout is None:
         return None
     relative, by_start, bounds, exactly_one = layout
     counts = problem.counts
-    kernel = compiled_module(FRONTIER_KERNELS) if deadline is None else None
-    if kernel is not None and work_limit >= 0:
-        return int(
-            kernel.search_work(
-                relative,
-                by_start,
-                bounds,
-                exactly_one,
-                counts.astype(np.int64),
-                int(kmax),
-                kernel_work_limit(work_limit),
-                _VECTOR_ENTRIES_PER_TRANSITION,
-                PAIR_BLOCK_ENTRIES,  # read at the call, as open_pairs does
-            )
-        )
     one = np.uint64(1)
     covers = np.zeros(1, dtype=np.uint64)
     span = 1  # k columns, as in the search: k = 0..span - 1
