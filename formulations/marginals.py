@@ -35,7 +35,9 @@ grows with its frontiers times the hypotheses and positions, not with how far th
 hypotheses span: where a hypothesis spans 64 positions or more (a clutter burst's
 cluster: hundreds of thousands of hypotheses spanning thousands of positions), its
 frontiers are rows of the positions they cover ahead, which order, merge and rank as
-the bit words do.
+the bit words do.  The compiled pass takes frontiers of several 64-bit words, up to
+:data:`_KERNEL_WORDS` of them (the clusters of a confidence window in dense clutter);
+wider spans stay on the numpy pass.
 """
 
 from __future__ import annotations
