@@ -14,10 +14,13 @@ returns a status the caller turns into the search's exception.
 
 A small search costs microseconds here instead of numpy's thousand array calls.
 :func:`forward_backward` is :func:`mapassoc.formulations.marginals.frontier_marginals`'s
-pass in the same way (its own docstring says what is the same); both kernels take a
-step through :func:`_step` and :func:`_candidates`, and the marginals carry and sum their
-k-entries through :func:`_carried` and :func:`_summed` (the exact search fuses the same
-loops with its best scores).
+pass in the same way (its own docstring says what is the same).  Its frontiers are rows
+of several words (:func:`_row_step`, :func:`_row_candidates`), so that it takes
+hypotheses spanning 64 positions or more as well (the beam over a window's burst of
+clutter, which the numpy pass ran on position rows); the exact search keeps one word a
+frontier (:func:`_step`, :func:`_candidates`), as the numpy search it follows does.
+The marginals carry and sum their k-entries through :func:`_carried` and :func:`_summed`
+(the exact search fuses the same loops with its best scores).
 """
 
 from __future__ import annotations
@@ -566,6 +569,219 @@ def _exact_step(
     return FOUND, work, covers, best, mass, winner, source, decision
 
 
+# -- frontier words of several uint64 (the forward-backward marginals) ---------------------
+# A frontier of the marginals' pass is a row of W words, bit i of word w standing for the
+# position 64 w + i ahead: hypotheses spanning 64 positions or more (a burst of clutter in
+# a long window) fit in a few words.  Rows order as the integers they spell (the last
+# word the most significant), which is the order of the numpy pass's Python integers and
+# position rows, so the frontiers are numbered, merged and ranked as there.
+
+
+@njit(cache=True)
+def _row_greater(keys: NDArray[np.uint64], a: int, b: int) -> bool:
+    """Whether row ``a`` of ``keys`` spells a larger integer than row ``b``."""
+    for w in range(keys.shape[1] - 1, -1, -1):
+        if keys[a, w] != keys[b, w]:
+            return keys[a, w] > keys[b, w]
+    return False
+
+
+@njit(cache=True)
+def _stable_row_order(keys: NDArray[np.uint64]) -> IntArray:
+    """:func:`_stable_order` of rows of words (shape (n, W)): insertion sort for a few
+    rows, else the radix passes by bytes from the least significant word's lowest byte
+    up (bytes on which all rows agree skipped); ties keep their order."""
+    n, W = keys.shape
+    order = np.arange(n)
+    if n < _INSERTION_SORT_BELOW:
+        for i in range(1, n):
+            moving = order[i]
+            j = i - 1
+            while j >= 0 and _row_greater(keys, order[j], moving):
+                order[j + 1] = order[j]
+                j -= 1
+            order[j + 1] = moving
+        return order
+    spare = np.empty(n, dtype=np.int64)
+    starts = np.empty(257, dtype=np.int64)
+    byte = np.uint64(0xFF)
+    for w in range(W):
+        ones = np.uint64(0)
+        zeros = ~np.uint64(0)
+        for i in range(n):
+            ones |= keys[i, w]
+            zeros &= keys[i, w]
+        varying = ones ^ zeros
+        for pass_ in range(8):
+            shift = np.uint64(8 * pass_)
+            if (varying >> shift) & byte == np.uint64(0):
+                continue
+            starts[:] = 0
+            for i in range(n):
+                starts[np.int64((keys[order[i], w] >> shift) & byte) + 1] += 1
+            for d in range(256):
+                starts[d + 1] += starts[d]
+            for i in range(n):
+                digit = np.int64((keys[order[i], w] >> shift) & byte)
+                spare[starts[digit]] = order[i]
+                starts[digit] += 1
+            order, spare = spare, order
+    return order
+
+
+@njit(cache=True)
+def _row_fits(covers: NDArray[np.uint64], row: int, relative: NDArray[np.uint64], h: int) -> bool:
+    """Whether hypothesis ``h`` covers no position frontier ``row`` covers."""
+    for w in range(covers.shape[1]):
+        if (covers[row, w] & relative[h, w]) != np.uint64(0):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _row_step_pairs(
+    covers: NDArray[np.uint64],
+    relative: NDArray[np.uint64],
+    by_start: IntArray,
+    first: int,
+    n_start: int,
+    exactly_once: bool,
+    most: int,
+    pair_block_entries: int,
+) -> tuple[IntArray, int, IntArray, IntArray, int]:
+    """:func:`_step_pairs` over rows of words; ``most`` is the most candidate rows
+    (kept frontiers and pairs) the work limit leaves the step (:func:`_pair_budget`),
+    so the pairs stop after the same block."""
+    F = covers.shape[0]
+    keep = np.empty(F, dtype=np.int64)
+    n_keep = 0
+    for row in range(F):
+        if (not exactly_once) or (covers[row, 0] & np.uint64(1)) != np.uint64(0):
+            keep[n_keep] = row
+            n_keep += 1
+    pair_row = np.empty(16, dtype=np.int64)
+    pair_h = np.empty(16, dtype=np.int64)
+    n_pairs = 0
+    if n_start > 0 and most - n_keep >= 0:
+        block = max(1, pair_block_entries // n_start)
+        in_block = 0
+        for row in range(F):
+            if (covers[row, 0] & np.uint64(1)) != np.uint64(0):
+                continue
+            for i in range(n_start):
+                h = by_start[first + i]
+                if _row_fits(covers, row, relative, h):
+                    if n_pairs == pair_row.shape[0]:
+                        pair_row = np.concatenate((pair_row, np.empty_like(pair_row)))
+                        pair_h = np.concatenate((pair_h, np.empty_like(pair_h)))
+                    pair_row[n_pairs] = row
+                    pair_h[n_pairs] = h
+                    n_pairs += 1
+            in_block += 1
+            if in_block == block:
+                in_block = 0
+                if n_pairs > most - n_keep:
+                    break
+    return keep, n_keep, pair_row, pair_h, n_pairs
+
+
+@njit(cache=True)
+def _pair_budget(work_limit: int, work: int, span_now: int, entries_per_transition: int) -> int:
+    """The most candidate rows (kept frontiers and pairs) a step may have without passing
+    ``work_limit`` (:func:`_step_pairs`'s ``most`` plus its kept rows; ``_INT64_MAX``
+    without a limit or past any step's size)."""
+    if work_limit < 0:
+        return _INT64_MAX
+    left = work_limit - work
+    if left > _INT64_MAX // entries_per_transition:
+        return _INT64_MAX
+    return left * entries_per_transition // span_now
+
+
+@njit(cache=True)
+def _row_step(
+    covers: NDArray[np.uint64],
+    problem: tuple[NDArray[np.uint64], IntArray, IntArray, NDArray[np.bool_], IntArray],
+    limits: tuple[int, float, int, int],
+    step: int,
+    span_now: int,
+    kmax: int,
+    work: int,
+) -> tuple[int, int, int, IntArray, int, IntArray, IntArray, int, int]:
+    """:func:`_step` over rows of words (``problem`` and ``limits`` as
+    :func:`_forward_step` takes them): the same rows, work and stops."""
+    relative, by_start, bounds, exactly_one, counts = problem
+    work_limit, projected_limit, entries_per_transition, pair_block_entries = limits
+    R = bounds.shape[0] - 1
+    most = _pair_budget(work_limit, work, span_now, entries_per_transition)
+    keep, n_keep, pair_row, pair_h, n_pairs = _row_step_pairs(
+        covers,
+        relative,
+        by_start,
+        bounds[step],
+        bounds[step + 1] - bounds[step],
+        exactly_one[step],
+        most,
+        pair_block_entries,
+    )
+    cols = span_now + _grows(counts, pair_h, n_pairs, span_now, kmax)
+    C = n_keep + n_pairs
+    step_work = -(-C * cols // entries_per_transition)
+    work += step_work
+    status = FOUND
+    if work_limit >= 0 and work > work_limit:
+        status = PAST_WORK_LIMIT
+    elif work + step_work * (R - 1 - step) > projected_limit:
+        status = PAST_PROJECTION
+    elif C == 0:  # an exactly-once resource no frontier can satisfy
+        status = INFEASIBLE
+    return status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols
+
+
+@njit(cache=True)
+def _row_candidates(
+    covers: NDArray[np.uint64],
+    relative: NDArray[np.uint64],
+    keep: IntArray,
+    n_keep: int,
+    pair_row: IntArray,
+    pair_h: IntArray,
+    n_pairs: int,
+) -> tuple[NDArray[np.uint64], IntArray, IntArray, IntArray, IntArray]:
+    """:func:`_candidates` over rows of words: each row shifted one position (one bit
+    down across the words)."""
+    C = n_keep + n_pairs
+    W = covers.shape[1]
+    words = np.empty((C, W), dtype=np.uint64)
+    source = np.empty(C, dtype=np.int64)
+    decision = np.empty(C, dtype=np.int64)
+    taken = np.empty(W, dtype=np.uint64)
+    for c in range(C):
+        if c < n_keep:
+            source[c] = keep[c]
+            decision[c] = -1
+            for w in range(W):
+                taken[w] = covers[keep[c], w]
+        else:
+            source[c] = pair_row[c - n_keep]
+            decision[c] = pair_h[c - n_keep]
+            for w in range(W):
+                taken[w] = covers[source[c], w] | relative[decision[c], w]
+        for w in range(W - 1):
+            words[c, w] = (taken[w] >> np.uint64(1)) | (taken[w + 1] << np.uint64(63))
+        words[c, W - 1] = taken[W - 1] >> np.uint64(1)
+    ranked = _stable_row_order(words)
+    target = np.empty(C, dtype=np.int64)
+    reached = np.empty((C, W), dtype=np.uint64)
+    group = -1
+    for i in range(C):
+        if i == 0 or _row_greater(words, ranked[i], ranked[i - 1]):
+            group += 1
+            reached[group] = words[ranked[i]]
+        target[ranked[i]] = group
+    return reached[: group + 1].copy(), source, decision, ranked, target
+
+
 @njit(cache=True)
 def _float_key(x: float) -> np.uint64:
     """A uint64 whose unsigned order is the order of the float ``x`` (not NaN)."""
@@ -706,7 +922,7 @@ def _forward_pass(
     problem = (relative, by_start, bounds, exactly_one, counts)
     limits = (work_limit, projected_limit, entries_per_transition, pair_block_entries)
     beam = (entry_margin, max_frontiers)
-    covers = np.zeros(1, dtype=np.uint64)
+    covers = np.zeros((1, relative.shape[1]), dtype=np.uint64)
     mass = np.zeros((1, 1))
     work = 0
     exact = True
@@ -756,35 +972,22 @@ def _forward_step(
     kmax: int,
     work: int,
 ) -> tuple[int, int, int, NDArray[np.uint64], FloatArray, bool, IntArray, IntArray, IntArray]:
-    """One step of :func:`_forward_pass` from the frontiers ``covers`` with their masses
-    (``problem`` and ``limits`` as :func:`_exact_step` takes them; ``beam``: the
+    """One step of :func:`_forward_pass` from the frontiers ``covers`` (rows of words)
+    with their masses (``problem`` and ``limits`` as :func:`_exact_step` takes them, its
+    ``relative`` rows of words; ``beam``: the
     ``entry_margin, max_frontiers`` of :func:`forward_backward`): the status, work and
     step's work, then the frontiers and masses after the step, whether the beam dropped
     anything, and the candidates' frontiers before the step, hypotheses and frontiers
     after it (for a stop: the frontiers as they were and no candidates)."""
-    relative, by_start, bounds, exactly_one, counts = problem
-    work_limit, projected_limit, entries_per_transition, pair_block_entries = limits
+    relative, counts = problem[0], problem[4]
     entry_margin, max_frontiers = beam
-    status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols = _step(
-        covers,
-        relative,
-        by_start,
-        bounds,
-        exactly_one,
-        counts,
-        step,
-        mass.shape[1],
-        kmax,
-        work,
-        work_limit,
-        projected_limit,
-        entries_per_transition,
-        pair_block_entries,
+    status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols = _row_step(
+        covers, problem, limits, step, mass.shape[1], kmax, work
     )
     if status != FOUND:
         none = np.zeros(0, dtype=np.int64)
         return status, work, step_work, covers, mass, False, none, none, none
-    new_covers, source, decision, ranked, target = _candidates(
+    new_covers, source, decision, ranked, target = _row_candidates(
         covers, relative, keep, n_keep, pair_row, pair_h, n_pairs
     )
     candidates = (source, decision, ranked, target)
@@ -894,7 +1097,11 @@ def forward_backward(
 
     Parameters
     ----------
-    relative, by_start, bounds, exactly_one, counts
+    relative : ndarray of uint64, shape (H, W)
+        Each hypothesis's resources as a row of W words relative to its first position
+        (bit i of word w: the position 64 w + i ahead), so that hypotheses spanning 64
+        positions or more are taken too.
+    by_start, bounds, exactly_one, counts
         As for :func:`exact_search`.
     weights : ndarray, shape (H,)
     seeds : ndarray, shape (S, kmax + 1)
@@ -959,7 +1166,7 @@ def _warm_up() -> None:
     """Compile (or load) :func:`forward_backward` and :func:`exact_search` for the
     argument types their callers pass."""
     forward_backward(
-        np.array([1, 1], dtype=np.uint64),
+        np.array([[1], [1]], dtype=np.uint64),
         np.arange(2, dtype=np.int64),
         np.array([0, 1, 2], dtype=np.int64),
         np.array([True, False]),

@@ -35,7 +35,9 @@ grows with its frontiers times the hypotheses and positions, not with how far th
 hypotheses span: where a hypothesis spans 64 positions or more (a clutter burst's
 cluster: hundreds of thousands of hypotheses spanning thousands of positions), its
 frontiers are rows of the positions they cover ahead, which order, merge and rank as
-the bit words do.
+the bit words do.  The compiled pass takes frontiers of several 64-bit words, up to
+:data:`_KERNEL_WORDS` of them (the clusters of a confidence window in dense clutter);
+wider spans stay on the numpy pass.
 """
 
 from __future__ import annotations
@@ -286,10 +288,12 @@ def _compiled_forward_backward(
 ) -> FrontierMarginals | None:
     """:func:`_forward_backward` in the compiled kernel
     (:func:`mapassoc.formulations.compiled_frontier.forward_backward`): the same sums to
-    round-off, the same work, stops and ``exact``; ``None`` where a hypothesis spans 64
-    positions or more (the numpy pass then takes Python integers as words, or, for a
-    beam, rows of covered positions: :class:`_PositionRows`)."""
-    layout = frontier_words(problem, order)
+    round-off, the same work, stops and ``exact``.  A frontier is a row of
+    :func:`_word_rows` words; ``None`` where a hypothesis spans more positions than
+    :data:`_KERNEL_WORDS` words hold, or the hypotheses' rows would pass
+    :data:`_KERNEL_ROW_WORDS` words (the numpy pass then takes Python integers as words,
+    or, for a beam, rows of covered positions: :class:`_PositionRows`)."""
+    layout = _word_rows(problem, order)
     if layout is None:
         return None
     relative, by_start, bounds, exactly_one = layout
@@ -318,6 +322,41 @@ def _compiled_forward_backward(
             "frontier marginals", work, int(step_work), int(remaining), projected_limit, work_limit
         )
     return FrontierMarginals(log_mass, log_total, containing, bool(exact), work)
+
+
+_KERNEL_WORDS = 16
+"""Most uint64 words of a frontier of the compiled pass (spans up to 1,024 positions):
+past them, the numpy pass, whose beam's position rows cost the positions covered
+rather than a bit per position spanned (a clutter burst's cluster spans thousands)."""
+
+_KERNEL_ROW_WORDS = 1 << 22
+"""Most words of the hypotheses' rows the compiled pass builds (32 MB), for the same
+reason."""
+
+
+def _word_rows(
+    problem: PackingProblem, order: NDArray[np.int64]
+) -> tuple[NDArray[np.uint64], NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]] | None:
+    """:func:`~mapassoc.formulations.frontier.frontier_words` with each hypothesis's
+    resources as a row of W words (bit i of word w: the position 64 w + i after its
+    first), W the fewest that hold the widest span; ``None`` past :data:`_KERNEL_WORDS`
+    or :data:`_KERNEL_ROW_WORDS`."""
+    layout = frontier_words(problem, order)
+    if layout is not None:
+        relative, by_start, bounds, exactly_one = layout
+        return relative[:, None].copy(), by_start, bounds, exactly_one
+    H = problem.num_hypotheses
+    owner, offsets, first, last = hypothesis_spans(problem, order)
+    W = int(np.max(last - first)) // _WORD_BITS + 1
+    if W > _KERNEL_WORDS or H * W > _KERNEL_ROW_WORDS:
+        return None
+    rows = np.zeros((H, W), dtype=np.uint64)
+    bits = np.left_shift(np.uint64(1), (offsets % _WORD_BITS).astype(np.uint64))
+    np.bitwise_or.at(rows, (owner, offsets // _WORD_BITS), bits)
+    by_start = np.argsort(first, kind="stable").astype(np.int64, copy=False)
+    bounds = np.searchsorted(first[by_start], np.arange(order.size + 1)).astype(np.int64)
+    exactly_one = np.ascontiguousarray(problem.exactly_one[order], dtype=np.bool_)
+    return rows, by_start, bounds, exactly_one
 
 
 _Spans = tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]

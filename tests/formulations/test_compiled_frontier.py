@@ -6,7 +6,9 @@ work and the same widest frontier; where a work limit or a projection stops the 
 search, the kernel stops with the same reason and the same work; an exactly-once
 resource that no set can meet gives the same infeasible result.  The compiled
 forward-backward marginals are the numpy pass's (per-k masses bit for bit, the
-per-hypothesis sums to round-off).
+per-hypothesis sums to round-off).  Hypotheses spanning 64 positions or more run in
+the marginals kernel too, on frontiers of several words that order as the integers they
+spell.
 """
 
 from __future__ import annotations
@@ -205,3 +207,77 @@ def test_a_huge_work_limit_is_no_limit(monkeypatch: pytest.MonkeyPatch, work_lim
     limited = frontier_marginals(problem, seeds, work_limit=work_limit)
     np.testing.assert_array_equal(limited.log_containing, free.log_containing)
     np.testing.assert_array_equal(limited.log_total, free.log_total)
+
+
+def _wide_problem(rng: np.random.Generator, span: int) -> PackingProblem:
+    """Hypotheses of one to three resources, and a few using ``span + 1`` resources, so
+    that they span ``span`` positions or more in any resource order (a frontier of
+    several words)."""
+    H, R = int(rng.integers(20, 50)), span + int(rng.integers(10, 40))
+    rows = [rng.choice(R, size=int(rng.integers(1, 4)), replace=False) for _ in range(H)]
+    for h in rng.choice(H, size=int(rng.integers(1, 4)), replace=False):
+        rows[h] = np.sort(rng.choice(R, size=span + 1, replace=False))
+    return PackingProblem(
+        rng.normal(0.0, 3.0, size=H),
+        np.r_[0, np.cumsum([len(r) for r in rows])].astype(np.int64),
+        np.concatenate(rows).astype(np.int64),
+        rng.random(R) < 0.05,
+        rng.random(H) < 0.7,
+    )
+
+
+@pytest.mark.parametrize("span", [64, 65, 128, 129, 300])
+@pytest.mark.parametrize("seed", range(6))
+def test_the_marginals_kernel_takes_hypotheses_spanning_64_positions_or_more(
+    seed: int, span: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Frontiers of several words (the sizes the kernel once refused, numpy running them
+    on Python integers or, for a beam, position rows): the same per-k masses bit for bit,
+    ``exact``, work and stops, and log N_h and log Z to round-off, exact or with a beam."""
+    from mapassoc.formulations.marginals import _word_rows
+
+    rng = np.random.default_rng(700 + 10 * seed + span)
+    problem = _wide_problem(rng, span)
+    kmax = int(rng.integers(0, 6))
+    seeds = rng.normal(0.0, 2.0, size=(2, kmax + 1))
+    layout = _word_rows(problem, resource_order(problem))
+    assert layout is not None and layout[0].shape[1] > 1  # several words a frontier
+    whole, _ = _marginals_both(monkeypatch, problem, seeds)
+    assert isinstance(whole, FrontierMarginals)
+    runs: list[dict[str, object]] = [
+        {},
+        {"max_frontiers": 32, "entry_margin": 40.0},
+        {"max_frontiers": int(rng.integers(1, 8))},
+        {"max_frontiers": 4096},
+        {"work_limit": max(1, whole.work // 2), "work_projection": 1.0},
+        {"work_limit": whole.work - 1},
+    ]
+    for options in runs:
+        fast, plain = _marginals_both(monkeypatch, problem, seeds, **options)
+        if not isinstance(plain, FrontierMarginals):
+            assert fast == plain
+            continue
+        assert isinstance(fast, FrontierMarginals)
+        assert (fast.exact, fast.work) == (plain.exact, plain.work)
+        np.testing.assert_array_equal(fast.log_mass, plain.log_mass)
+        for a, b in (
+            (fast.log_total, plain.log_total),
+            (fast.log_containing, plain.log_containing),
+        ):
+            assert np.array_equal(np.isneginf(a), np.isneginf(b))
+            finite = np.isfinite(a)
+            np.testing.assert_allclose(a[finite], b[finite], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("size", [0, 1, 5, 31, 32, 33, 500, 4000])
+def test_the_kernels_row_order_is_the_integers_order(size: int) -> None:
+    """Rows of words sort (stably) as the integers they spell, last word most significant."""
+    from mapassoc.formulations.compiled_frontier import _stable_row_order
+
+    rng = np.random.default_rng(size)
+    keys = rng.integers(0, 4, size=(size, 3)).astype(np.uint64)
+    keys[:, 0] |= rng.integers(0, 2**63, size=size).astype(np.uint64) << np.uint64(1)
+    as_int = [int(k[0]) | int(k[1]) << 64 | int(k[2]) << 128 for k in keys]
+    np.testing.assert_array_equal(
+        _stable_row_order(keys), np.argsort(np.array(as_int, dtype=object), kind="stable")
+    )

@@ -288,9 +288,13 @@ def test_a_beam_over_wide_hypotheses_sums_what_the_word_beam_sums(
     """A beam over hypotheses spanning 64 positions or more keeps its frontiers as rows
     of covered positions: the same frontiers numbered, merged and ranked as with the
     span-wide integer words, so every sum is the same, to the bit; and a beam wide
-    enough to keep every frontier is the exact search."""
+    enough to keep every frontier is the exact search.  (The numpy pass: the compiled
+    one takes these spans on rows of words, compared with it in
+    ``test_compiled_frontier``.)"""
+    from mapassoc.accelerate import COMPILED_SWITCH
     from mapassoc.formulations import marginals
 
+    monkeypatch.setenv(COMPILED_SWITCH, "0")
     rng = np.random.default_rng(100 + trial)
     problem = _wide_problem(rng)
     seeds = np.stack([np.zeros(4), rng.normal(0.0, 1.0, size=4)])
