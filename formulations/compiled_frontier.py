@@ -174,6 +174,41 @@ def _grows(counts: IntArray, pair_h: IntArray, n_pairs: int, span_now: int, kmax
 
 
 @njit(cache=True)
+def _step_work(
+    counts: IntArray,
+    pair_h: IntArray,
+    n_keep: int,
+    n_pairs: int,
+    span_now: int,
+    kmax: int,
+    work: int,
+    limits: tuple[int, float, int],
+    steps_left: int,
+) -> tuple[int, int, int, int]:
+    """A step's k columns after it, its work and the work so far, and whether the search
+    stops here, from its kept frontiers and pairs (both layouts' steps count alike).
+    ``limits``: the work limit, the projected limit and the entries per transition.
+
+    Returns
+    -------
+    status, work, step_work, cols
+    """
+    work_limit, projected_limit, entries_per_transition = limits
+    cols = span_now + _grows(counts, pair_h, n_pairs, span_now, kmax)
+    C = n_keep + n_pairs
+    step_work = -(-C * cols // entries_per_transition)
+    work += step_work
+    status = FOUND
+    if work_limit >= 0 and work > work_limit:
+        status = PAST_WORK_LIMIT
+    elif work + step_work * steps_left > projected_limit:
+        status = PAST_PROJECTION
+    elif C == 0:  # an exactly-once resource no frontier can satisfy
+        status = INFEASIBLE
+    return status, work, step_work, cols
+
+
+@njit(cache=True)
 def _step(
     covers: NDArray[np.uint64],
     relative: NDArray[np.uint64],
@@ -213,17 +248,10 @@ def _step(
         entries_per_transition,
         pair_block_entries,
     )
-    cols = span_now + _grows(counts, pair_h, n_pairs, span_now, kmax)
-    C = n_keep + n_pairs
-    step_work = -(-C * cols // entries_per_transition)
-    work += step_work
-    status = FOUND
-    if work_limit >= 0 and work > work_limit:
-        status = PAST_WORK_LIMIT
-    elif work + step_work * (R - 1 - step) > projected_limit:
-        status = PAST_PROJECTION
-    elif C == 0:  # an exactly-once resource no frontier can satisfy
-        status = INFEASIBLE
+    status, work, step_work, cols = _step_work(
+        counts, pair_h, n_keep, n_pairs, span_now, kmax, work, (work_limit, projected_limit,
+        entries_per_transition), R - 1 - step,
+    )  # fmt: skip
     return status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols
 
 
@@ -724,17 +752,10 @@ def _row_step(
         most,
         pair_block_entries,
     )
-    cols = span_now + _grows(counts, pair_h, n_pairs, span_now, kmax)
-    C = n_keep + n_pairs
-    step_work = -(-C * cols // entries_per_transition)
-    work += step_work
-    status = FOUND
-    if work_limit >= 0 and work > work_limit:
-        status = PAST_WORK_LIMIT
-    elif work + step_work * (R - 1 - step) > projected_limit:
-        status = PAST_PROJECTION
-    elif C == 0:  # an exactly-once resource no frontier can satisfy
-        status = INFEASIBLE
+    status, work, step_work, cols = _step_work(
+        counts, pair_h, n_keep, n_pairs, span_now, kmax, work, (work_limit, projected_limit,
+        entries_per_transition), R - 1 - step,
+    )  # fmt: skip
     return status, work, step_work, keep, n_keep, pair_row, pair_h, n_pairs, cols
 
 

@@ -454,12 +454,7 @@ def smooth_track_lag_one(
     InputError
         A model set, or a motion model that converts its initiation state.
     """
-    motion = config.motion
-    if isinstance(motion, InteractingModels) or needs_conversion(motion):
-        raise InputError(
-            f"smooth_track_lag_one: motion model {motion!r} is a model set or converts its "
-            "initiation state; expected a single model that does not (e.g. constant_velocity)"
-        )
+    _check_single_model(config, "smooth_track_lag_one")
     scan_indices, segment, _ = _filter_track(scans, detections, config, weights)
     means, covariances = segment.smooth()
     Pf, Pp, F = (np.array(a) for a in (segment.P_filtered, segment.P_predicted,
@@ -473,6 +468,17 @@ def smooth_track_lag_one(
         weights={k - first: float(w) for k, w in (weights or {}).items()
                  if k in detections and w != 1.0},
     )  # fmt: skip
+
+
+def _check_single_model(config: Config, caller: str) -> None:
+    """Raise unless the motion model is one model that does not convert its initiation
+    state (the lag-one statistics and the prediction-error likelihood need one space)."""
+    motion = config.motion
+    if isinstance(motion, InteractingModels) or needs_conversion(motion):
+        raise InputError(
+            f"{caller}: motion model {motion!r} is a model set or converts its "
+            "initiation state; expected a single model that does not (e.g. constant_velocity)"
+        )
 
 
 def track_log_likelihood(
@@ -495,12 +501,7 @@ def track_log_likelihood(
     InputError
         A model set, or a motion model that converts its initiation state.
     """
-    motion = config.motion
-    if isinstance(motion, InteractingModels) or needs_conversion(motion):
-        raise InputError(
-            f"track_log_likelihood: motion model {motion!r} is a model set or converts its "
-            "initiation state; expected a single model that does not (e.g. constant_velocity)"
-        )
+    _check_single_model(config, "track_log_likelihood")
     scan_indices, segment, _ = _filter_track(scans, detections, config, weights)
     weight = {} if weights is None else weights
     total = 0.0
