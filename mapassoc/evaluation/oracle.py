@@ -17,7 +17,7 @@ from mapassoc.errors import InputError
 from mapassoc.filtering.smoothing import smooth_tracks
 from mapassoc.validation import check_instance
 
-__all__ = ["oracle_tracks"]
+__all__ = ["oracle_tracks", "true_associations"]
 
 
 def oracle_tracks(scans: Sequence[Scan], origins: Origins, config: Config) -> TrackTable:
@@ -58,6 +58,39 @@ def oracle_tracks(scans: Sequence[Scan], origins: Origins, config: Config) -> Tr
         Origins,
         hint="read them with mapassoc.data.formats.read_origins_file(path)",
     )
+    return smooth_tracks(scans, true_associations(scans, origins), config)
+
+
+def true_associations(scans: Sequence[Scan], origins: Origins) -> dict[int, dict[int, int]]:
+    """Every target's true detections: target id -> {scan index: detection index}.
+
+    The associations the oracle smooths (:func:`oracle_tracks`), validated once here so
+    that code scoring the truth in other ways (a likelihood, parameter estimates) reads
+    the same associations.
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+    origins : Origins
+        Origin of every detection row of ``scans`` (``-1`` for a false alarm).
+
+    Returns
+    -------
+    dict of int to dict of int to int
+        Targets with at least one detection, each with its scans in order.
+
+    Raises
+    ------
+    InputError
+        ``origins`` not an Origins, a detection row without an origin or an origin
+        row without a detection, or a target with two detections in one scan.
+    """
+    check_instance(
+        "true_associations: origins",
+        origins,
+        Origins,
+        hint="read them with mapassoc.data.formats.read_origins_file(path)",
+    )
     origin_of = dict(zip(origins.rows.tolist(), origins.target_ids.tolist(), strict=True))
     scan_rows = {int(row) for scan in scans for row in scan.rows}
     unknown = sorted(set(origin_of) - scan_rows)
@@ -84,5 +117,4 @@ def oracle_tracks(scans: Sequence[Scan], origins: Origins, config: Config) -> Tr
                     f"of sensor {scan.sensor!r} at time {scan.time}; at most one is allowed"
                 )
             target_scans[scan_index] = detection_index
-
-    return smooth_tracks(scans, per_target, config)
+    return per_target

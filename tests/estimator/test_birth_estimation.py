@@ -40,6 +40,7 @@ from mapassoc.estimator.birth_estimation import (
 from mapassoc.estimator.noise_levels import levels_close
 from mapassoc.estimator.parameters import estimate_parameters
 from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.evaluation.oracle import true_associations
 from mapassoc.evaluation.scenarios import build_scenario
 from mapassoc.evaluation.simulate import TargetSpec, scan_plan_regular, simulate
 from mapassoc.models.measurement import LinearMeasurement
@@ -148,23 +149,12 @@ def _population(rate: float, seed: int, *, initial: float = 40.0, scans: int = 3
     return simulate(config, targets, scan_plan_regular(["pos"], 0.0, 1.0, scans), seed=seed)
 
 
-def _true_tracks(scenario) -> dict[int, dict[int, int]]:  # type: ignore[no-untyped-def]
-    origin = dict(zip(scenario.origins.rows.tolist(), scenario.origins.target_ids.tolist(),
-                      strict=True))  # fmt: skip
-    tracks: dict[int, dict[int, int]] = {}
-    for k, scan in enumerate(scenario.scans):
-        for j, row in enumerate(scan.rows.tolist()):
-            if origin[row] >= 0:
-                tracks.setdefault(origin[row], {})[k] = j
-    return tracks
-
-
 def _estimated(scenario, iterations: int = 3) -> BirthLevels:  # type: ignore[no-untyped-def]
     """The M step from the true associations, iterated from the starts of the module."""
     config = scenario.config
     asked = BirthAsked(dict.fromkeys(AUTO_BIRTH_KEYS))
     levels = initial_birth(config, scenario.scans, asked)
-    tracks = _true_tracks(scenario)
+    tracks = true_associations(scenario.scans, scenario.origins)
     for _ in range(iterations):
         levels, notes = birth_m_step(with_birth_levels(config, levels), [scenario.scans], [True],
                                      [tracks], levels)  # fmt: skip
@@ -289,7 +279,7 @@ def test_tracks_weighted_by_existence_count_as_targets_only_that_much() -> None:
     asked = BirthAsked(dict.fromkeys(("rate", "initial_count", "survival_probability")))
     levels = initial_birth(config, scenario.scans, asked)
     run = with_birth_levels(config, levels)
-    tracks = _true_tracks(scenario)
+    tracks = true_associations(scenario.scans, scenario.origins)
     rng = np.random.default_rng(5)
     starts = rng.integers(1, len(scenario.scans) - 3, 60).tolist()
     spurious = {10_000 + i: {k: 0, k + 1: 0, k + 2: 0} for i, k in enumerate(starts)}

@@ -30,6 +30,7 @@ from mapassoc.estimator.noise_levels import (
 )
 from mapassoc.estimator.parameters import estimate_parameters
 from mapassoc.estimator.pipeline import WindowEstimator
+from mapassoc.evaluation.oracle import true_associations
 from mapassoc.evaluation.scenarios import build_scenario, generic_config
 from mapassoc.filtering.noise_moments import chain_moments
 from mapassoc.models.measurement import LinearMeasurement
@@ -143,18 +144,6 @@ def test_a_noise_free_track_stops_the_levels_at_their_floor() -> None:
     assert any("floor" in note for note in notes)
 
 
-def _true_tracks(built):  # type: ignore[no-untyped-def]
-    """Each target's detections of a simulated recording (track id = target id)."""
-    target = dict(zip(built.origins.rows.tolist(), built.origins.target_ids.tolist(),
-                      strict=True))  # fmt: skip
-    tracks: dict[int, dict[int, int]] = {}
-    for k, scan in enumerate(built.scans):
-        for j, row in enumerate(scan.rows.tolist()):
-            if target[row] >= 0:
-                tracks.setdefault(target[row], {})[k] = j
-    return tracks
-
-
 def _levels_of(built, tracks, weights=None):  # type: ignore[no-untyped-def]
     config = _auto(built.config)
     asked = NoiseAsked.from_config(config)
@@ -171,7 +160,7 @@ def test_false_alarms_in_tracks_weighted_by_their_probability_leave_q_near_the_t
     those of the tracks without them, near the truth (q 0.002, sigma 1).  The true
     detections weigh 1."""
     built = build_scenario("crossing", 0)
-    tracks = _true_tracks(built)
+    tracks = true_associations(built.scans, built.origins)
     scans = list(built.scans)
     weights: dict[int, dict[int, float]] = {}
     missed = {track_id: dict(detections) for track_id, detections in tracks.items()}
@@ -214,7 +203,7 @@ def test_the_process_noise_search_reaches_the_maximum_the_em_creeps_towards(
     from mapassoc.filtering.smoothing import track_log_likelihood
 
     built = build_scenario("parallel", 0)
-    tracks = _true_tracks(built)
+    tracks = true_associations(built.scans, built.origins)
     config = _auto(built.config)
     asked = NoiseAsked.from_config(config)
     start = NoiseLevels(0.018, {"pos": (1.0, 1.0)})

@@ -16,7 +16,7 @@ from mapassoc.data.scans import Scan, check_scan_order
 from mapassoc.data.settings import BirthModel, EstimatorSettings
 from mapassoc.errors import InputError, NotPositiveDefiniteError
 from mapassoc.evaluation.manoeuvres import MANOEUVRE_FAMILIES
-from mapassoc.evaluation.oracle import oracle_tracks
+from mapassoc.evaluation.oracle import oracle_tracks, true_associations
 from mapassoc.evaluation.scenarios import (
     DEFAULT_SCENARIO,
     build_scenario,
@@ -515,6 +515,20 @@ def test_oracle_golden_random_walk_chain_with_a_miss() -> None:
     np.testing.assert_allclose(tracks.states[:, 0], [1.0, 2.0, 3.0], atol=1e-12)
     np.testing.assert_allclose(tracks.variances[:, 0], [0.75, 1.0, 0.75], atol=1e-12)
     np.testing.assert_array_equal(tracks.detection_rows, [2, -1, 5])
+
+
+def test_true_associations_are_each_targets_scan_and_detection_indices() -> None:
+    # Rows 2..6 over three scans: target 0 at (scan 0, index 0) and (scan 2, index 1),
+    # target 7 at (scan 1, index 0) only, rows 3 and 5 false alarms.
+    scans = [
+        _scan(0.0, "a", [0.0, 7.0], [2, 3]),
+        _scan(1.0, "a", [-5.0], [4]),
+        _scan(2.0, "a", [9.0, 4.0], [5, 6]),
+    ]
+    origins = Origins(rows=np.array([2, 3, 4, 5, 6]), target_ids=np.array([0, -1, 7, -1, 0]))
+    assert true_associations(scans, origins) == {0: {0: 0, 2: 1}, 7: {1: 0}}
+    with pytest.raises(InputError, match="true_associations: origins"):
+        true_associations(scans, "origins.csv")  # type: ignore[arg-type]
 
 
 def test_oracle_golden_same_time_detections_skip_the_prediction() -> None:

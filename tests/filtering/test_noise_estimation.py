@@ -17,6 +17,7 @@ from support import make_config
 
 from mapassoc.data.config import Config
 from mapassoc.errors import InputError
+from mapassoc.evaluation.oracle import true_associations
 from mapassoc.evaluation.simulate import TargetSpec, scan_plan_regular, simulate
 from mapassoc.filtering.kalman import FilterStep, filter_sequence, rts_cross_covariances
 from mapassoc.filtering.noise_estimation import (
@@ -93,14 +94,7 @@ def _track(model, q: float, std, seed: int, scans: int):  # type: ignore[no-unty
         x0[2:4] = [3.0, -2.0]
     plan = scan_plan_regular(["s"], 0.0, 1.0, scans)
     scenario = simulate(config, [TargetSpec(x0, 0.0, np.inf)], plan, seed=seed)
-    target = dict(zip(scenario.origins.rows.tolist(), scenario.origins.target_ids.tolist(),
-                      strict=True))  # fmt: skip
-    associations: dict[int, dict[int, int]] = {}
-    for k, scan in enumerate(scenario.scans):
-        for j, row in enumerate(scan.rows.tolist()):
-            if target[row] >= 0:
-                associations.setdefault(target[row], {})[k] = j
-    return config, scenario.scans, associations
+    return config, scenario.scans, true_associations(scenario.scans, scenario.origins)
 
 
 def _with_noise(config, q: float, std):  # type: ignore[no-untyped-def]
