@@ -145,6 +145,32 @@ def _marginals_both(
             found.append((stop.reason, stop.work, str(stop)))
     return found
 
+def _assert_both_agree(
+    monkeypatch: pytest.MonkeyPatch,
+    problem: PackingProblem,
+    seeds: np.ndarray,
+    runs: list[dict[str, object]],
+) -> None:
+    """The compiled and the numpy marginals under each run's options: the same stop, or
+    the same per-k masses bit for bit, ``exact`` and work, and log N_h and log Z to
+    round-off (the same -inf entries)."""
+    for options in runs:
+        fast, plain = _marginals_both(monkeypatch, problem, seeds, **options)
+        if not isinstance(plain, FrontierMarginals):
+            assert fast == plain
+            continue
+        assert isinstance(fast, FrontierMarginals)
+        assert (fast.exact, fast.work) == (plain.exact, plain.work)
+        np.testing.assert_array_equal(fast.log_mass, plain.log_mass)
+        for a, b in (
+            (fast.log_total, plain.log_total),
+            (fast.log_containing, plain.log_containing),
+        ):
+            assert np.array_equal(np.isneginf(a), np.isneginf(b))
+            finite = np.isfinite(a)
+            np.testing.assert_allclose(a[finite], b[finite], rtol=0, atol=1e-12)
+
+
 
 @pytest.mark.parametrize("seed", range(30))
 def test_the_marginals_kernel_is_the_numpy_forward_backward(
@@ -170,21 +196,7 @@ def test_the_marginals_kernel_is_the_numpy_forward_backward(
         {"work_limit": max(1, whole.work // 2), "work_projection": 1.0},
         {"work_limit": whole.work - 1},
     ]
-    for options in runs:
-        fast, plain = _marginals_both(monkeypatch, problem, seeds, **options)
-        if not isinstance(plain, FrontierMarginals):
-            assert fast == plain
-            continue
-        assert isinstance(fast, FrontierMarginals)
-        assert (fast.exact, fast.work) == (plain.exact, plain.work)
-        np.testing.assert_array_equal(fast.log_mass, plain.log_mass)
-        for a, b in (
-            (fast.log_total, plain.log_total),
-            (fast.log_containing, plain.log_containing),
-        ):
-            assert np.array_equal(np.isneginf(a), np.isneginf(b))
-            finite = np.isfinite(a)
-            np.testing.assert_allclose(a[finite], b[finite], rtol=0, atol=1e-12)
+    _assert_both_agree(monkeypatch, problem, seeds, runs)
 
 
 @pytest.mark.parametrize("work_limit", [2**62, 2**63 - 1, 2**64])
@@ -252,21 +264,7 @@ def test_the_marginals_kernel_takes_hypotheses_spanning_64_positions_or_more(
         {"work_limit": max(1, whole.work // 2), "work_projection": 1.0},
         {"work_limit": whole.work - 1},
     ]
-    for options in runs:
-        fast, plain = _marginals_both(monkeypatch, problem, seeds, **options)
-        if not isinstance(plain, FrontierMarginals):
-            assert fast == plain
-            continue
-        assert isinstance(fast, FrontierMarginals)
-        assert (fast.exact, fast.work) == (plain.exact, plain.work)
-        np.testing.assert_array_equal(fast.log_mass, plain.log_mass)
-        for a, b in (
-            (fast.log_total, plain.log_total),
-            (fast.log_containing, plain.log_containing),
-        ):
-            assert np.array_equal(np.isneginf(a), np.isneginf(b))
-            finite = np.isfinite(a)
-            np.testing.assert_allclose(a[finite], b[finite], rtol=0, atol=1e-12)
+    _assert_both_agree(monkeypatch, problem, seeds, runs)
 
 
 @pytest.mark.parametrize("size", [0, 1, 5, 31, 32, 33, 500, 4000])
