@@ -633,8 +633,8 @@ def bench_scenario(
         ``noise_std`` and the motion's ``noise_intensity`` (where the model has one
         scale) are estimated from the scenario's scans first, and the run uses the
         estimates (:func:`~mapassoc.apps.bench_auto.run_auto`; the seconds include the
-        estimation).  With ``motion="imm"`` the configured single model is estimated
-        and then wrapped in the set: a set's models cannot be ``"auto"``.
+        estimation).  With ``motion="imm"`` the set is built first and each of its
+        models' ``noise_intensity`` is estimated.
 
     Returns
     -------
@@ -662,8 +662,7 @@ class _BenchSetup:
     config : Config
         With the run's window length, time limit and prior on K (with ``"auto"``
         parameters: their placeholders, :func:`~mapassoc.apps.bench_auto.auto_config`;
-        with ``motion="imm"``: the set, unless the parameters are ``"auto"``, whose
-        single model is wrapped once estimated).
+        with ``motion="imm"``: the set, with its models' placeholders where ``"auto"``).
     choice : {"generic", "scenario"}
     prior : str
     limit : float
@@ -708,10 +707,10 @@ def _bench_setup(
         run_config = _bench_config(scenario.config, window_length, limit)
     count = replace(run_config.estimator.count, k_prior=prior)
     run_config = replace(run_config, estimator=replace(run_config.estimator, count=count))
+    if motion == "imm":  # before "auto": the set's components are estimated
+        run_config = replace(run_config, motion=noise_levels(run_config.motion))
     if parameters == "auto":
         run_config = auto_config(run_config)
-    elif motion == "imm":
-        run_config = replace(run_config, motion=noise_levels(run_config.motion))
     return _BenchSetup(scenario, run_config, choice, prior, limit, motion, parameters)
 
 
@@ -731,7 +730,7 @@ def _timed_run(setup: _BenchSetup) -> _TimedRun:
     (with ``"auto"`` parameters: estimate them first, :func:`~.bench_auto.run_auto`)."""
     if setup.parameters == "auto":
         scenario = setup.scenario
-        auto = run_auto(setup.config, scenario.scans, scenario.config, imm=setup.motion == "imm")
+        auto = run_auto(setup.config, scenario.scans, scenario.config)
         return _TimedRun(auto.result, auto.seconds, auto.forward_seconds, auto.values)
     estimator = WindowEstimator(config=setup.config)
     committed = [0.0]  # when the last window was committed: the forward pass's end

@@ -10,7 +10,9 @@ estimates them from the run's own scans, and the run uses the estimates
 * every position sensor's ``noise_std``;
 * ``[motion] noise_intensity`` where the motion model has one scale
   (:data:`~mapassoc.data.config.AUTO_NOISE_MODELS`: constant velocity, constant
-  acceleration, random walk);
+  acceleration, random walk), and for a set of models (``[motion] model = "imm"``) each
+  such component's (``motion.models[i].noise_intensity``; no truth to compare with:
+  the scenarios simulate one model's noise and manoeuvres, not a set);
 * the birth model's ``rate``, ``initial_count`` and ``survival_probability``
   (:data:`BIRTH_FIELDS`, which says why ``velocity_std`` is not among them).
 
@@ -24,12 +26,12 @@ so its models hold the reader's placeholders and nothing of the true values reac
 estimation; a value the reader learns to take as ``"auto"`` is added to the benchmark by
 one line of :func:`auto_fields`.
 
-``motion="imm"``: the models of a set (``[motion] model = "imm"``) cannot be ``"auto"``,
-so the estimation runs with the configured single model, and the estimated model is then
-wrapped as the benchmark wraps it (:func:`~mapassoc.models.interacting.noise_levels`,
-the estimated ``noise_intensity`` as the quiet model's) for the timed run, which runs
-after the estimation.  Without ``"imm"`` the estimation's last pass is the run itself
-when it covered the whole recording
+``motion="imm"``: the configured single model is wrapped as the benchmark wraps it
+(:func:`~mapassoc.models.interacting.noise_levels`) before its values are turned to
+``"auto"``, so the estimation runs under the set and estimates each component's process
+noise (:mod:`mapassoc.estimator.noise_levels`, sets of models), as a user's
+configuration of a set with ``"auto"`` components does.  The estimation's last pass is
+the run itself when it covered the whole recording
 (:attr:`~mapassoc.estimator.parameters.ParameterEstimate.result`), and no run is
 repeated.
 
@@ -55,7 +57,7 @@ import numpy as np
 from mapassoc.data.config import AutoParameters, Config, config_to_toml, parse_config
 from mapassoc.errors import InputError
 from mapassoc.filtering.noise_estimation import position_sensor, scalable_process_noise
-from mapassoc.models.interacting import InteractingModels, noise_levels
+from mapassoc.models.interacting import InteractingModels
 
 if TYPE_CHECKING:
     from mapassoc.data.scans import Scan
@@ -160,6 +162,16 @@ def _mark_noise_intensity(auto: AutoParameters) -> AutoParameters:
     return dataclasses.replace(auto, noise_intensity=True)
 
 
+def _model_noise_intensity(index: int) -> Callable[[Config], float]:
+    return lambda config: float(config.motion.models[index].noise_intensity)  # type: ignore[attr-defined]
+
+
+def _mark_model_noise_intensity(index: int) -> Callable[[AutoParameters], AutoParameters]:
+    return lambda auto: dataclasses.replace(
+        auto, model_noise_intensity=(*auto.model_noise_intensity, (index, None))
+    )
+
+
 def _mark_rate(name: str) -> Callable[[AutoParameters], AutoParameters]:
     return lambda auto: dataclasses.replace(auto, false_alarms=(*auto.false_alarms, name))
 
@@ -178,9 +190,8 @@ def auto_fields(config: Config) -> tuple[AutoField, ...]:
     """The values of ``config`` a run with ``parameters="auto"`` estimates (module
     docstring): the one list of them, in the order they are printed, each with no start.
 
-    The process noise is listed for a single model with one scale only (a set of models,
-    ``InteractingModels``, cannot be ``"auto"``; ``motion="imm"`` wraps the estimated
-    single model after the estimation).
+    The process noise is listed for a single model with one scale, and for each such
+    component of a set of models (``InteractingModels``).
 
     A value the configuration reader and writer take as ``"auto"`` joins with one line
     here (as the birth model's, :data:`BIRTH_FIELDS`): :func:`auto_config`, the
@@ -191,6 +202,12 @@ def auto_fields(config: Config) -> tuple[AutoField, ...]:
     if scalable_process_noise(motion) and not isinstance(motion, InteractingModels):
         fields.append(AutoField("motion.noise_intensity", "q", _noise_intensity,
                                 _mark_noise_intensity))  # fmt: skip
+    for index, model in enumerate(getattr(motion, "models", ()) if isinstance(
+            motion, InteractingModels) else ()):  # fmt: skip
+        if scalable_process_noise(model):
+            fields.append(AutoField(f"motion.models[{index}].noise_intensity", f"q{index}",
+                                    _model_noise_intensity(index),
+                                    _mark_model_noise_intensity(index)))  # fmt: skip
     for name, sensor in config.sensors.items():
         key = f"sensors.{name}"
         fields.append(AutoField(f"{key}.false_alarms_per_scan", f"{name} rate", _rate(name),
@@ -309,14 +326,13 @@ class AutoRun:
         Up to the end of the forward pass of the answer: the estimation's last pass, or
         the last window of the run after it.
     config : Config
-        What the run used: the estimates, no ``"auto"`` left (with ``imm``, the set of
-        models built on the estimated model).
+        What the run used: the estimates, no ``"auto"`` left.
     estimate : ParameterEstimate
     values : tuple of EstimatedValue
         The estimates beside the truth, in the order of :func:`auto_fields`.
     reran : bool
-        Whether a run followed the estimation (a sampled recording, noise levels moved
-        by the last pass, or ``imm``).
+        Whether a run followed the estimation (a sampled recording, or noise levels
+        moved by the last pass).
     """
 
     result: EstimateResult
@@ -328,9 +344,7 @@ class AutoRun:
     reran: bool
 
 
-def run_auto(
-    config: Config, scans: Sequence[Scan], truth: Config, *, imm: bool = False
-) -> AutoRun:
+def run_auto(config: Config, scans: Sequence[Scan], truth: Config) -> AutoRun:
     """Estimate the ``"auto"`` values of ``config`` from ``scans``, then run with them.
 
     Parameters
@@ -341,9 +355,6 @@ def run_auto(
     scans : sequence of Scan
     truth : Config
         What the estimates are compared with (the scenario's configuration).
-    imm : bool
-        Run with :func:`~mapassoc.models.interacting.noise_levels` of the estimated
-        model (module docstring).
 
     Returns
     -------
@@ -357,12 +368,10 @@ def run_auto(
         config = auto_config(config)
     start = time.perf_counter()
     marks = [start]  # when the last pass ended, then when the last window was committed
-    estimate = estimate_parameters(config, scans, finish=not imm,
+    estimate = estimate_parameters(config, scans,
                                    on_pass=lambda _: marks.append(time.perf_counter()))  # fmt: skip
     final = estimate.config
-    if imm:
-        final = dataclasses.replace(final, motion=noise_levels(final.motion))
-    result = None if imm else estimate.result
+    result = estimate.result
     if result is None:
         result = WindowEstimator(config=final).run(
             scans, on_window=lambda _: marks.append(time.perf_counter())

@@ -776,7 +776,7 @@ def _add_bench_command(sub: Subcommands) -> None:
         help="comma-separated: given (the configuration's values) and/or auto (every "
         "sensor's false-alarm rate and Pd, position sensors' noise_std and the motion's "
         "noise_intensity estimated from the recording first, the estimates printed beside "
-        "the truth; with --motion imm the configured model is estimated, then wrapped); "
+        "the truth; with --motion imm each model of the set's noise_intensity); "
         "with given,auto each family's summary adds auto's GOSPA over given's "
         "(default given)",
     )

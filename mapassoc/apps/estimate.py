@@ -2,7 +2,8 @@
 
 Estimates every sensor's false-alarm rate and detection probability from the recording
 (:mod:`mapassoc.estimator.parameters`), and the noise levels the configuration leaves
-"auto" (``[motion] noise_intensity``, a position sensor's ``noise_std``: only those, since
+"auto" (``[motion] noise_intensity`` or a set's ``[[motion.models]]``' own, a position
+sensor's ``noise_std``: only those, since
 a configured noise level is not a guess the way a clutter rate is) and the ``[birth]``
 keys it leaves "auto" (``rate``, ``initial_count``, ``survival_probability``,
 ``velocity_std``, likewise only those), prints them beside
@@ -83,6 +84,8 @@ class ParameterReport:
         rows = [] if noise.noise_intensity is None else [
             ("motion.noise_intensity", f"{noise.noise_intensity:.4g}")
         ]  # fmt: skip
+        rows += [(f"motion.models[{index}].noise_intensity", f"{value:.4g}")
+                 for index, value in noise.model_intensities.items()]  # fmt: skip
         rows += [(f"sensor '{name}' noise_std", ", ".join(f"{v:.4g}" for v in stds))
                  for name, stds in noise.noise_std.items()]  # fmt: skip
         header = f"{'noise level':28s} {'configured':>10s} {'estimated':>12s}"

@@ -26,7 +26,9 @@ Schema (unknown keys anywhere are an error; every value is checked)::
     # (leaving the current model within one unit of time) or matrix = [[...], ...]
     # (M x M, per unit of time), optional initial_probabilities = [...] (default
     # uniform), and one [[motion.models]] table per model, each keyed as a single
-    # [motion] table, all in one state space (mapassoc.models.interacting)
+    # [motion] table, all in one state space (mapassoc.models.interacting); a
+    # component's noise_intensity may be "auto" (with its own noise_intensity_start),
+    # the set's [motion] table takes none
 
     [[sensors]]                   # one table per sensor, at least one, distinct names
     name = "radar"
@@ -78,8 +80,9 @@ default), but :func:`load_config` warns (``UserWarning``) when one is missing, n
 the file and the defaults used: a forgotten section silently changes the model.
 
 ``"auto"`` leaves a sensor's ``detection_probability`` or ``false_alarms_per_scan``, a
-position sensor's ``noise_std`` or the ``[motion] noise_intensity`` of a model whose
-process noise is that number times a fixed matrix (:data:`AUTO_NOISE_MODELS`) to be
+position sensor's ``noise_std`` or the ``noise_intensity`` of a model whose process noise
+is that number times a fixed matrix (:data:`AUTO_NOISE_MODELS`), in ``[motion]`` or in a
+component's ``[[motion.models]]`` table of an IMM set (each component its own), to be
 estimated from the recording (:mod:`mapassoc.estimator.parameters`, which ``mapassoc
 run`` calls before the run): :attr:`Config.auto` lists them, the model holds
 placeholders (``Pd`` = 1, no false alarms, noise levels :data:`NOISE_PLACEHOLDER`) until
@@ -89,7 +92,7 @@ on the placeholders.  The ``[birth]`` model's ``rate``, ``initial_count``,
 (:data:`AUTO_BIRTH_KEYS`, estimated by :mod:`mapassoc.estimator.birth_estimation`;
 ``velocity_std`` only for a motion model with velocity components); until then the
 birth model holds :data:`BIRTH_PLACEHOLDERS`.  ``"auto"`` is refused, naming its key,
-for the noise of the other models (coordinated turn, Singer, the models of an IMM set)
+for the noise of the other models (coordinated turn, Singer, as an IMM component too)
 and of range-bearing sensors: their noise has no single scale the EM update takes.  A
 pooled ``noise_std`` is the default because the schema's one number already means ``R =
 sigma^2 I``; a ``noise_std_start`` with one value per component asks for each to be
@@ -211,8 +214,9 @@ NOISE_PLACEHOLDER = 1.0
 AUTO_NOISE_MODELS = ("constant_velocity", "constant_acceleration", "random_walk")
 """The motion models whose ``noise_intensity`` may be ``"auto"``: their process noise is
 ``noise_intensity`` times a fixed matrix, the form the EM update of
-:mod:`mapassoc.filtering.noise_estimation` takes (coordinated turn, Singer and model
-sets have no such single scale)."""
+:mod:`mapassoc.filtering.noise_estimation` takes (coordinated turn and Singer have no
+such single scale, nor has a set of models as a whole: its components of these models
+may each be ``"auto"``)."""
 AUTO_BIRTH_KEYS = ("rate", "initial_count", "survival_probability", "velocity_std")
 """The ``[birth]`` keys that may be ``"auto"``: the others (``acceleration_std``,
 ``speed_std``, ``turn_rate_std``) have no M step from the tracks yet."""
@@ -249,6 +253,12 @@ class AutoParameters:
         The ``[birth]`` keys estimated (of :data:`AUTO_BIRTH_KEYS`, in that order), each
         with its ``<key>_start`` (None: the estimator's default start); the birth model
         holds :data:`BIRTH_PLACEHOLDERS` for them.
+    model_noise_intensity : tuple of (int, float or None)
+        The components of an interacting-multiple-model set whose ``noise_intensity`` is
+        estimated, each by its index (its position in ``[[motion.models]]``, increasing)
+        with its ``noise_intensity_start`` (None: the estimator's default start); each
+        such component holds :data:`NOISE_PLACEHOLDER`.  Per component rather than one
+        flag for the set: the components exist to move with different intensities.
     """
 
     false_alarms: tuple[str, ...] = ()
@@ -257,14 +267,20 @@ class AutoParameters:
     noise_intensity_start: float | None = None
     noise_std: tuple[tuple[str, tuple[float, ...] | None], ...] = ()
     birth: tuple[tuple[str, float | None], ...] = ()
+    model_noise_intensity: tuple[tuple[int, float | None], ...] = ()
 
     @property
     def pending(self) -> bool:
         """Whether any parameter is still to be estimated."""
         return bool(
             self.false_alarms or self.detection_probability or self.noise_intensity
-            or self.noise_std or self.birth
+            or self.noise_std or self.birth or self.model_noise_intensity
         )  # fmt: skip
+
+    def model_noise_starts(self) -> dict[int, float | None]:
+        """``{index: start}`` of the ``[[motion.models]]`` components whose
+        ``noise_intensity`` is estimated."""
+        return dict(self.model_noise_intensity)
 
     def birth_starts(self) -> dict[str, float | None]:
         """``{key: start}`` of the ``[birth]`` keys estimated."""
@@ -282,6 +298,7 @@ class AutoParameters:
     def names(self) -> list[str]:
         """The parameters still to be estimated, as messages name them."""
         out = ['motion.noise_intensity'] if self.noise_intensity else []
+        out += [f"motion.models[{i}].noise_intensity" for i in self.model_noise_starts()]
         out += [f"sensor '{n}' false_alarms_per_scan" for n in self.false_alarms]
         out += [f"sensor '{n}' detection_probability" for n in self.pd_starts()]
         out += [f"sensor '{n}' noise_std" for n in self.noise_std_starts()]
@@ -361,10 +378,40 @@ class Config:
                     f"auto names sensor {name!r}, which is not configured "
                     f"(known: {sorted(self.sensors)})"
                 )
+        _check_auto_components(self.auto, self.motion)
         if self.recording is not None and not isinstance(self.recording, Recording):
             raise InputError(f"recording must be a Recording or None, got {self.recording!r}")
         object.__setattr__(self, "sensors", dict(self.sensors))
         object.__setattr__(self, "trackers", _checked_tracker_options(self.trackers))
+
+
+def _check_auto_components(auto: AutoParameters, motion: MotionModel) -> None:
+    """``auto.model_noise_intensity`` names components of ``motion``, an IMM set: distinct
+    indices in increasing order (the order :func:`parse_config` gives and the writer and
+    the estimator keep), each start None or a positive number (raises InputError).
+    Whether a component's process noise has the one scale "auto" needs is left to the
+    estimator, as for ``auto.noise_intensity``."""
+    entries = auto.model_noise_intensity
+    if not entries:
+        return
+    if not isinstance(motion, InteractingModels):
+        raise InputError(
+            f"auto.model_noise_intensity names components {[e[0] for e in entries]!r} of a "
+            f"set of motion models, but the motion model is not one: {motion!r}"
+        )
+    previous = -1
+    for entry in entries:
+        index, start = entry if isinstance(entry, tuple) and len(entry) == 2 else (None, None)
+        if not isinstance(index, int) or isinstance(index, bool) or not (
+            previous < index < len(motion.models)
+        ):
+            raise InputError(
+                f"auto.model_noise_intensity must be (index, start) pairs of distinct "
+                f"components 0..{len(motion.models) - 1} in increasing order, got {entries!r}"
+            )
+        if start is not None:
+            check_positive(f"auto.model_noise_intensity start of component {index}", start)
+        previous = index
 
 
 def _checked_tracker_options(
@@ -547,15 +594,19 @@ _IMM_KEYS = ("model", "switch_probability", "matrix", "initial_probabilities", "
 
 def _parse_motion(
     parser: _Parser, data: Mapping[str, object]
-) -> tuple[MotionModel, bool, float | None]:
-    """The motion model, whether its ``noise_intensity`` is "auto", and its start."""
+) -> tuple[MotionModel, AutoParameters]:
+    """The motion model and what of its noise is "auto": an :class:`AutoParameters` with
+    only ``noise_intensity``, ``noise_intensity_start`` (a single model) or
+    ``model_noise_intensity`` (the components of an IMM set) filled in."""
     if "motion" not in data:
         raise parser.fail("motion", "missing required section [motion]")
     table = parser.table(data["motion"], "motion")
     if table.get("model") == IMM:
-        return _parse_imm(parser, table), False, None
+        imm, components = _parse_imm(parser, table)
+        return imm, AutoParameters(model_noise_intensity=components)
     table, auto, start = _auto_noise_intensity(parser, table)
-    return _parse_single_motion(parser, table, "motion", (*MOTION_REGISTRY, IMM)), auto, start
+    motion = _parse_single_motion(parser, table, "motion", (*MOTION_REGISTRY, IMM))
+    return motion, AutoParameters(noise_intensity=auto, noise_intensity_start=start)
 
 
 def _auto_start(
@@ -576,19 +627,22 @@ def _auto_start(
 
 
 def _auto_noise_intensity(
-    parser: _Parser, table: Mapping[str, object]
+    parser: _Parser, table: Mapping[str, object], prefix: str = "motion"
 ) -> tuple[Mapping[str, object], bool, float | None]:
-    """``[motion]`` with an "auto" ``noise_intensity`` replaced by the placeholder and
-    ``noise_intensity_start`` taken out: ``(table, auto, start)``."""
+    """A single model's table (``[motion]``, or the ``[[motion.models]]`` item ``prefix``
+    names) with an "auto" ``noise_intensity`` replaced by the placeholder and
+    ``noise_intensity_start`` taken out: ``(table, auto, start)``.  The model is checked
+    before its keys, so that "auto" of a model without that scale names
+    ``<prefix>.noise_intensity`` rather than an unknown key."""
     auto = table.get("noise_intensity") == AUTO
-    given = _auto_start(parser, table, "motion", "noise_intensity", auto)
-    start = None if given is None else parser.positive(given, "motion.noise_intensity_start")
+    given = _auto_start(parser, table, prefix, "noise_intensity", auto)
+    start = None if given is None else parser.positive(given, f"{prefix}.noise_intensity_start")
     if not auto:
         return table, False, None
     if table.get("model") not in AUTO_NOISE_MODELS:
         raise parser.fail(
-            "motion.noise_intensity", f'"auto" needs model = one of {list(AUTO_NOISE_MODELS)}, '
-            f"got {table.get('model')!r}",
+            f"{prefix}.noise_intensity", f'"auto" needs model = one of '
+            f"{list(AUTO_NOISE_MODELS)}, got {table.get('model')!r}",
         )  # fmt: skip
     rest = {key: value for key, value in table.items() if key != "noise_intensity_start"}
     rest["noise_intensity"] = NOISE_PLACEHOLDER
@@ -611,11 +665,11 @@ def _parse_single_motion(
     for setting in spec.settings:
         key = f"{prefix}.{setting.key}"
         raw = parser.required(table, prefix, setting.key)
-        if raw == AUTO:  # [motion] noise_intensity = "auto" was replaced before
+        if raw == AUTO:  # an "auto" noise_intensity was replaced before
             raise parser.fail(
-                key, '"auto" is only for [motion] noise_intensity of '
-                f"{', '.join(AUTO_NOISE_MODELS)} (not coordinated_turn, singer or the models "
-                "of an imm); give a number",
+                key, '"auto" is only for [motion] noise_intensity (or a [[motion.models]] '
+                f"one) of {', '.join(AUTO_NOISE_MODELS)} (not coordinated_turn or singer); "
+                "give a number",
             )  # fmt: skip
         if setting.kind == "ndim":
             ndim = parser.integer(raw, key)
@@ -633,20 +687,28 @@ def _parse_single_motion(
     return motion
 
 
-def _parse_imm(parser: _Parser, table: Mapping[str, object]) -> InteractingModels:
+def _parse_imm(
+    parser: _Parser, table: Mapping[str, object]
+) -> tuple[InteractingModels, tuple[tuple[int, float | None], ...]]:
     """``[motion] model = "imm"``: its ``[[motion.models]]``, each read as a ``[motion]``
-    table, the switching law (``switch_probability`` or ``matrix``) and the optional
-    ``initial_probabilities``."""
+    table (its ``noise_intensity`` may be "auto"), the switching law
+    (``switch_probability`` or ``matrix``) and the optional ``initial_probabilities``;
+    with the ``(index, start)`` of each "auto" component.  The set's own table takes no
+    ``noise_intensity``: the set has no single scale, each component its own."""
     parser.only_keys(table, "motion", _IMM_KEYS, f"for {IMM}")
     raw = parser.required(table, "motion", "models")
     if not isinstance(raw, list) or not raw or not all(isinstance(t, Mapping) for t in raw):
         raise parser.fail(
             "motion.models", f"must be a non-empty array of tables [[motion.models]], got {raw!r}"
         )
-    models = [
-        _parse_single_motion(parser, item, f"motion.models[{index}]", (*MOTION_REGISTRY, IMM))
-        for index, item in enumerate(raw)
-    ]
+    models: list[MotionModel] = []
+    components: list[tuple[int, float | None]] = []
+    for index, item in enumerate(raw):
+        prefix = f"motion.models[{index}]"
+        component, auto, start = _auto_noise_intensity(parser, item, prefix)
+        models.append(_parse_single_motion(parser, component, prefix, (*MOTION_REGISTRY, IMM)))
+        if auto:
+            components.append((index, start))
     given = [key for key in ("switch_probability", "matrix") if key in table]
     if len(given) != 1:
         raise parser.fail(
@@ -667,13 +729,14 @@ def _parse_imm(parser: _Parser, table: Mapping[str, object]) -> InteractingModel
     except InputError as exc:
         raise parser.fail(key, str(exc)) from None
     try:
-        return InteractingModels(
+        motion = InteractingModels(
             models=models,
             switching=law,
             initial_probabilities=probabilities,  # type: ignore[arg-type]
         )
     except InputError as exc:
         raise parser.fail(_subkey("motion", exc), str(exc)) from None
+    return motion, tuple(components)
 
 
 def _parse_region(
@@ -1206,10 +1269,15 @@ def parse_config(
     parser = _Parser(source=source)
     document = parser.table(data, _DOCUMENT_KEY)
     parser.only_keys(document, "", _SECTIONS, "at the top level")
-    motion, auto_q, q_start = _parse_motion(parser, document)
+    motion, motion_auto = _parse_motion(parser, document)
     recording = _parse_recording(parser, document)
     sensors, auto, sites = _parse_sensors(parser, document, motion, recording)
-    auto = dataclasses.replace(auto, noise_intensity=auto_q, noise_intensity_start=q_start)
+    auto = dataclasses.replace(
+        auto,
+        noise_intensity=motion_auto.noise_intensity,
+        noise_intensity_start=motion_auto.noise_intensity_start,
+        model_noise_intensity=motion_auto.model_noise_intensity,
+    )
     if recording is not None and sites:
         recording = dataclasses.replace(recording, sites=sites)
     birth, auto_birth = _parse_birth(parser, document, motion)
@@ -1379,7 +1447,12 @@ def _motion_lines(motion: MotionModel, key: str = "motion") -> list[str]:
     return lines
 
 
-def _imm_lines(motion: InteractingModels) -> list[str]:
+def _imm_lines(
+    motion: InteractingModels, auto: Mapping[int, float | None] | None = None
+) -> list[str]:
+    """The ``[motion]`` table of an IMM set and its ``[[motion.models]]``; ``auto`` maps
+    the components whose ``noise_intensity`` is "auto" to their start, written as such in
+    their own table."""
     law = motion.switching
     lines = [f"model = {_toml_string(IMM)}"]
     if law.matrix is not None:
@@ -1388,7 +1461,10 @@ def _imm_lines(motion: InteractingModels) -> list[str]:
         lines.append(f"switch_probability = {_toml_float(law.switch_probability or 0.0)}")
     lines.append(f"initial_probabilities = {_toml_floats(motion.initial_probabilities)}")
     for index, model in enumerate(motion.models):
-        lines += ["", "[[motion.models]]", *_motion_lines(model, f"motion.models[{index}]")]
+        component = _motion_lines(model, f"motion.models[{index}]")
+        if auto is not None and index in auto:
+            component = _auto_noise_lines(component, auto[index])
+        lines += ["", "[[motion.models]]", *component]
     return lines
 
 
@@ -1422,13 +1498,29 @@ def _measurement_lines(measurement: MeasurementModel, motion: MotionModel, key: 
 
 def _auto_motion_lines(config: Config) -> list[str]:
     """:func:`_motion_lines`, with ``noise_intensity = "auto"`` (and its start) where the
-    configuration leaves it to the recording."""
+    configuration leaves it to the recording: in ``[motion]`` for a single model, in the
+    ``[[motion.models]]`` table of each such component for an IMM set, whose own
+    ``[motion]`` table has no ``noise_intensity`` to write an ``auto.noise_intensity`` in
+    (refused, rather than written as something the reader would not give back)."""
+    if isinstance(config.motion, InteractingModels):
+        if config.auto.noise_intensity:
+            raise ConfigError(
+                "motion.noise_intensity", f"an {IMM!r} set has no noise_intensity of its own "
+                "to leave to the recording; give its components' in "
+                "auto.model_noise_intensity",
+            )  # fmt: skip
+        return _imm_lines(config.motion, config.auto.model_noise_starts())
     lines = _motion_lines(config.motion)
     if not config.auto.noise_intensity:
         return lines
+    return _auto_noise_lines(lines, config.auto.noise_intensity_start)
+
+
+def _auto_noise_lines(lines: list[str], start: float | None) -> list[str]:
+    """One single model's table lines with ``noise_intensity = "auto"`` in place of the
+    placeholder and ``noise_intensity_start`` after them where given."""
     lines = [f"noise_intensity = {_toml_string(AUTO)}" if line.startswith("noise_intensity =")
              else line for line in lines]  # fmt: skip
-    start = config.auto.noise_intensity_start
     return lines + ([] if start is None else [f"noise_intensity_start = {_toml_float(start)}"])
 
 
@@ -1468,7 +1560,8 @@ def config_to_toml(config: Config) -> str:
     ------
     ConfigError
         A motion or measurement model outside the schema (e.g. a general
-        :class:`~mapassoc.models.measurement.LinearMeasurement`).
+        :class:`~mapassoc.models.measurement.LinearMeasurement`), or an
+        ``auto.noise_intensity`` of an IMM set (``motion.noise_intensity``).
     """
     check_config(config, allow_auto=True)
     lines = ["# mapassoc configuration", *_recording_lines(config.recording)]

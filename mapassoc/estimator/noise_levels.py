@@ -80,14 +80,37 @@ Decisions:
   does not cover counts hard.
 * Convergence: the levels moved by at most ``rate_tolerance`` (relative) from one pass
   to the next, the tolerance of the false-alarm rates.
+
+Sets of motion models (``[motion] model = "imm"``, a component's ``noise_intensity =
+"auto"``).  Shumway and Stoffer's M step needs one linear model's smoothed moments and
+lag-one covariances; under a set the smoothed moments are Kim's approximation and the
+M step of a component would weigh every transition by a smoothed model probability
+that is itself approximate.  So for a set every level asked for (each component's
+``noise_intensity``, each sensor's std) is the maximiser of the tracks' IMM predictive
+likelihood (:func:`~mapassoc.filtering.smoothing.track_log_likelihood`), the quantity
+the trees, J and the refinement score tracks with: rounds of a golden-section search on
+one level at a time in the log (coordinate ascent, at most :data:`ECME_ROUNDS` rounds,
+each search as the ECME rounds' of a single model), a level kept only where the
+likelihood does not fall.  The estimate is the maximum of the IMM's own likelihood
+(Blom and Bar-Shalom, IEEE TAC 1988), so it inherits that likelihood's one
+approximation, the merging of the model-conditioned Gaussians
+(:mod:`mapassoc.filtering.imm`); Bar-Shalom, Li and Kirubarajan (2001, chapter 11)
+leave a set's noise levels to its designer.  Starts: the
+first component, which starts every track and fits the straight legs, starts as a
+single model does (quiet, above); each later one, there for the manoeuvres, at the
+tracking index one start ``sigma^2 / Q1(T)[0, 0]`` of that component, times ten per
+component after the second (:data:`~mapassoc.models.interacting.NOISE_LEVELS`' loud
+factor), so that the set's models start apart and a manoeuvre is not fitted from the
+quiet side only.  A set's components keep their order: the first stays the track
+starter whatever its estimate.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
-from typing import Protocol
+from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -104,9 +127,10 @@ from mapassoc.filtering.noise_estimation import (
     unit_process_noise,
 )
 from mapassoc.filtering.noise_moments import ChainMoments, chain_moments
-from mapassoc.filtering.smoothing import track_log_likelihood
+from mapassoc.filtering.smoothing import interacting_log_likelihoods, track_log_likelihood
+from mapassoc.models.interacting import NOISE_LEVELS, InteractingModels
 from mapassoc.models.measurement import LinearMeasurement
-from mapassoc.models.motion import ConstantVelocity
+from mapassoc.models.motion import ConstantVelocity, MotionModel
 from mapassoc.models.sensor import Sensor
 
 __all__ = [
@@ -164,11 +188,15 @@ class NoiseAsked:
     process_start : float or None
     stds : dict of str to tuple of float or None
         Position sensors whose ``noise_std`` is "auto", with their starts.
+    models : dict of int to float or None
+        Components of a set of motion models (positions in ``[[motion.models]]``) whose
+        ``noise_intensity`` is "auto", with their starts.
     """
 
     process: bool
     process_start: float | None
     stds: dict[str, tuple[float, ...] | None]
+    models: dict[int, float | None] = field(default_factory=dict)
 
     @classmethod
     def from_config(cls, config: Config) -> NoiseAsked:
@@ -183,17 +211,32 @@ class NoiseAsked:
         auto = config.auto
         if auto.noise_intensity and not scalable_process_noise(config.motion):
             unit_process_noise(config.motion, 1.0)  # raises, naming the key
+        models = auto.model_noise_starts()
+        if models and not isinstance(config.motion, InteractingModels):
+            raise InputError(
+                f"auto names components {sorted(models)} of [[motion.models]], but the motion "
+                f"model is not a set: {config.motion!r}", key="motion.models",
+            )  # fmt: skip
+        for index in models:
+            component = config.motion.models[index]  # type: ignore[attr-defined]
+            if not scalable_process_noise(component):
+                raise InputError(
+                    f'"auto" needs a model whose process noise is noise_intensity times a '
+                    f"fixed matrix, got {component!r}",
+                    key=f"motion.models[{index}].noise_intensity",
+                )  # fmt: skip
         for name in auto.noise_std_starts():
             if not position_sensor(config.sensors[name].measurement):
                 raise InputError(
                     f"sensor '{name}' noise_std = \"auto\" needs a position sensor, got "
                     f"{config.sensors[name].measurement!r}", key="noise_std",
                 )  # fmt: skip
-        return cls(auto.noise_intensity, auto.noise_intensity_start, auto.noise_std_starts())
+        return cls(auto.noise_intensity, auto.noise_intensity_start, auto.noise_std_starts(),
+                   dict(sorted(models.items())))  # fmt: skip
 
     @property
     def any(self) -> bool:
-        return self.process or bool(self.stds)
+        return self.process or bool(self.stds) or bool(self.models)
 
     def pooled(self, name: str) -> bool:
         """Whether sensor ``name``'s std is one value for all components."""
@@ -211,20 +254,30 @@ class NoiseLevels:
         None when not asked for.
     noise_std : dict of str to tuple of float
         Per sensor asked for, one std per position component.
+    model_intensities : dict of int to float
+        Per component of a set of motion models asked for (its position in
+        ``[[motion.models]]``), its ``noise_intensity``; in increasing order.
     """
 
     noise_intensity: float | None
     noise_std: dict[str, tuple[float, ...]]
+    model_intensities: dict[int, float] = field(default_factory=dict)
 
     def vector(self) -> FloatArray:
-        """The values in one positive vector (``noise_intensity`` first)."""
+        """The values in one positive vector (``noise_intensity`` first, then the
+        components' in their order, then the stds)."""
         head = [] if self.noise_intensity is None else [self.noise_intensity]
+        head += list(self.model_intensities.values())
         return np.array(head + [v for stds in self.noise_std.values() for v in stds], float)
 
     def to_json(self) -> dict[str, object]:
         out: dict[str, object] = {}
         if self.noise_intensity is not None:
             out["noise_intensity"] = self.noise_intensity
+        if self.model_intensities:
+            out["model_noise_intensity"] = {
+                f"motion.models[{index}]": value for index, value in self.model_intensities.items()
+            }
         out["noise_std"] = {name: list(stds) for name, stds in self.noise_std.items()}
         return out
 
@@ -233,8 +286,9 @@ def _from_vector(asked: NoiseAsked, like: NoiseLevels, values: FloatArray) -> No
     """:meth:`NoiseLevels.vector` read back (a pooled std given once per component)."""
     it = iter(values.tolist())
     q = next(it) if like.noise_intensity is not None else None
+    models = {index: next(it) for index in like.model_intensities}
     return NoiseLevels(q, {name: tuple(next(it) for _ in stds) for name, stds in
-                           like.noise_std.items()})  # fmt: skip
+                           like.noise_std.items()}, models)  # fmt: skip
 
 
 def with_noise_levels(config: Config, levels: NoiseLevels | None) -> Config:
@@ -244,7 +298,15 @@ def with_noise_levels(config: Config, levels: NoiseLevels | None) -> Config:
         return config
     motion = config.motion
     if levels.noise_intensity is not None:
-        motion = type(motion)(ndim=motion.ndim, noise_intensity=levels.noise_intensity)  # type: ignore[call-arg, attr-defined]
+        motion = _scaled(motion, levels.noise_intensity)
+    if levels.model_intensities and isinstance(motion, InteractingModels):
+        motion = InteractingModels(
+            models=[_scaled(model, levels.model_intensities[index])
+                    if index in levels.model_intensities else model
+                    for index, model in enumerate(motion.models)],
+            switching=motion.switching,
+            initial_probabilities=motion.initial_probabilities.tolist(),
+        )  # fmt: skip
     sensors = {}
     for name, sensor in config.sensors.items():
         measurement = sensor.measurement
@@ -259,6 +321,13 @@ def with_noise_levels(config: Config, levels: NoiseLevels | None) -> Config:
         source=config.source, auto=config.auto, trackers=config.trackers,
         recording=config.recording,
     )  # fmt: skip
+
+
+def _scaled(motion: MotionModel, noise_intensity: float) -> MotionModel:
+    """A kinematic model (:func:`scalable_process_noise`) rebuilt with another
+    ``noise_intensity``."""
+    kind: Any = type(motion)  # built from ndim and noise_intensity
+    return kind(ndim=motion.ndim, noise_intensity=noise_intensity)  # type: ignore[attr-defined]
 
 
 def _std_start(scans: Sequence[Scan], name: str) -> float | None:
@@ -306,12 +375,34 @@ def initial_noise(config: Config, scans: Sequence[Scan], asked: NoiseAsked) -> N
     q = None
     if asked.process:
         q = asked.process_start
-        if q is None and chains and isinstance(config.motion, ConstantVelocity):
-            q = float(np.median([QUIET_START * m.measurement_variance / m.period**3
-                                 for m in chains.values()]))  # fmt: skip
         if q is None:
-            q = _q_start(config, scans, stds)
-    return NoiseLevels(q, stds)
+            q = _quiet_start(config, scans, stds, chains, config.motion)
+    models: dict[int, float] = {}
+    for index, given in asked.models.items():
+        component: MotionModel = config.motion.models[index]  # type: ignore[attr-defined]
+        if given is None and index == 0:
+            given = _quiet_start(config, scans, stds, chains, component)
+        elif given is None:
+            loud = NOISE_LEVELS[-1] ** (index - 1)
+            given = loud * _q_start(config, scans, stds, component, f"motion.models[{index}]")
+        models[index] = given
+    return NoiseLevels(q, stds, models)
+
+
+def _quiet_start(
+    config: Config,
+    scans: Sequence[Scan],
+    stds: Mapping[str, tuple[float, ...]],
+    chains: Mapping[str, ChainMoments],
+    model: MotionModel,
+) -> float:
+    """The start of a single model's ``noise_intensity``, or of a set's first model's:
+    :data:`QUIET_START` of the chains' for constant velocity, else :func:`_q_start`
+    (module docstring, starts)."""
+    if chains and isinstance(model, ConstantVelocity):
+        return float(np.median([QUIET_START * m.measurement_variance / m.period**3
+                                for m in chains.values()]))  # fmt: skip
+    return _q_start(config, scans, stds, model, "motion")
 
 
 def _chains(config: Config, scans: Sequence[Scan]) -> dict[str, ChainMoments]:
@@ -328,8 +419,15 @@ def _chains(config: Config, scans: Sequence[Scan]) -> dict[str, ChainMoments]:
     return out
 
 
-def _q_start(config: Config, scans: Sequence[Scan], stds: Mapping[str, tuple[float, ...]]) -> float:
-    """``sigma^2 / Q1(T)[0, 0]`` (module docstring)."""
+def _q_start(
+    config: Config,
+    scans: Sequence[Scan],
+    stds: Mapping[str, tuple[float, ...]],
+    model: MotionModel,
+    key: str,
+) -> float:
+    """``sigma^2 / Q1(T)[0, 0]`` of ``model`` (module docstring); ``key``: the table whose
+    ``noise_intensity_start`` an error asks for."""
     variances = [
         np.array(stds[name]) ** 2 if name in stds else np.diag(sensor.measurement.noise_covariance)
         for name, sensor in config.sensors.items()
@@ -338,11 +436,11 @@ def _q_start(config: Config, scans: Sequence[Scan], stds: Mapping[str, tuple[flo
     steps = np.diff(np.unique([scan.time for scan in scans]))
     if not variances or steps.size == 0:
         raise InputError(
-            'motion.noise_intensity = "auto" has no start: the recording needs a position '
+            f'{key}.noise_intensity = "auto" has no start: the recording needs a position '
             "sensor and two scan times; give noise_intensity_start",
-            key="motion.noise_intensity_start",
+            key=f"{key}.noise_intensity_start",
         )
-    unit = unit_process_noise(config.motion, float(np.median(steps)))
+    unit = unit_process_noise(model, float(np.median(steps)))
     return float(np.mean(np.concatenate(variances)) / unit[0, 0])
 
 
@@ -422,6 +520,8 @@ def noise_m_step(
         Per block, track id -> {scan index -> weight of its detection}
         (:func:`association_weights`); default: every detection counts 1.
     """
+    if isinstance(config.motion, InteractingModels):
+        return _interacting_m_step(config, pieces, associations, asked, current, weights)
     notes: list[str] = []
     per_block = [None] * len(pieces) if weights is None else list(weights)
 
@@ -474,6 +574,86 @@ def noise_m_step(
             "are nearly noise-free"
         )
     return _from_vector(asked, current, values), tuple(notes)
+
+
+def _interacting_m_step(
+    config: Config,
+    pieces: Sequence[Sequence[Scan]],
+    associations: Sequence[Mapping[int, Mapping[int, int]]],
+    asked: NoiseAsked,
+    current: NoiseLevels,
+    weights: Sequence[Mapping[int, Mapping[int, float]]] | None,
+) -> tuple[NoiseLevels, tuple[str, ...]]:
+    """:func:`noise_m_step` for a set of motion models: the levels that maximise the
+    tracks' IMM predictive likelihood (:func:`track_log_likelihood`, all tracks of a
+    block in lockstep: :func:`~mapassoc.filtering.smoothing.interacting_log_likelihoods`),
+    by rounds of golden-section searches on one level at a time (module docstring, sets
+    of models).
+
+    A round searches every level in turn, each at the others' latest values, and keeps a
+    search's level only where the likelihood does not fall (so no round lowers it); the
+    rounds stop when one moves no level by more than the search's resolution
+    (:data:`ECME_LOG_TOLERANCE` in the log) or after :data:`ECME_ROUNDS`.  The first
+    round's search of a process noise spans :data:`ECME_SPAN` either side of the start,
+    every other search :data:`ECME_NEAR_SPAN`: a std starts near its value (the chains'
+    moments), a process noise may start orders of magnitude away.
+    """
+    per_block = [None] * len(pieces) if weights is None else list(weights)
+    blocks = [(piece, [assoc[i] for i in sorted(assoc) if len(assoc[i]) >= 2],
+               [(weight or {}).get(i) for i in sorted(assoc) if len(assoc[i]) >= 2])
+              for piece, assoc, weight in zip(pieces, associations, per_block, strict=True)]
+    blocks = [block for block in blocks if block[1]]  # fmt: skip
+    if not blocks:
+        return current, ("noise levels not estimable: no track with two detections; kept",)
+
+    def log_likelihood(values: FloatArray) -> float:
+        run = with_noise_levels(config, _from_vector(asked, current, values))
+        return math.fsum(float(np.sum(interacting_log_likelihoods(piece, tracks, run, w)))
+                         for piece, tracks, w in blocks)  # fmt: skip
+
+    values = current.vector()
+    floor = LEVEL_FLOOR * values
+    best = log_likelihood(values)
+    for round_index in range(ECME_ROUNDS):
+        before = values.copy()
+        for where, process in _coordinates(asked, current):
+            span = ECME_SPAN if process and round_index == 0 else ECME_NEAR_SPAN
+
+            def along(level: float, where: list[int] = where) -> float:
+                trial = values.copy()
+                trial[where] = level
+                return log_likelihood(trial)
+
+            level = _best_intensity(along, float(values[where[0]]), float(floor[where[0]]), span)
+            found = along(level)
+            if found >= best:  # the bracket's midpoint may lie below the level it started at
+                values[where], best = level, found
+        if np.all(np.abs(np.log(values / before)) <= ECME_LOG_TOLERANCE):
+            break
+    notes: tuple[str, ...] = ()
+    if np.any(values <= floor * (1 + 1e-9)):
+        notes = (f"noise levels at their floor ({LEVEL_FLOOR!r} of the pass's start): the "
+                 "tracks are nearly noise-free",)  # fmt: skip
+    return _from_vector(asked, current, values), notes
+
+
+def _coordinates(asked: NoiseAsked, levels: NoiseLevels) -> list[tuple[list[int], bool]]:
+    """The levels one search moves at a time, as positions in :meth:`NoiseLevels.vector`
+    and whether each is a process noise: ``noise_intensity``, each component's, then per
+    sensor its std (one search for a pooled std, whose components are equal)."""
+    out: list[tuple[list[int], bool]] = []
+    position = 0
+    for _ in range((levels.noise_intensity is not None) + len(levels.model_intensities)):
+        out.append(([position], True))
+        position += 1
+    for name, stds in levels.noise_std.items():
+        size = len(stds)
+        if asked.pooled(name):
+            out.append((list(range(position, position + size)), False))
+        else:
+            out += [([position + i], False) for i in range(size)]
+        position += size
+    return out
 
 
 def _ecme(

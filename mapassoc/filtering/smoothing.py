@@ -51,19 +51,30 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mapassoc.array_types import FloatArray
+from mapassoc.array_types import FloatArray, IntArray
 from mapassoc.data.config import Config
 from mapassoc.data.io import TrackTable
 from mapassoc.data.scans import Scan
 from mapassoc.errors import InputError
 from mapassoc.filtering.batch import KalmanFilter
-from mapassoc.filtering.imm import imm_filter, imm_smooth
+from mapassoc.filtering.imm import (
+    IMMRun,
+    IMMState,
+    imm_filter,
+    imm_predict,
+    imm_smooth,
+    model_log_probabilities,
+    predictive_log_likelihood,
+)
 from mapassoc.filtering.kalman import (
     FilterStep,
     innovation,
+    innovation_covariance,
     inverse_and_logdet,
+    log_gaussian,
     rts_cross_covariances,
     rts_smooth,
+    update,
 )
 from mapassoc.models.birth import (
     birth_state,
@@ -86,6 +97,7 @@ __all__ = [
     "smooth_track",
     "smooth_track_lag_one",
     "track_log_likelihood",
+    "interacting_log_likelihoods",
     "smooth_tracks",
     "smoothed_track",
 ]
@@ -494,13 +506,19 @@ def track_log_likelihood(
     The observed-data likelihood of the noise levels given the associations (the first
     detection's term, the birth prior, does not depend on them), which the noise-level
     EM maximises over the process noise directly (ECME,
-    :mod:`mapassoc.estimator.noise_levels`).  Models as :func:`smooth_track_lag_one`'s.
+    :mod:`mapassoc.estimator.noise_levels`).  For a set of models
+    (:class:`InteractingModels`) it is the IMM's predictive likelihood of the same
+    detections, ``sum_k log sum_j c_j N(z_k; H x_jk|k-1, S_jk)`` (the run of
+    :func:`smoothed_track`; the IMM's Gaussian merging is its one approximation,
+    :mod:`mapassoc.filtering.imm`), which the noise levels of a set are fitted to.
 
     Raises
     ------
     InputError
-        A model set, or a motion model that converts its initiation state.
+        A single motion model that converts its initiation state.
     """
+    if isinstance(config.motion, InteractingModels):
+        return _interacting_run(scans, detections, config, config.motion, weights).log_likelihood
     _check_single_model(config, "track_log_likelihood")
     scan_indices, segment, _ = _filter_track(scans, detections, config, weights)
     weight = {} if weights is None else weights
@@ -522,36 +540,151 @@ def track_log_likelihood(
 _LOG_2PI = float(np.log(2.0 * np.pi))
 
 
+def _interacting_run(
+    scans: Sequence[Scan],
+    detections: Mapping[int, int],
+    config: Config,
+    motion: InteractingModels,
+    weights: DetectionWeights | None = None,
+) -> IMMRun:
+    """The IMM filter over a track's scans, from the first detection to the last: every
+    model starts at the single-point initiation of the first detection with the prior
+    model probabilities, each detection's noise covariance divided by its weight
+    (:func:`weighted_measurement`, as :func:`_filter_track` does)."""
+    weight = {} if weights is None else weights
+    first, last = min(detections), max(detections)
+    first_scan = scans[first]
+    z0 = first_scan.detections[detections[first]]
+    x0, P0 = birth_state(
+        motion,
+        weighted_measurement(config.sensors[first_scan.sensor].measurement, weight.get(first, 1.0)),
+        z0,
+        config.birth,
+    )
+    steps = [FilterStep(first_scan.time)]
+    for k in range(first + 1, last + 1):
+        scan = scans[k]
+        if k in detections:
+            measurement = weighted_measurement(
+                config.sensors[scan.sensor].measurement, weight.get(k, 1.0)
+            )
+            steps.append(FilterStep(scan.time, measurement, scan.detections[detections[k]]))
+        else:
+            steps.append(FilterStep(scan.time))
+    with np.errstate(divide="ignore"):
+        log_mu0 = np.log(motion.initial_probabilities)
+    return imm_filter(motion.models, motion.switching, x0, P0, steps, log_mu0=log_mu0)
+
+
+def interacting_log_likelihoods(
+    scans: Sequence[Scan],
+    tracks: Sequence[Mapping[int, int]],
+    config: Config,
+    weights: Sequence[DetectionWeights | None] | None = None,
+) -> FloatArray:
+    """:func:`track_log_likelihood` of many tracks under a set of models, in lockstep.
+
+    Every track steps through every scan from its first detection to its last, so at a
+    scan all tracks alive there share the interval since the scan before: one batched IMM
+    step (:mod:`mapassoc.filtering.imm`, leading axis the tracks) serves them all, where
+    a filter per track would make one step per track and scan.  The steps are those of
+    :func:`_interacting_run`, so the sums are its to rounding (a test compares them).
+
+    Parameters
+    ----------
+    scans : sequence of Scan
+    tracks : sequence of mapping of int to int
+        Each track's scan index -> detection index (at least one detection).
+    config : Config
+        Its motion an :class:`InteractingModels`.
+    weights : sequence of DetectionWeights or None, optional
+        Per track, the weights of its detections (default: every detection 1).
+
+    Returns
+    -------
+    ndarray, shape (len(tracks),)
+    """
+    motion = config.motion
+    if not isinstance(motion, InteractingModels):
+        raise InputError(f"interacting_log_likelihoods: motion must be a set of models "
+                         f"(InteractingModels), got {motion!r}")  # fmt: skip
+    per_track = [{} if w is None else w for w in (weights or [None] * len(tracks))]
+    firsts = [min(t) for t in tracks]
+    lasts = [max(t) for t in tracks]
+    M, n = motion.n_models, motion.state_dim
+    log_mu = np.zeros((len(tracks), M))
+    x = np.zeros((len(tracks), M, n))
+    P = np.zeros((len(tracks), M, n, n))
+    total = np.zeros(len(tracks))
+    with np.errstate(divide="ignore"):
+        log_mu0 = np.log(motion.initial_probabilities)
+    for k in range(min(firsts, default=0), max(lasts, default=-1) + 1):
+        alive = np.array([i for i in range(len(tracks)) if firsts[i] < k <= lasts[i]], int)
+        dt = scans[k].time - scans[k - 1].time if k else 0.0
+        if alive.size and dt > 0:
+            step = imm_predict(IMMState(log_mu[alive], x[alive], P[alive]), motion.models,
+                               motion.switching.at(dt), dt)  # fmt: skip
+            log_mu[alive], x[alive], P[alive] = step.log_predicted, step.means, step.covariances
+        seen = np.array([i for i in alive if k in tracks[i]], int)
+        if seen.size:
+            total[seen] += _weighted_update(scans[k], k, config, tracks, per_track, seen,
+                                            log_mu, x, P)  # fmt: skip
+        for i in (i for i in range(len(tracks)) if firsts[i] == k):
+            x0, P0 = birth_state(motion, weighted_measurement(
+                config.sensors[scans[k].sensor].measurement, per_track[i].get(k, 1.0)),
+                scans[k].detections[tracks[i][k]], config.birth)  # fmt: skip
+            log_mu[i], x[i], P[i] = log_mu0, x0, P0
+    return total
+
+
+def _weighted_update(
+    scan: Scan,
+    k: int,
+    config: Config,
+    tracks: Sequence[Mapping[int, int]],
+    weights: Sequence[DetectionWeights],
+    seen: IntArray,
+    log_mu: FloatArray,
+    x: FloatArray,
+    P: FloatArray,
+) -> FloatArray:
+    """The IMM update of the tracks ``seen`` at ``scan`` (index ``k``) in place
+    (:func:`~mapassoc.filtering.imm.imm_update`'s algebra with each track's noise
+    covariance ``R / w``, :func:`weighted_measurement`), and their predictive
+    log-likelihoods of the detections."""
+    measurement = config.sensors[scan.sensor].measurement
+    z = scan.detections[[tracks[i][k] for i in seen]]
+    w = np.array([weights[i].get(k, 1.0) for i in seen])
+    if np.any(w != 1.0):
+        weighted_measurement(measurement, float(np.min(w)))  # refuses what cannot be weighted
+    R = measurement.noise_covariance[None, None] / w[:, None, None, None]
+    H = measurement.jacobian(x[seen])
+    nu = measurement.residual(z[:, None, :], measurement.predict(x[seen]))
+    S = innovation_covariance(H, P[seen], R)
+    loglik = log_gaussian(nu, S)
+    x[seen], P[seen] = update(x[seen], P[seen], nu, S, H, R)
+    found = predictive_log_likelihood(log_mu[seen], loglik)
+    log_mu[seen] = model_log_probabilities(log_mu[seen], loglik)
+    return found
+
+
 def _smooth_interacting(
     scans: Sequence[Scan], detections: Mapping[int, int], config: Config, motion: InteractingModels
 ) -> SmoothedTrack:
     """:func:`smoothed_track` for a model set: Kim's IMM smoother, the models' combination
     and their smoothed probabilities.
 
-    The run starts every model at the single-point initiation of the first detection
-    with the prior model probabilities (the trees start a track with the first model
-    alone and enter the set at its second detection; the two differ only in the first
-    interval's process noise).  The probabilities are the smoother's log probabilities
+    The run (:func:`_interacting_run`) starts every model at the first detection with the
+    prior model probabilities (the trees start a track with the first model alone and
+    enter the set at its second detection; the two differ only in the first interval's
+    process noise).  The probabilities are the smoother's log probabilities
     exponentiated and each row divided by its sum: the smoother normalises in log space,
     and the division removes the rounding of ``exp`` so that a row sums to 1 as closely
     as floats allow.
     """
     first, last = min(detections), max(detections)
     scan_indices = list(range(first, last + 1))
-    z0 = scans[first].detections[detections[first]]
-    x0, P0 = birth_state(motion, config.sensors[scans[first].sensor].measurement, z0,
-                         config.birth)  # fmt: skip
-    steps = [FilterStep(scans[first].time)]
-    for k in scan_indices[1:]:
-        scan = scans[k]
-        if k in detections:
-            measurement = config.sensors[scan.sensor].measurement
-            steps.append(FilterStep(scan.time, measurement, scan.detections[detections[k]]))
-        else:
-            steps.append(FilterStep(scan.time))
-    with np.errstate(divide="ignore"):
-        log_mu0 = np.log(motion.initial_probabilities)
-    run = imm_filter(motion.models, motion.switching, x0, P0, steps, log_mu0=log_mu0)
+    run = _interacting_run(scans, detections, config, motion)
     smoothed = imm_smooth(motion.models, motion.switching, run)
     rows = [int(scans[k].rows[detections[k]]) if k in detections else -1 for k in scan_indices]
     probabilities = np.exp(smoothed.log_probabilities)

@@ -30,7 +30,7 @@ from mapassoc.apps.cli import build_parser, main
 from mapassoc.data.config import NOISE_PLACEHOLDER, check_config
 from mapassoc.errors import InputError
 from mapassoc.evaluation.scenarios import build_scenario
-from mapassoc.models.interacting import NOISE_LEVELS, InteractingModels
+from mapassoc.models.interacting import InteractingModels
 
 SCANS = 30
 WINDOW = 3
@@ -140,11 +140,20 @@ def test_the_auto_configuration_holds_placeholders_and_the_run_none() -> None:
     values = {v.label: v.estimate for v in ran.values}
     assert values["pos Pd"] == ran.config.sensors["pos"].detection_probability
     assert values["q"] == ran.config.motion.noise_intensity  # type: ignore[attr-defined]
-    imm = run_auto(config, setup.scenario.scans, truth, imm=True)
-    assert isinstance(imm.config.motion, InteractingModels) and imm.reran
-    q = imm.estimate.config.motion.noise_intensity  # type: ignore[attr-defined]
-    assert [m.noise_intensity for m in imm.config.motion.models] == [f * q for f in NOISE_LEVELS]
-    assert not imm.config.auto.pending
+    # A set's models are estimated under the set: each component "auto", no single q.
+    setup = _bench_setup("crossing", 0, WINDOW, 5.0, "scenario", 12, "birth", "imm", "auto")
+    config = setup.config
+    assert isinstance(config.motion, InteractingModels)
+    assert [f.label for f in auto_fields(config)][:2] == ["q0", "q1"]
+    assert "motion.models[1].noise_intensity" in config.auto.names()
+    assert not config.auto.noise_intensity
+    imm = run_auto(config, setup.scenario.scans, truth)
+    assert isinstance(imm.config.motion, InteractingModels) and not imm.config.auto.pending
+    values = {v.label: v for v in imm.values}
+    assert [m.noise_intensity for m in imm.config.motion.models] == [
+        values["q0"].estimate, values["q1"].estimate]  # fmt: skip
+    assert values["q0"].truth is None  # the scenario simulates one model, not a set
+    assert all(m.noise_intensity != NOISE_PLACEHOLDER for m in imm.config.motion.models)
 
 
 def test_the_fields_follow_the_models() -> None:

@@ -156,3 +156,117 @@ def test_nothing_runs_on_the_noise_placeholders(tmp_path) -> None:  # type: igno
     with pytest.raises(InputError, match=r"motion.noise_intensity, sensor 'radar' noise_std = "
                        r"\"auto\"; estimate them from the recording first"):  # fmt: skip
         WindowEstimator(config=config)
+
+
+IMM_MOTION = """[motion]
+model = "imm"
+switch_probability = 0.05
+
+[[motion.models]]
+model = "constant_velocity"
+ndim = 2
+noise_intensity = 0.5
+
+[[motion.models]]
+model = "{model}"
+ndim = 2
+noise_intensity = {q}{extra}
+"""
+
+
+def _imm_text(q: str = "100.0", extra: str = "", model: str = "constant_velocity") -> str:
+    motion = IMM_MOTION.format(model=model, q=q, extra=extra)
+    return _text().replace('[motion]\nmodel = "constant_velocity"\nndim = 2\n'
+                           "noise_intensity = 0.5\n", motion)  # fmt: skip
+
+
+def test_an_imm_components_auto_noise_intensity_is_listed_with_its_start(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from mapassoc.data.config import NOISE_PLACEHOLDER
+    from mapassoc.models.motion import ConstantVelocity
+
+    for extra, start in (("", None), ("\nnoise_intensity_start = 20.0", 20.0)):
+        config = _load(tmp_path, _imm_text('"auto"', extra))
+        assert config.auto == AutoParameters(model_noise_intensity=((1, start),))
+        assert config.auto.pending and config.auto.model_noise_starts() == {1: start}
+        assert config.auto.names() == ["motion.models[1].noise_intensity"]
+        assert not config.auto.noise_intensity and config.auto.noise_intensity_start is None
+        quiet, agile = config.motion.models  # type: ignore[attr-defined]
+        assert repr(quiet) == repr(ConstantVelocity(ndim=2, noise_intensity=0.5))  # untouched
+        assert repr(agile) == repr(ConstantVelocity(ndim=2, noise_intensity=NOISE_PLACEHOLDER))
+    given = _load(tmp_path, _imm_text())
+    assert not given.auto.pending and given.auto.model_noise_starts() == {}
+    assert given.motion.models[1].noise_intensity == 100.0  # type: ignore[attr-defined]
+
+
+def test_an_imm_components_auto_noise_intensity_round_trips_through_toml(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import tomllib
+
+    for extra in ("", "\nnoise_intensity_start = 20.0"):
+        config = _load(tmp_path, _imm_text('"auto"', extra))
+        text = config_to_toml(config)
+        second = text.split("[[motion.models]]")[2].split("\n[")[0]
+        assert 'noise_intensity = "auto"' in second and text.count('"auto"') == 1
+        assert ("noise_intensity_start = 20.0" in second) == bool(extra)
+        again = parse_config(tomllib.loads(text))
+        assert again.auto == config.auto
+        assert repr(again.motion) == repr(config.motion)
+        assert config_to_toml(again) == text  # a fixed point
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "message"),
+    [
+        (_imm_text('"auto"', model="singer").replace(
+            'model = "singer"\nndim = 2\n', 'model = "singer"\nndim = 2\n'
+            "time_constant = 10.0\nacceleration_std = 1.0\n"),
+         "motion.models[1].noise_intensity",
+         "\"auto\" needs model = one of ['constant_velocity', 'constant_acceleration', "
+         "'random_walk'], got 'singer'"),
+        (_imm_text(extra="\nnoise_intensity_start = 20.0"),
+         "motion.models[1].noise_intensity_start", 'only goes with noise_intensity = "auto"'),
+        (_imm_text('"auto"', "\nnoise_intensity_start = 0.0"),
+         "motion.models[1].noise_intensity_start", "got 0.0"),
+        (_imm_text('"auto"', "\nnoise_intensity_start = -1.0"),
+         "motion.models[1].noise_intensity_start", "got -1.0"),
+        (_imm_text().replace('switch_probability = 0.05', 'switch_probability = 0.05\n'
+                             'noise_intensity = "auto"'),
+         "motion.noise_intensity", "allowed keys for imm"),
+        (_imm_text().replace('switch_probability = 0.05', 'switch_probability = 0.05\n'
+                             "noise_intensity_start = 1.0"),
+         "motion.noise_intensity_start", "allowed keys for imm"),
+    ],
+)  # fmt: skip
+def test_bad_imm_auto_noise_names_its_key(tmp_path, text: str, key: str, message: str) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(ConfigError) as info:
+        _load(tmp_path, text)
+    assert info.value.key == key
+    assert message in str(info.value)
+
+
+def test_auto_components_must_be_components_of_an_imm_set(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import dataclasses
+
+    single = _load(tmp_path, _text())
+    with pytest.raises(InputError, match=r"auto.model_noise_intensity names components \[0\]"):
+        dataclasses.replace(single, auto=AutoParameters(model_noise_intensity=((0, None),)))
+    imm = _load(tmp_path, _imm_text())
+    for bad in (((2, None),), ((1, None), (0, None)), ((1, None), (1, None)), ((True, None),)):
+        with pytest.raises(InputError, match="distinct components 0..1 in increasing order"):
+            dataclasses.replace(imm, auto=AutoParameters(model_noise_intensity=bad))  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="start of component 1 must be positive"):
+        dataclasses.replace(imm, auto=AutoParameters(model_noise_intensity=((1, 0.0),)))
+    both = AutoParameters(model_noise_intensity=((0, None), (1, 3.0)))
+    assert dataclasses.replace(imm, auto=both).auto.names() == [
+        "motion.models[0].noise_intensity", "motion.models[1].noise_intensity"]
+    whole = dataclasses.replace(imm, auto=AutoParameters(noise_intensity=True))
+    with pytest.raises(ConfigError) as info:  # the writer has nowhere to write it
+        config_to_toml(whole)
+    assert info.value.key == "motion.noise_intensity"
+    assert "no noise_intensity of its own" in str(info.value)
+
+
+def test_nothing_runs_on_an_imm_components_placeholder(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    config = _load(tmp_path, _imm_text('"auto"'))
+    with pytest.raises(InputError, match=r"motion.models\[1\].noise_intensity = \"auto\"; "
+                       "estimate them from the recording first"):  # fmt: skip
+        WindowEstimator(config=config)

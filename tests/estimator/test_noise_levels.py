@@ -33,9 +33,12 @@ from mapassoc.estimator.pipeline import WindowEstimator
 from mapassoc.evaluation.oracle import true_associations
 from mapassoc.evaluation.scenarios import build_scenario, generic_config
 from mapassoc.filtering.noise_moments import chain_moments
+from mapassoc.filtering.smoothing import track_log_likelihood
+from mapassoc.models.interacting import InteractingModels, noise_levels
 from mapassoc.models.measurement import LinearMeasurement
 from mapassoc.models.motion import RandomWalk
 from mapassoc.models.sensor import Sensor
+from mapassoc.models.switching import SwitchingLaw
 
 
 def _auto(config, q_start=None, std_start=None):  # type: ignore[no-untyped-def]
@@ -220,3 +223,114 @@ def test_the_process_noise_search_reaches_the_maximum_the_em_creeps_towards(
     creeping, _ = noise_m_step(built.config, [built.scans], [tracks], asked, start)
     assert creeping.noise_intensity > 10 * truth_q
     assert log_likelihood(levels) > log_likelihood(creeping)
+
+
+# ----------------------------------------------------------------- sets of motion models
+
+
+def _set_asked(config, starts=(None, None)):  # type: ignore[no-untyped-def]
+    """``config`` with its motion wrapped in :func:`noise_levels` (1x, 10x), each
+    component's ``noise_intensity`` and every sensor's std "auto"."""
+    motion = noise_levels(config.motion)
+    auto = AutoParameters(
+        model_noise_intensity=tuple(enumerate(starts)),
+        noise_std=tuple((name, None) for name in config.sensors),
+    )  # fmt: skip
+    return dataclasses.replace(config, motion=motion, auto=auto)
+
+
+def test_a_set_of_identical_models_scores_a_track_as_the_model_does() -> None:
+    """The IMM of identical models is the Kalman filter (Blom and Bar-Shalom), so the
+    track likelihood the set's levels are fitted to is the single model's."""
+    built = build_scenario("crossing", 0, scans=30)
+    cv = built.config.motion
+    same = InteractingModels(models=[cv, cv], switching=SwitchingLaw(2, switch_probability=0.1))
+    as_set = dataclasses.replace(built.config, motion=same)
+    tracks = true_associations(built.scans, built.origins)
+    assert len(tracks) >= 2
+    for found in tracks.values():
+        single = track_log_likelihood(built.scans, found, built.config)
+        assert track_log_likelihood(built.scans, found, as_set) == pytest.approx(single, rel=1e-9)
+
+
+def test_a_set_s_starts_are_quiet_then_loud_and_given_ones_kept() -> None:
+    built = build_scenario("crossing", 0, scans=40)
+    config = _set_asked(built.config)
+    asked = NoiseAsked.from_config(config)
+    assert asked.models == {0: None, 1: None} and asked.any
+    levels = initial_noise(config, built.scans, asked)
+    single = initial_noise(_auto(built.config), built.scans, NoiseAsked.from_config(_auto(
+        built.config)))  # fmt: skip
+    # The first model as a single model starts; the second at a tracking index of one:
+    # its process noise over the median scan interval (1) moves a position by sigma^2.
+    assert levels.model_intensities[0] == single.noise_intensity
+    sigma2 = levels.noise_std["pos"][0] ** 2
+    assert levels.model_intensities[1] == pytest.approx(sigma2 / (1.0 / 3.0))
+    assert levels.noise_intensity is None
+    starts = _set_asked(built.config, (0.5, 7.0))
+    given = initial_noise(starts, built.scans, NoiseAsked.from_config(starts))
+    assert given.model_intensities == {0: 0.5, 1: 7.0}
+
+
+def test_a_set_s_levels_rebuild_its_models_and_read_back() -> None:
+    built = build_scenario("crossing", 0, scans=10)
+    config = _set_asked(built.config)
+    asked = NoiseAsked.from_config(config)
+    levels = NoiseLevels(None, {"pos": (2.0, 2.0)}, {1: 3.0})
+    run = with_noise_levels(config, levels)
+    assert isinstance(run.motion, InteractingModels)
+    assert [m.noise_intensity for m in run.motion.models] == [  # type: ignore[attr-defined]
+        config.motion.models[0].noise_intensity, 3.0]  # type: ignore[attr-defined]  # fmt: skip
+    assert run.motion.switching is config.motion.switching  # type: ignore[attr-defined]
+    np.testing.assert_array_equal(levels.vector(), [3.0, 2.0, 2.0])
+    assert levels.to_json()["model_noise_intensity"] == {"motion.models[1]": 3.0}
+    from mapassoc.estimator.noise_levels import _from_vector
+
+    assert _from_vector(asked, levels, levels.vector()) == levels
+
+
+def test_a_set_s_levels_fit_its_tracks_at_least_as_well_as_the_hand_made_set() -> None:
+    """Turning aircraft (coordinated turns, 50 m noise, true associations): the set's
+    levels maximise the tracks' IMM likelihood, so they fit at least as well as the set
+    built on the true single model (the bench's ``noise_levels`` of it) and as the
+    start, the quiet model stays below the loud one, and the std comes out near the
+    truth (the loud model takes the turns, not the measurement noise)."""
+    built = build_scenario("aircraft", 0, scans=30)
+    tracks = {i: d for i, d in true_associations(built.scans, built.origins).items()
+              if len(d) >= MIN_TRACK_DETECTIONS}  # fmt: skip
+    config = _set_asked(built.config)
+    asked = NoiseAsked.from_config(config)
+    start = initial_noise(config, built.scans, asked)
+    levels, notes = noise_m_step(config, [built.scans], [tracks], asked, start)
+    assert notes == ()
+
+    def fit(run) -> float:  # type: ignore[no-untyped-def]
+        return sum(track_log_likelihood(built.scans, d, run) for d in tracks.values())
+
+    truth_std = float(np.sqrt(built.config.sensors["pos"].measurement.noise_covariance[0, 0]))
+    hand_made = dataclasses.replace(built.config, motion=noise_levels(built.config.motion))
+    found = fit(with_noise_levels(config, levels))
+    assert found >= fit(hand_made)
+    assert found >= fit(with_noise_levels(config, start))
+    assert levels.model_intensities[0] < levels.model_intensities[1]
+    assert levels.noise_std["pos"][0] == pytest.approx(truth_std, rel=0.2)
+
+
+def test_a_set_s_tracks_in_lockstep_score_as_each_track_alone() -> None:
+    """The lockstep IMM over all tracks (one batched step per scan) sums each track's own
+    run, with weighted detections, and with two sensors (a range-bearing one)."""
+    from mapassoc.filtering.smoothing import interacting_log_likelihoods
+
+    for name in ("aircraft", "two_sensors"):
+        built = build_scenario(name, 0, scans=30)
+        config = dataclasses.replace(built.config, motion=noise_levels(built.config.motion))
+        tracks = list(true_associations(built.scans, built.origins).values())
+        rng = np.random.default_rng(1)
+        weights = ([{k: float(rng.uniform(0.2, 1.0)) for k in t} for t in tracks]
+                   if name == "aircraft" else [None] * len(tracks))  # position sensor only
+        alone = [track_log_likelihood(built.scans, t, config, w)
+                 for t, w in zip(tracks, weights, strict=True)]
+        together = interacting_log_likelihoods(built.scans, tracks, config, weights)
+        np.testing.assert_allclose(together, alone, rtol=1e-10, atol=1e-9)
+    with pytest.raises(InputError, match="must be a set of models"):
+        interacting_log_likelihoods(built.scans, tracks, built.config)
