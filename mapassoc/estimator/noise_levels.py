@@ -82,27 +82,36 @@ Decisions:
   to the next, the tolerance of the false-alarm rates.
 
 Sets of motion models (``[motion] model = "imm"``, a component's ``noise_intensity =
-"auto"``).  Shumway and Stoffer's M step needs one linear model's smoothed moments and
-lag-one covariances; under a set the smoothed moments are Kim's approximation and the
-M step of a component would weigh every transition by a smoothed model probability
-that is itself approximate.  So for a set every level asked for (each component's
+"auto"``). Shumway and Stoffer's M step needs one linear model's smoothed moments and
+lag-one covariances; under a set the smoothed moments are Kim's approximation and the M
+step of a component would weigh every transition by a smoothed model probability that is
+itself approximate. So for a set every level asked for (each component's
 ``noise_intensity``, each sensor's std) is the maximiser of the tracks' IMM predictive
 likelihood (:func:`~mapassoc.filtering.smoothing.track_log_likelihood`), the quantity
 the trees, J and the refinement score tracks with: rounds of a golden-section search on
 one level at a time in the log (coordinate ascent, at most :data:`ECME_ROUNDS` rounds,
 each search as the ECME rounds' of a single model), a level kept only where the
-likelihood does not fall.  The estimate is the maximum of the IMM's own likelihood
-(Blom and Bar-Shalom, IEEE TAC 1988), so it inherits that likelihood's one
-approximation, the merging of the model-conditioned Gaussians
-(:mod:`mapassoc.filtering.imm`); Bar-Shalom, Li and Kirubarajan (2001, chapter 11)
-leave a set's noise levels to its designer.  Starts: the
-first component, which starts every track and fits the straight legs, starts as a
-single model does (quiet, above); each later one, there for the manoeuvres, at the
+likelihood does not fall. Then each process noise but the loudest is raised to the upper
+end of its 95% likelihood interval (the largest level within :data:`INTERVAL_DROP` nats
+of the maximum, the others held): the quiet model's likelihood is flat over decades
+below the truth on nearly straight targets (the loud model takes every deviation), so
+the maximiser wanders down that plateau pass after pass to the numerical floor, and a
+quiet model with no process noise makes overconfident, rigid tracks that the data did
+not ask for. Every search keeps a component's level between its neighbours' in the set's
+order (the first the quietest): where the loud model is not needed its likelihood is
+flat too, and the two would otherwise swap roles, leaving the track starter loud. Where
+the data do determine a level its interval is narrow and the raise small; where they do
+not, the level is the largest they do not reject. The likelihood is the IMM's own (Blom
+and Bar-Shalom, IEEE TAC 1988), so the estimate inherits its one approximation, the
+merging of the model-conditioned Gaussians (:mod:`mapassoc.filtering.imm`); Bar-Shalom,
+Li and Kirubarajan (2001, chapter 11) leave a set's noise levels to its designer.
+Starts: the first component, which starts every track and fits the straight legs, starts
+as a single model does (quiet, above); each later one, there for the manoeuvres, at the
 tracking index one start ``sigma^2 / Q1(T)[0, 0]`` of that component, times ten per
 component after the second (:data:`~mapassoc.models.interacting.NOISE_LEVELS`' loud
 factor), so that the set's models start apart and a manoeuvre is not fitted from the
-quiet side only.  A set's components keep their order: the first stays the track
-starter whatever its estimate.
+quiet side only. A set's components keep their order: the first stays the track starter
+whatever its estimate.
 """
 
 from __future__ import annotations
@@ -143,6 +152,7 @@ __all__ = [
     "ECME_SPAN",
     "ECME_NEAR_SPAN",
     "ECME_LOG_TOLERANCE",
+    "INTERVAL_DROP",
     "association_weights",
     "NOISE_TOLERANCE",
     "NoiseAsked",
@@ -591,9 +601,11 @@ def _interacting_m_step(
     of models).
 
     A round searches every level in turn, each at the others' latest values, and keeps a
-    search's level only where the likelihood does not fall (so no round lowers it); the
-    rounds stop when one moves no level by more than the search's resolution
-    (:data:`ECME_LOG_TOLERANCE` in the log) or after :data:`ECME_ROUNDS`.  The first
+    search's level only where the likelihood does not fall (so no round lowers it), and
+    each process noise is then raised to the upper end of its likelihood interval
+    (:func:`_upper_end`).  The rounds stop when one moves no level by more than the
+    search's resolution (:data:`ECME_LOG_TOLERANCE` in the log) or after
+    :data:`ECME_ROUNDS`.  The first
     round's search of a process noise spans :data:`ECME_SPAN` either side of the start,
     every other search :data:`ECME_NEAR_SPAN`: a std starts near its value (the chains'
     moments), a process noise may start orders of magnitude away.
@@ -611,12 +623,59 @@ def _interacting_m_step(
         return math.fsum(float(np.sum(interacting_log_likelihoods(piece, tracks, run, w)))
                          for piece, tracks, w in blocks)  # fmt: skip
 
-    values = current.vector()
-    floor = LEVEL_FLOOR * values
+    coordinates = _coordinates(asked, current)
+    floor = LEVEL_FLOOR * current.vector()
+
+    def bounds(values: FloatArray, where: list[int]) -> tuple[float, float]:
+        return _neighbours(config.motion, current, values, where[0])
+
+    values, best = _coordinate_ascent(log_likelihood, current.vector(), floor, coordinates,
+                                      bounds)  # fmt: skip
+    for where, process in coordinates:
+        ceiling = bounds(values, where)[1]
+        if process and ceiling < math.inf:  # the loudest keeps its maximiser
+            values[where] = _upper_end(log_likelihood, values, where, best, ceiling)
+    notes: tuple[str, ...] = ()
+    if np.any(values <= floor * (1 + 1e-9)):
+        notes = (f"noise levels at their floor ({LEVEL_FLOOR!r} of the pass's start): the "
+                 "tracks are nearly noise-free",)  # fmt: skip
+    return _from_vector(asked, current, values), notes
+
+
+def _neighbours(
+    motion: object, current: NoiseLevels, values: FloatArray, position: int
+) -> tuple[float, float]:
+    """The ``noise_intensity`` of the set's components either side of the one at
+    ``position`` of ``values`` (0 and inf where none; ``(0, inf)`` for a std): a
+    component's level stays between its neighbours', so the set keeps its order, quiet
+    first (module docstring, sets of models)."""
+    asked = list(current.model_intensities)
+    if not isinstance(motion, InteractingModels) or position >= len(asked):
+        return 0.0, math.inf
+    levels: list[float | None] = [getattr(m, "noise_intensity", None) for m in motion.models]
+    for offset, index in enumerate(asked):
+        levels[index] = float(values[offset])
+    index = asked[position]
+    below = [level for level in levels[:index] if level is not None]
+    above = [level for level in levels[index + 1:] if level is not None]
+    return (below[-1] if below else 0.0), (above[0] if above else math.inf)
+
+
+def _coordinate_ascent(
+    log_likelihood: Callable[[FloatArray], float],
+    values: FloatArray,
+    floor: FloatArray,
+    coordinates: Sequence[tuple[list[int], bool]],
+    bounds: Callable[[FloatArray, list[int]], tuple[float, float]],
+) -> tuple[FloatArray, float]:
+    """Rounds of :func:`_best_intensity` on one coordinate at a time, each within its
+    ``bounds`` (the levels and the likelihood they reach): :func:`_interacting_m_step`'s
+    maximisation."""
+    values = values.copy()
     best = log_likelihood(values)
     for round_index in range(ECME_ROUNDS):
         before = values.copy()
-        for where, process in _coordinates(asked, current):
+        for where, process in coordinates:
             span = ECME_SPAN if process and round_index == 0 else ECME_NEAR_SPAN
 
             def along(level: float, where: list[int] = where) -> float:
@@ -624,17 +683,58 @@ def _interacting_m_step(
                 trial[where] = level
                 return log_likelihood(trial)
 
-            level = _best_intensity(along, float(values[where[0]]), float(floor[where[0]]), span)
+            below, above = bounds(values, where)
+            low = max(float(floor[where[0]]), below)
+            start = min(max(float(values[where[0]]), low), above)
+            level = _best_intensity(along, start, low, span, max(above, low))
             found = along(level)
             if found >= best:  # the bracket's midpoint may lie below the level it started at
                 values[where], best = level, found
         if np.all(np.abs(np.log(values / before)) <= ECME_LOG_TOLERANCE):
             break
-    notes: tuple[str, ...] = ()
-    if np.any(values <= floor * (1 + 1e-9)):
-        notes = (f"noise levels at their floor ({LEVEL_FLOOR!r} of the pass's start): the "
-                 "tracks are nearly noise-free",)  # fmt: skip
-    return _from_vector(asked, current, values), notes
+    return values, best
+
+
+INTERVAL_DROP = 1.92
+"""Nats below the maximum at the ends of a level's 95% likelihood interval: half the
+0.95 quantile of chi-square with one degree of freedom (Wilks's theorem)."""
+
+
+def _upper_end(
+    log_likelihood: Callable[[FloatArray], float],
+    values: FloatArray,
+    where: list[int],
+    best: float,
+    ceiling: float = math.inf,
+) -> float:
+    """The largest level of coordinate ``where`` (the others at ``values``) whose
+    likelihood is within :data:`INTERVAL_DROP` of ``best`` (module docstring, sets of
+    models), at most ``ceiling`` (the next louder component's): steps of
+    :data:`ECME_NEAR_SPAN` up from the maximiser until one drops further (at most
+    ``1 / LEVEL_FLOOR`` above it: a plateau as deep as one pass's floor), then bisection
+    on the log of that step to :data:`ECME_LOG_TOLERANCE`."""
+
+    def along(log_level: float) -> float:
+        trial = values.copy()
+        trial[where] = math.exp(log_level)
+        return log_likelihood(trial)
+
+    low = math.log(float(values[where[0]]))
+    top = min(low - math.log(LEVEL_FLOOR), math.log(ceiling))
+    if low >= top:
+        return math.exp(low)
+    high = min(low + math.log(ECME_NEAR_SPAN), top)
+    while along(high) >= best - INTERVAL_DROP:
+        if high >= top:
+            return math.exp(high)
+        low, high = high, min(high + math.log(ECME_NEAR_SPAN), top)
+    while high - low > ECME_LOG_TOLERANCE:
+        middle = (low + high) / 2.0
+        if along(middle) >= best - INTERVAL_DROP:
+            low = middle
+        else:
+            high = middle
+    return math.exp(low)
 
 
 def _coordinates(asked: NoiseAsked, levels: NoiseLevels) -> list[tuple[list[int], bool]]:
@@ -690,15 +790,19 @@ def _ecme(
 
 
 def _best_intensity(
-    log_likelihood: Callable[[float], float], q: float, floor: float, span: float
+    log_likelihood: Callable[[float], float],
+    q: float,
+    floor: float,
+    span: float,
+    ceiling: float = math.inf,
 ) -> float:
-    """The ``noise_intensity`` in ``[q / span, q * span]`` (and at least
-    ``floor``) that maximises ``log_likelihood``: golden-section search on ``log q`` to
+    """The ``noise_intensity`` in ``[q / span, q * span]`` (and within ``[floor,
+    ceiling]``) that maximises ``log_likelihood``: golden-section search on ``log q`` to
     :data:`ECME_LOG_TOLERANCE` (the profile likelihood of the process noise given the
     tracks is unimodal in the cases measured and flat on a wide range near its top, where
     the EM creeps)."""
     low = max(math.log(q) - math.log(span), math.log(floor))
-    high = math.log(q) + math.log(span)
+    high = min(math.log(q) + math.log(span), math.log(ceiling))
     ratio = (math.sqrt(5.0) - 1.0) / 2.0
     a, b = high - ratio * (high - low), low + ratio * (high - low)
     fa, fb = log_likelihood(math.exp(a)), log_likelihood(math.exp(b))

@@ -291,7 +291,8 @@ def test_a_set_s_levels_rebuild_its_models_and_read_back() -> None:
 
 def test_a_set_s_levels_fit_its_tracks_at_least_as_well_as_the_hand_made_set() -> None:
     """Turning aircraft (coordinated turns, 50 m noise, true associations): the set's
-    levels maximise the tracks' IMM likelihood, so they fit at least as well as the set
+    levels maximise the tracks' IMM likelihood (then each process level goes to the top
+    of its interval, within INTERVAL_DROP nats), so they fit at least as well as the set
     built on the true single model (the bench's ``noise_levels`` of it) and as the
     start, the quiet model stays below the loud one, and the std comes out near the
     truth (the loud model takes the turns, not the measurement noise)."""
@@ -334,3 +335,46 @@ def test_a_set_s_tracks_in_lockstep_score_as_each_track_alone() -> None:
         np.testing.assert_allclose(together, alone, rtol=1e-10, atol=1e-9)
     with pytest.raises(InputError, match="must be a set of models"):
         interacting_log_likelihoods(built.scans, tracks, built.config)
+
+
+def test_a_process_level_is_raised_to_the_upper_end_of_its_likelihood_interval() -> None:
+    """A likelihood flat below 1 and falling as ``(log q)^2`` above: from a maximiser
+    deep in the plateau (1e-5, several steps below) the raise reaches the largest level
+    within INTERVAL_DROP of the maximum, ``exp(sqrt(INTERVAL_DROP))``; a peaked one (a
+    level the data determine) moves by its own interval only."""
+    from mapassoc.estimator.noise_levels import INTERVAL_DROP, _upper_end
+
+    def plateau(values: np.ndarray) -> float:
+        return -max(0.0, math.log(values[1])) ** 2
+
+    raised = _upper_end(plateau, np.array([3.0, 1e-5]), [1], 0.0)
+    assert raised == pytest.approx(math.exp(math.sqrt(INTERVAL_DROP)), rel=0.03)
+    assert plateau(np.array([3.0, raised])) >= -INTERVAL_DROP
+
+    def peaked(values: np.ndarray) -> float:
+        return -100.0 * math.log(values[0] / 2.0) ** 2
+
+    raised = _upper_end(peaked, np.array([2.0]), [0], 0.0)
+    assert raised == pytest.approx(2.0 * math.exp(math.sqrt(INTERVAL_DROP / 100.0)), rel=0.03)
+
+
+def test_a_set_s_levels_keep_its_order_on_straight_targets() -> None:
+    """Nearly straight targets (crossing, q 0.002, true associations): the loud model is
+    not needed, so its likelihood is flat and, unbounded, the two would swap; every
+    search keeps the first model the quietest, and it is raised no further than the
+    loud one."""
+    from mapassoc.estimator.noise_levels import _neighbours
+
+    built = build_scenario("crossing", 0, scans=40)
+    tracks = true_associations(built.scans, built.origins)
+    config = _set_asked(built.config)
+    asked = NoiseAsked.from_config(config)
+    start = initial_noise(config, built.scans, asked)
+    levels, _ = noise_m_step(with_noise_levels(config, start), [built.scans], [tracks], asked,
+                             start)  # fmt: skip
+    assert levels.model_intensities[0] <= levels.model_intensities[1]
+    values = np.array([1.0, 5.0, 2.0, 2.0])
+    assert _neighbours(config.motion, NoiseLevels(None, {"pos": (2.0, 2.0)}, {0: 1.0, 1: 5.0}),
+                       values, 0) == (0.0, 5.0)  # fmt: skip
+    assert _neighbours(config.motion, levels, values, 1) == (1.0, math.inf)
+    assert _neighbours(config.motion, levels, values, 2) == (0.0, math.inf)  # a std
