@@ -578,12 +578,16 @@ def noise_m_step(
             )  # fmt: skip
 
         values = _ecme(asked, current, update, log_likelihood, values, floor[0])
-    if np.any(values <= floor * (1 + 1e-9)):  # exp(log(floor)) may round above
-        notes.append(
-            f"noise levels at their floor ({LEVEL_FLOOR!r} of the pass's start): the tracks "
-            "are nearly noise-free"
-        )
+    notes += _floor_note(values, floor)
     return _from_vector(asked, current, values), tuple(notes)
+
+
+def _floor_note(values: FloatArray, floor: FloatArray) -> tuple[str, ...]:
+    """The M step's note where a level ended at its floor (:data:`LEVEL_FLOOR`)."""
+    if np.any(values <= floor * (1 + 1e-9)):  # exp(log(floor)) may round above
+        return (f"noise levels at their floor ({LEVEL_FLOOR!r} of the pass's start): the "
+                "tracks are nearly noise-free",)  # fmt: skip
+    return ()
 
 
 def _interacting_m_step(
@@ -601,14 +605,15 @@ def _interacting_m_step(
     of models).
 
     A round searches every level in turn, each at the others' latest values, and keeps a
-    search's level only where the likelihood does not fall (so no round lowers it), and
-    each process noise is then raised to the upper end of its likelihood interval
+    search's level only where the likelihood does not fall (so no round lowers it), each
+    level between its neighbours' in the set's order (:func:`_neighbours`); then each
+    process noise but the loudest is raised to the upper end of its likelihood interval
     (:func:`_upper_end`).  The rounds stop when one moves no level by more than the
     search's resolution (:data:`ECME_LOG_TOLERANCE` in the log) or after
-    :data:`ECME_ROUNDS`.  The first
-    round's search of a process noise spans :data:`ECME_SPAN` either side of the start,
-    every other search :data:`ECME_NEAR_SPAN`: a std starts near its value (the chains'
-    moments), a process noise may start orders of magnitude away.
+    :data:`ECME_ROUNDS`.  The first round's search of a process noise spans
+    :data:`ECME_SPAN` either side of the start, every other search :data:`ECME_NEAR_SPAN`:
+    a std starts near its value (the chains' moments), a process noise may start orders
+    of magnitude away.
     """
     per_block = [None] * len(pieces) if weights is None else list(weights)
     blocks = [(piece, [assoc[i] for i in sorted(assoc) if len(assoc[i]) >= 2],
@@ -635,11 +640,7 @@ def _interacting_m_step(
         ceiling = bounds(values, where)[1]
         if process and ceiling < math.inf:  # the loudest keeps its maximiser
             values[where] = _upper_end(log_likelihood, values, where, best, ceiling)
-    notes: tuple[str, ...] = ()
-    if np.any(values <= floor * (1 + 1e-9)):
-        notes = (f"noise levels at their floor ({LEVEL_FLOOR!r} of the pass's start): the "
-                 "tracks are nearly noise-free",)  # fmt: skip
-    return _from_vector(asked, current, values), notes
+    return _from_vector(asked, current, values), _floor_note(values, floor)
 
 
 def _neighbours(
